@@ -1,0 +1,19 @@
+//! `rths-core`: the hardware-free mathematics of a real-time hybrid simulation (RTHS) controller.
+//!
+//! Everything here is `no_std` and allocation-free so that the same code runs in the host simulator,
+//! in the emulated MCU and on the real board. Nothing here knows a board, RTIC or `std`.
+//!
+//! Units follow the prototype structure of the source study: millimetres, kilonewtons, seconds
+//! (mass in kN·s²/mm). Every physical constant lives in [`params`].
+#![no_std]
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+#[cfg(feature = "std")]
+extern crate std;
+
+pub mod hal;
+pub mod integrator;
+pub mod metrics;
+pub mod params;
+pub mod structure;

@@ -1,0 +1,215 @@
+//! Accuracy and tracking metrics of an RTHS run (DESIGN §7).
+//!
+//! - NRMSE = RMS(x − x_ref) / max|x_ref| × 100 (the study's figure).
+//! - RTHS benchmark criteria (Silva et al. 2020): J1 = delay (lag, in samples, that maximizes the
+//!   correlation of measured with target), J2 = 100·std(x_m − x_t)/std(x_t),
+//!   J3 = 100·max|x_m − x_t|/max|x_t|; J4/J5 are J2/J3 against the reference response.
+//!
+//! All functions take slices and allocate nothing.
+
+use libm::sqrt;
+
+/// Why a metric could not be computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MetricError {
+    /// The two series differ in length.
+    LengthMismatch,
+    /// A series is empty (or too short for the requested lag).
+    Empty,
+    /// The normalizing series is identically zero.
+    ZeroReference,
+    /// A series holds NaN or infinity.
+    NotFinite,
+}
+
+impl core::fmt::Display for MetricError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            MetricError::LengthMismatch => "series differ in length",
+            MetricError::Empty => "series is empty",
+            MetricError::ZeroReference => "reference series is zero",
+            MetricError::NotFinite => "series holds a non-finite value",
+        })
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for MetricError {}
+
+fn check(a: &[f64], b: &[f64]) -> Result<(), MetricError> {
+    if a.len() != b.len() {
+        return Err(MetricError::LengthMismatch);
+    }
+    if a.is_empty() {
+        return Err(MetricError::Empty);
+    }
+    if a.iter().chain(b).any(|v| !v.is_finite()) {
+        return Err(MetricError::NotFinite);
+    }
+    Ok(())
+}
+
+/// Largest absolute value of a series (0 for an empty one).
+pub fn peak_abs(x: &[f64]) -> f64 {
+    x.iter().fold(0.0_f64, |m, v| m.max(v.abs()))
+}
+
+/// Root mean square of a series (0 for an empty one).
+pub fn rms(x: &[f64]) -> f64 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    sqrt(x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64)
+}
+
+fn std_dev(x: impl Iterator<Item = f64> + Clone, n: usize) -> f64 {
+    let mean = x.clone().sum::<f64>() / n as f64;
+    sqrt(x.map(|v| (v - mean) * (v - mean)).sum::<f64>() / n as f64)
+}
+
+/// NRMSE in percent: `RMS(x − x_ref) / max|x_ref| × 100`.
+pub fn nrmse_pct(x: &[f64], x_ref: &[f64]) -> Result<f64, MetricError> {
+    check(x, x_ref)?;
+    let peak = peak_abs(x_ref);
+    if peak == 0.0 {
+        return Err(MetricError::ZeroReference);
+    }
+    let sum: f64 = x.iter().zip(x_ref).map(|(a, b)| (a - b) * (a - b)).sum();
+    Ok(100.0 * sqrt(sum / x.len() as f64) / peak)
+}
+
+/// J1: the lag in samples, `0..=max_lag`, by which `measured` trails `target`, chosen to maximize
+/// their (unnormalized, overlap-averaged) cross-correlation.
+pub fn delay_steps(measured: &[f64], target: &[f64], max_lag: usize) -> Result<usize, MetricError> {
+    check(measured, target)?;
+    if measured.len() <= max_lag {
+        return Err(MetricError::Empty);
+    }
+    let mut best = (0usize, f64::NEG_INFINITY);
+    for lag in 0..=max_lag {
+        let n = target.len() - lag;
+        let c: f64 = target[..n]
+            .iter()
+            .zip(&measured[lag..])
+            .map(|(t, m)| t * m)
+            .sum::<f64>()
+            / n as f64;
+        if c > best.1 {
+            best = (lag, c);
+        }
+    }
+    Ok(best.0)
+}
+
+/// J2 (or J4 against the reference): `100·std(x − x_t)/std(x_t)`, percent.
+pub fn normalized_std_error_pct(x: &[f64], x_t: &[f64]) -> Result<f64, MetricError> {
+    check(x, x_t)?;
+    let n = x.len();
+    let s_t = std_dev(x_t.iter().copied(), n);
+    if s_t == 0.0 {
+        return Err(MetricError::ZeroReference);
+    }
+    let diff = x.iter().zip(x_t).map(|(a, b)| a - b);
+    Ok(100.0 * std_dev(diff, n) / s_t)
+}
+
+/// J3 (or J5 against the reference): `100·max|x − x_t|/max|x_t|`, percent.
+pub fn normalized_peak_error_pct(x: &[f64], x_t: &[f64]) -> Result<f64, MetricError> {
+    check(x, x_t)?;
+    let peak = peak_abs(x_t);
+    if peak == 0.0 {
+        return Err(MetricError::ZeroReference);
+    }
+    let e = x
+        .iter()
+        .zip(x_t)
+        .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+    Ok(100.0 * e / peak)
+}
+
+/// The RTHS benchmark tracking criteria of one run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tracking {
+    /// J1: delay of measured behind command, samples.
+    pub j1_steps: usize,
+    /// J2: normalized RMS tracking error, %.
+    pub j2_pct: f64,
+    /// J3: normalized peak tracking error, %.
+    pub j3_pct: f64,
+    /// J4: normalized RMS error of measured against the reference response, %.
+    pub j4_pct: f64,
+    /// J5: normalized peak error of measured against the reference response, %.
+    pub j5_pct: f64,
+}
+
+/// All five benchmark criteria: `measured` and `target` (command) displacements, and the reference
+/// (pure analytical) response; `max_lag` bounds the J1 search.
+pub fn tracking(
+    measured: &[f64],
+    target: &[f64],
+    reference: &[f64],
+    max_lag: usize,
+) -> Result<Tracking, MetricError> {
+    Ok(Tracking {
+        j1_steps: delay_steps(measured, target, max_lag)?,
+        j2_pct: normalized_std_error_pct(measured, target)?,
+        j3_pct: normalized_peak_error_pct(measured, target)?,
+        j4_pct: normalized_std_error_pct(measured, reference)?,
+        j5_pct: normalized_peak_error_pct(measured, reference)?,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sine(n: usize, lag: usize) -> [f64; 2000] {
+        let mut out = [0.0; 2000];
+        for (i, v) in out.iter_mut().enumerate().take(n) {
+            let t = i as f64 - lag as f64;
+            *v = libm::sin(t * 0.05) + 0.3 * libm::sin(t * 0.013);
+        }
+        out
+    }
+
+    #[test]
+    fn nrmse_of_identical_is_zero_and_of_offset_is_known() {
+        let x = sine(2000, 0);
+        assert_eq!(nrmse_pct(&x, &x), Ok(0.0));
+        let mut y = x;
+        y.iter_mut().for_each(|v| *v += 0.1);
+        let e = nrmse_pct(&y, &x).unwrap();
+        assert!((e - 100.0 * 0.1 / peak_abs(&x)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn delay_is_found() {
+        let t = sine(2000, 0);
+        let m = sine(2000, 28);
+        assert_eq!(delay_steps(&m, &t, 100), Ok(28));
+        assert_eq!(delay_steps(&t, &t, 100), Ok(0));
+    }
+
+    #[test]
+    fn errors_are_typed() {
+        assert_eq!(
+            nrmse_pct(&[1.0], &[1.0, 2.0]),
+            Err(MetricError::LengthMismatch)
+        );
+        assert_eq!(nrmse_pct(&[], &[]), Err(MetricError::Empty));
+        assert_eq!(nrmse_pct(&[1.0], &[0.0]), Err(MetricError::ZeroReference));
+        assert_eq!(nrmse_pct(&[f64::NAN], &[1.0]), Err(MetricError::NotFinite));
+        assert_eq!(
+            delay_steps(&[1.0; 5], &[1.0; 5], 5),
+            Err(MetricError::Empty)
+        );
+    }
+
+    #[test]
+    fn tracking_of_perfect_run() {
+        let x = sine(2000, 0);
+        let t = tracking(&x, &x, &x, 50).unwrap();
+        assert_eq!(t.j1_steps, 0);
+        assert!(t.j2_pct.abs() < 1e-12 && t.j3_pct.abs() < 1e-12);
+    }
+}

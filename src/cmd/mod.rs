@@ -1,0 +1,4 @@
+//! The subcommands of the `rths` binary, one module each.
+
+pub mod analyze;
+pub mod plant;

@@ -1,0 +1,7 @@
+//! `rths` host library: ground-motion readers, analyses, training, scenarios and reports, used by the
+//! `rths` binary and the integration tests.
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+pub mod cmd;
+pub mod plot;

@@ -1,0 +1,37 @@
+//! `rths`: the host command-line tool of the RTHS controller (analysis, plant, training, scenarios).
+#![forbid(unsafe_code)]
+
+use clap::{Parser, Subcommand};
+
+use rths::cmd;
+
+/// Real-time hybrid simulation with a machine-learning metamodel.
+#[derive(Debug, Parser)]
+#[command(name = "rths", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Pure finite-element analysis of the prototype frame under a ground motion.
+    Analyze(cmd::analyze::Args),
+    /// Properties of the virtual servo-hydraulic plant: delay, gain and phase, Bode plot.
+    Plant(cmd::plant::Args),
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Analyze(a) => cmd::analyze::run(a),
+        Command::Plant(a) => cmd::plant::run(a),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
