@@ -17,3 +17,4 @@ pub mod integrator;
 pub mod metrics;
 pub mod params;
 pub mod structure;
+pub mod supervisor;
