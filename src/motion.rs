@@ -6,7 +6,8 @@
 //!
 //! Accepted formats:
 //! - **AT2** (PEER): lines 1–3 free text; line 4 holds `NPTS` and `DT` as `NPTS=  4000, DT= .01000 SEC`
-//!   or `NPTS= 7945  DT= .0050` (comma optional, `=` or `:`, any case); then the values in g, any
+//!   or `NPTS= 7945  DT= .0050` (comma optional, `=` or `:`, any case; also the older
+//!   `7945 .0050 NPTS, DT` layout); then the values in g, any
 //!   number per line, separated by blanks or commas, read in row-major order. LF or CRLF.
 //! - **CSV**: two columns `time_s, accel_g` (comma, semicolon or tab separated), an optional header
 //!   line, `#` comment lines. Time must increase uniformly: every step within
@@ -397,6 +398,29 @@ fn header_value<'a>(upper: &'a str, key: &str) -> Option<&'a str> {
     (!v.is_empty()).then_some(v)
 }
 
+/// The NPTS and DT texts of an upper-cased AT2 header line: `NPTS= 4000, DT= .01 SEC` (key-value,
+/// comma optional), or the older PEER layout `4000 .0100 NPTS, DT` (values first).
+fn at2_header_fields(upper: &str, line: usize) -> Result<(&str, &str), MotionError> {
+    let mut leading = upper
+        .split(|c: char| c.is_whitespace() || c == ',')
+        .filter(|t| !t.is_empty());
+    if let (Some(n), Some(dt), Some(key)) = (leading.next(), leading.next(), leading.next()) {
+        let numeric = |t: &str| t.replace('D', "E").parse::<f64>().is_ok();
+        if numeric(n) && numeric(dt) && key.starts_with("NPTS") && upper.contains("DT") {
+            return Ok((n, dt));
+        }
+    }
+    let npts = header_value(upper, "NPTS").ok_or(MotionError::MissingNpts { line })?;
+    // Search for DT after NPTS so a name holding "DT" on the same line cannot be mistaken for it.
+    let after_npts = upper.find("NPTS").map_or(0, |i| i + 4);
+    let dt = upper
+        .get(after_npts..)
+        .and_then(|rest| header_value(rest, "DT"))
+        .or_else(|| header_value(upper, "DT"))
+        .ok_or(MotionError::MissingDt { line })?;
+    Ok((npts, dt))
+}
+
 /// Parse a PEER AT2 record (see the module docs for the format).
 pub fn parse_at2(text: &str, name: &str) -> Result<GroundMotion, MotionError> {
     if text.trim().is_empty() {
@@ -416,7 +440,7 @@ pub fn parse_at2(text: &str, name: &str) -> Result<GroundMotion, MotionError> {
         }
     };
     let upper = htext.to_ascii_uppercase();
-    let npts_text = header_value(&upper, "NPTS").ok_or(MotionError::MissingNpts { line: hline })?;
+    let (npts_text, dt_text) = at2_header_fields(&upper, hline)?;
     let npts: usize = npts_text.parse().map_err(|_| MotionError::NotNumeric {
         line: hline,
         token: npts_text.to_string(),
@@ -424,13 +448,6 @@ pub fn parse_at2(text: &str, name: &str) -> Result<GroundMotion, MotionError> {
     if npts == 0 {
         return Err(MotionError::ZeroNpts { line: hline });
     }
-    // Search for DT after NPTS so a name holding "DT" on the same line cannot be mistaken for it.
-    let after_npts = upper.find("NPTS").map_or(0, |i| i + 4);
-    let dt_text = upper
-        .get(after_npts..)
-        .and_then(|rest| header_value(rest, "DT"))
-        .or_else(|| header_value(&upper, "DT"))
-        .ok_or(MotionError::MissingDt { line: hline })?;
     let dt_s = parse_value(dt_text, hline).map_err(|e| match e {
         MotionError::NonFinite { line } => MotionError::BadDt {
             line,
@@ -584,6 +601,7 @@ mod tests {
             "npts=2000 dt=0.02",
             "NPTS: 2000, DT: 0.02 SEC,",
             "NPTS = 2000 , DT = 2.0E-2",
+            "   2000   .0200    NPTS, DT",
         ] {
             let body = "0.0 \n".repeat(2000);
             let m = parse_at2(&format!("{H3}{h}\n{body}"), "x").unwrap();

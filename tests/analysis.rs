@@ -176,3 +176,15 @@ fn analyze_binary_reports_bad_file_with_line_number() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("el-centro"));
 }
+
+#[test]
+fn analyze_warns_when_a_record_exceeds_the_actuator() {
+    // Northridge drives the brace to 35.7 mm, beyond the ±25.4 mm stroke; El Centro does not.
+    let out = rths(&["analyze", "--motion", "northridge"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    assert!(stdout.contains("note: peak brace deformation"), "{stdout}");
+    assert!(stdout.contains("--scale <= 0.71"), "{stdout}");
+    let out = rths(&["analyze"]);
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("note:"));
+}

@@ -4,7 +4,10 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use rths_core::params::{Prototype, DT_S, G_MM_S2};
+use rths_core::params::{
+    Prototype, ACTUATOR_CAPACITY_KN, ACTUATOR_STROKE_MM, ACTUATOR_VELOCITY_MM_S, DT_S, FORCE_SCALE,
+    G_MM_S2,
+};
 
 use crate::analysis::{pure_response, write_csv, Method, Summary};
 use crate::motion::{GroundMotion, MotionError};
@@ -63,7 +66,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let summary = Summary::new(&proto, &r, DT_S);
 
     println!(
-        "ground motion          {}: {} points at {} s ({:.2} s), PGA {:.4} g",
+        "ground motion          {}: {} points at {} s ({:.3} s), PGA {:.4} g",
         motion.name,
         motion.accel_g.len(),
         motion.dt_s,
@@ -72,6 +75,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     println!("method                 {}", args.method);
     println!("{summary}");
+    for warning in actuator_warnings(&summary, args.scale) {
+        println!("note: {warning}");
+    }
 
     if let Some(out) = &args.out {
         write_csv(&r, out)?;
@@ -95,4 +101,40 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("wrote {}", png.display());
     }
     Ok(())
+}
+
+/// What a hybrid test of this response would ask beyond the paper's actuator (displacement scale 1,
+/// force scale [`FORCE_SCALE`]), with the largest `--scale` that would fit (`scale` is the one used).
+pub fn actuator_warnings(s: &Summary, scale: f64) -> Vec<String> {
+    let checks = [
+        (
+            "brace deformation",
+            s.peak_brace_disp_mm,
+            ACTUATOR_STROKE_MM,
+            "mm stroke",
+        ),
+        (
+            "brace velocity",
+            s.peak_brace_vel_mm_s,
+            ACTUATOR_VELOCITY_MM_S,
+            "mm/s velocity",
+        ),
+        (
+            "brace force",
+            s.peak_brace_force_kn / FORCE_SCALE,
+            ACTUATOR_CAPACITY_KN,
+            "kN capacity (specimen force)",
+        ),
+    ];
+    checks
+        .iter()
+        .filter(|(_, peak, limit, _)| peak > limit)
+        .map(|(what, peak, limit, unit)| {
+            format!(
+                "peak {what} {peak:.2} exceeds the actuator's {limit} {unit}: \
+                 a hybrid test needs --scale <= {:.3}",
+                scale.abs() * limit / peak
+            )
+        })
+        .collect()
 }
