@@ -231,9 +231,9 @@ impl fmt::Display for Summary {
         writeln!(f, "period                 {:9.4} s", self.period_s)?;
         writeln!(
             f,
-            "steps                  {:9} × {:.6} s ({:.3} s)",
+            "steps                  {:9} at {:.0} Hz ({:.3} s)",
             self.steps,
-            self.dt_s,
+            1.0 / self.dt_s,
             self.steps.saturating_sub(1) as f64 * self.dt_s
         )?;
         writeln!(f, "PGA (resampled)        {:9.4} g", self.pga_g)?;
