@@ -91,7 +91,9 @@ impl ButterworthParams {
         let fs = positive(sample_rate_hz, "Butterworth sample rate")?;
         let fc = positive(cutoff_hz, "Butterworth cutoff")?;
         if fc >= 0.5 * fs {
-            return Err(ParamError::OutOfRange("Butterworth cutoff (must be below Nyquist)"));
+            return Err(ParamError::OutOfRange(
+                "Butterworth cutoff (must be below Nyquist)",
+            ));
         }
         // Prewarped analog cutoff, in units of 2·fs: the bilinear map sends it exactly onto fc.
         let k = tan(core::f64::consts::PI * fc / fs);
@@ -149,7 +151,8 @@ impl ButterworthParams {
     /// prewarped frequency, `1 / sqrt(1 + (tan(π f/fs) / tan(π fc/fs))^{2N})`.
     pub fn prototype_magnitude(&self, f_hz: f64) -> f64 {
         let pi = core::f64::consts::PI;
-        let ratio = tan(pi * f_hz / self.sample_rate_hz) / tan(pi * self.cutoff_hz / self.sample_rate_hz);
+        let ratio =
+            tan(pi * f_hz / self.sample_rate_hz) / tan(pi * self.cutoff_hz / self.sample_rate_hz);
         1.0 / sqrt(1.0 + libm::pow(ratio, 2.0 * self.order as f64))
     }
 }
@@ -184,7 +187,10 @@ impl Butterworth {
     /// state untouched.
     pub fn step(&mut self, x: f64) -> Result<f64, InputError> {
         let mut next = self.state;
-        let y = finite(Self::run(&self.params, &mut next, finite(x, "filter input")?), "filter output")?;
+        let y = finite(
+            Self::run(&self.params, &mut next, finite(x, "filter input")?),
+            "filter output",
+        )?;
         if next.iter().flatten().all(|v| v.is_finite()) {
             self.state = next;
             Ok(y)
@@ -194,12 +200,15 @@ impl Butterworth {
     }
 
     fn run(params: &ButterworthParams, state: &mut [[f64; 2]; MAX_SECTIONS], x: f64) -> f64 {
-        params.active().zip(state.iter_mut()).fold(x, |input, (c, s)| {
-            let y = c.b0 * input + s[0];
-            s[0] = c.b1 * input - c.a1 * y + s[1];
-            s[1] = c.b2 * input - c.a2 * y;
-            y
-        })
+        params
+            .active()
+            .zip(state.iter_mut())
+            .fold(x, |input, (c, s)| {
+                let y = c.b0 * input + s[0];
+                s[0] = c.b1 * input - c.a1 * y + s[1];
+                s[1] = c.b2 * input - c.a2 * y;
+                y
+            })
     }
 }
 
@@ -218,7 +227,11 @@ mod tests {
     fn sixth_order_20hz_key_points() {
         let p = ButterworthParams::new(6, 20.0, FS).unwrap();
         // −3.0103 dB at the cutoff (1/√2), exactly by prewarping.
-        assert!((db(p.magnitude(20.0)) + 3.0103).abs() < 1e-3, "{}", db(p.magnitude(20.0)));
+        assert!(
+            (db(p.magnitude(20.0)) + 3.0103).abs() < 1e-3,
+            "{}",
+            db(p.magnitude(20.0))
+        );
         // One octave up: |H| ≈ 1/sqrt(1 + 2^12) = −36.12 dB (a hair lower from tan warping).
         let at_2fc = db(p.magnitude(40.0));
         assert!((at_2fc + 36.12).abs() < 0.1, "{at_2fc}");

@@ -11,8 +11,8 @@
 //! cannot poison the model forever. The caller (the supervisor) is expected to trip on the refusal;
 //! if it chooses to continue, the next valid sample continues from the last good state.
 
-pub use crate::filter::InputError;
 use crate::filter::finite;
+pub use crate::filter::InputError;
 use crate::params::ParamError;
 
 /// Number of LR coefficients (θ0..θ5).
@@ -65,7 +65,11 @@ impl From<ParamError> for ModelError {
 impl core::fmt::Display for ModelError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            ModelError::Shape { what, expected, got } => {
+            ModelError::Shape {
+                what,
+                expected,
+                got,
+            } => {
                 write!(f, "{what} has {got} elements, expected {expected}")
             }
             ModelError::HiddenSize(h) => {
@@ -454,7 +458,8 @@ mod tests {
         // θ4 = 2cos(ωΔt), θ5 = −1 is an exact discrete oscillator: from x̂(0)=0, x̂(1)=sin(ωΔt) it
         // must reproduce sin(ωΔt·k) (DESIGN §5 expects the fit to be ARX of this kind).
         let w = 0.01;
-        let mut lr = Lr::new(LrParams::new([0.0, 0.0, 0.0, 0.0, 2.0 * libm::cos(w), -1.0]).unwrap());
+        let mut lr =
+            Lr::new(LrParams::new([0.0, 0.0, 0.0, 0.0, 2.0 * libm::cos(w), -1.0]).unwrap());
         lr.state = LrState {
             pred_mm: libm::sin(w),
             prev_pred_mm: 0.0,
@@ -512,7 +517,10 @@ mod tests {
         };
         let mut big = Lr::new(LrParams::new([0.0, 1.0, 1.0, 1.0, 0.0, 0.0]).unwrap());
         let big_before = big;
-        assert_eq!(big.predict(huge), Err(InputError::NotFinite("LR prediction")));
+        assert_eq!(
+            big.predict(huge),
+            Err(InputError::NotFinite("LR prediction"))
+        );
         assert_eq!(big, big_before);
         // And it continues from the last good state.
         let mut fresh = before;
@@ -536,7 +544,9 @@ mod tests {
             Ref {
                 h,
                 w_ih: (0..h * 2).map(|k| g(k, 0.1)).collect(),
-                w_hh: (0..h * h).map(|k| g(k, 0.7) / libm::sqrt(h as f64)).collect(),
+                w_hh: (0..h * h)
+                    .map(|k| g(k, 0.7) / libm::sqrt(h as f64))
+                    .collect(),
                 b_h: (0..h).map(|k| g(k, 1.3) * 0.2).collect(),
                 w_ho: (0..h).map(|k| g(k, 2.1)).collect(),
                 b_o: 0.05,
@@ -629,10 +639,22 @@ mod tests {
         );
         let mut r = Ref::new(5);
         r.w_ih.push(0.0);
-        assert!(matches!(r.params(), Err(ModelError::Shape { what: "RNN W_ih", .. })));
+        assert!(matches!(
+            r.params(),
+            Err(ModelError::Shape {
+                what: "RNN W_ih",
+                ..
+            })
+        ));
         let mut r = Ref::new(5);
         r.w_ho.pop();
-        assert!(matches!(r.params(), Err(ModelError::Shape { what: "RNN W_ho", .. })));
+        assert!(matches!(
+            r.params(),
+            Err(ModelError::Shape {
+                what: "RNN W_ho",
+                ..
+            })
+        ));
         let r = Ref::new(33);
         assert_eq!(r.params(), Err(ModelError::HiddenSize(33)));
         let mut r = Ref::new(5);
@@ -640,13 +662,19 @@ mod tests {
         assert_eq!(r.params(), Err(ModelError::HiddenSize(0)));
         let mut r = Ref::new(5);
         r.w_hh[3] = f64::NAN;
-        assert!(matches!(r.params(), Err(ModelError::Param(ParamError::NotFinite(_)))));
+        assert!(matches!(
+            r.params(),
+            Err(ModelError::Param(ParamError::NotFinite(_)))
+        ));
         let mut r = Ref::new(5);
         r.b_o = f64::INFINITY;
         assert!(r.params().is_err());
         let mut r = Ref::new(5);
         r.sc.input_std[1] = 0.0;
-        assert!(matches!(r.params(), Err(ModelError::Param(ParamError::NotPositive(_)))));
+        assert!(matches!(
+            r.params(),
+            Err(ModelError::Param(ParamError::NotPositive(_)))
+        ));
         let mut r = Ref::new(5);
         r.sc.output_std = -1.0;
         assert!(r.params().is_err());
