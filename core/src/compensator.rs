@@ -481,13 +481,14 @@ fn solve(n: &Normal, min_det: f64) -> Option<[f64; 3]> {
         return None;
     }
     let inv = d.map(|v| 1.0 / libm::sqrt(v));
-    let scaled = Matrix3::from_fn(|i, j| a[(i, j)] * inv[i] * inv[j]);
-    if !(scaled.determinant() >= min_det) {
+    let scaled = a.component_mul(&(inv * inv.transpose()));
+    let det = scaled.determinant();
+    if det.is_nan() || det < min_det {
         return None;
     }
     let z = scaled.cholesky()?.solve(&b.component_mul(&inv));
     let x = z.component_mul(&inv);
-    x.iter().all(|v| v.is_finite()).then(|| [x[0], x[1], x[2]])
+    x.iter().all(|v| v.is_finite()).then_some([x.x, x.y, x.z])
 }
 
 // ---------------------------------------------------------------------------------------------------

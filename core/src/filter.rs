@@ -85,7 +85,7 @@ impl ButterworthParams {
     /// Design an `order`-th order low-pass (even, 2..=[`MAX_ORDER`]) with −3.01 dB at `cutoff_hz`,
     /// for a sample rate `sample_rate_hz`. Requires `0 < cutoff_hz < sample_rate_hz / 2`.
     pub fn new(order: usize, cutoff_hz: f64, sample_rate_hz: f64) -> Result<Self, ParamError> {
-        if order < 2 || order > MAX_ORDER || order % 2 != 0 {
+        if !(2..=MAX_ORDER).contains(&order) || order % 2 != 0 {
             return Err(ParamError::OutOfRange("Butterworth order (even, 2..=8)"));
         }
         let fs = positive(sample_rate_hz, "Butterworth sample rate")?;
@@ -204,9 +204,10 @@ impl Butterworth {
             .active()
             .zip(state.iter_mut())
             .fold(x, |input, (c, s)| {
-                let y = c.b0 * input + s[0];
-                s[0] = c.b1 * input - c.a1 * y + s[1];
-                s[1] = c.b2 * input - c.a2 * y;
+                let [s0, s1] = s;
+                let y = c.b0 * input + *s0;
+                *s0 = c.b1 * input - c.a1 * y + *s1;
+                *s1 = c.b2 * input - c.a2 * y;
                 y
             })
     }

@@ -570,6 +570,8 @@ mod tests {
                 self.sc,
             )
         }
+        // Deliberately naive index loops: an independent reference for the iterator code.
+        #[allow(clippy::needless_range_loop)]
         fn run(&self, inputs: &[[f64; 2]]) -> Vec<f64> {
             let h = self.h;
             let mut hid = vec![0.0; h];
