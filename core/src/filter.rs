@@ -215,6 +215,7 @@ impl Butterworth {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
     use proptest::prelude::*;
 
@@ -282,6 +283,15 @@ mod tests {
             y = f.step(3.0).unwrap();
         }
         assert!((y - 3.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn filter_size() {
+        std::println!(
+            "size_of: Butterworth {} B",
+            core::mem::size_of::<Butterworth>()
+        );
+        assert!(core::mem::size_of::<Butterworth>() <= 256);
     }
 
     #[test]

@@ -709,6 +709,23 @@ mod tests {
         }
     }
 
+    #[test]
+    fn state_sizes() {
+        use core::mem::size_of;
+        std::println!(
+            "size_of: Lr {} B, LrState {} B, Rnn {} B, RnnParams {} B, RnnState {} B",
+            size_of::<Lr>(),
+            size_of::<LrState>(),
+            size_of::<Rnn>(),
+            size_of::<RnnParams>(),
+            size_of::<RnnState>()
+        );
+        assert_eq!(size_of::<LrState>(), 16);
+        assert_eq!(size_of::<RnnState>(), 8 * RNN_MAX_HIDDEN);
+        // W_hh dominates: 32×32 f64 = 8 KiB; the whole RNN (params + state) stays under 10 KiB.
+        assert!(size_of::<Rnn>() < 10 * 1024);
+    }
+
     proptest! {
         #[test]
         fn lr_finite_or_refused(seq in proptest::collection::vec((any_f64(), any_f64(), any_f64()), 1..200)) {
