@@ -13,6 +13,7 @@
 extern crate std;
 
 pub mod compensator;
+pub mod control;
 pub mod filter;
 pub mod hal;
 pub mod integrator;
