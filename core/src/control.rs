@@ -107,6 +107,8 @@ impl FeModel {
 }
 
 /// The analytical substructure of the hybrid loop.
+// No allocator on the MCU, so the ~9 KiB RNN cannot be boxed; the controller is a static resource.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum Analytical {
     /// Finite elements (Chang).
