@@ -1,0 +1,465 @@
+//! The hybrid-simulation scenarios of the study (DESIGN §7), run in closed loop against the virtual
+//! plant with the same [`Controller`] the firmware runs.
+//!
+//! Per tick `k` (time `k·Δt`): the rig's sample (taken at `k·Δt`) → `Controller::tick(ü_g(k), ...)`
+//! → the command for `(k+1)·Δt` → the rig holds it for one tick. A row of the history is time `k·Δt`:
+//! the command and target in force then (produced at tick `k−1`), what the sensors measured, and the
+//! reference (the pure FE response of the structure with the same specimen).
+
+use std::fmt;
+use std::str::FromStr;
+
+use rths_core::compensator::{Ats, AtsConfig, AtsParams, Compensator};
+use rths_core::control::{Analytical, ControlConfig, Controller, FeModel, FeedbackSource};
+use rths_core::hal::{Actuator, Daq, Error as _, Sample};
+use rths_core::metamodel::{Lr, LrParams, Rnn, RnnParams};
+use rths_core::metrics;
+use rths_core::params::{ParamError, Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
+use rths_core::supervisor::{Limits, State};
+use rths_hal_sim::{Preset, RigConfig, Specimen, VirtualRig};
+use serde::Serialize;
+
+/// The scenarios of DESIGN §7 (plus `fe-online` and `rnn-online-H`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ScenarioId {
+    /// Pure FE: the reference (no actuator).
+    FePure,
+    /// FE commands the actuator; the brace force is the model's (command × stiffness).
+    FeOffline,
+    /// FE with the measured force fed back, no delay compensation (expected to go unstable).
+    FeOnline,
+    /// FE with the measured force fed back and the ATS compensator.
+    FeOnlineAts,
+    /// LR on its own 28-step delayed prediction (no actuator).
+    LrPure,
+    /// LR on its own delayed prediction; the actuator follows, not fed back.
+    LrOffline,
+    /// LR with the measured displacement and force fed back.
+    LrOnline,
+    /// RNN of hidden size H on its own delayed prediction (no actuator).
+    RnnPure(usize),
+    /// RNN of hidden size H with the measured force fed back.
+    RnnOnline(usize),
+}
+
+impl ScenarioId {
+    /// Every scenario `rths reproduce` runs, in report order.
+    pub const ALL: [ScenarioId; 11] = [
+        ScenarioId::FePure,
+        ScenarioId::FeOffline,
+        ScenarioId::FeOnline,
+        ScenarioId::FeOnlineAts,
+        ScenarioId::LrPure,
+        ScenarioId::LrOffline,
+        ScenarioId::LrOnline,
+        ScenarioId::RnnPure(5),
+        ScenarioId::RnnPure(10),
+        ScenarioId::RnnPure(20),
+        ScenarioId::RnnOnline(10),
+    ];
+
+    /// Does the actuator take part?
+    pub fn uses_rig(self) -> bool {
+        !matches!(
+            self,
+            ScenarioId::FePure | ScenarioId::LrPure | ScenarioId::RnnPure(_)
+        )
+    }
+
+    /// The RNN hidden size this scenario needs, if any.
+    pub fn rnn_hidden(self) -> Option<usize> {
+        match self {
+            ScenarioId::RnnPure(h) | ScenarioId::RnnOnline(h) => Some(h),
+            _ => None,
+        }
+    }
+
+    /// Needs the LR model.
+    pub fn uses_lr(self) -> bool {
+        matches!(
+            self,
+            ScenarioId::LrPure | ScenarioId::LrOffline | ScenarioId::LrOnline
+        )
+    }
+
+    /// The paper's NRMSE for this scenario, %, where it gives one.
+    pub fn paper_nrmse_pct(self) -> Option<f64> {
+        match self {
+            ScenarioId::FePure => Some(0.0),
+            ScenarioId::FeOffline => Some(5.4),
+            ScenarioId::FeOnlineAts => Some(9.4),
+            ScenarioId::LrPure => Some(0.15),
+            ScenarioId::LrOnline => Some(0.066),
+            ScenarioId::RnnPure(5) => Some(4.23),
+            ScenarioId::RnnPure(10) => Some(3.74),
+            ScenarioId::RnnPure(20) => Some(3.88),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for ScenarioId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ScenarioId::FePure => f.write_str("fe-pure"),
+            ScenarioId::FeOffline => f.write_str("fe-offline"),
+            ScenarioId::FeOnline => f.write_str("fe-online"),
+            ScenarioId::FeOnlineAts => f.write_str("fe-online-ats"),
+            ScenarioId::LrPure => f.write_str("lr-pure"),
+            ScenarioId::LrOffline => f.write_str("lr-offline"),
+            ScenarioId::LrOnline => f.write_str("lr-online"),
+            ScenarioId::RnnPure(h) => write!(f, "rnn-pure-{h}"),
+            ScenarioId::RnnOnline(h) => write!(f, "rnn-online-{h}"),
+        }
+    }
+}
+
+/// An unknown scenario name.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown scenario `{0}` (fe-pure, fe-offline, fe-online, fe-online-ats, lr-pure, lr-offline, lr-online, rnn-pure-H, rnn-online-H with H in 1..=32)")]
+pub struct UnknownScenario(pub String);
+
+impl FromStr for ScenarioId {
+    type Err = UnknownScenario;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let hidden = |rest: &str| {
+            rest.parse::<usize>()
+                .ok()
+                .filter(|h| (1..=rths_core::metamodel::RNN_MAX_HIDDEN).contains(h))
+        };
+        Ok(match s {
+            "fe-pure" => ScenarioId::FePure,
+            "fe-offline" => ScenarioId::FeOffline,
+            "fe-online" => ScenarioId::FeOnline,
+            "fe-online-ats" => ScenarioId::FeOnlineAts,
+            "lr-pure" => ScenarioId::LrPure,
+            "lr-offline" => ScenarioId::LrOffline,
+            "lr-online" => ScenarioId::LrOnline,
+            _ => {
+                if let Some(h) = s.strip_prefix("rnn-pure-").and_then(hidden) {
+                    ScenarioId::RnnPure(h)
+                } else if let Some(h) = s.strip_prefix("rnn-online-").and_then(hidden) {
+                    ScenarioId::RnnOnline(h)
+                } else {
+                    return Err(UnknownScenario(s.to_string()));
+                }
+            }
+        })
+    }
+}
+
+/// Why a scenario could not run (before any tick).
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// The scenario needs a model that was not given.
+    #[error("scenario {0} needs {1}")]
+    MissingModel(ScenarioId, &'static str),
+    /// A parameter was invalid.
+    #[error("invalid parameter: {0}")]
+    Param(#[from] ParamError),
+    /// The plant configuration was invalid.
+    #[error("invalid plant configuration: {0}")]
+    Plant(#[from] rths_hal_sim::ConfigError),
+    /// The ground motion is empty.
+    #[error("the ground motion is empty")]
+    EmptyMotion,
+    /// The reference response is missing or has the wrong length.
+    #[error("the reference has {found} steps, the motion {expected}")]
+    Reference {
+        /// Steps of the motion.
+        expected: usize,
+        /// Steps of the reference.
+        found: usize,
+    },
+}
+
+/// Everything a scenario run needs.
+#[derive(Debug, Clone)]
+pub struct ScenarioSetup<'a> {
+    /// Which scenario.
+    pub id: ScenarioId,
+    /// Ground acceleration at every controller tick, mm/s².
+    pub ground_accel_mm_s2: &'a [f64],
+    /// The reference brace deformation at every tick, mm (pure FE with the same specimen).
+    pub reference_mm: &'a [f64],
+    /// The plant.
+    pub rig: RigConfig,
+    /// Specimen stiffness relative to the paper's brace (the analytical model knows 1.0 unless the
+    /// scenario is a pure/offline FE one, which models the specimen it stands for).
+    pub stiffness_factor: f64,
+    /// The LR model, for LR scenarios.
+    pub lr: Option<LrParams>,
+    /// The RNN model of the scenario's hidden size, for RNN scenarios.
+    pub rnn: Option<RnnParams>,
+    /// Feedback delay of the pure runs, ticks (the model file's).
+    pub delay_steps: usize,
+}
+
+/// One row per tick.
+#[derive(Debug, Clone, Default)]
+pub struct History {
+    /// Time, s.
+    pub time_s: Vec<f64>,
+    /// Ground acceleration, mm/s².
+    pub ground_accel_mm_s2: Vec<f64>,
+    /// Reference brace deformation, mm.
+    pub reference_mm: Vec<f64>,
+    /// Target brace deformation from the analytical part, mm.
+    pub target_mm: Vec<f64>,
+    /// Command sent to the actuator, mm.
+    pub command_mm: Vec<f64>,
+    /// Measured actuator displacement, mm (NaN in runs without the actuator).
+    pub measured_mm: Vec<f64>,
+    /// Measured specimen force (load cell), kN (NaN in runs without the actuator).
+    pub measured_force_kn: Vec<f64>,
+}
+
+impl History {
+    fn with_capacity(n: usize) -> Self {
+        let v = || Vec::with_capacity(n);
+        Self {
+            time_s: v(),
+            ground_accel_mm_s2: v(),
+            reference_mm: v(),
+            target_mm: v(),
+            command_mm: v(),
+            measured_mm: v(),
+            measured_force_kn: v(),
+        }
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.time_s.len()
+    }
+    /// No rows.
+    pub fn is_empty(&self) -> bool {
+        self.time_s.is_empty()
+    }
+
+    /// Write as CSV: `time_s,ground_accel_mm_s2,reference_mm,target_mm,command_mm,measured_mm,
+    /// measured_force_kn`.
+    pub fn write_csv(&self, path: &std::path::Path) -> std::io::Result<()> {
+        use std::io::Write;
+        let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
+        writeln!(
+            w,
+            "time_s,ground_accel_mm_s2,reference_mm,target_mm,command_mm,measured_mm,measured_force_kn"
+        )?;
+        for i in 0..self.len() {
+            writeln!(
+                w,
+                "{:.6},{:.4},{:.6},{:.6},{:.6},{:.6},{:.6}",
+                self.time_s[i],
+                self.ground_accel_mm_s2[i],
+                self.reference_mm[i],
+                self.target_mm[i],
+                self.command_mm[i],
+                self.measured_mm[i],
+                self.measured_force_kn[i]
+            )?;
+        }
+        w.flush()
+    }
+}
+
+/// The figures of one run (DESIGN §7). `None` figures: the run was stopped, or had no actuator.
+#[derive(Debug, Clone, Serialize)]
+pub struct ScenarioReport {
+    /// Scenario id.
+    pub id: String,
+    /// The supervisor never tripped.
+    pub stable: bool,
+    /// Why the supervisor stopped the run, if it did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stop_reason: Option<String>,
+    /// Time of the trip, s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stop_time_s: Option<f64>,
+    /// NRMSE of the command (target) vs the reference, % (the paper's figure).
+    pub nrmse_pct: Option<f64>,
+    /// NRMSE of the measured displacement vs the reference, %.
+    pub nrmse_measured_pct: Option<f64>,
+    /// J1: delay of measured behind command, ms.
+    pub j1_ms: Option<f64>,
+    /// J2: normalized RMS tracking error, %.
+    pub j2_pct: Option<f64>,
+    /// J3: normalized peak tracking error, %.
+    pub j3_pct: Option<f64>,
+    /// J4: normalized RMS error of measured vs reference, %.
+    pub j4_pct: Option<f64>,
+    /// J5: normalized peak error of measured vs reference, %.
+    pub j5_pct: Option<f64>,
+    /// Peak command (brace deformation asked of the specimen), mm.
+    pub peak_disp_mm: Option<f64>,
+}
+
+/// A finished run: figures and history.
+#[derive(Debug, Clone)]
+pub struct ScenarioRun {
+    /// The figures.
+    pub report: ScenarioReport,
+    /// Per-tick history.
+    pub history: History,
+}
+
+/// Largest lag searched for J1, ticks (0.1 s: far beyond any plant here).
+const J1_MAX_LAG: usize = 205;
+
+fn analytical(setup: &ScenarioSetup<'_>, proto: Prototype) -> Result<Analytical, ScenarioError> {
+    let id = setup.id;
+    Ok(if id.uses_lr() {
+        Analytical::Lr(Lr::new(
+            setup.lr.ok_or(ScenarioError::MissingModel(id, "an LR model"))?,
+        ))
+    } else if id.rnn_hidden().is_some() {
+        Analytical::Rnn(Rnn::new(
+            setup.rnn.ok_or(ScenarioError::MissingModel(id, "an RNN model"))?,
+        ))
+    } else {
+        Analytical::Fe(FeModel::new(proto, DT_S)?)
+    })
+}
+
+/// Run one scenario to the end of the record.
+pub fn run(setup: &ScenarioSetup<'_>) -> Result<ScenarioRun, ScenarioError> {
+    let n = setup.ground_accel_mm_s2.len();
+    if n == 0 {
+        return Err(ScenarioError::EmptyMotion);
+    }
+    if setup.reference_mm.len() != n {
+        return Err(ScenarioError::Reference {
+            expected: n,
+            found: setup.reference_mm.len(),
+        });
+    }
+    let id = setup.id;
+    let proto = Prototype::paper().with_brace_factor(setup.stiffness_factor)?;
+    let feedback = match id {
+        ScenarioId::FePure | ScenarioId::FeOffline => FeedbackSource::OwnDelayed { delay_steps: 0 },
+        ScenarioId::LrPure | ScenarioId::LrOffline | ScenarioId::RnnPure(_) => {
+            FeedbackSource::OwnDelayed {
+                delay_steps: setup.delay_steps,
+            }
+        }
+        ScenarioId::FeOnline
+        | ScenarioId::FeOnlineAts
+        | ScenarioId::LrOnline
+        | ScenarioId::RnnOnline(_) => FeedbackSource::Measured,
+    };
+    let compensator = if id == ScenarioId::FeOnlineAts {
+        let delay_s = PAPER_DELAY_STEPS as f64 * DT_S;
+        Compensator::Ats(Ats::new(AtsParams::new(AtsConfig::paper(DT_S, delay_s))?))
+    } else {
+        Compensator::None
+    };
+    let config = ControlConfig::new(
+        proto,
+        SpecimenScale::default(),
+        feedback,
+        Limits::paper_actuator(),
+    )?;
+    let mut ctl = Controller::new(config, analytical(setup, proto)?, compensator);
+    let mut rig = if id.uses_rig() {
+        Some(VirtualRig::new(setup.rig.build()?))
+    } else {
+        None
+    };
+    // Idle → Armed → Running cannot fail on a fresh controller; a failure would be a logic error
+    // that the report would show as an immediate stop.
+    let _ = ctl.supervisor_mut().arm();
+    let _ = ctl.supervisor_mut().start();
+
+    let mut h = History::with_capacity(n);
+    let (mut command, mut target) = (0.0, 0.0);
+    let mut stop: Option<(String, f64)> = None;
+    for (k, (&ag, &reference)) in setup
+        .ground_accel_mm_s2
+        .iter()
+        .zip(setup.reference_mm)
+        .enumerate()
+    {
+        let t = k as f64 * DT_S;
+        let sample = match rig.as_mut() {
+            Some(r) => r.read().map_err(|e| e.kind()),
+            None => Ok(Sample::default()),
+        };
+        let (m, f) = match (&rig, sample) {
+            (Some(_), Ok(s)) => (s.disp_mm, s.force_kn),
+            _ => (f64::NAN, f64::NAN),
+        };
+        h.time_s.push(t);
+        h.ground_accel_mm_s2.push(ag);
+        h.reference_mm.push(reference);
+        h.target_mm.push(target);
+        h.command_mm.push(command);
+        h.measured_mm.push(m);
+        h.measured_force_kn.push(f);
+
+        let out = ctl.tick(ag, sample, false);
+        command = out.command_mm;
+        if out.target_mm.is_finite() {
+            target = out.target_mm;
+        }
+        if let (State::Fault(reason), None) = (out.state, &stop) {
+            stop = Some((format!("{reason:?}"), t));
+        }
+        if let Some(r) = rig.as_mut() {
+            // The supervisor's command is always within the stroke and finite, so the rig accepts it;
+            // an error here would only report a clip, which the history shows anyway.
+            let _ = r.command(command);
+            r.advance_tick();
+        }
+    }
+    let report = figures(id, &h, stop);
+    Ok(ScenarioRun { report, history: h })
+}
+
+fn figures(id: ScenarioId, h: &History, stop: Option<(String, f64)>) -> ScenarioReport {
+    let mut r = ScenarioReport {
+        id: id.to_string(),
+        stable: stop.is_none(),
+        stop_reason: stop.as_ref().map(|s| s.0.clone()),
+        stop_time_s: stop.as_ref().map(|s| s.1),
+        nrmse_pct: None,
+        nrmse_measured_pct: None,
+        j1_ms: None,
+        j2_pct: None,
+        j3_pct: None,
+        j4_pct: None,
+        j5_pct: None,
+        peak_disp_mm: None,
+    };
+    if stop.is_some() {
+        return r;
+    }
+    r.nrmse_pct = metrics::nrmse_pct(&h.target_mm, &h.reference_mm).ok();
+    r.peak_disp_mm = Some(metrics::peak_abs(&h.command_mm));
+    if id.uses_rig() {
+        r.nrmse_measured_pct = metrics::nrmse_pct(&h.measured_mm, &h.reference_mm).ok();
+        if let Ok(t) = metrics::tracking(&h.measured_mm, &h.command_mm, &h.reference_mm, J1_MAX_LAG)
+        {
+            r.j1_ms = Some(t.j1_steps as f64 * DT_S * 1e3);
+            r.j2_pct = Some(t.j2_pct);
+            r.j3_pct = Some(t.j3_pct);
+            r.j4_pct = Some(t.j4_pct);
+            r.j5_pct = Some(t.j5_pct);
+        }
+    }
+    r
+}
+
+/// The plant of the study's runs: `preset`, a `specimen` of `stiffness_factor` × the paper's brace at
+/// specimen scale, default sensors, `seed`.
+pub fn rig_config(
+    preset: Preset,
+    specimen: Specimen,
+    stiffness_factor: f64,
+    seed: u64,
+) -> RigConfig {
+    let mut c = RigConfig::new(preset);
+    c.specimen = specimen;
+    c.specimen_stiffness_kn_per_mm *= stiffness_factor;
+    c.seed = seed;
+    c
+}
