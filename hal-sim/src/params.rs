@@ -59,10 +59,12 @@ pub const DEFAULT_DISP_NOISE_MM: f64 = 0.002;
 /// Default load-cell noise σ, kN: 0.003 kN ≈ 0.01% of the 31.14 kN full scale (about 3 LSB).
 pub const DEFAULT_FORCE_NOISE_KN: f64 = 0.003;
 
-/// Default number of RK4 sub-steps per controller tick. The fastest closed-loop pole of the
-/// `unr-compact` plant has |λ| ≈ 1.5e3 rad/s (see the `poles` test), so with 4 sub-steps of
-/// 122 µs, |λ·h| ≈ 0.19 and the RK4 local error (λh)⁵/120 ≈ 2e-6: the frequency response matches
-/// the continuous one far inside 1% and 1°. More sub-steps cost time on the MCU (soft f64).
+/// Default number of RK4 sub-steps per controller tick. The fastest closed-loop pole has
+/// |λ| = 423 rad/s (`benchmark`) and 783 rad/s (`unr-compact`) (test
+/// `poles_are_stable_and_substeps_resolve_them`), so with 4 sub-steps of 122 µs |λ·h| ≤ 0.096 and
+/// the RK4 local error (λh)⁵/120 < 1e-7: 4 and 64 sub-steps agree to 1e-4 mm, and the frequency
+/// response matches the continuous one inside 1% and 1°. More sub-steps only cost time on the MCU
+/// (soft f64); the end stops and saturations are applied per sub-step.
 pub const DEFAULT_SUBSTEPS: u32 = 4;
 
 /// A configuration value that failed validation.
@@ -229,6 +231,8 @@ impl Sensors {
 pub struct RigConfig {
     /// Plant preset.
     pub preset: Preset,
+    /// Time scale `r` of the benchmark plant (`s → s/r`); `new()` sets the preset's.
+    pub time_scale: f64,
     /// Specimen model.
     pub specimen: Specimen,
     /// Initial specimen stiffness, kN/mm (default: the paper's brace at specimen scale, 1.2241).
@@ -251,6 +255,7 @@ impl RigConfig {
     pub fn new(preset: Preset) -> Self {
         Self {
             preset,
+            time_scale: preset.time_scale(),
             specimen: Specimen::Linear,
             specimen_stiffness_kn_per_mm: SpecimenScale::default()
                 .specimen_stiffness_kn_per_mm(BRACE_AXIAL_STIFFNESS_KN_PER_MM),
@@ -296,7 +301,7 @@ impl RigConfig {
             a3 += SIGMA_A3 * truncated_normal(&mut rng);
             k_n_m += SIGMA_SPECIMEN_STIFFNESS_N_PER_M * truncated_normal(&mut rng);
         }
-        let r = self.preset.time_scale();
+        let r = positive(self.time_scale, "time scale")?;
         // s → s/r is the same as these physical parameters (derivation in notes/plant.md): the
         // valve and leakage poles move r times faster, the specimen keeps its stiffness and damping
         // ratio with mass m/r², and a2 is unchanged.
@@ -444,6 +449,15 @@ impl PlantParams {
     /// Force capacity, kN.
     pub fn capacity_kn(&self) -> f64 {
         self.capacity_n * 1e-3
+    }
+
+    /// Rated valve flow in the benchmark's scaling (`q`, N/s), `(a2 + k_e)·v_max`. Steady piston
+    /// motion at velocity `v` against the spring takes `q = a2·v + ḟ = (a2 + k_e)·v` (the second term
+    /// compresses the oil as the load grows), so the valve is sized to reach the rated velocity
+    /// against the nominal specimen; `a2·v_max` alone would cap the loaded velocity at 263 mm/s,
+    /// below El Centro's 266 mm/s peak brace velocity that the paper's actuator did follow.
+    pub fn rated_flow(&self) -> f64 {
+        (self.a2 + self.stiffness_n_per_m) * self.velocity_m_s
     }
 
     /// The continuous transfer function `x/u = gain·Gs·G0/(1 + Gs·G0)` (DESIGN §4) at `f_hz`, with the

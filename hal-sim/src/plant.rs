@@ -10,9 +10,9 @@
 //!
 //! Closing `e = gain·u − x` around `Gs·G0` gives the benchmark `x/u = gain·GsG0/(1 + GsG0)`.
 //!
-//! Saturations: the valve flow `|q| ≤ a2·v_max` (rated flow = no-load velocity times piston area
-//! in the benchmark's scaling), the piston velocity `|ẋ| ≤ v_max`, the actuator force
-//! `|f| ≤ capacity`, and the stroke end stops `|x| ≤ stroke` (the piston stops).
+//! Saturations: the valve flow `|q| ≤ (a2 + k_e)·v_max` (see [`PlantParams::rated_flow`]), the
+//! piston velocity `|ẋ| ≤ v_max`, the actuator force `|f| ≤ capacity`, and the stroke end stops
+//! `|x| ≤ stroke` (the piston stops).
 
 use libm::{fabs, pow};
 
@@ -122,7 +122,7 @@ pub(crate) fn advance(p: &PlantParams, s: &mut PlantState, u_m: f64, m: Modifier
     let c = Ctx {
         p,
         r_m: p.gain * u_m,
-        q_max: p.a2 * p.velocity_m_s * m.valve_factor,
+        q_max: p.rated_flow() * m.valve_factor,
         k: p.stiffness_n_per_m * m.stiffness_factor,
     };
     let h = p.dt_s / f64::from(p.substeps);

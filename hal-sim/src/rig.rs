@@ -149,9 +149,9 @@ impl VirtualRig {
         plant::restoring_force_n(&self.params, &self.state, self.modifiers()) * 1e-3
     }
 
-    /// Valve flow in velocity units, `q/a2`, mm/s (its rated limit is the no-load velocity).
-    pub fn valve_flow_mm_s(&self) -> f64 {
-        self.state.flow() / self.params.a2() * 1e3
+    /// Valve flow as a fraction of its rated flow (1: the valve is fully open).
+    pub fn valve_flow_fraction(&self) -> f64 {
+        self.state.flow() / self.params.rated_flow()
     }
 
     fn modifiers(&self) -> Modifiers {
