@@ -7,3 +7,4 @@ pub mod analysis;
 pub mod cmd;
 pub mod motion;
 pub mod plot;
+pub mod scenario;
