@@ -5,3 +5,5 @@
 
 pub mod cmd;
 pub mod plot;
+pub mod model_file;
+pub mod train;
