@@ -4,6 +4,6 @@
 #![deny(missing_docs)]
 
 pub mod cmd;
-pub mod plot;
 pub mod model_file;
+pub mod plot;
 pub mod train;

@@ -348,7 +348,13 @@ impl RnnWeights {
 impl ModelFile {
     /// A new LR model file (format and version filled in).
     pub fn new_lr(theta: Vec<f64>, delay_steps: usize, dt_s: f64) -> Self {
-        Self::new(ModelKind::Lr, delay_steps, dt_s, Some(LrWeights { theta }), None)
+        Self::new(
+            ModelKind::Lr,
+            delay_steps,
+            dt_s,
+            Some(LrWeights { theta }),
+            None,
+        )
     }
 
     /// A new RNN model file (format and version filled in).
@@ -489,7 +495,9 @@ mod tests {
         let w = RnnWeights {
             hidden: h,
             w_ih: (0..h).map(|j| vec![0.1 * j as f64, -0.2]).collect(),
-            w_hh: (0..h).map(|j| (0..h).map(|k| 0.01 * (j + k) as f64).collect()).collect(),
+            w_hh: (0..h)
+                .map(|j| (0..h).map(|k| 0.01 * (j + k) as f64).collect())
+                .collect(),
             b_h: vec![0.05; h],
             w_ho: vec![0.3; h],
             b_o: -0.1,
@@ -557,7 +565,10 @@ mod tests {
 
     #[test]
     fn malformed_json_carries_line_and_column() {
-        let t = lr().to_json().unwrap().replacen("\"kind\"", "\"kind\" ::", 1);
+        let t = lr()
+            .to_json()
+            .unwrap()
+            .replacen("\"kind\"", "\"kind\" ::", 1);
         let e = ModelFile::from_json(&t).unwrap_err();
         assert!(matches!(e, ModelFileError::Json(_)));
         assert!(e.to_string().contains("line 4"), "{e}");
@@ -569,23 +580,67 @@ mod tests {
     fn wrong_shapes_name_field_and_sizes() {
         let t = edit(&lr(), |v| v["lr"]["theta"] = serde_json::json!([1.0, 2.0]));
         let e = ModelFile::from_json(&t).unwrap_err();
-        assert!(matches!(&e, ModelFileError::WrongShape { field, expected: 6, found: 2 } if field == "lr.theta"));
-        let t = edit(&rnn(5), |v| v["rnn"]["w_hh"][3] = serde_json::json!(vec![0.0; 4]));
+        assert!(
+            matches!(&e, ModelFileError::WrongShape { field, expected: 6, found: 2 } if field == "lr.theta")
+        );
+        let t = edit(&rnn(5), |v| {
+            v["rnn"]["w_hh"][3] = serde_json::json!(vec![0.0; 4])
+        });
         let e = ModelFile::from_json(&t).unwrap_err();
-        assert!(matches!(&e, ModelFileError::WrongShape { field, expected: 5, found: 4 } if field == "rnn.w_hh[3]"));
-        assert_eq!(e.to_string(), "wrong shape of rnn.w_hh[3]: expected 5, found 4");
-        let t = edit(&rnn(5), |v| v["rnn"]["w_ih"][0] = serde_json::json!(vec![0.0; 3]));
-        assert!(matches!(ModelFile::from_json(&t), Err(ModelFileError::WrongShape { expected: 2, found: 3, .. })));
-        let t = edit(&rnn(5), |v| v["rnn"]["b_h"] = serde_json::json!(vec![0.0; 6]));
-        assert!(matches!(ModelFile::from_json(&t), Err(ModelFileError::WrongShape { expected: 5, found: 6, .. })));
-        let t = edit(&rnn(5), |v| v["rnn"]["input_std"] = serde_json::json!([1.0]));
-        assert!(matches!(ModelFile::from_json(&t), Err(ModelFileError::WrongShape { expected: 2, found: 1, .. })));
+        assert!(
+            matches!(&e, ModelFileError::WrongShape { field, expected: 5, found: 4 } if field == "rnn.w_hh[3]")
+        );
+        assert_eq!(
+            e.to_string(),
+            "wrong shape of rnn.w_hh[3]: expected 5, found 4"
+        );
+        let t = edit(&rnn(5), |v| {
+            v["rnn"]["w_ih"][0] = serde_json::json!(vec![0.0; 3])
+        });
+        assert!(matches!(
+            ModelFile::from_json(&t),
+            Err(ModelFileError::WrongShape {
+                expected: 2,
+                found: 3,
+                ..
+            })
+        ));
+        let t = edit(&rnn(5), |v| {
+            v["rnn"]["b_h"] = serde_json::json!(vec![0.0; 6])
+        });
+        assert!(matches!(
+            ModelFile::from_json(&t),
+            Err(ModelFileError::WrongShape {
+                expected: 5,
+                found: 6,
+                ..
+            })
+        ));
+        let t = edit(&rnn(5), |v| {
+            v["rnn"]["input_std"] = serde_json::json!([1.0])
+        });
+        assert!(matches!(
+            ModelFile::from_json(&t),
+            Err(ModelFileError::WrongShape {
+                expected: 2,
+                found: 1,
+                ..
+            })
+        ));
         let t = edit(&rnn(5), |v| v["rnn"]["hidden"] = 33.into());
-        assert!(matches!(ModelFile::from_json(&t), Err(ModelFileError::BadHidden(33))));
+        assert!(matches!(
+            ModelFile::from_json(&t),
+            Err(ModelFileError::BadHidden(33))
+        ));
         let t = edit(&lr(), |v| {
             v.as_object_mut().unwrap().remove("lr");
         });
-        assert!(matches!(ModelFile::from_json(&t), Err(ModelFileError::MissingSection { kind: ModelKind::Lr })));
+        assert!(matches!(
+            ModelFile::from_json(&t),
+            Err(ModelFileError::MissingSection {
+                kind: ModelKind::Lr
+            })
+        ));
     }
 
     #[test]
@@ -596,7 +651,10 @@ mod tests {
             w.w_hh[2][4] = f64::NAN;
         }
         let e = m.to_json().unwrap_err();
-        assert!(matches!(&e, ModelFileError::NonFinite { field, index: 4 } if field == "rnn.w_hh[2]"), "{e}");
+        assert!(
+            matches!(&e, ModelFileError::NonFinite { field, index: 4 } if field == "rnn.w_hh[2]"),
+            "{e}"
+        );
         let t = lr().to_json().unwrap();
         let t = t.replacen("1.99", "1e999", 1);
         let e = ModelFile::from_json(&t);
@@ -606,11 +664,19 @@ mod tests {
         if let Some(w) = m.lr.as_mut() {
             w.theta[5] = f64::INFINITY;
         }
-        assert!(matches!(m.validate(), Err(ModelFileError::NonFinite { index: 5, .. })));
+        assert!(matches!(
+            m.validate(),
+            Err(ModelFileError::NonFinite { index: 5, .. })
+        ));
         let t = edit(&rnn(5), |v| v["rnn"]["input_std"][1] = 0.0.into());
-        assert!(matches!(ModelFile::from_json(&t), Err(ModelFileError::NonPositive { field, .. }) if field == "rnn.input_std"));
+        assert!(
+            matches!(ModelFile::from_json(&t), Err(ModelFileError::NonPositive { field, .. }) if field == "rnn.input_std")
+        );
         let t = edit(&rnn(5), |v| v["rnn"]["b_o"] = serde_json::Value::Null);
-        assert!(matches!(ModelFile::from_json(&t), Err(ModelFileError::Json(_))));
+        assert!(matches!(
+            ModelFile::from_json(&t),
+            Err(ModelFileError::Json(_))
+        ));
     }
 
     #[test]
@@ -619,6 +685,9 @@ mod tests {
         let e = ModelFile::from_json(&t).unwrap_err();
         assert!(matches!(e, ModelFileError::FeatureMismatch { .. }));
         let t = edit(&rnn(5), |v| v["features"] = serde_json::json!(LR_FEATURES));
-        assert!(matches!(ModelFile::from_json(&t), Err(ModelFileError::FeatureMismatch { .. })));
+        assert!(matches!(
+            ModelFile::from_json(&t),
+            Err(ModelFileError::FeatureMismatch { .. })
+        ));
     }
 }

@@ -46,9 +46,10 @@ pub fn pure_response(
     if let Some(i) = ground_accel_mm_s2.iter().position(|a| !a.is_finite()) {
         return Err(TrainError::NonFiniteInput(i));
     }
-    let first = *ground_accel_mm_s2
-        .first()
-        .ok_or(TrainError::TooShort { found: 0, needed: 1 })?;
+    let first = *ground_accel_mm_s2.first().ok_or(TrainError::TooShort {
+        found: 0,
+        needed: 1,
+    })?;
     let mut chang = Chang::new(LinearStructure::prototype_pure(prototype)?, dt_s)?;
     chang.reset(first);
     let zero = Vector::<1>::zeros();

@@ -149,7 +149,11 @@ pub fn solve(x: &DMatrix<f64>, y: &DVector<f64>, rcond: f64) -> Result<LrSolutio
     if s_max <= 0.0 {
         return Err(TrainError::Diverged("design matrix is zero".into()));
     }
-    let condition_number = if s_min > 0.0 { s_max / s_min } else { f64::INFINITY };
+    let condition_number = if s_min > 0.0 {
+        s_max / s_min
+    } else {
+        f64::INFINITY
+    };
     let uty = u.transpose() * y;
     let mut theta_n = DVector::<f64>::zeros(N_THETA);
     let mut rank = 0;
@@ -221,7 +225,11 @@ pub fn run_pure_loop(
     }
     x.push(0.0);
     for i in 0..n - 1 {
-        let x_fb = if i >= delay_steps { x[i - delay_steps] } else { 0.0 };
+        let x_fb = if i >= delay_steps {
+            x[i - delay_steps]
+        } else {
+            0.0
+        };
         let prev = if i == 0 { 0.0 } else { x[i - 1] };
         let row = features(
             ground_accel_mm_s2[i],
@@ -277,7 +285,10 @@ mod tests {
         let s = solve(&a, &b, DEFAULT_RCOND).unwrap();
         assert_eq!(s.effective_rank, 6);
         for (got, want) in s.theta.iter().zip(&truth) {
-            assert!((got - want).abs() < 1e-10 * want.abs().max(1.0), "{got} vs {want}");
+            assert!(
+                (got - want).abs() < 1e-10 * want.abs().max(1.0),
+                "{got} vs {want}"
+            );
         }
         assert!(s.condition_number.is_finite() && s.condition_number < 1e3);
     }
@@ -319,10 +330,17 @@ mod tests {
         let fit = fit_pure(&r, PAPER_DELAY_STEPS, k_b, DEFAULT_RCOND).unwrap();
         let t = fit.solution.theta;
         // An ARX model of the whole structure.
-        assert!((t[4] - 2.0).abs() < 0.01 && (t[5] + 1.0).abs() < 0.01, "{t:?}");
+        assert!(
+            (t[4] - 2.0).abs() < 0.01 && (t[5] + 1.0).abs() < 0.01,
+            "{t:?}"
+        );
         assert!(fit.solution.effective_rank == 5, "{:?}", fit.solution);
         assert!(fit.solution.condition_number > 1e10);
-        assert!(fit.pure_nrmse_pct <= 0.15, "lr-pure NRMSE {}", fit.pure_nrmse_pct);
+        assert!(
+            fit.pure_nrmse_pct <= 0.15,
+            "lr-pure NRMSE {}",
+            fit.pure_nrmse_pct
+        );
         let again = lr_pure_nrmse_pct(&t, &r, PAPER_DELAY_STEPS, k_b).unwrap();
         assert_eq!(again, fit.pure_nrmse_pct);
     }
