@@ -3,7 +3,9 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod analysis;
 pub mod cmd;
 pub mod model_file;
+pub mod motion;
 pub mod plot;
 pub mod train;

@@ -12,8 +12,12 @@
 #[cfg(feature = "std")]
 extern crate std;
 
+pub mod compensator;
+pub mod filter;
 pub mod hal;
 pub mod integrator;
+pub mod metamodel;
 pub mod metrics;
 pub mod params;
 pub mod structure;
+pub mod supervisor;

@@ -1,10 +1,140 @@
-//! `rths analyze`.
+//! `rths analyze`: pure analysis of the prototype frame under a ground motion (the `fe-pure`
+//! reference), with a summary, a CSV of the response and the paper's Figure 2.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use rths_core::params::{
+    Prototype, ACTUATOR_CAPACITY_KN, ACTUATOR_STROKE_MM, ACTUATOR_VELOCITY_MM_S, DT_S, FORCE_SCALE,
+    G_MM_S2,
+};
+
+use crate::analysis::{pure_response, write_csv, Method, Summary};
+use crate::motion::{GroundMotion, MotionError};
+use crate::plot::{self, Panel};
 
 /// Arguments of `rths analyze`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Ground motion: an AT2 or CSV (time_s, accel_g) file, or an embedded record name
+    /// (el-centro, northridge, loma-prieta, kobe). Default: the embedded 1940 El Centro NS.
+    #[arg(long, value_name = "PATH|NAME")]
+    pub motion: Option<String>,
+    /// Scale factor on the ground acceleration.
+    #[arg(long, default_value_t = 1.0, value_name = "F")]
+    pub scale: f64,
+    /// Integration method.
+    #[arg(long, value_enum, default_value_t = Method::Chang)]
+    pub method: Method,
+    /// Write the response (one row per 1/2048 s step) to this CSV file.
+    #[arg(long, value_name = "FILE.csv")]
+    pub out: Option<PathBuf>,
+    /// Draw ground acceleration, brace displacement and brace force (the paper's Figure 2) to this PNG.
+    #[arg(long, value_name = "FILE.png")]
+    pub plot: Option<PathBuf>,
+}
+
+/// The record named by `--motion`: an existing file first, then an embedded name.
+pub fn load_motion(spec: Option<&str>) -> anyhow::Result<GroundMotion> {
+    let Some(spec) = spec else {
+        return GroundMotion::try_el_centro().context("embedded El Centro record");
+    };
+    let path = Path::new(spec);
+    if path.exists() {
+        return GroundMotion::from_path(path)
+            .with_context(|| format!("reading ground motion {}", path.display()));
+    }
+    match GroundMotion::try_embedded(spec) {
+        Ok(m) => Ok(m),
+        Err(MotionError::UnknownRecord { known, .. }) => Err(anyhow::anyhow!(
+            "--motion {spec}: no such file, and not an embedded record ({known})"
+        )),
+        Err(e) => Err(e).with_context(|| format!("embedded record {spec}")),
+    }
+}
 
 /// Run `rths analyze`.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`rths analyze` is not built yet")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    if !args.scale.is_finite() {
+        anyhow::bail!("--scale must be a finite number, got {}", args.scale);
+    }
+    let motion = load_motion(args.motion.as_deref())?.scaled(args.scale);
+    motion.validate().context("ground motion")?;
+    let proto = Prototype::paper();
+    let ag = motion.resample_mm_s2(DT_S);
+    let r = pure_response(&proto, &ag, DT_S, args.method).context("analysis")?;
+    let summary = Summary::new(&proto, &r, DT_S);
+
+    println!(
+        "ground motion          {}: {} points at {} s ({:.3} s), PGA {:.4} g",
+        motion.name,
+        motion.accel_g.len(),
+        motion.dt_s,
+        motion.duration_s(),
+        motion.pga_g()
+    );
+    println!("method                 {}", args.method);
+    println!("{summary}");
+    for warning in actuator_warnings(&summary, args.scale) {
+        println!("note: {warning}");
+    }
+
+    if let Some(out) = &args.out {
+        write_csv(&r, out)?;
+        println!("wrote {} ({} rows)", out.display(), r.len());
+    }
+    if let Some(png) = &args.plot {
+        let ag_g: Vec<f64> = r.ground_accel_mm_s2.iter().map(|a| a / G_MM_S2).collect();
+        let title = format!(
+            "Pure analysis, {} ({}): peak brace disp. {:.2} mm, force {:.0} kN",
+            motion.name, args.method, summary.peak_brace_disp_mm, summary.peak_brace_force_kn
+        );
+        plot::stacked_time_series(
+            png,
+            &title,
+            &[
+                Panel::single("Ground accel. (g)", &r.time_s, &ag_g),
+                Panel::single("Brace disp. (mm)", &r.time_s, &r.brace_disp_mm),
+                Panel::single("Brace force (kN)", &r.time_s, &r.brace_force_kn),
+            ],
+        )?;
+        println!("wrote {}", png.display());
+    }
+    Ok(())
+}
+
+/// What a hybrid test of this response would ask beyond the paper's actuator (displacement scale 1,
+/// force scale [`FORCE_SCALE`]), with the largest `--scale` that would fit (`scale` is the one used).
+pub fn actuator_warnings(s: &Summary, scale: f64) -> Vec<String> {
+    let checks = [
+        (
+            "brace deformation",
+            s.peak_brace_disp_mm,
+            ACTUATOR_STROKE_MM,
+            "mm stroke",
+        ),
+        (
+            "brace velocity",
+            s.peak_brace_vel_mm_s,
+            ACTUATOR_VELOCITY_MM_S,
+            "mm/s velocity",
+        ),
+        (
+            "brace force",
+            s.peak_brace_force_kn / FORCE_SCALE,
+            ACTUATOR_CAPACITY_KN,
+            "kN capacity (specimen force)",
+        ),
+    ];
+    checks
+        .iter()
+        .filter(|(_, peak, limit, _)| peak > limit)
+        .map(|(what, peak, limit, unit)| {
+            format!(
+                "peak {what} {peak:.2} exceeds the actuator's {limit} {unit}: \
+                 a hybrid test needs --scale <= {:.3}",
+                scale.abs() * limit / peak
+            )
+        })
+        .collect()
 }

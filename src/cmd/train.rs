@@ -69,14 +69,14 @@ fn fmt_opt(v: f64) -> Option<f64> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let prototype = Prototype::paper();
     let k_b = prototype.brace_axial_stiffness_kn_per_mm();
-    let (motion_name, ag) = match &args.motion {
-        // TODO(io merge): read any record with `crate::motion::GroundMotion::from_path`.
-        Some(p) => anyhow::bail!(
-            "--motion {} needs the ground-motion reader (not merged yet); El Centro is the default",
-            p.display()
-        ),
-        None => ("el-centro".to_string(), data::el_centro_mm_s2_temp(DT_S)?),
+    let motion = match &args.motion {
+        Some(p) => crate::motion::GroundMotion::from_path(p)
+            .with_context(|| format!("reading ground motion {}", p.display()))?,
+        None => crate::motion::GroundMotion::try_el_centro()?,
     };
+    let motion_name = motion.name.clone();
+    let ag = motion.resample_mm_s2(DT_S);
+    anyhow::ensure!(!ag.is_empty(), "ground motion {motion_name} is empty");
     let response = data::pure_response(&prototype, &ag, DT_S)?;
     let mut file = match args.kind {
         Kind::Lr => {

@@ -77,42 +77,6 @@ pub fn delayed(x: &[f64], delay: usize) -> Vec<f64> {
     y
 }
 
-/// TEMPORARY El Centro loader until `rths::motion::GroundMotion` lands from the `io` branch: the
-/// shipped `IELC180.AT2` (values in g after a 4-line header, at k·DT) linearly interpolated to
-/// `dt_s`, in mm/s². Delete at the merge.
-pub fn el_centro_mm_s2_temp(dt_s: f64) -> Result<Vec<f64>, TrainError> {
-    let text = include_str!("../../data/ground_motions/IELC180.AT2");
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.by_ref().take(4).collect();
-    let dt_rec = header
-        .get(3)
-        .and_then(|l| l.split("DT=").nth(1))
-        .and_then(|s| s.split_whitespace().next())
-        .and_then(|s| s.parse::<f64>().ok())
-        .ok_or_else(|| TrainError::Setting("bad AT2 header".into()))?;
-    let g: Vec<f64> = lines
-        .flat_map(|l| l.split_whitespace())
-        .filter_map(|s| s.parse::<f64>().ok())
-        .map(|v| v * rths_core::params::G_MM_S2)
-        .collect();
-    if g.len() < 2 {
-        return Err(TrainError::TooShort {
-            found: g.len(),
-            needed: 2,
-        });
-    }
-    let t_end = dt_rec * (g.len() - 1) as f64;
-    let n = (t_end / dt_s + 1e-9).floor() as usize + 1;
-    Ok((0..n)
-        .map(|k| {
-            let s = k as f64 * dt_s / dt_rec;
-            let j = (s.floor() as usize).min(g.len() - 2);
-            let f = s - j as f64;
-            g[j] + f * (g[j + 1] - g[j])
-        })
-        .collect())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -127,7 +91,7 @@ mod tests {
 
     #[test]
     fn el_centro_pure_peak_matches_design() {
-        let ag = el_centro_mm_s2_temp(DT_S).unwrap();
+        let ag = crate::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
         assert_eq!(ag.len(), 81_900);
         let r = pure_response(&Prototype::paper(), &ag, DT_S).unwrap();
         let peak = rths_core::metrics::peak_abs(&r.brace_disp_mm);

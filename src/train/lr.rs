@@ -262,7 +262,7 @@ pub fn lr_pure_nrmse_pct(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::train::data::{el_centro_mm_s2_temp, pure_response};
+    use crate::train::data::pure_response;
     use rand::{Rng, SeedableRng};
     use rths_core::params::{Prototype, DT_S, PAPER_DELAY_STEPS};
 
@@ -324,7 +324,7 @@ mod tests {
     #[test]
     fn lr_pure_on_el_centro_meets_the_paper() {
         let p = Prototype::paper();
-        let ag = el_centro_mm_s2_temp(DT_S).unwrap();
+        let ag = crate::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
         let r = pure_response(&p, &ag, DT_S).unwrap();
         let k_b = p.brace_axial_stiffness_kn_per_mm();
         let fit = fit_pure(&r, PAPER_DELAY_STEPS, k_b, DEFAULT_RCOND).unwrap();

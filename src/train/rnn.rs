@@ -627,7 +627,7 @@ pub fn train(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::train::data::{el_centro_mm_s2_temp, pure_response};
+    use crate::train::data::pure_response;
     use rths_core::params::{Prototype, DT_S};
 
     fn scaling() -> Scaling {
@@ -699,7 +699,7 @@ mod tests {
 
     fn short_response() -> PureResponse {
         // The strong first 6 s of El Centro.
-        let ag = el_centro_mm_s2_temp(DT_S).unwrap();
+        let ag = crate::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
         pure_response(&Prototype::paper(), &ag[..6 * 2048], DT_S).unwrap()
     }
 

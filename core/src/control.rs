@@ -1,0 +1,371 @@
+//! The control step: one controller tick of the hybrid loop, the code the firmware runs at 2048 Hz.
+//!
+//! Per tick `k` a [`Controller`] takes the ground acceleration `ü_g(k)` and the DAQ sample of tick `k`
+//! (measured actuator displacement and load-cell force), and returns the actuator command for tick
+//! `k+1`:
+//!
+//! 1. feedback: the brace deformation and brace force the analytical part sees at `k`: measured
+//!    (mapped to the prototype by [`SpecimenScale`]), or the model's own target `delay_steps` ago with
+//!    the linear brace force `k_b·x` (the paper's "pure" runs, no actuator in the loop);
+//! 2. the analytical part ([`Analytical`]: finite elements, LR or RNN metamodel) gives the target
+//!    brace deformation for `k+1`;
+//! 3. an optional delay [`Compensator`] turns the target into the command;
+//! 4. the [`Supervisor`] checks everything and rate-limits the command.
+//!
+//! A DAQ error or a non-finite sample is never fed to the model: the last good sample is held for the
+//! model (and counted), while the supervisor sees the raw result and trips on a non-finite value or a
+//! sensor timeout. Nothing here allocates or panics.
+
+use heapless::HistoryBuf;
+
+use crate::compensator::Compensator;
+use crate::hal::{ErrorKind, Sample};
+use crate::integrator::{Chang, ExplicitIntegrator};
+use crate::metamodel::{LrFeatures, LrModel, RnnModel};
+use crate::params::{ParamError, Prototype, SpecimenScale};
+use crate::structure::{LinearStructure, Vector};
+use crate::supervisor::{Decision, Limits, State, Supervisor};
+
+/// Longest feedback delay a controller can hold, ticks (the paper's is 28).
+pub const MAX_DELAY_STEPS: usize = 64;
+
+/// Where the analytical part's feedback comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FeedbackSource {
+    /// The DAQ: measured displacement and force (an online hybrid test).
+    Measured,
+    /// The model's own target `delay_steps` ticks ago and the linear prototype brace force for it
+    /// (pure runs: the paper's "28-step delayed prediction"; 0 with FE is the pure FE model).
+    OwnDelayed {
+        /// Delay in ticks, ≤ [`MAX_DELAY_STEPS`].
+        delay_steps: usize,
+    },
+}
+
+/// The feedback seen by the analytical part at one tick, prototype units.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Feedback {
+    /// Brace deformation, mm.
+    pub brace_disp_mm: f64,
+    /// Brace axial force, kN.
+    pub brace_force_kn: f64,
+}
+
+/// Why the analytical part could not produce a target.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepError {
+    /// The ground acceleration was NaN or infinite.
+    NonFiniteGroundAccel,
+    /// The model produced a non-finite value (its state was left as it was).
+    NonFiniteOutput,
+}
+
+/// The finite-element analytical part: frame and mass integrated by Chang's explicit method, with the
+/// brace force from the feedback.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FeModel {
+    proto: Prototype,
+    integrator: Chang<1>,
+    started: bool,
+}
+
+impl FeModel {
+    /// The hybrid split of `proto` (frame analytical, brace external) at step `dt_s`.
+    pub fn new(proto: Prototype, dt_s: f64) -> Result<Self, ParamError> {
+        let integrator = Chang::new(LinearStructure::prototype_hybrid(&proto)?, dt_s)?;
+        Ok(Self {
+            proto,
+            integrator,
+            started: false,
+        })
+    }
+
+    /// The target brace deformation the model holds for the coming step, mm.
+    pub fn pending_target_mm(&self) -> f64 {
+        self.proto.brace_disp_mm(self.integrator.next_displacement()[0])
+    }
+
+    /// Tick k: complete step k with `ü_g(k)` and the brace force measured at `d_k`, return `d_{k+1}`.
+    /// At tick 0 the structure is at rest: step 0 is the initial condition (acceleration from
+    /// `ü_g(0)`), exactly as in the Newmark reference.
+    fn next_target(&mut self, ag_mm_s2: f64, fb: &Feedback) -> f64 {
+        if self.started {
+            let r = self.proto.story_force_kn(fb.brace_force_kn);
+            self.integrator.advance(ag_mm_s2, &Vector::<1>::new(r));
+        } else {
+            self.integrator.reset(ag_mm_s2);
+            self.started = true;
+        }
+        self.pending_target_mm()
+    }
+
+    fn reset(&mut self) {
+        self.integrator.reset(0.0);
+        self.started = false;
+    }
+}
+
+/// The analytical substructure of the hybrid loop.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Analytical {
+    /// Finite elements (Chang).
+    Fe(FeModel),
+    /// The paper's linear-regression metamodel.
+    Lr(LrModel),
+    /// An Elman recurrent network metamodel.
+    Rnn(RnnModel),
+}
+
+impl Analytical {
+    fn next_target(&mut self, ag_mm_s2: f64, fb: &Feedback) -> Result<f64, StepError> {
+        let y = match self {
+            Analytical::Fe(m) => m.next_target(ag_mm_s2, fb),
+            Analytical::Lr(m) => m
+                .predict(&LrFeatures {
+                    ground_accel_mm_s2: ag_mm_s2,
+                    disp_fb_mm: fb.brace_disp_mm,
+                    force_fb_kn: fb.brace_force_kn,
+                })
+                .map_err(|_| StepError::NonFiniteOutput)?,
+            Analytical::Rnn(m) => m
+                .predict([ag_mm_s2, fb.brace_force_kn])
+                .map_err(|_| StepError::NonFiniteOutput)?,
+        };
+        if y.is_finite() {
+            Ok(y)
+        } else {
+            Err(StepError::NonFiniteOutput)
+        }
+    }
+
+    fn reset(&mut self) {
+        match self {
+            Analytical::Fe(m) => m.reset(),
+            Analytical::Lr(m) => m.reset(),
+            Analytical::Rnn(m) => m.reset(),
+        }
+    }
+}
+
+/// Everything about a controller that is fixed for a test, validated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ControlConfig {
+    proto: Prototype,
+    scale: SpecimenScale,
+    feedback: FeedbackSource,
+    limits: Limits,
+}
+
+impl ControlConfig {
+    /// Validate a configuration: the own-feedback delay must fit [`MAX_DELAY_STEPS`].
+    pub fn new(
+        proto: Prototype,
+        scale: SpecimenScale,
+        feedback: FeedbackSource,
+        limits: Limits,
+    ) -> Result<Self, ParamError> {
+        if let FeedbackSource::OwnDelayed { delay_steps } = feedback {
+            if delay_steps > MAX_DELAY_STEPS {
+                return Err(ParamError::OutOfRange("feedback delay steps"));
+            }
+        }
+        Ok(Self {
+            proto,
+            scale,
+            feedback,
+            limits,
+        })
+    }
+    /// The prototype the analytical part stands for.
+    pub fn prototype(&self) -> &Prototype {
+        &self.proto
+    }
+    /// The specimen scale.
+    pub fn scale(&self) -> &SpecimenScale {
+        &self.scale
+    }
+    /// The feedback source.
+    pub fn feedback(&self) -> FeedbackSource {
+        self.feedback
+    }
+}
+
+/// The outcome of one tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TickOutput {
+    /// The command sent to the actuator, mm (after compensation and the supervisor).
+    pub command_mm: f64,
+    /// The analytical part's target brace deformation for the next tick, mm (NaN if it failed).
+    pub target_mm: f64,
+    /// The command the control law asked for before the supervisor, mm.
+    pub requested_mm: f64,
+    /// The supervisor's state after this tick.
+    pub state: State,
+    /// The model used a held sample this tick (the DAQ failed or gave a non-finite value).
+    pub sample_held: bool,
+}
+
+/// One hybrid controller: configuration, analytical part, compensator, supervisor and the small
+/// state between ticks. `tick` is the whole work of a controller tick.
+#[derive(Debug, Clone)]
+pub struct Controller {
+    config: ControlConfig,
+    analytical: Analytical,
+    compensator: Compensator,
+    supervisor: Supervisor,
+    /// Targets by tick, newest last: target(k) was produced at tick k−1.
+    targets: HistoryBuf<f64, { MAX_DELAY_STEPS + 1 }>,
+    last_good: Sample,
+    held_samples: u32,
+    step_errors: u32,
+}
+
+impl Controller {
+    /// A controller at rest, supervisor `Idle`.
+    pub fn new(config: ControlConfig, analytical: Analytical, compensator: Compensator) -> Self {
+        let mut c = Self {
+            config,
+            analytical,
+            compensator,
+            supervisor: Supervisor::new(config.limits),
+            targets: HistoryBuf::new_with(0.0),
+            last_good: Sample::default(),
+            held_samples: 0,
+            step_errors: 0,
+        };
+        c.reset();
+        c
+    }
+
+    /// Back to rest: model, compensator and supervisor state cleared, parameters kept.
+    pub fn reset(&mut self) {
+        self.analytical.reset();
+        self.compensator.reset();
+        self.supervisor.reset();
+        // Full of zeros: the structure was at rest before the test.
+        self.targets.clear_with(0.0);
+        self.last_good = Sample::default();
+        self.held_samples = 0;
+        self.step_errors = 0;
+    }
+
+    /// Swap in a new analytical part (whole) and reset. Refused unless the supervisor is idle, done or
+    /// faulted: parameters never change under a running test.
+    pub fn set_analytical(&mut self, analytical: Analytical) -> Result<(), State> {
+        match self.supervisor.state() {
+            State::Idle | State::Done | State::Fault(_) => {
+                self.analytical = analytical;
+                self.reset();
+                Ok(())
+            }
+            s => Err(s),
+        }
+    }
+
+    /// The supervisor (to arm, start, finish, abort, read counters).
+    pub fn supervisor(&self) -> &Supervisor {
+        &self.supervisor
+    }
+    /// The supervisor, mutably (state transitions).
+    pub fn supervisor_mut(&mut self) -> &mut Supervisor {
+        &mut self.supervisor
+    }
+    /// The configuration.
+    pub fn config(&self) -> &ControlConfig {
+        &self.config
+    }
+    /// The analytical part.
+    pub fn analytical(&self) -> &Analytical {
+        &self.analytical
+    }
+    /// Ticks on which the model used a held sample.
+    pub fn held_samples(&self) -> u32 {
+        self.held_samples
+    }
+    /// Ticks on which the analytical part failed (non-finite input or output).
+    pub fn step_errors(&self) -> u32 {
+        self.step_errors
+    }
+
+    fn target_delayed(&self, delay_steps: usize) -> f64 {
+        // The buffer is always full (reset fills it), so storage index arithmetic is O(1);
+        // newest = target(k).
+        let cap = self.targets.capacity();
+        let newest = self.targets.recent_index().unwrap_or(0);
+        let idx = (newest + cap - delay_steps % cap) % cap;
+        self.targets.as_slice().get(idx).copied().unwrap_or(0.0)
+    }
+
+    /// One controller tick `k`: ground acceleration `ü_g(k)` (mm/s²), the DAQ result of tick `k`, and
+    /// whether the previous tick overran. Returns the command for tick `k+1`.
+    ///
+    /// The analytical part is stepped only while the supervisor is `Running`, so a test starts from
+    /// rest at `start()` and stops evolving on a fault.
+    pub fn tick(
+        &mut self,
+        ground_accel_mm_s2: f64,
+        sample: Result<Sample, ErrorKind>,
+        overrun: bool,
+    ) -> TickOutput {
+        let good = match sample {
+            Ok(s) if s.disp_mm.is_finite() && s.force_kn.is_finite() => Some(s),
+            _ => None,
+        };
+        let sample_held = good.is_none();
+        if let Some(s) = good {
+            self.last_good = s;
+        } else {
+            self.held_samples = self.held_samples.saturating_add(1);
+        }
+        let (mut requested, mut target) = (self.supervisor.output_mm(), f64::NAN);
+        if self.supervisor.state() == State::Running {
+            match self.law(ground_accel_mm_s2) {
+                Ok((t, u)) => (target, requested) = (t, u),
+                Err(_) => {
+                    self.step_errors = self.step_errors.saturating_add(1);
+                    requested = f64::NAN; // the supervisor trips on it
+                }
+            }
+        }
+        let Decision { command_mm, state } = self.supervisor.tick(requested, sample, overrun);
+        TickOutput {
+            command_mm,
+            target_mm: target,
+            requested_mm: requested,
+            state,
+            sample_held,
+        }
+    }
+
+    /// Feedback, model and compensator: (target, requested command).
+    fn law(&mut self, ag_mm_s2: f64) -> Result<(f64, f64), StepError> {
+        if !ag_mm_s2.is_finite() {
+            return Err(StepError::NonFiniteGroundAccel);
+        }
+        let cfg = self.config;
+        let fb = match cfg.feedback {
+            FeedbackSource::Measured => Feedback {
+                brace_disp_mm: cfg.scale.prototype_disp_mm(self.last_good.disp_mm),
+                brace_force_kn: cfg.scale.prototype_force_kn(self.last_good.force_kn),
+            },
+            FeedbackSource::OwnDelayed { delay_steps } => {
+                let x = self.target_delayed(delay_steps);
+                Feedback {
+                    brace_disp_mm: x,
+                    brace_force_kn: cfg.proto.brace_force_kn(x),
+                }
+            }
+        };
+        let target = self.analytical.next_target(ag_mm_s2, &fb)?;
+        self.targets.write(target);
+        let target_specimen = cfg.scale.specimen_disp_mm(target);
+        let command = self
+            .compensator
+            .compensate(target_specimen, self.last_good.disp_mm);
+        if command.is_finite() {
+            Ok((target, command))
+        } else {
+            Err(StepError::NonFiniteOutput)
+        }
+    }
+}

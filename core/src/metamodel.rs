@@ -1,0 +1,760 @@
+//! Metamodel inference (DESIGN §5): the linear-regression (LR) model of the paper's Eq. 6 with a bias,
+//! and a basic Elman RNN. Training lives on the host; this is the `no_std`, allocation-free inference
+//! the firmware runs at 2048 Hz.
+//!
+//! Units of every feature: ground acceleration ü_g in mm/s², measured brace deformation x_fb in mm
+//! (prototype scale = actuator stroke), prototype brace axial force F_fb in kN (= 1000 × load cell),
+//! output x̂ = brace deformation command in mm.
+//!
+//! Non-finite input policy: a NaN or infinite feature (or a prediction that would overflow) is
+//! *refused* with [`InputError`] and the recurrent state is left exactly as it was, so one bad sample
+//! cannot poison the model forever. The caller (the supervisor) is expected to trip on the refusal;
+//! if it chooses to continue, the next valid sample continues from the last good state.
+
+use crate::filter::finite;
+pub use crate::filter::InputError;
+use crate::params::ParamError;
+
+/// Number of LR coefficients (θ0..θ5).
+pub const LR_COEFFS: usize = 6;
+
+/// Feature order of the LR model, one name per coefficient θ0..θ5. Model files carry this list and
+/// loaders must check it: x̂(i+1) = θ0 + θ1·ü_g(i) + θ2·x_fb(i) + θ3·F_fb(i) + θ4·x̂(i) + θ5·x̂(i−1).
+pub const LR_FEATURE_NAMES: [&str; LR_COEFFS] = [
+    "bias",
+    "ground_accel_mm_s2",
+    "brace_disp_fb_mm",
+    "brace_force_fb_kn",
+    "pred_disp_mm(i)",
+    "pred_disp_mm(i-1)",
+];
+
+/// Number of RNN inputs: [ü_g (mm/s²), F_fb (kN)].
+pub const RNN_INPUTS: usize = 2;
+
+/// Input order of the RNN (model files carry it).
+pub const RNN_INPUT_NAMES: [&str; RNN_INPUTS] = ["ground_accel_mm_s2", "brace_force_fb_kn"];
+
+/// Largest supported RNN hidden size (storage is fixed at this capacity).
+pub const RNN_MAX_HIDDEN: usize = 32;
+
+/// A model whose shape or values failed validation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelError {
+    /// A weight array has the wrong number of elements.
+    Shape {
+        /// Which array.
+        what: &'static str,
+        /// Elements required by the model's sizes.
+        expected: usize,
+        /// Elements supplied.
+        got: usize,
+    },
+    /// The RNN hidden size is not in 1..=[`RNN_MAX_HIDDEN`].
+    HiddenSize(usize),
+    /// A value failed validation (non-finite weight, non-positive std).
+    Param(ParamError),
+}
+
+impl From<ParamError> for ModelError {
+    fn from(e: ParamError) -> Self {
+        ModelError::Param(e)
+    }
+}
+
+impl core::fmt::Display for ModelError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            ModelError::Shape {
+                what,
+                expected,
+                got,
+            } => {
+                write!(f, "{what} has {got} elements, expected {expected}")
+            }
+            ModelError::HiddenSize(h) => {
+                write!(f, "hidden size {h} is not in 1..={RNN_MAX_HIDDEN}")
+            }
+            ModelError::Param(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for ModelError {}
+
+fn all_finite(values: &[f64], what: &'static str) -> Result<(), ParamError> {
+    if values.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(ParamError::NotFinite(what))
+    }
+}
+
+fn shape(values: &[f64], expected: usize, what: &'static str) -> Result<(), ModelError> {
+    if values.len() == expected {
+        Ok(())
+    } else {
+        Err(ModelError::Shape {
+            what,
+            expected,
+            got: values.len(),
+        })
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------
+// LR
+// ---------------------------------------------------------------------------------------------------
+
+/// Validated coefficients θ0..θ5 of the LR metamodel (order: [`LR_FEATURE_NAMES`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LrParams {
+    theta: [f64; LR_COEFFS],
+}
+
+impl LrParams {
+    /// From the six coefficients; all must be finite.
+    pub fn new(theta: [f64; LR_COEFFS]) -> Result<Self, ModelError> {
+        all_finite(&theta, "LR coefficient")?;
+        Ok(Self { theta })
+    }
+
+    /// From a slice (as read from a model file); must hold exactly [`LR_COEFFS`] finite values.
+    pub fn from_slice(theta: &[f64]) -> Result<Self, ModelError> {
+        shape(theta, LR_COEFFS, "LR coefficients")?;
+        let mut t = [0.0; LR_COEFFS];
+        t.iter_mut().zip(theta).for_each(|(d, s)| *d = *s);
+        Self::new(t)
+    }
+
+    /// The coefficients θ0..θ5.
+    pub fn theta(&self) -> &[f64; LR_COEFFS] {
+        &self.theta
+    }
+}
+
+/// The exogenous features of one LR step (time i).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Features {
+    /// Ground acceleration ü_g(i), mm/s².
+    pub ground_accel_mm_s2: f64,
+    /// Measured brace deformation x_fb(i), mm (= actuator stroke, displacement scale 1).
+    pub brace_disp_fb_mm: f64,
+    /// Prototype brace axial force F_fb(i), kN (= 1000 × load-cell force).
+    pub brace_force_fb_kn: f64,
+}
+
+/// Recurrent state of the LR model: the last two predictions.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LrState {
+    /// x̂(i), mm.
+    pub pred_mm: f64,
+    /// x̂(i−1), mm.
+    pub prev_pred_mm: f64,
+}
+
+impl LrState {
+    /// At rest (both predictions zero, as the structure starts).
+    pub fn reset(&mut self) {
+        *self = Self::default();
+    }
+}
+
+/// LR metamodel: parameters plus state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lr {
+    params: LrParams,
+    state: LrState,
+}
+
+impl Lr {
+    /// A model at rest.
+    pub fn new(params: LrParams) -> Self {
+        Self {
+            params,
+            state: LrState::default(),
+        }
+    }
+
+    /// The coefficients.
+    pub fn params(&self) -> &LrParams {
+        &self.params
+    }
+
+    /// The recurrent state.
+    pub fn state(&self) -> &LrState {
+        &self.state
+    }
+
+    /// Back to rest.
+    pub fn reset(&mut self) {
+        self.state.reset();
+    }
+
+    /// x̂(i+1) from the features at i and the last two predictions; shifts the state.
+    /// Refuses non-finite features (or an overflowing prediction) and keeps the state.
+    pub fn predict(&mut self, f: Features) -> Result<f64, InputError> {
+        let x = [
+            1.0,
+            finite(f.ground_accel_mm_s2, "ground_accel_mm_s2")?,
+            finite(f.brace_disp_fb_mm, "brace_disp_fb_mm")?,
+            finite(f.brace_force_fb_kn, "brace_force_fb_kn")?,
+            self.state.pred_mm,
+            self.state.prev_pred_mm,
+        ];
+        let y = finite(
+            self.params.theta.iter().zip(&x).map(|(t, v)| t * v).sum(),
+            "LR prediction",
+        )?;
+        self.state = LrState {
+            pred_mm: y,
+            prev_pred_mm: self.state.pred_mm,
+        };
+        Ok(y)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------
+// RNN
+// ---------------------------------------------------------------------------------------------------
+
+/// Raw weights of an Elman RNN with hidden size H, row-major, as a model file stores them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RnnWeights<'a> {
+    /// Input-to-hidden W_ih, H×[`RNN_INPUTS`] row-major (row j = hidden unit j).
+    pub w_ih: &'a [f64],
+    /// Hidden-to-hidden W_hh, H×H row-major.
+    pub w_hh: &'a [f64],
+    /// Hidden bias b_h, H (the sum of PyTorch-style b_ih + b_hh, if the trainer has both).
+    pub b_h: &'a [f64],
+    /// Hidden-to-output W_ho, 1×H.
+    pub w_ho: &'a [f64],
+    /// Output bias b_o.
+    pub b_o: f64,
+}
+
+/// Input normalization and output de-normalization of the RNN: `in_n = (in − mean)/std`,
+/// `y = y_n·std + mean`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RnnScaling {
+    /// Per-input mean, order [`RNN_INPUT_NAMES`] (mm/s², kN).
+    pub input_mean: [f64; RNN_INPUTS],
+    /// Per-input standard deviation (> 0).
+    pub input_std: [f64; RNN_INPUTS],
+    /// Output mean, mm.
+    pub output_mean: f64,
+    /// Output standard deviation, mm (> 0).
+    pub output_std: f64,
+}
+
+/// Validated Elman RNN parameters in fixed-capacity storage (sized for [`RNN_MAX_HIDDEN`]; entries
+/// beyond the hidden size are zero and never read).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RnnParams {
+    hidden: usize,
+    w_ih: [[f64; RNN_INPUTS]; RNN_MAX_HIDDEN],
+    w_hh: [[f64; RNN_MAX_HIDDEN]; RNN_MAX_HIDDEN],
+    b_h: [f64; RNN_MAX_HIDDEN],
+    w_ho: [f64; RNN_MAX_HIDDEN],
+    b_o: f64,
+    scaling: RnnScaling,
+}
+
+impl RnnParams {
+    /// Validate shapes (hidden size H = `b_h.len()` in 1..=32; W_ih H×2, W_hh H×H, W_ho 1×H),
+    /// finiteness of every weight and scale, and std > 0.
+    pub fn new(w: RnnWeights<'_>, scaling: RnnScaling) -> Result<Self, ModelError> {
+        let h = w.b_h.len();
+        if h == 0 || h > RNN_MAX_HIDDEN {
+            return Err(ModelError::HiddenSize(h));
+        }
+        shape(w.w_ih, h * RNN_INPUTS, "RNN W_ih")?;
+        shape(w.w_hh, h * h, "RNN W_hh")?;
+        shape(w.w_ho, h, "RNN W_ho")?;
+        all_finite(w.w_ih, "RNN W_ih")?;
+        all_finite(w.w_hh, "RNN W_hh")?;
+        all_finite(w.b_h, "RNN b_h")?;
+        all_finite(w.w_ho, "RNN W_ho")?;
+        all_finite(&[w.b_o], "RNN b_o")?;
+        all_finite(&scaling.input_mean, "RNN input mean")?;
+        all_finite(&[scaling.output_mean], "RNN output mean")?;
+        for s in scaling.input_std {
+            crate::params::positive(s, "RNN input std")?;
+        }
+        crate::params::positive(scaling.output_std, "RNN output std")?;
+
+        let mut p = Self {
+            hidden: h,
+            w_ih: [[0.0; RNN_INPUTS]; RNN_MAX_HIDDEN],
+            w_hh: [[0.0; RNN_MAX_HIDDEN]; RNN_MAX_HIDDEN],
+            b_h: [0.0; RNN_MAX_HIDDEN],
+            w_ho: [0.0; RNN_MAX_HIDDEN],
+            b_o: w.b_o,
+            scaling,
+        };
+        for (row, src) in p.w_ih.iter_mut().zip(w.w_ih.chunks_exact(RNN_INPUTS)) {
+            row.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
+        }
+        for (row, src) in p.w_hh.iter_mut().zip(w.w_hh.chunks_exact(h)) {
+            row.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
+        }
+        p.b_h.iter_mut().zip(w.b_h).for_each(|(d, s)| *d = *s);
+        p.w_ho.iter_mut().zip(w.w_ho).for_each(|(d, s)| *d = *s);
+        Ok(p)
+    }
+
+    /// Hidden size H.
+    pub fn hidden(&self) -> usize {
+        self.hidden
+    }
+
+    /// Normalization constants.
+    pub fn scaling(&self) -> &RnnScaling {
+        &self.scaling
+    }
+}
+
+/// The inputs of one RNN step (time i).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RnnInputs {
+    /// Ground acceleration ü_g(i), mm/s².
+    pub ground_accel_mm_s2: f64,
+    /// Prototype brace axial force F_fb(i), kN.
+    pub brace_force_fb_kn: f64,
+}
+
+/// Recurrent state of the RNN: the hidden vector (first H entries used).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RnnState {
+    /// Hidden activations h(i).
+    pub hidden: [f64; RNN_MAX_HIDDEN],
+}
+
+impl RnnState {
+    /// Zero hidden vector.
+    pub fn reset(&mut self) {
+        *self = Self::default();
+    }
+}
+
+/// Elman RNN metamodel: parameters plus state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rnn {
+    params: RnnParams,
+    state: RnnState,
+}
+
+impl Rnn {
+    /// A model with a zero hidden state.
+    pub fn new(params: RnnParams) -> Self {
+        Self {
+            params,
+            state: RnnState::default(),
+        }
+    }
+
+    /// The weights.
+    pub fn params(&self) -> &RnnParams {
+        &self.params
+    }
+
+    /// The hidden state.
+    pub fn state(&self) -> &RnnState {
+        &self.state
+    }
+
+    /// Zero hidden state.
+    pub fn reset(&mut self) {
+        self.state.reset();
+    }
+
+    /// One step: `h = tanh(W_ih·in_n + W_hh·h + b_h)`, `y = (W_ho·h + b_o)·std + mean`, in mm.
+    /// Refuses non-finite inputs (or a non-finite hidden/output) and keeps the state.
+    pub fn predict(&mut self, inputs: RnnInputs) -> Result<f64, InputError> {
+        let p = &self.params;
+        let s = &p.scaling;
+        let raw = [
+            finite(inputs.ground_accel_mm_s2, "ground_accel_mm_s2")?,
+            finite(inputs.brace_force_fb_kn, "brace_force_fb_kn")?,
+        ];
+        let mut x = [0.0; RNN_INPUTS];
+        for (((xn, r), m), sd) in x.iter_mut().zip(raw).zip(s.input_mean).zip(s.input_std) {
+            *xn = finite((r - m) / sd, "normalized RNN input")?;
+        }
+        let mut h_new = [0.0; RNN_MAX_HIDDEN];
+        let hidden_rows = p.w_ih.iter().zip(&p.w_hh).zip(&p.b_h).take(p.hidden);
+        for (hj, ((wi, wh), b)) in h_new.iter_mut().zip(hidden_rows) {
+            let from_in: f64 = wi.iter().zip(&x).map(|(w, v)| w * v).sum();
+            let from_h: f64 = wh
+                .iter()
+                .zip(&self.state.hidden)
+                .take(p.hidden)
+                .map(|(w, v)| w * v)
+                .sum();
+            // tanh saturates at ±1, so only ∞ − ∞ (a NaN pre-activation) can make this non-finite.
+            *hj = finite(libm::tanh(from_in + from_h + b), "RNN hidden state")?;
+        }
+        let y_n: f64 = p
+            .w_ho
+            .iter()
+            .zip(&h_new)
+            .take(p.hidden)
+            .map(|(w, v)| w * v)
+            .sum::<f64>()
+            + p.b_o;
+        let y = finite(y_n * s.output_std + s.output_mean, "RNN prediction")?;
+        self.state.hidden = h_new;
+        Ok(y)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use proptest::prelude::*;
+    use std::{vec, vec::Vec};
+
+    fn any_f64() -> impl Strategy<Value = f64> {
+        prop_oneof![
+            6 => -1e4f64..1e4,
+            1 => Just(f64::NAN),
+            1 => Just(f64::INFINITY),
+            1 => Just(f64::NEG_INFINITY),
+            1 => Just(f64::MAX),
+            1 => Just(-f64::MAX),
+        ]
+    }
+
+    #[test]
+    fn lr_recurrence_matches_hand_computation() {
+        let th = [0.5, 1e-3, -0.2, 0.01, 1.9, -0.95];
+        let mut lr = Lr::new(LrParams::new(th).unwrap());
+        let (mut p0, mut p1) = (0.0, 0.0);
+        for i in 0..50 {
+            let f = Features {
+                ground_accel_mm_s2: 100.0 * libm::sin(i as f64 * 0.3),
+                brace_disp_fb_mm: 0.1 * i as f64,
+                brace_force_fb_kn: -3.0 + 0.2 * i as f64,
+            };
+            let want = th[0]
+                + th[1] * f.ground_accel_mm_s2
+                + th[2] * f.brace_disp_fb_mm
+                + th[3] * f.brace_force_fb_kn
+                + th[4] * p0
+                + th[5] * p1;
+            let got = lr.predict(f).unwrap();
+            assert!((got - want).abs() <= 1e-12 * want.abs().max(1.0), "{i}");
+            p1 = p0;
+            p0 = want;
+        }
+        lr.reset();
+        assert_eq!(*lr.state(), LrState::default());
+    }
+
+    #[test]
+    fn lr_arx_oscillator_is_undamped_sine() {
+        // θ4 = 2cos(ωΔt), θ5 = −1 is an exact discrete oscillator: from x̂(0)=0, x̂(1)=sin(ωΔt) it
+        // must reproduce sin(ωΔt·k) (DESIGN §5 expects the fit to be ARX of this kind).
+        let w = 0.01;
+        let mut lr =
+            Lr::new(LrParams::new([0.0, 0.0, 0.0, 0.0, 2.0 * libm::cos(w), -1.0]).unwrap());
+        lr.state = LrState {
+            pred_mm: libm::sin(w),
+            prev_pred_mm: 0.0,
+        };
+        for k in 2..2000 {
+            let y = lr.predict(Features::default()).unwrap();
+            assert!((y - libm::sin(w * k as f64)).abs() < 1e-9, "{k}");
+        }
+    }
+
+    #[test]
+    fn lr_validation() {
+        assert!(LrParams::new([0.0, f64::NAN, 0.0, 0.0, 0.0, 0.0]).is_err());
+        assert_eq!(
+            LrParams::from_slice(&[1.0; 5]),
+            Err(ModelError::Shape {
+                what: "LR coefficients",
+                expected: 6,
+                got: 5
+            })
+        );
+        assert!(LrParams::from_slice(&[1.0; 7]).is_err());
+        assert_eq!(LrParams::from_slice(&[2.0; 6]).unwrap().theta(), &[2.0; 6]);
+        assert_eq!(LR_FEATURE_NAMES.len(), LR_COEFFS);
+    }
+
+    #[test]
+    fn lr_refuses_non_finite_and_keeps_state() {
+        let mut lr = Lr::new(LrParams::new([0.1, 1e-3, 0.2, 0.01, 1.5, -0.6]).unwrap());
+        let ok = Features {
+            ground_accel_mm_s2: 50.0,
+            brace_disp_fb_mm: 1.0,
+            brace_force_fb_kn: 10.0,
+        };
+        lr.predict(ok).unwrap();
+        lr.predict(ok).unwrap();
+        let before = lr;
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            for which in 0..3 {
+                let mut f = ok;
+                match which {
+                    0 => f.ground_accel_mm_s2 = bad,
+                    1 => f.brace_disp_fb_mm = bad,
+                    _ => f.brace_force_fb_kn = bad,
+                }
+                assert!(matches!(lr.predict(f), Err(InputError::NotFinite(_))));
+                assert_eq!(lr, before);
+            }
+        }
+        // Overflowing prediction from finite inputs: refused too.
+        let huge = Features {
+            ground_accel_mm_s2: f64::MAX,
+            brace_disp_fb_mm: f64::MAX,
+            brace_force_fb_kn: f64::MAX,
+        };
+        let mut big = Lr::new(LrParams::new([0.0, 1.0, 1.0, 1.0, 0.0, 0.0]).unwrap());
+        let big_before = big;
+        assert_eq!(
+            big.predict(huge),
+            Err(InputError::NotFinite("LR prediction"))
+        );
+        assert_eq!(big, big_before);
+        // And it continues from the last good state.
+        let mut fresh = before;
+        assert_eq!(lr.predict(ok), fresh.predict(ok));
+    }
+
+    /// A tiny H-unit network with deterministic weights, and the same network evaluated naively.
+    struct Ref {
+        h: usize,
+        w_ih: Vec<f64>,
+        w_hh: Vec<f64>,
+        b_h: Vec<f64>,
+        w_ho: Vec<f64>,
+        b_o: f64,
+        sc: RnnScaling,
+    }
+
+    impl Ref {
+        fn new(h: usize) -> Self {
+            let g = |k: usize, s: f64| libm::sin(1.7 * k as f64 + s) * 0.6;
+            Ref {
+                h,
+                w_ih: (0..h * 2).map(|k| g(k, 0.1)).collect(),
+                w_hh: (0..h * h)
+                    .map(|k| g(k, 0.7) / libm::sqrt(h as f64))
+                    .collect(),
+                b_h: (0..h).map(|k| g(k, 1.3) * 0.2).collect(),
+                w_ho: (0..h).map(|k| g(k, 2.1)).collect(),
+                b_o: 0.05,
+                sc: RnnScaling {
+                    input_mean: [1.0, -2.0],
+                    input_std: [500.0, 300.0],
+                    output_mean: 0.3,
+                    output_std: 4.0,
+                },
+            }
+        }
+        fn params(&self) -> Result<RnnParams, ModelError> {
+            RnnParams::new(
+                RnnWeights {
+                    w_ih: &self.w_ih,
+                    w_hh: &self.w_hh,
+                    b_h: &self.b_h,
+                    w_ho: &self.w_ho,
+                    b_o: self.b_o,
+                },
+                self.sc,
+            )
+        }
+        // Deliberately naive index loops: an independent reference for the iterator code.
+        #[allow(clippy::needless_range_loop)]
+        fn run(&self, inputs: &[[f64; 2]]) -> Vec<f64> {
+            let h = self.h;
+            let mut hid = vec![0.0; h];
+            let mut out = Vec::new();
+            for u in inputs {
+                let un = [
+                    (u[0] - self.sc.input_mean[0]) / self.sc.input_std[0],
+                    (u[1] - self.sc.input_mean[1]) / self.sc.input_std[1],
+                ];
+                let mut nh = vec![0.0; h];
+                for j in 0..h {
+                    let mut a = self.b_h[j];
+                    for k in 0..2 {
+                        a += self.w_ih[j * 2 + k] * un[k];
+                    }
+                    for l in 0..h {
+                        a += self.w_hh[j * h + l] * hid[l];
+                    }
+                    nh[j] = a.tanh();
+                }
+                hid = nh;
+                let yn: f64 = (0..h).map(|j| self.w_ho[j] * hid[j]).sum::<f64>() + self.b_o;
+                out.push(yn * self.sc.output_std + self.sc.output_mean);
+            }
+            out
+        }
+    }
+
+    #[test]
+    fn rnn_matches_naive_reference_for_all_paper_sizes() {
+        let inputs: Vec<[f64; 2]> = (0..500)
+            .map(|i| {
+                let t = i as f64 / 2048.0;
+                [3000.0 * libm::sin(20.0 * t), 800.0 * libm::cos(13.0 * t)]
+            })
+            .collect();
+        for h in [1, 5, 10, 20, 32] {
+            let r = Ref::new(h);
+            let want = r.run(&inputs);
+            let mut rnn = Rnn::new(r.params().unwrap());
+            assert_eq!(rnn.params().hidden(), h);
+            for (k, (u, w)) in inputs.iter().zip(&want).enumerate() {
+                let got = rnn
+                    .predict(RnnInputs {
+                        ground_accel_mm_s2: u[0],
+                        brace_force_fb_kn: u[1],
+                    })
+                    .unwrap();
+                assert!((got - w).abs() < 1e-12, "H={h} k={k}: {got} vs {w}");
+            }
+            rnn.reset();
+            assert_eq!(*rnn.state(), RnnState::default());
+        }
+    }
+
+    #[test]
+    fn rnn_shape_and_value_validation() {
+        let mut r = Ref::new(5);
+        r.w_hh.pop();
+        assert_eq!(
+            r.params(),
+            Err(ModelError::Shape {
+                what: "RNN W_hh",
+                expected: 25,
+                got: 24
+            })
+        );
+        let mut r = Ref::new(5);
+        r.w_ih.push(0.0);
+        assert!(matches!(
+            r.params(),
+            Err(ModelError::Shape {
+                what: "RNN W_ih",
+                ..
+            })
+        ));
+        let mut r = Ref::new(5);
+        r.w_ho.pop();
+        assert!(matches!(
+            r.params(),
+            Err(ModelError::Shape {
+                what: "RNN W_ho",
+                ..
+            })
+        ));
+        let r = Ref::new(33);
+        assert_eq!(r.params(), Err(ModelError::HiddenSize(33)));
+        let mut r = Ref::new(5);
+        r.b_h.clear();
+        assert_eq!(r.params(), Err(ModelError::HiddenSize(0)));
+        let mut r = Ref::new(5);
+        r.w_hh[3] = f64::NAN;
+        assert!(matches!(
+            r.params(),
+            Err(ModelError::Param(ParamError::NotFinite(_)))
+        ));
+        let mut r = Ref::new(5);
+        r.b_o = f64::INFINITY;
+        assert!(r.params().is_err());
+        let mut r = Ref::new(5);
+        r.sc.input_std[1] = 0.0;
+        assert!(matches!(
+            r.params(),
+            Err(ModelError::Param(ParamError::NotPositive(_)))
+        ));
+        let mut r = Ref::new(5);
+        r.sc.output_std = -1.0;
+        assert!(r.params().is_err());
+        let mut r = Ref::new(5);
+        r.sc.input_mean[0] = f64::NAN;
+        assert!(r.params().is_err());
+    }
+
+    #[test]
+    fn rnn_refuses_non_finite_and_keeps_state() {
+        let mut rnn = Rnn::new(Ref::new(10).params().unwrap());
+        let ok = RnnInputs {
+            ground_accel_mm_s2: 1000.0,
+            brace_force_fb_kn: 200.0,
+        };
+        rnn.predict(ok).unwrap();
+        let before = rnn;
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let a = RnnInputs {
+                ground_accel_mm_s2: bad,
+                ..ok
+            };
+            let b = RnnInputs {
+                brace_force_fb_kn: bad,
+                ..ok
+            };
+            assert!(matches!(rnn.predict(a), Err(InputError::NotFinite(_))));
+            assert!(matches!(rnn.predict(b), Err(InputError::NotFinite(_))));
+            assert_eq!(rnn, before);
+        }
+    }
+
+    #[test]
+    fn state_sizes() {
+        use core::mem::size_of;
+        std::println!(
+            "size_of: Lr {} B, LrState {} B, Rnn {} B, RnnParams {} B, RnnState {} B",
+            size_of::<Lr>(),
+            size_of::<LrState>(),
+            size_of::<Rnn>(),
+            size_of::<RnnParams>(),
+            size_of::<RnnState>()
+        );
+        assert_eq!(size_of::<LrState>(), 16);
+        assert_eq!(size_of::<RnnState>(), 8 * RNN_MAX_HIDDEN);
+        // W_hh dominates: 32×32 f64 = 8 KiB; the whole RNN (params + state) stays under 10 KiB.
+        assert!(size_of::<Rnn>() < 10 * 1024);
+    }
+
+    proptest! {
+        #[test]
+        fn lr_finite_or_refused(seq in proptest::collection::vec((any_f64(), any_f64(), any_f64()), 1..200)) {
+            let mut lr = Lr::new(LrParams::new([0.1, 1e-4, 0.02, 1e-3, 1.99, -0.995]).unwrap());
+            for (a, d, f) in seq {
+                let before = lr;
+                match lr.predict(Features { ground_accel_mm_s2: a, brace_disp_fb_mm: d, brace_force_fb_kn: f }) {
+                    Ok(y) => {
+                        prop_assert!(y.is_finite());
+                        prop_assert!(lr.state().pred_mm.is_finite() && lr.state().prev_pred_mm.is_finite());
+                    }
+                    Err(_) => prop_assert_eq!(lr, before),
+                }
+            }
+        }
+
+        #[test]
+        fn rnn_finite_or_refused(h in 1usize..=32, seq in proptest::collection::vec((any_f64(), any_f64()), 1..100)) {
+            let mut rnn = Rnn::new(Ref::new(h).params().unwrap());
+            for (a, f) in seq {
+                let before = rnn;
+                match rnn.predict(RnnInputs { ground_accel_mm_s2: a, brace_force_fb_kn: f }) {
+                    Ok(y) => {
+                        prop_assert!(a.is_finite() && f.is_finite() && y.is_finite());
+                        prop_assert!(rnn.state().hidden.iter().all(|v| v.abs() <= 1.0));
+                    }
+                    Err(_) => prop_assert_eq!(rnn, before),
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,512 @@
+//! The safety supervisor: the state machine that stands between the control law and a 31 kN actuator.
+//!
+//! States: `Idle → Armed → Running → RampDown → Done`, and `Fault` from anywhere a check fails. Every
+//! controller tick the supervisor sees the command the control law asks for, the DAQ sample (or its
+//! error) and whether the previous tick overran, and returns the command that is actually sent:
+//!
+//! - Interlocks (each trips `Fault` with its reason): measured stroke beyond the stroke limit,
+//!   requested command beyond the stroke limit, requested command velocity beyond the velocity limit,
+//!   measured force beyond the force limit, any non-finite value, `max_daq_errors` consecutive DAQ
+//!   errors (sensor timeout), `max_overruns` consecutive overruns.
+//! - The output is always rate-limited to `ramp_rate_mm_s`·Δt per tick and clamped to the stroke limit,
+//!   so it never jumps, whatever the input.
+//! - On a fault the output ramps (at `fault_ramp_rate_mm_s`) from where it is to the *last safe
+//!   command* (the last one that passed every check) and holds there. At the end of a test
+//!   (`finish()`) or on `abort()`, it ramps to zero (`RampDown`) and then reports `Done`.
+//!
+//! Parameters ([`Limits`]) are validated and immutable; [`Supervisor::reset`] returns to `Idle`.
+
+use crate::hal::ErrorKind;
+use crate::hal::Sample;
+use crate::params::{
+    positive, ParamError, ACTUATOR_CAPACITY_KN, ACTUATOR_STROKE_MM, ACTUATOR_VELOCITY_MM_S, DT_S,
+};
+
+/// Interlock limits and ramp rates, validated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Limits {
+    stroke_mm: f64,
+    velocity_mm_s: f64,
+    force_kn: f64,
+    max_daq_errors: u32,
+    max_overruns: u32,
+    fault_ramp_rate_mm_s: f64,
+    end_ramp_rate_mm_s: f64,
+    dt_s: f64,
+}
+
+impl Limits {
+    /// Limits of the paper's actuator (±25.4 mm, 338.84 mm/s, 31.14 kN) with 95% margins, a sensor
+    /// timeout of 8 ticks (3.9 ms), 4 consecutive overruns, and ramps at 20 mm/s (fault) and 10 mm/s
+    /// (end of test): slow enough to be gentle on a specimen, fast enough to be safe within ~1 s.
+    pub fn paper_actuator() -> Self {
+        Self {
+            stroke_mm: 0.95 * ACTUATOR_STROKE_MM,
+            velocity_mm_s: 0.95 * ACTUATOR_VELOCITY_MM_S,
+            force_kn: 0.95 * ACTUATOR_CAPACITY_KN,
+            max_daq_errors: 8,
+            max_overruns: 4,
+            fault_ramp_rate_mm_s: 20.0,
+            end_ramp_rate_mm_s: 10.0,
+            dt_s: DT_S,
+        }
+    }
+
+    /// Validated limits. Counts must be ≥ 1; all values finite and > 0; the ramp rates must not exceed
+    /// the velocity limit.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        stroke_mm: f64,
+        velocity_mm_s: f64,
+        force_kn: f64,
+        max_daq_errors: u32,
+        max_overruns: u32,
+        fault_ramp_rate_mm_s: f64,
+        end_ramp_rate_mm_s: f64,
+        dt_s: f64,
+    ) -> Result<Self, ParamError> {
+        let velocity_mm_s = positive(velocity_mm_s, "velocity limit")?;
+        let fault = positive(fault_ramp_rate_mm_s, "fault ramp rate")?;
+        let end = positive(end_ramp_rate_mm_s, "end ramp rate")?;
+        if fault > velocity_mm_s || end > velocity_mm_s {
+            return Err(ParamError::OutOfRange("ramp rate above the velocity limit"));
+        }
+        if max_daq_errors == 0 || max_overruns == 0 {
+            return Err(ParamError::OutOfRange("interlock counts must be ≥ 1"));
+        }
+        Ok(Self {
+            stroke_mm: positive(stroke_mm, "stroke limit")?,
+            velocity_mm_s,
+            force_kn: positive(force_kn, "force limit")?,
+            max_daq_errors,
+            max_overruns,
+            fault_ramp_rate_mm_s: fault,
+            end_ramp_rate_mm_s: end,
+            dt_s: positive(dt_s, "time step")?,
+        })
+    }
+
+    /// Stroke limit, ±mm.
+    pub fn stroke_mm(&self) -> f64 {
+        self.stroke_mm
+    }
+    /// Command velocity limit, mm/s.
+    pub fn velocity_mm_s(&self) -> f64 {
+        self.velocity_mm_s
+    }
+    /// Force limit, ±kN (specimen scale, load cell).
+    pub fn force_kn(&self) -> f64 {
+        self.force_kn
+    }
+    /// Largest command change per tick, mm.
+    pub fn max_step_mm(&self) -> f64 {
+        self.velocity_mm_s * self.dt_s
+    }
+    /// Fault ramp rate, mm/s.
+    pub fn fault_ramp_rate_mm_s(&self) -> f64 {
+        self.fault_ramp_rate_mm_s
+    }
+}
+
+/// Why the supervisor tripped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FaultReason {
+    /// Measured displacement beyond the stroke limit.
+    MeasuredStroke,
+    /// Requested command beyond the stroke limit.
+    CommandStroke,
+    /// Requested command velocity beyond the velocity limit.
+    CommandVelocity,
+    /// Measured force beyond the force limit.
+    Force,
+    /// A non-finite requested command.
+    NonFiniteCommand,
+    /// A non-finite sensor value.
+    NonFiniteSample,
+    /// Too many consecutive DAQ errors.
+    SensorTimeout,
+    /// Too many consecutive overruns of the control tick.
+    Overrun,
+    /// An external emergency stop.
+    EmergencyStop,
+}
+
+/// The supervisor's state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum State {
+    /// Powered, holding zero; waiting to be armed.
+    Idle,
+    /// Armed: checks run, command holds; waiting for `start()`.
+    Armed,
+    /// The test runs: the control law's commands pass (checked and rate-limited).
+    Running,
+    /// Ramping to zero at the end of the test or after an abort.
+    RampDown,
+    /// Back at zero after a ramp-down.
+    Done,
+    /// Tripped: ramping to, then holding, the last safe command.
+    Fault(FaultReason),
+}
+
+/// What the supervisor decided for one tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Decision {
+    /// The command to send to the actuator, mm.
+    pub command_mm: f64,
+    /// The state after this tick.
+    pub state: State,
+}
+
+/// Transition requests that are not allowed from the current state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InvalidTransition {
+    /// The state the request was made in.
+    pub from: State,
+}
+
+/// The supervisor: [`Limits`] plus a small state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Supervisor {
+    limits: Limits,
+    state: State,
+    output_mm: f64,
+    last_safe_mm: f64,
+    last_request_mm: Option<f64>,
+    daq_errors: u32,
+    overruns: u32,
+    total_overruns: u32,
+    total_daq_errors: u32,
+}
+
+impl Supervisor {
+    /// A supervisor in `Idle` holding zero.
+    pub fn new(limits: Limits) -> Self {
+        Self {
+            limits,
+            state: State::Idle,
+            output_mm: 0.0,
+            last_safe_mm: 0.0,
+            last_request_mm: None,
+            daq_errors: 0,
+            overruns: 0,
+            total_overruns: 0,
+            total_daq_errors: 0,
+        }
+    }
+
+    /// Back to `Idle` at zero, counters cleared.
+    pub fn reset(&mut self) {
+        *self = Self::new(self.limits);
+    }
+
+    /// The limits in force.
+    pub fn limits(&self) -> &Limits {
+        &self.limits
+    }
+    /// The current state.
+    pub fn state(&self) -> State {
+        self.state
+    }
+    /// The last command sent, mm.
+    pub fn output_mm(&self) -> f64 {
+        self.output_mm
+    }
+    /// Overruns seen since reset (consecutive or not).
+    pub fn total_overruns(&self) -> u32 {
+        self.total_overruns
+    }
+    /// DAQ errors seen since reset (consecutive or not).
+    pub fn total_daq_errors(&self) -> u32 {
+        self.total_daq_errors
+    }
+
+    /// `Idle → Armed`.
+    pub fn arm(&mut self) -> Result<(), InvalidTransition> {
+        self.transition(State::Idle, State::Armed)
+    }
+    /// `Armed → Running`.
+    pub fn start(&mut self) -> Result<(), InvalidTransition> {
+        self.transition(State::Armed, State::Running)
+    }
+    /// `Running → RampDown` at the end of the test.
+    pub fn finish(&mut self) -> Result<(), InvalidTransition> {
+        self.transition(State::Running, State::RampDown)
+    }
+    /// Operator abort: ramp to zero from `Armed` or `Running`; a fault stays a fault.
+    pub fn abort(&mut self) {
+        match self.state {
+            State::Idle | State::Done | State::Fault(_) | State::RampDown => {}
+            State::Armed | State::Running => self.state = State::RampDown,
+        }
+    }
+    /// Hardware emergency stop: trip, whatever the state.
+    pub fn emergency_stop(&mut self) {
+        self.trip(FaultReason::EmergencyStop);
+    }
+
+    fn transition(&mut self, from: State, to: State) -> Result<(), InvalidTransition> {
+        if self.state == from {
+            self.state = to;
+            Ok(())
+        } else {
+            Err(InvalidTransition { from: self.state })
+        }
+    }
+
+    fn trip(&mut self, reason: FaultReason) {
+        if !matches!(self.state, State::Fault(_)) {
+            self.state = State::Fault(reason);
+        }
+    }
+
+    /// Move the output toward `goal` by at most `rate`·Δt (and never more than the velocity limit).
+    fn ramp_toward(&mut self, goal: f64, rate_mm_s: f64) {
+        let step = (rate_mm_s * self.limits.dt_s).min(self.limits.max_step_mm());
+        let delta = goal - self.output_mm;
+        // Land exactly on the goal when within reach (no rounding residue on pass-through).
+        self.output_mm = if delta.abs() <= step {
+            goal
+        } else {
+            self.output_mm + delta.clamp(-step, step)
+        };
+    }
+
+    /// One controller tick. `requested_mm` is what the control law asks for (ignored unless
+    /// `Running`), `sample` the DAQ result of this tick, `overrun` whether the previous tick missed its
+    /// deadline. Returns the command to send: finite, within the stroke limit, and within one
+    /// velocity-limited step of the previous command.
+    pub fn tick(
+        &mut self,
+        requested_mm: f64,
+        sample: Result<Sample, ErrorKind>,
+        overrun: bool,
+    ) -> Decision {
+        let lim = self.limits;
+        // Counters run in every state: a sensor that dies while armed must be noticed.
+        if overrun {
+            self.overruns += 1;
+            self.total_overruns = self.total_overruns.saturating_add(1);
+        } else {
+            self.overruns = 0;
+        }
+        match sample {
+            Ok(s) => {
+                self.daq_errors = 0;
+                if !s.disp_mm.is_finite() || !s.force_kn.is_finite() {
+                    self.trip(FaultReason::NonFiniteSample);
+                } else if s.disp_mm.abs() > lim.stroke_mm {
+                    self.trip(FaultReason::MeasuredStroke);
+                } else if s.force_kn.abs() > lim.force_kn {
+                    self.trip(FaultReason::Force);
+                }
+            }
+            Err(_) => {
+                self.daq_errors += 1;
+                self.total_daq_errors = self.total_daq_errors.saturating_add(1);
+            }
+        }
+        if self.daq_errors >= lim.max_daq_errors {
+            self.trip(FaultReason::SensorTimeout);
+        }
+        if self.overruns >= lim.max_overruns {
+            self.trip(FaultReason::Overrun);
+        }
+        if self.state == State::Running {
+            self.check_request(requested_mm);
+        }
+        match self.state {
+            State::Running => {
+                // check_request passed: the request is safe and within one step.
+                self.ramp_toward(requested_mm, lim.velocity_mm_s);
+                self.last_safe_mm = self.output_mm;
+            }
+            State::Fault(_) => self.ramp_toward(self.last_safe_mm, lim.fault_ramp_rate_mm_s),
+            State::RampDown => {
+                self.ramp_toward(0.0, lim.end_ramp_rate_mm_s);
+                if self.output_mm == 0.0 {
+                    self.state = State::Done;
+                }
+            }
+            State::Idle | State::Armed | State::Done => {}
+        }
+        Decision {
+            command_mm: self.output_mm,
+            state: self.state,
+        }
+    }
+
+    fn check_request(&mut self, requested_mm: f64) {
+        let lim = self.limits;
+        if !requested_mm.is_finite() {
+            self.trip(FaultReason::NonFiniteCommand);
+        } else if requested_mm.abs() > lim.stroke_mm {
+            self.trip(FaultReason::CommandStroke);
+        } else {
+            let prev = self.last_request_mm.unwrap_or(self.output_mm);
+            // A small tolerance so that a command exactly at the limit is not a fault.
+            if (requested_mm - prev).abs() > lim.max_step_mm() * (1.0 + 1e-9) {
+                self.trip(FaultReason::CommandVelocity);
+            }
+        }
+        self.last_request_mm = Some(requested_mm);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ok(d: f64, f: f64) -> Result<Sample, ErrorKind> {
+        Ok(Sample {
+            disp_mm: d,
+            force_kn: f,
+        })
+    }
+
+    fn running() -> Supervisor {
+        let mut s = Supervisor::new(Limits::paper_actuator());
+        s.arm().unwrap();
+        s.start().unwrap();
+        s
+    }
+
+    #[test]
+    fn lifecycle_and_end_ramp() {
+        let mut s = Supervisor::new(Limits::paper_actuator());
+        assert_eq!(s.start(), Err(InvalidTransition { from: State::Idle }));
+        s.arm().unwrap();
+        s.start().unwrap();
+        let mut x = 0.0;
+        for i in 0..2000 {
+            x = 5.0 * libm::sin(i as f64 * 0.01);
+            let d = s.tick(x, ok(x, 1.0), false);
+            assert_eq!(d.command_mm, x);
+        }
+        s.finish().unwrap();
+        let step = 10.0 * DT_S;
+        let mut prev = s.output_mm();
+        let mut n = 0;
+        while s.state() == State::RampDown {
+            let d = s.tick(123.0, ok(0.0, 0.0), false);
+            assert!((d.command_mm - prev).abs() <= step * (1.0 + 1e-12));
+            prev = d.command_mm;
+            n += 1;
+        }
+        assert_eq!(s.state(), State::Done);
+        assert_eq!(s.output_mm(), 0.0);
+        assert!(n as f64 >= x.abs() / step - 1.0);
+    }
+
+    #[test]
+    fn every_interlock_trips_and_ramps_to_last_safe() {
+        type Case = (fn(&mut Supervisor) -> Decision, FaultReason);
+        let cases: [Case; 7] = [
+            (
+                |s| s.tick(f64::NAN, ok(2.0, 0.0), false),
+                FaultReason::NonFiniteCommand,
+            ),
+            (
+                |s| s.tick(2.0, ok(f64::INFINITY, 0.0), false),
+                FaultReason::NonFiniteSample,
+            ),
+            (
+                |s| s.tick(2.0, ok(30.0, 0.0), false),
+                FaultReason::MeasuredStroke,
+            ),
+            (|s| s.tick(2.0, ok(2.0, 40.0), false), FaultReason::Force),
+            (
+                |s| s.tick(30.0, ok(2.0, 0.0), false),
+                FaultReason::CommandStroke,
+            ),
+            (
+                |s| s.tick(3.0, ok(2.0, 0.0), false),
+                FaultReason::CommandVelocity,
+            ),
+            (
+                |s| {
+                    let mut d = s.tick(2.0, Err(ErrorKind::Timeout), false);
+                    for _ in 0..10 {
+                        d = s.tick(2.0, Err(ErrorKind::Timeout), false);
+                    }
+                    d
+                },
+                FaultReason::SensorTimeout,
+            ),
+        ];
+        for (f, reason) in cases {
+            let mut s = running();
+            // Walk to 2 mm safely.
+            let mut x: f64 = 0.0;
+            while x < 2.0 {
+                x = (x + 0.1).min(2.0);
+                s.tick(x, ok(x, 0.0), false);
+            }
+            let d = f(&mut s);
+            assert_eq!(d.state, State::Fault(reason));
+            assert!((d.command_mm - 2.0).abs() <= s.limits().max_step_mm());
+            for _ in 0..5000 {
+                let d = s.tick(f64::NAN, ok(2.0, 0.0), false);
+                assert!(d.command_mm.is_finite());
+            }
+            assert!((s.output_mm() - 2.0).abs() < 1e-12, "{reason:?}");
+        }
+    }
+
+    #[test]
+    fn overruns_counted_and_trip_after_n_consecutive() {
+        let mut s = running();
+        for _ in 0..3 {
+            s.tick(0.0, ok(0.0, 0.0), true);
+        }
+        s.tick(0.0, ok(0.0, 0.0), false);
+        assert_eq!(s.state(), State::Running);
+        assert_eq!(s.total_overruns(), 3);
+        for _ in 0..4 {
+            s.tick(0.0, ok(0.0, 0.0), true);
+        }
+        assert_eq!(s.state(), State::Fault(FaultReason::Overrun));
+    }
+
+    #[test]
+    fn emergency_stop_and_abort() {
+        let mut s = running();
+        s.emergency_stop();
+        assert_eq!(s.state(), State::Fault(FaultReason::EmergencyStop));
+        s.abort();
+        assert_eq!(s.state(), State::Fault(FaultReason::EmergencyStop));
+        let mut s = running();
+        s.abort();
+        assert_eq!(s.state(), State::RampDown);
+    }
+
+    #[test]
+    fn limits_validation() {
+        let d = DT_S;
+        assert!(Limits::new(25.0, 300.0, 30.0, 8, 4, 20.0, 10.0, d).is_ok());
+        assert!(Limits::new(25.0, 300.0, 30.0, 0, 4, 20.0, 10.0, d).is_err());
+        assert!(Limits::new(25.0, 300.0, 30.0, 8, 4, 400.0, 10.0, d).is_err());
+        assert!(Limits::new(f64::NAN, 300.0, 30.0, 8, 4, 20.0, 10.0, d).is_err());
+    }
+
+    proptest::proptest! {
+        /// Whatever the inputs, the output is finite, within the stroke limit and never jumps.
+        #[test]
+        fn output_never_jumps(
+            reqs in proptest::collection::vec(
+                proptest::prop_oneof![-40.0..40.0f64, proptest::strategy::Just(f64::NAN),
+                    proptest::strategy::Just(f64::INFINITY)], 1..400),
+            errs in proptest::collection::vec(proptest::bool::weighted(0.1), 400),
+        ) {
+            let mut s = running();
+            let mut prev = 0.0;
+            for (i, r) in reqs.iter().enumerate() {
+                let sample = if errs[i] { Err(ErrorKind::Timeout) } else { ok(*r * 0.5, 1.0) };
+                let d = s.tick(*r, sample, false);
+                proptest::prop_assert!(d.command_mm.is_finite());
+                proptest::prop_assert!(d.command_mm.abs() <= s.limits().stroke_mm());
+                proptest::prop_assert!((d.command_mm - prev).abs() <= s.limits().max_step_mm() * (1.0 + 1e-12));
+                prev = d.command_mm;
+            }
+        }
+    }
+}
