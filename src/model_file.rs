@@ -65,9 +65,9 @@ pub struct LrWeights {
 /// Elman RNN weights and scaling. With `in_k = (raw_k − input_mean[k]) / input_std[k]`:
 /// `h_j ← tanh(w_ih[j]·in + w_hh[j]·h + b_h[j])`, all `h_j` from the previous `h`;
 /// `y = w_ho·h + b_o`; `x̂(i+1) = y·output_std + output_mean` (mm). Order of operations (so that
-/// every implementation gives the same bits): one accumulator from 0.0 adds `w_ih[j][0]·in_0`,
-/// `w_ih[j][1]·in_1`, then `w_hh[j][k]·h_k` for k = 0..H, then `b_h[j]`; `tanh` is `libm::tanh`;
-/// the output accumulator from 0.0 adds `w_ho[j]·h_j` for j = 0..H, then `b_o`.
+/// every implementation gives the same bits, as `rths_core::metamodel::Rnn` does): pre-activation
+/// `(Σ_k w_ih[j][k]·in_k + Σ_k w_hh[j][k]·h_k) + b_h[j]`, each sum in index order, `tanh` is
+/// `libm::tanh`; output `(Σ_j w_ho[j]·h_j) + b_o`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RnnWeights {
     /// Hidden size H.

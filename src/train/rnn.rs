@@ -153,19 +153,11 @@ impl Rnn {
         let p = &self.params;
         let (hh, bh, ho, bo) = (self.off_hh(), self.off_bh(), self.off_ho(), self.off_bo());
         for (j, out) in h_next.iter_mut().enumerate().take(n) {
-            let mut acc = 0.0;
-            acc += p[N_IN * j] * input[0];
-            acc += p[N_IN * j + 1] * input[1];
-            for (k, hk) in h.iter().enumerate().take(n) {
-                acc += p[hh + j * n + k] * hk;
-            }
-            acc += p[bh + j];
-            *out = libm::tanh(acc);
+            let from_in: f64 = (0..N_IN).map(|k| p[N_IN * j + k] * input[k]).sum();
+            let from_h: f64 = (0..n).map(|k| p[hh + j * n + k] * h[k]).sum();
+            *out = libm::tanh(from_in + from_h + p[bh + j]);
         }
-        let mut y = 0.0;
-        for (j, hj) in h_next.iter().enumerate().take(n) {
-            y += p[ho + j] * hj;
-        }
+        let y: f64 = (0..n).map(|j| p[ho + j] * h_next[j]).sum();
         y + p[bo]
     }
 
@@ -695,6 +687,50 @@ mod tests {
         let y = m.step_normalized(&[0.0; 5], [2.0, 1.0], &mut h2);
         assert_eq!(x, y * 2.0 + 0.5);
         assert_eq!(h, h2);
+    }
+
+    /// The same weights in `rths-core`'s `no_std` inference give the same bits, step after step.
+    #[test]
+    fn bit_identical_to_core_inference() {
+        use rths_core::metamodel as core_mm;
+        let mut m = Rnn::random(7, scaling(), 5, &RnnInit::default()).unwrap();
+        m.scaling = Scaling {
+            input_mean: [3.0, -40.0],
+            input_std: [900.0, 4000.0],
+            output_mean: 0.02,
+            output_std: 3.3,
+        };
+        let p = &m.params;
+        let core_params = core_mm::RnnParams::new(
+            core_mm::RnnWeights {
+                w_ih: &p[..m.off_hh()],
+                w_hh: &p[m.off_hh()..m.off_bh()],
+                b_h: &p[m.off_bh()..m.off_ho()],
+                w_ho: &p[m.off_ho()..m.off_bo()],
+                b_o: p[m.off_bo()],
+            },
+            core_mm::RnnScaling {
+                input_mean: m.scaling.input_mean,
+                input_std: m.scaling.input_std,
+                output_mean: m.scaling.output_mean,
+                output_std: m.scaling.output_std,
+            },
+        )
+        .unwrap();
+        let mut core_rnn = core_mm::Rnn::new(core_params);
+        let (mut h, mut s) = (vec![0.0; 7], vec![0.0; 7]);
+        for i in 0..500 {
+            let ag = 2000.0 * (0.013 * i as f64).sin();
+            let f = 8000.0 * (0.007 * i as f64).cos();
+            let ours = m.step(&mut h, &mut s, ag, f);
+            let theirs = core_rnn
+                .predict(core_mm::RnnInputs {
+                    ground_accel_mm_s2: ag,
+                    brace_force_fb_kn: f,
+                })
+                .unwrap();
+            assert_eq!(ours.to_bits(), theirs.to_bits(), "step {i}");
+        }
     }
 
     fn short_response() -> PureResponse {
