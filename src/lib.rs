@@ -5,6 +5,8 @@
 
 pub mod analysis;
 pub mod cmd;
+pub mod model_file;
 pub mod motion;
 pub mod plot;
 pub mod scenario;
+pub mod train;

@@ -19,6 +19,8 @@ enum Command {
     Analyze(cmd::analyze::Args),
     /// Properties of the virtual servo-hydraulic plant: delay, gain and phase, Bode plot.
     Plant(cmd::plant::Args),
+    /// Train a metamodel (LR or RNN) on the pure response and write its model file.
+    Train(cmd::train::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -26,6 +28,7 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Analyze(a) => cmd::analyze::run(a),
         Command::Plant(a) => cmd::plant::run(a),
+        Command::Train(a) => cmd::train::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -2,3 +2,4 @@
 
 pub mod analyze;
 pub mod plant;
+pub mod train;
