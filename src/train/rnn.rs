@@ -1,13 +1,21 @@
 //! The Elman RNN metamodel (paper): inputs `[ü_g(i), F_fb(i)]`, normalized by mean and standard
 //! deviation; `h = tanh(W_ih·in + W_hh·h + b_h)`; `y = W_ho·h + b_o`, de-normalized to `x̂(i+1)` (mm).
 //!
-//! Training (offline, phase 1): teacher forcing with the true delayed brace force
-//! `F_fb(i) = N(i − delay)`, target `d(i+1)`, mean squared error in normalized units. The record is
-//! cut into consecutive windows; every `validation_every`-th window is held out for validation. Each
+//! Initialization (default, [`InitMethod::Arx`]): the linear ARX model of the training response is
+//! identified by least squares (the LR metamodel's fit, [`super::lr::fit_pure`]) and realized as the
+//! RNN in tanh's near-linear range ([`Rnn::from_arx`]). Training from random weights
+//! ([`InitMethod::Random`]) learns the one-step map but not the lightly damped 3.4 Hz dynamics at
+//! 2048 Hz, and its `rnn-pure` error is ~64 % (`notes/train.md`).
+//!
+//! Training (offline, phase 1, fine-tuning after the ARX initialization): teacher forcing with the
+//! true delayed brace force `F_fb(i) = N(i − delay)` (or, after `teacher_epochs`, the model's own
+//! delayed prediction), target `d(i+1)`, mean squared error in normalized units. The record is cut
+//! into consecutive windows; every `validation_every`-th window is held out for validation. Each
 //! epoch runs the whole record in time order, carrying the hidden state across windows (stateful
 //! truncated BPTT: the gradient stops at the window start), and takes one Adam step per training
-//! window. Training stops when the validation loss has not improved for `patience` epochs; the best
-//! weights are kept. Inference runs at the full controller rate, like training.
+//! window. Epoch 0 only evaluates the initial weights. Training stops when the validation loss has
+//! not improved for `patience` epochs; the best weights (possibly the initial ones) are kept.
+//! Inference runs at the full controller rate, like training.
 
 use std::io::IsTerminal;
 use std::time::Instant;
@@ -133,6 +141,77 @@ impl Rnn {
             params[a - h - h * h + j * h + j] += init.recurrent_diag;
         }
         s.params = params;
+        Ok(s)
+    }
+
+    /// The identified linear (ARX) model `x(i+1) = θ0 + θ1·ü_g(i) + θ2·x_fb(i) + θ3·F_fb(i) +
+    /// θ4·x(i) + θ5·x(i−1)` (the LR metamodel's features, see [`super::lr`]) realized as an Elman
+    /// RNN working in tanh's near-linear range.
+    ///
+    /// Hidden units 0 and 1 hold `ε·x(i+1)/σ_x` and `ε·x(i)/σ_x` (σ_x = `scaling.output_std`; the
+    /// displacement itself, not its deviation from the mean, so that h = 0 is the structure at rest):
+    /// `W_hh` is the companion matrix `[[θ4, θ5], [1, 0]]`, the input weights are the ARX input
+    /// coefficients with the input normalization folded in and scaled by ε, `W_ho = [1/ε, 0, ..]`.
+    /// With `|ε·x/σ_x| ≲ 1e-3`, `tanh(z) = z·(1 − z²/3 + ..)` departs from the linear model by
+    /// ~1e-7 relative, far below the 2 % structural damping per cycle. `x_fb = F_fb/k_b` in phase 1
+    /// (a linear brace), so θ2 enters as a force weight `θ2/k_b`. Units 2.. are spare: seeded small
+    /// random input and recurrent weights at the same scale ε, no path into units 0–1 or the output,
+    /// so the model starts exactly as the ARX and fine-tuning may recruit them.
+    pub fn from_arx(
+        hidden: usize,
+        scaling: Scaling,
+        theta: &[f64; super::lr::N_THETA],
+        brace_k_kn_per_mm: f64,
+        state_scale: f64,
+        seed: u64,
+    ) -> Result<Self, TrainError> {
+        if !(2..=MAX_HIDDEN).contains(&hidden) {
+            return Err(TrainError::Setting(format!(
+                "the ARX initialization needs a hidden size in 2..={MAX_HIDDEN}, found {hidden}"
+            )));
+        }
+        if !(state_scale > 0.0 && state_scale.is_finite() && brace_k_kn_per_mm > 0.0) {
+            return Err(TrainError::Setting(
+                "ARX state scale and brace stiffness must be > 0".into(),
+            ));
+        }
+        let (h, eps) = (hidden, state_scale);
+        let sc = scaling;
+        let so = sc.output_std;
+        let [th0, th1, th2, th3, th4, th5] = *theta;
+        let c_force = th2 / brace_k_kn_per_mm + th3;
+        let mut s = Self {
+            hidden,
+            params: vec![0.0; Self::n_params(h)],
+            scaling,
+        };
+        let (hh, bh, ho, bo) = (s.off_hh(), s.off_bh(), s.off_ho(), s.off_bo());
+        let p = &mut s.params;
+        // Unit 0: ε·x(i+1)/σ_x from the normalized inputs u_k = (raw_k − μ_k)/σ_k.
+        p[0] = eps * th1 * sc.input_std[0] / so;
+        p[1] = eps * c_force * sc.input_std[1] / so;
+        p[bh] = eps * (th0 + th1 * sc.input_mean[0] + c_force * sc.input_mean[1]) / so;
+        p[hh] = th4;
+        p[hh + 1] = th5;
+        // Unit 1: shift register, ε·x(i)/σ_x.
+        p[hh + h] = 1.0;
+        // y = (x̂ − μ_x)/σ_x.
+        p[ho] = 1.0 / eps;
+        p[bo] = -sc.output_mean / so;
+        if h > 2 {
+            let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+            let n_in =
+                Normal::new(0.0, 0.1 * eps).map_err(|e| TrainError::Setting(e.to_string()))?;
+            let n_hh = Normal::new(0.0, 0.05 / (h as f64).sqrt())
+                .map_err(|e| TrainError::Setting(e.to_string()))?;
+            for j in 2..h {
+                p[N_IN * j] = n_in.sample(&mut rng);
+                p[N_IN * j + 1] = n_in.sample(&mut rng);
+                for k in 2..h {
+                    p[hh + j * h + k] = n_hh.sample(&mut rng) + if j == k { 0.9 } else { 0.0 };
+                }
+            }
+        }
         Ok(s)
     }
 
@@ -304,6 +383,21 @@ struct OwnFeedback<'a> {
     k_b: f64,
 }
 
+/// Default hidden-state scale ε of the ARX realization: the states stay below ~5e-3 in magnitude
+/// (|x|/σ_x ≲ 5), where tanh is linear to ~1e-5 relative.
+pub const DEFAULT_ARX_STATE_SCALE: f64 = 1e-3;
+
+/// How the RNN weights start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum InitMethod {
+    /// Data-driven: the least-squares ARX model of the training response realized as an RNN
+    /// ([`Rnn::from_arx`]), spare units small random.
+    #[default]
+    Arx,
+    /// Seeded random weights ([`Rnn::random`]).
+    Random,
+}
+
 /// Training settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RnnConfig {
@@ -328,28 +422,53 @@ pub struct RnnConfig {
     /// Epochs of teacher forcing (true delayed force) before switching to the model's own delayed
     /// prediction as feedback (`usize::MAX`: teacher forcing throughout).
     pub teacher_epochs: usize,
-    /// Initial weights.
+    /// How the weights start.
+    pub init_method: InitMethod,
+    /// Random initial weights (with [`InitMethod::Random`]).
     pub init: RnnInit,
+    /// Hidden-state scale ε of the ARX realization (see [`Rnn::from_arx`]).
+    pub arx_state_scale: f64,
+    /// Relative singular-value cut-off of the ARX least squares (see [`super::lr::solve`]).
+    pub arx_rcond: f64,
     /// No progress bar.
     pub quiet: bool,
 }
 
 impl RnnConfig {
-    /// Defaults for hidden size `hidden` (see `notes/train.md` for how they were chosen).
+    /// Defaults for hidden size `hidden` with the ARX initialization (see `notes/train.md` for how
+    /// they were chosen): windows of 8192 steps (4 s, longer than the ≈ 2.3 s the structure takes
+    /// to forget at 2 % damping, so the truncated gradient sees the slow modes), relative Adam
+    /// steps of 1e-9 (the recurrent weights fix the 3.4 Hz pole in their fifth digit), 100 epochs.
     pub fn new(hidden: usize) -> Self {
         Self {
             hidden,
             delay_steps: rths_core::params::PAPER_DELAY_STEPS,
             seed: 1,
-            max_epochs: 400,
-            window_steps: 1024,
+            max_epochs: 100,
+            window_steps: 8192,
             validation_every: 5,
-            patience: 60,
-            learning_rate: 1e-3,
+            patience: 40,
+            learning_rate: 1e-9,
             clip_norm: 1.0,
             teacher_epochs: usize::MAX,
+            init_method: InitMethod::Arx,
             init: RnnInit::default(),
+            arx_state_scale: DEFAULT_ARX_STATE_SCALE,
+            arx_rcond: super::lr::DEFAULT_RCOND,
             quiet: false,
+        }
+    }
+
+    /// Defaults with seeded random initial weights (training from scratch; see `notes/train.md`:
+    /// it does not reach the paper's accuracy in closed loop).
+    pub fn random_init(hidden: usize) -> Self {
+        Self {
+            max_epochs: 400,
+            window_steps: 1024,
+            patience: 60,
+            learning_rate: 1e-3,
+            init_method: InitMethod::Random,
+            ..Self::new(hidden)
         }
     }
 }
@@ -371,6 +490,8 @@ pub struct RnnTraining {
     pub train_nrmse_pct: f64,
     /// NRMSE (%) of `rnn-pure` on the training motion.
     pub pure_nrmse_pct: f64,
+    /// NRMSE (%) of `rnn-pure` of the initial weights, before any gradient step.
+    pub init_pure_nrmse_pct: f64,
     /// Wall time of the training, s.
     pub wall_time_s: f64,
 }
@@ -445,6 +566,33 @@ pub fn rnn_pure_nrmse_pct(
     Ok(nrmse_pct(&x, &response.brace_disp_mm)?)
 }
 
+/// Per-parameter step scales. Adam moves every parameter by about the learning rate whatever its
+/// magnitude; the ARX realization mixes weights of order 1/ε, 1 and ε·1e-4, and its recurrent
+/// weights carry the pole radius 1 − 2e-4 in their fifth digit, so its steps are made relative to
+/// each weight's magnitude (the largest in its group where the weight is zero, times 1e-2).
+fn step_scales(model: &Rnn, method: InitMethod) -> Vec<f64> {
+    let p = &model.params;
+    if method == InitMethod::Random {
+        return vec![1.0; p.len()];
+    }
+    let groups = [
+        0..model.off_hh(),
+        model.off_hh()..model.off_bh(),
+        model.off_bh()..model.off_ho(),
+        model.off_ho()..model.off_bo(),
+        model.off_bo()..p.len(),
+    ];
+    let mut out = vec![0.0; p.len()];
+    for g in groups {
+        let top = p[g.clone()].iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        let floor = if top > 0.0 { 1e-2 * top } else { 1e-2 };
+        for i in g {
+            out[i] = p[i].abs().max(floor);
+        }
+    }
+    out
+}
+
 struct Adam {
     m: Vec<f64>,
     v: Vec<f64>,
@@ -452,7 +600,8 @@ struct Adam {
 }
 
 impl Adam {
-    fn step(&mut self, params: &mut [f64], grad: &[f64], lr: f64) {
+    /// One Adam step; parameter `i` moves by about `lr·scale[i]`.
+    fn step(&mut self, params: &mut [f64], grad: &[f64], lr: f64, scale: &[f64]) {
         const B1: f64 = 0.9;
         const B2: f64 = 0.999;
         self.t += 1;
@@ -461,7 +610,7 @@ impl Adam {
         for i in 0..params.len() {
             self.m[i] = B1 * self.m[i] + (1.0 - B1) * grad[i];
             self.v[i] = B2 * self.v[i] + (1.0 - B2) * grad[i] * grad[i];
-            params[i] -= lr * (self.m[i] / c1) / ((self.v[i] / c2).sqrt() + 1e-8);
+            params[i] -= lr * scale[i] * (self.m[i] / c1) / ((self.v[i] / c2).sqrt() + 1e-8);
         }
     }
 }
@@ -486,9 +635,9 @@ pub fn train(
     cfg: &RnnConfig,
 ) -> Result<RnnTraining, TrainError> {
     let start = Instant::now();
-    if cfg.window_steps == 0 || cfg.validation_every < 2 || cfg.max_epochs == 0 {
+    if cfg.window_steps == 0 || cfg.validation_every < 2 {
         return Err(TrainError::Setting(
-            "window_steps ≥ 1, validation_every ≥ 2 and max_epochs ≥ 1 are required".into(),
+            "window_steps ≥ 1 and validation_every ≥ 2 are required".into(),
         ));
     }
     if !(cfg.learning_rate > 0.0 && cfg.learning_rate.is_finite() && cfg.clip_norm > 0.0) {
@@ -519,7 +668,24 @@ pub fn train(
         .collect();
     let targets: Vec<f64> = raw_out.iter().map(|y| (y - mo) / so).collect();
 
-    let mut model = Rnn::random(cfg.hidden, scaling, cfg.seed, &cfg.init)?;
+    let mut model = match cfg.init_method {
+        InitMethod::Random => Rnn::random(cfg.hidden, scaling, cfg.seed, &cfg.init)?,
+        InitMethod::Arx => {
+            let fit =
+                super::lr::fit_pure(response, cfg.delay_steps, brace_k_kn_per_mm, cfg.arx_rcond)?;
+            Rnn::from_arx(
+                cfg.hidden,
+                scaling,
+                &fit.solution.theta,
+                brace_k_kn_per_mm,
+                cfg.arx_state_scale,
+                cfg.seed,
+            )?
+        }
+    };
+    let init_pure_nrmse_pct =
+        rnn_pure_nrmse_pct(&model, response, cfg.delay_steps, brace_k_kn_per_mm)?;
+    let lr_scale = step_scales(&model, cfg.init_method);
     let np = model.params.len();
     let mut adam = Adam {
         m: vec![0.0; np],
@@ -536,10 +702,12 @@ pub fn train(
     let mut epochs = 0;
     let mut preds = vec![0.0; inputs.len() + 1];
     let mut win = Vec::with_capacity(cfg.window_steps);
-    for epoch in 1..=cfg.max_epochs {
+    // Epoch 0 only evaluates the initial weights, so they stay the result unless training improves
+    // on them.
+    for epoch in 0..=cfg.max_epochs {
         epochs = epoch;
-        let closed = epoch > cfg.teacher_epochs;
-        if closed && epoch == cfg.teacher_epochs + 1 {
+        let closed = cfg.teacher_epochs == 0 || epoch > cfg.teacher_epochs;
+        if closed && cfg.teacher_epochs > 0 && epoch == cfg.teacher_epochs + 1 {
             // The loss changes meaning: restart the early-stopping record.
             best = (f64::INFINITY, epoch, model.clone());
         }
@@ -570,6 +738,9 @@ pub fn train(
             }
             train_sum += loss * inp.len() as f64;
             train_n += inp.len();
+            if epoch == 0 {
+                continue;
+            }
             let norm = grad.iter().map(|g| g * g).sum::<f64>().sqrt();
             if !norm.is_finite() {
                 return Err(TrainError::Diverged(format!(
@@ -580,7 +751,7 @@ pub fn train(
                 let k = cfg.clip_norm / norm;
                 grad.iter_mut().for_each(|g| *g *= k);
             }
-            adam.step(&mut model.params, &grad, cfg.learning_rate);
+            adam.step(&mut model.params, &grad, cfg.learning_rate, &lr_scale);
         }
         let (tl, vl) = (
             train_sum / train_n.max(1) as f64,
@@ -612,6 +783,7 @@ pub fn train(
         history,
         train_nrmse_pct,
         pure_nrmse_pct,
+        init_pure_nrmse_pct,
         wall_time_s: start.elapsed().as_secs_f64(),
     })
 }
@@ -743,7 +915,7 @@ mod tests {
     fn training_reduces_validation_loss_and_is_seed_reproducible() {
         let r = short_response();
         let k_b = Prototype::paper().brace_axial_stiffness_kn_per_mm();
-        let mut cfg = RnnConfig::new(5);
+        let mut cfg = RnnConfig::random_init(5);
         cfg.max_epochs = 8;
         cfg.quiet = true;
         let a = train(&r, k_b, &cfg).unwrap();
@@ -755,5 +927,120 @@ mod tests {
         cfg.seed = 2;
         let c = train(&r, k_b, &cfg).unwrap();
         assert_ne!(a.model, c.model);
+    }
+
+    fn el_centro_response() -> PureResponse {
+        let ag = crate::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+        pure_response(&Prototype::paper(), &ag, DT_S).unwrap()
+    }
+
+    /// With a tiny state scale, the ARX realization reproduces the linear model's own closed loop
+    /// (`lr-pure`, an independent implementation) to rounding; with the default scale the tanh
+    /// curvature costs a little accuracy, and it grows as ε² (the error is the cubic term).
+    #[test]
+    fn arx_realization_matches_the_linear_model() {
+        let r = short_response();
+        let p = Prototype::paper();
+        let k_b = p.brace_axial_stiffness_kn_per_mm();
+        let fit = crate::train::lr::fit_pure(&r, 28, k_b, crate::train::lr::DEFAULT_RCOND).unwrap();
+        let scaling = Scaling {
+            input_mean: [10.0, -3.0],
+            input_std: [1500.0, 4000.0],
+            output_mean: 0.01,
+            output_std: 3.0,
+        };
+        let lr_loop = &fit.pure_prediction_mm;
+        let err = |eps: f64| {
+            let m = Rnn::from_arx(6, scaling, &fit.solution.theta, k_b, eps, 3).unwrap();
+            let x = run_pure_loop(&m, &r.ground_accel_mm_s2, 28, k_b);
+            nrmse_pct(&x, lr_loop).unwrap()
+        };
+        let (tiny, small, dflt) = (err(1e-6), err(1e-4), err(1e-3));
+        assert!(tiny < 1e-5, "ε = 1e-6: {tiny}%");
+        // Cubic term: 10× smaller ε, ~100× smaller error.
+        assert!(
+            small < dflt / 50.0 && dflt < 0.5,
+            "ε=1e-4: {small}%, 1e-3: {dflt}%"
+        );
+        assert!(Rnn::from_arx(1, scaling, &fit.solution.theta, k_b, 1e-3, 3).is_err());
+    }
+
+    /// The target: `rnn-pure` (the RNN fed its own prediction 28 steps earlier) on El Centro
+    /// for H = 10 at or below the paper's 3.74 % NRMSE; fine-tuning keeps or improves the
+    /// initialization on held-out windows, and the run is reproducible.
+    #[test]
+    fn rnn_pure_el_centro_h10_meets_paper() {
+        let r = el_centro_response();
+        let k_b = Prototype::paper().brace_axial_stiffness_kn_per_mm();
+        let mut cfg = RnnConfig::new(10);
+        cfg.quiet = true;
+        let t = train(&r, k_b, &cfg).unwrap();
+        assert!(
+            t.pure_nrmse_pct <= 3.74,
+            "rnn-pure NRMSE {}%",
+            t.pure_nrmse_pct
+        );
+        assert!(
+            t.init_pure_nrmse_pct <= 3.74,
+            "init {}%",
+            t.init_pure_nrmse_pct
+        );
+        assert!(t.best_validation_loss <= t.history[0].1);
+        // Recomputed independently of the training code's own figure.
+        let x = run_pure_loop(&t.model, &r.ground_accel_mm_s2, 28, k_b);
+        assert_eq!(nrmse_pct(&x, &r.brace_disp_mm).unwrap(), t.pure_nrmse_pct);
+        cfg.max_epochs = 3;
+        let a = train(&r, k_b, &cfg).unwrap();
+        let b = train(&r, k_b, &cfg).unwrap();
+        assert_eq!(a.model, b.model);
+    }
+
+    /// The shipped defaults `data/models/rnn-{5,10,20}.json` load, and run in the core's `no_std`
+    /// inference on their own delayed prediction they meet the paper's `rnn-pure` figures on El
+    /// Centro (4.23 / 3.74 / 3.88 %).
+    #[test]
+    fn shipped_models_meet_paper_in_core_closed_loop() {
+        use crate::model_file::{ModelFile, ModelKind};
+        use rths_core::metamodel as core_mm;
+        let r = el_centro_response();
+        let k_b = Prototype::paper().brace_axial_stiffness_kn_per_mm();
+        for (h, paper) in [(5, 4.23), (10, 3.74), (20, 3.88)] {
+            let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .join(format!("data/models/rnn-{h}.json"));
+            let f = ModelFile::load_kind(&path, ModelKind::Rnn).unwrap();
+            let m = Rnn::from_weights(f.rnn.as_ref().unwrap()).unwrap();
+            assert_eq!(m.hidden(), h);
+            let p = &m.params;
+            let params = core_mm::RnnParams::new(
+                core_mm::RnnWeights {
+                    w_ih: &p[..m.off_hh()],
+                    w_hh: &p[m.off_hh()..m.off_bh()],
+                    b_h: &p[m.off_bh()..m.off_ho()],
+                    w_ho: &p[m.off_ho()..m.off_bo()],
+                    b_o: p[m.off_bo()],
+                },
+                core_mm::RnnScaling {
+                    input_mean: m.scaling.input_mean,
+                    input_std: m.scaling.input_std,
+                    output_mean: m.scaling.output_mean,
+                    output_std: m.scaling.output_std,
+                },
+            )
+            .unwrap();
+            let mut net = core_mm::Rnn::new(params);
+            let mut x = vec![0.0];
+            for i in 0..r.len() - 1 {
+                let fb = if i >= 28 { x[i - 28] } else { 0.0 };
+                let next = net
+                    .predict(core_mm::RnnInputs {
+                        ground_accel_mm_s2: r.ground_accel_mm_s2[i],
+                        brace_force_fb_kn: k_b * fb,
+                    })
+                    .unwrap();
+                x.push(next);
+            }
+            let e = nrmse_pct(&x, &r.brace_disp_mm).unwrap();
+            assert!(e <= paper, "H = {h}: rnn-pure {e}% > paper {paper}%");
+        }
     }
 }
