@@ -6,13 +6,22 @@ use rths::models;
 use rths::motion::GroundMotion;
 use rths::scenario::{self, ScenarioId, ScenarioReport, ScenarioSetup};
 use rths::study;
-use rths_core::metamodel::LrParams;
+use rths_core::metamodel::{LrParams, RnnParams};
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{BoucWen, Preset, Specimen};
 
 fn shipped_lr() -> LrParams {
     let m = ModelFile::from_json(include_str!("../data/models/lr.json")).unwrap();
     models::lr_params(&m).unwrap()
+}
+
+fn shipped_rnn(h: usize) -> RnnParams {
+    let text = match h {
+        5 => include_str!("../data/models/rnn-5.json"),
+        10 => include_str!("../data/models/rnn-10.json"),
+        _ => include_str!("../data/models/rnn-20.json"),
+    };
+    models::rnn_params(&ModelFile::from_json(text).unwrap()).unwrap()
 }
 
 fn run(id: ScenarioId, specimen: Specimen, factor: f64) -> ScenarioReport {
@@ -25,7 +34,7 @@ fn run(id: ScenarioId, specimen: Specimen, factor: f64) -> ScenarioReport {
         rig: scenario::rig_config(Preset::UnrCompact, specimen, factor, 1),
         stiffness_factor: factor,
         lr: Some(shipped_lr()),
-        rnn: None,
+        rnn: id.rnn_hidden().map(shipped_rnn),
         delay_steps: PAPER_DELAY_STEPS,
     })
     .unwrap()
@@ -94,6 +103,25 @@ fn lr_scenarios_meet_the_paper() {
     assert!(offline.nrmse_pct.unwrap() <= 0.15);
     // The actuator still lags: what the specimen felt is ~6% off.
     assert!(offline.nrmse_measured_pct.unwrap() > 1.0);
+}
+
+#[test]
+fn rnn_scenarios_meet_the_paper() {
+    for (h, paper) in [(5, 4.23), (10, 3.74), (20, 3.88)] {
+        let r = linear(ScenarioId::RnnPure(h));
+        assert!(
+            r.stable && r.nrmse_pct.unwrap() <= paper,
+            "rnn-pure-{h}: {:?}",
+            r.nrmse_pct
+        );
+    }
+    // Not in the paper: the RNN in the loop with the measured force.
+    let r = linear(ScenarioId::RnnOnline(10));
+    assert!(
+        r.stable && r.nrmse_pct.unwrap() <= 3.74,
+        "rnn-online-10: {:?}",
+        r.nrmse_pct
+    );
 }
 
 #[test]

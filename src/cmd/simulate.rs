@@ -15,6 +15,12 @@ use crate::study::{self, StudyJson};
 
 /// The LR model `rths reproduce` trained on El Centro (phase 2), shipped as the default.
 const DEFAULT_LR: &str = include_str!("../../data/models/lr.json");
+/// The shipped RNN models (`rths train rnn --hidden H`), by hidden size.
+const DEFAULT_RNN: [(usize, &str); 3] = [
+    (5, include_str!("../../data/models/rnn-5.json")),
+    (10, include_str!("../../data/models/rnn-10.json")),
+    (20, include_str!("../../data/models/rnn-20.json")),
+];
 
 /// Arguments of `rths simulate`.
 #[derive(Debug, clap::Args)]
@@ -26,8 +32,8 @@ pub struct Args {
     /// Ground motion: an AT2/CSV file or an embedded record name (default El Centro).
     #[arg(long, value_name = "PATH|NAME")]
     pub motion: Option<String>,
-    /// Model file (LR or RNN) for metamodel scenarios. Default for LR: the shipped
-    /// `data/models/lr.json`; for RNN: `data/models/rnn-H.json` if present.
+    /// Model file (LR or RNN) for metamodel scenarios. Default: the shipped `data/models/lr.json`
+    /// or `data/models/rnn-H.json` (H = 5, 10, 20), compiled into the binary.
     #[arg(long, value_name = "MODEL.json")]
     pub model: Option<PathBuf>,
     /// Plant preset.

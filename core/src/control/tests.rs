@@ -1,0 +1,168 @@
+//! Tests of [`crate::control`].
+
+use super::*;
+use crate::integrator::Newmark;
+use crate::metamodel::LrParams;
+use crate::params::DT_S;
+
+fn config(feedback: FeedbackSource) -> ControlConfig {
+    ControlConfig::new(
+        Prototype::paper(),
+        SpecimenScale::default(),
+        feedback,
+        Limits::paper_actuator(),
+    )
+    .unwrap()
+}
+
+fn fe(feedback: FeedbackSource) -> Controller {
+    let a = Analytical::Fe(FeModel::new(Prototype::paper(), DT_S).unwrap());
+    let mut c = Controller::new(config(feedback), a, Compensator::None);
+    c.supervisor_mut().arm().unwrap();
+    c.supervisor_mut().start().unwrap();
+    c
+}
+
+fn ground(k: usize) -> f64 {
+    let t = k as f64 * DT_S;
+    2000.0 * libm::sin(2.0 * core::f64::consts::PI * 1.3 * t) * (1.0 - libm::exp(-t))
+}
+
+#[test]
+fn fe_with_own_feedback_is_the_pure_model() {
+    // target(k+1) from tick k must equal the pure model's response at step k+1: exactly (Chang on
+    // the whole structure) and to integration accuracy (Newmark).
+    let p = Prototype::paper();
+    let mut c = fe(FeedbackSource::OwnDelayed { delay_steps: 0 });
+    let pure = LinearStructure::prototype_pure(&p).unwrap();
+    let mut nm = Newmark::new(pure, DT_S).unwrap();
+    let mut ch = Chang::new(pure, DT_S).unwrap();
+    nm.reset(ground(0));
+    ch.reset(ground(0));
+    let (mut worst_ch, mut worst_nm): (f64, f64) = (0.0, 0.0);
+    for k in 0..6000 {
+        let out = c.tick(ground(k), Ok(Sample::default()), false);
+        let x_nm = nm.step(ground(k + 1)).disp[0];
+        let x_ch = ch.next_displacement()[0];
+        ch.advance(ground(k + 1), &Vector::<1>::zeros());
+        worst_ch = worst_ch.max((out.target_mm - p.brace_disp_mm(x_ch)).abs());
+        worst_nm = worst_nm.max((out.target_mm - p.brace_disp_mm(x_nm)).abs());
+        assert_eq!(out.state, State::Running);
+        assert_eq!(out.command_mm, out.target_mm);
+    }
+    assert!(worst_ch < 1e-9, "vs Chang {worst_ch}");
+    assert!(worst_nm < 1e-4, "vs Newmark {worst_nm}");
+}
+
+#[test]
+fn lr_uses_its_own_prediction_delayed() {
+    // θ2 = 1 only: x̂(k+1) = x_fb(k) = x̂(k−3) plus a bias θ0 = 0.01.
+    let lr = Lr::new(LrParams::new([0.01, 0.0, 1.0, 0.0, 0.0, 0.0]).unwrap());
+    let mut c = Controller::new(
+        config(FeedbackSource::OwnDelayed { delay_steps: 3 }),
+        Analytical::Lr(lr),
+        Compensator::None,
+    );
+    c.supervisor_mut().arm().unwrap();
+    c.supervisor_mut().start().unwrap();
+    let outs: [f64; 9] =
+        core::array::from_fn(|_| c.tick(0.0, Ok(Sample::default()), false).target_mm);
+    // x_fb(k) = x̂(k−3): ticks 0..3 see x̂(−3..=0) = 0, ticks 4..7 see x̂(1..=4) = 0.01, ...
+    let expect = [0.01, 0.01, 0.01, 0.01, 0.02, 0.02, 0.02, 0.02, 0.03];
+    for (o, e) in outs.iter().zip(expect) {
+        assert!((o - e).abs() < 1e-12, "{outs:?}");
+    }
+}
+
+#[test]
+fn measured_feedback_is_scaled_to_the_prototype() {
+    // θ3 = 1e-3: x̂ = F_fb/1000 = the load-cell force in kN (force scale 1000).
+    let lr = Lr::new(LrParams::new([0.0, 0.0, 0.0, 1e-3, 0.0, 0.0]).unwrap());
+    let mut c = Controller::new(
+        config(FeedbackSource::Measured),
+        Analytical::Lr(lr),
+        Compensator::None,
+    );
+    c.supervisor_mut().arm().unwrap();
+    c.supervisor_mut().start().unwrap();
+    let s = Sample {
+        disp_mm: 0.0,
+        force_kn: 0.05,
+    };
+    let out = c.tick(0.0, Ok(s), false);
+    assert!((out.target_mm - 0.05).abs() < 1e-12);
+}
+
+#[test]
+fn bad_inputs_trip_safely_and_hold_the_sample() {
+    let mut c = fe(FeedbackSource::Measured);
+    for k in 0..500 {
+        c.tick(ground(k), Ok(Sample::default()), false);
+    }
+    let before = c.supervisor().output_mm();
+    let out = c.tick(f64::NAN, Ok(Sample::default()), false);
+    assert!(matches!(out.state, State::Fault(_)));
+    assert!((out.command_mm - before).abs() <= c.supervisor().limits().max_step_mm());
+
+    let mut c = fe(FeedbackSource::Measured);
+    let out = c.tick(
+        1.0,
+        Ok(Sample {
+            disp_mm: f64::NAN,
+            force_kn: 0.0,
+        }),
+        false,
+    );
+    assert!(out.sample_held);
+    assert_eq!(c.held_samples(), 1);
+    assert!(matches!(
+        out.state,
+        State::Fault(crate::supervisor::FaultReason::NonFiniteSample)
+    ));
+}
+
+#[test]
+fn parameters_swap_only_when_not_running() {
+    let mut c = fe(FeedbackSource::Measured);
+    let lr = Analytical::Lr(Lr::new(LrParams::new([0.0; 6]).unwrap()));
+    assert_eq!(c.set_analytical(lr.clone()), Err(State::Running));
+    c.supervisor_mut().emergency_stop();
+    assert_eq!(c.set_analytical(lr), Ok(()));
+    assert_eq!(c.supervisor().state(), State::Idle);
+    assert!(ControlConfig::new(
+        Prototype::paper(),
+        SpecimenScale::default(),
+        FeedbackSource::OwnDelayed {
+            delay_steps: MAX_DELAY_STEPS + 1
+        },
+        Limits::paper_actuator()
+    )
+    .is_err());
+}
+
+proptest::proptest! {
+    /// Any ground acceleration and sensor values, NaN and infinities included: no panic, and the
+    /// command is finite, within the stroke and never jumps.
+    #[test]
+    fn never_panics_never_jumps(
+        inputs in proptest::collection::vec(
+            (proptest::prop_oneof![-1e5..1e5f64, proptest::strategy::Just(f64::NAN),
+                proptest::strategy::Just(f64::NEG_INFINITY)],
+             proptest::prop_oneof![-30.0..30.0f64, proptest::strategy::Just(f64::NAN)],
+             proptest::prop_oneof![-40.0..40.0f64, proptest::strategy::Just(f64::INFINITY)],
+             proptest::bool::weighted(0.05)),
+            1..300),
+    ) {
+        let mut c = fe(FeedbackSource::Measured);
+        let mut prev = 0.0;
+        for (ag, d, f, err) in inputs {
+            let sample = if err { Err(ErrorKind::Timeout) } else { Ok(Sample { disp_mm: d, force_kn: f }) };
+            let out = c.tick(ag, sample, false);
+            let lim = c.supervisor().limits();
+            proptest::prop_assert!(out.command_mm.is_finite());
+            proptest::prop_assert!(out.command_mm.abs() <= lim.stroke_mm());
+            proptest::prop_assert!((out.command_mm - prev).abs() <= lim.max_step_mm() * (1.0 + 1e-12));
+            prev = out.command_mm;
+        }
+    }
+}

@@ -1,0 +1,157 @@
+//! Tests of [`crate::supervisor`].
+
+use super::*;
+
+fn ok(d: f64, f: f64) -> Result<Sample, ErrorKind> {
+    Ok(Sample {
+        disp_mm: d,
+        force_kn: f,
+    })
+}
+
+fn running() -> Supervisor {
+    let mut s = Supervisor::new(Limits::paper_actuator());
+    s.arm().unwrap();
+    s.start().unwrap();
+    s
+}
+
+#[test]
+fn lifecycle_and_end_ramp() {
+    let mut s = Supervisor::new(Limits::paper_actuator());
+    assert_eq!(s.start(), Err(InvalidTransition { from: State::Idle }));
+    s.arm().unwrap();
+    s.start().unwrap();
+    let mut x = 0.0;
+    for i in 0..2000 {
+        x = 5.0 * libm::sin(i as f64 * 0.01);
+        let d = s.tick(x, ok(x, 1.0), false);
+        assert_eq!(d.command_mm, x);
+    }
+    s.finish().unwrap();
+    let step = 10.0 * DT_S;
+    let mut prev = s.output_mm();
+    let mut n = 0;
+    while s.state() == State::RampDown {
+        let d = s.tick(123.0, ok(0.0, 0.0), false);
+        assert!((d.command_mm - prev).abs() <= step * (1.0 + 1e-12));
+        prev = d.command_mm;
+        n += 1;
+    }
+    assert_eq!(s.state(), State::Done);
+    assert_eq!(s.output_mm(), 0.0);
+    assert!(n as f64 >= x.abs() / step - 1.0);
+}
+
+#[test]
+fn every_interlock_trips_and_ramps_to_last_safe() {
+    type Case = (fn(&mut Supervisor) -> Decision, FaultReason);
+    let cases: [Case; 7] = [
+        (
+            |s| s.tick(f64::NAN, ok(2.0, 0.0), false),
+            FaultReason::NonFiniteCommand,
+        ),
+        (
+            |s| s.tick(2.0, ok(f64::INFINITY, 0.0), false),
+            FaultReason::NonFiniteSample,
+        ),
+        (
+            |s| s.tick(2.0, ok(30.0, 0.0), false),
+            FaultReason::MeasuredStroke,
+        ),
+        (|s| s.tick(2.0, ok(2.0, 40.0), false), FaultReason::Force),
+        (
+            |s| s.tick(30.0, ok(2.0, 0.0), false),
+            FaultReason::CommandStroke,
+        ),
+        (
+            |s| s.tick(3.0, ok(2.0, 0.0), false),
+            FaultReason::CommandVelocity,
+        ),
+        (
+            |s| {
+                let mut d = s.tick(2.0, Err(ErrorKind::Timeout), false);
+                for _ in 0..10 {
+                    d = s.tick(2.0, Err(ErrorKind::Timeout), false);
+                }
+                d
+            },
+            FaultReason::SensorTimeout,
+        ),
+    ];
+    for (f, reason) in cases {
+        let mut s = running();
+        // Walk to 2 mm safely.
+        let mut x: f64 = 0.0;
+        while x < 2.0 {
+            x = (x + 0.1).min(2.0);
+            s.tick(x, ok(x, 0.0), false);
+        }
+        let d = f(&mut s);
+        assert_eq!(d.state, State::Fault(reason));
+        assert!((d.command_mm - 2.0).abs() <= s.limits().max_step_mm());
+        for _ in 0..5000 {
+            let d = s.tick(f64::NAN, ok(2.0, 0.0), false);
+            assert!(d.command_mm.is_finite());
+        }
+        assert!((s.output_mm() - 2.0).abs() < 1e-12, "{reason:?}");
+    }
+}
+
+#[test]
+fn overruns_counted_and_trip_after_n_consecutive() {
+    let mut s = running();
+    for _ in 0..3 {
+        s.tick(0.0, ok(0.0, 0.0), true);
+    }
+    s.tick(0.0, ok(0.0, 0.0), false);
+    assert_eq!(s.state(), State::Running);
+    assert_eq!(s.total_overruns(), 3);
+    for _ in 0..4 {
+        s.tick(0.0, ok(0.0, 0.0), true);
+    }
+    assert_eq!(s.state(), State::Fault(FaultReason::Overrun));
+}
+
+#[test]
+fn emergency_stop_and_abort() {
+    let mut s = running();
+    s.emergency_stop();
+    assert_eq!(s.state(), State::Fault(FaultReason::EmergencyStop));
+    s.abort();
+    assert_eq!(s.state(), State::Fault(FaultReason::EmergencyStop));
+    let mut s = running();
+    s.abort();
+    assert_eq!(s.state(), State::RampDown);
+}
+
+#[test]
+fn limits_validation() {
+    let d = DT_S;
+    assert!(Limits::new(25.0, 300.0, 30.0, 8, 4, 20.0, 10.0, d).is_ok());
+    assert!(Limits::new(25.0, 300.0, 30.0, 0, 4, 20.0, 10.0, d).is_err());
+    assert!(Limits::new(25.0, 300.0, 30.0, 8, 4, 400.0, 10.0, d).is_err());
+    assert!(Limits::new(f64::NAN, 300.0, 30.0, 8, 4, 20.0, 10.0, d).is_err());
+}
+
+proptest::proptest! {
+    /// Whatever the inputs, the output is finite, within the stroke limit and never jumps.
+    #[test]
+    fn output_never_jumps(
+        reqs in proptest::collection::vec(
+            proptest::prop_oneof![-40.0..40.0f64, proptest::strategy::Just(f64::NAN),
+                proptest::strategy::Just(f64::INFINITY)], 1..400),
+        errs in proptest::collection::vec(proptest::bool::weighted(0.1), 400),
+    ) {
+        let mut s = running();
+        let mut prev = 0.0;
+        for (i, r) in reqs.iter().enumerate() {
+            let sample = if errs[i] { Err(ErrorKind::Timeout) } else { ok(*r * 0.5, 1.0) };
+            let d = s.tick(*r, sample, false);
+            proptest::prop_assert!(d.command_mm.is_finite());
+            proptest::prop_assert!(d.command_mm.abs() <= s.limits().stroke_mm());
+            proptest::prop_assert!((d.command_mm - prev).abs() <= s.limits().max_step_mm() * (1.0 + 1e-12));
+            prev = d.command_mm;
+        }
+    }
+}
