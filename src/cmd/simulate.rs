@@ -68,9 +68,15 @@ fn load_model(args: &Args, kind: ModelKind) -> anyhow::Result<ModelFile> {
         }
         (None, ModelKind::Rnn) => {
             let h = args.scenario.rnn_hidden().unwrap_or(10);
-            let p = PathBuf::from(format!("data/models/rnn-{h}.json"));
-            ModelFile::load(&p)
-                .with_context(|| format!("no --model given and {} is not readable", p.display()))?
+            let text = DEFAULT_RNN
+                .iter()
+                .find(|(k, _)| *k == h)
+                .map(|(_, t)| *t)
+                .with_context(|| {
+                    format!("no shipped RNN of hidden size {h} (5, 10, 20): give --model")
+                })?;
+            ModelFile::from_json(text)
+                .with_context(|| format!("the shipped data/models/rnn-{h}.json"))?
         }
     };
     file.expect_kind(kind)?;
