@@ -126,7 +126,12 @@ fn bench_run(c: &mut Criterion) {
     };
     let mut g = c.benchmark_group("whole_run");
     g.sample_size(10);
-    g.bench_function("el_centro_lr_online_40s", |b| {
+    // The closed loop alone (controller + virtual plant + history), then with the figures (NRMSE,
+    // J1's 206-lag cross-correlation, J2-J5) computed after it.
+    g.bench_function("el_centro_lr_online_40s_loop", |b| {
+        b.iter(|| black_box(scenario::simulate(&setup).expect("run")))
+    });
+    g.bench_function("el_centro_lr_online_40s_with_figures", |b| {
         b.iter(|| black_box(scenario::run(&setup).expect("run")))
     });
     g.finish();

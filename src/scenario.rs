@@ -325,8 +325,19 @@ fn analytical(setup: &ScenarioSetup<'_>, proto: Prototype) -> Result<Analytical,
     })
 }
 
-/// Run one scenario to the end of the record.
+/// Run one scenario to the end of the record and compute its figures.
 pub fn run(setup: &ScenarioSetup<'_>) -> Result<ScenarioRun, ScenarioError> {
+    let (history, stop) = simulate(setup)?;
+    let report = figures(setup.id, &history, stop);
+    Ok(ScenarioRun { report, history })
+}
+
+/// Why and when the supervisor stopped a run.
+pub type Stop = Option<(String, f64)>;
+
+/// The closed loop alone: run one scenario to the end of the record, returning the history and the
+/// supervisor's stop (reason, time), if any.
+pub fn simulate(setup: &ScenarioSetup<'_>) -> Result<(History, Stop), ScenarioError> {
     let n = setup.ground_accel_mm_s2.len();
     if n == 0 {
         return Err(ScenarioError::EmptyMotion);
@@ -376,7 +387,7 @@ pub fn run(setup: &ScenarioSetup<'_>) -> Result<ScenarioRun, ScenarioError> {
 
     let mut h = History::with_capacity(n);
     let (mut command, mut target) = (0.0, 0.0);
-    let mut stop: Option<(String, f64)> = None;
+    let mut stop: Stop = None;
     for (k, (&ag, &reference)) in setup
         .ground_accel_mm_s2
         .iter()
@@ -415,11 +426,11 @@ pub fn run(setup: &ScenarioSetup<'_>) -> Result<ScenarioRun, ScenarioError> {
             r.advance_tick();
         }
     }
-    let report = figures(id, &h, stop);
-    Ok(ScenarioRun { report, history: h })
+    Ok((h, stop))
 }
 
-fn figures(id: ScenarioId, h: &History, stop: Option<(String, f64)>) -> ScenarioReport {
+/// The figures of a finished run (DESIGN §7).
+pub fn figures(id: ScenarioId, h: &History, stop: Stop) -> ScenarioReport {
     let mut r = ScenarioReport {
         id: id.to_string(),
         stable: stop.is_none(),
