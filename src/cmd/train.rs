@@ -189,29 +189,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 let e = rnn::rnn_pure_nrmse_pct(&t.model, &r, args.delay_steps, k_b)?;
                 println!("    {name:<16} {e:.4}%");
             }
-            let mut f = ModelFile::new_rnn(t.model.to_weights(), args.delay_steps, DT_S);
-            f.training = Training {
-                motion: motion_name,
-                records: response.len(),
-                phase: 1,
-                method: match args.init {
-                    RnnInitArg::Arx => "arx-least-squares-init+tbptt-adam".into(),
-                    RnnInitArg::Random => "tbptt-adam".into(),
-                },
-                seed: Some(args.seed),
-                epochs: Some(t.epochs),
-                best_epoch: Some(t.best_epoch),
-                window_steps: Some(cfg.window_steps),
-                learning_rate: Some(cfg.learning_rate),
-                ..Training::default()
-            };
-            f.scores = Scores {
-                train_nrmse_pct: Some(t.train_nrmse_pct),
-                pure_nrmse_pct: Some(t.pure_nrmse_pct),
-                best_validation_loss: Some(t.best_validation_loss),
-                ..Scores::default()
-            };
-            f
+            rnn::model_file(&t, &cfg, motion_name, response.len())
         }
     };
     file.training.records = response.len();

@@ -26,7 +26,7 @@ use rths_core::metrics::nrmse_pct;
 
 use super::data::{delayed, PureResponse};
 use super::TrainError;
-use crate::model_file::{ModelFileError, RnnWeights, MAX_HIDDEN};
+use crate::model_file::{ModelFile, ModelFileError, RnnWeights, Scores, Training, MAX_HIDDEN};
 
 /// Number of inputs (ü_g, F_fb).
 pub const N_IN: usize = 2;
@@ -786,6 +786,37 @@ pub fn train(
         init_pure_nrmse_pct,
         wall_time_s: start.elapsed().as_secs_f64(),
     })
+}
+
+/// The model file of a training run: weights, provenance (`motion` and its step count) and scores.
+pub fn model_file(t: &RnnTraining, cfg: &RnnConfig, motion: String, records: usize) -> ModelFile {
+    let mut f = ModelFile::new_rnn(
+        t.model.to_weights(),
+        cfg.delay_steps,
+        rths_core::params::DT_S,
+    );
+    f.training = Training {
+        motion,
+        records,
+        phase: 1,
+        method: match cfg.init_method {
+            InitMethod::Arx => "arx-least-squares-init+tbptt-adam".into(),
+            InitMethod::Random => "tbptt-adam".into(),
+        },
+        seed: Some(cfg.seed),
+        epochs: Some(t.epochs),
+        best_epoch: Some(t.best_epoch),
+        window_steps: Some(cfg.window_steps),
+        learning_rate: Some(cfg.learning_rate),
+        ..Training::default()
+    };
+    f.scores = Scores {
+        train_nrmse_pct: Some(t.train_nrmse_pct),
+        pure_nrmse_pct: Some(t.pure_nrmse_pct),
+        best_validation_loss: Some(t.best_validation_loss),
+        ..Scores::default()
+    };
+    f
 }
 
 #[cfg(test)]
