@@ -82,7 +82,11 @@ fn lr(out: &mut String, root: &Path) {
     let _ = writeln!(out, "/// LR coefficients θ0..θ5 from `{}`.", path.display());
     let _ = writeln!(out, "pub const LR_THETA: [f64; 6] = {};", array(&theta));
     let _ = writeln!(out, "/// The model file compiled in.");
-    let _ = writeln!(out, "pub const MODEL_SOURCE: &str = {:?};", path.display().to_string());
+    let _ = writeln!(
+        out,
+        "pub const MODEL_SOURCE: &str = {:?};",
+        path.display().to_string()
+    );
 }
 
 /// A deterministic pseudo-random value in [-0.5, 0.5) (64-bit LCG, top bits).
@@ -141,7 +145,10 @@ fn rnn(out: &mut String, root: &Path) {
         let vec = |key: &str, n: usize| -> Vec<f64> {
             let f = floats(&r[key], &format!("rnn.{key}"), &path);
             if f.len() != n {
-                fail(format!("{}: rnn.{key} must have {n} values", path.display()));
+                fail(format!(
+                    "{}: rnn.{key} must have {n} values",
+                    path.display()
+                ));
             }
             f
         };
@@ -152,14 +159,20 @@ fn rnn(out: &mut String, root: &Path) {
         let scalar = |key: &str| -> f64 {
             match r[key].as_f64() {
                 Some(f) if f.is_finite() => f,
-                _ => fail(format!("{}: rnn.{key} is not a finite number", path.display())),
+                _ => fail(format!(
+                    "{}: rnn.{key} is not a finite number",
+                    path.display()
+                )),
             }
         };
         b_o = scalar("b_o");
         out_mean = scalar("output_mean");
         out_std = scalar("output_std");
         if in_std.iter().chain([&out_std]).any(|s| *s <= 0.0) {
-            fail(format!("{}: RNN standard deviations must be > 0", path.display()));
+            fail(format!(
+                "{}: RNN standard deviations must be > 0",
+                path.display()
+            ));
         }
         dummy = false;
     } else {
@@ -180,24 +193,51 @@ fn rnn(out: &mut String, root: &Path) {
     let _ = writeln!(out, "/// RNN hidden size.");
     let _ = writeln!(out, "pub const RNN_HIDDEN: usize = {h};");
     let _ = writeln!(out, "/// RNN W_ih, H×2 row-major.");
-    let _ = writeln!(out, "pub const RNN_W_IH: [f64; {}] = {};", w_ih.len(), array(&w_ih));
+    let _ = writeln!(
+        out,
+        "pub const RNN_W_IH: [f64; {}] = {};",
+        w_ih.len(),
+        array(&w_ih)
+    );
     let _ = writeln!(out, "/// RNN W_hh, H×H row-major.");
-    let _ = writeln!(out, "pub const RNN_W_HH: [f64; {}] = {};", w_hh.len(), array(&w_hh));
+    let _ = writeln!(
+        out,
+        "pub const RNN_W_HH: [f64; {}] = {};",
+        w_hh.len(),
+        array(&w_hh)
+    );
     let _ = writeln!(out, "/// RNN b_h.");
-    let _ = writeln!(out, "pub const RNN_B_H: [f64; {}] = {};", b_h.len(), array(&b_h));
+    let _ = writeln!(
+        out,
+        "pub const RNN_B_H: [f64; {}] = {};",
+        b_h.len(),
+        array(&b_h)
+    );
     let _ = writeln!(out, "/// RNN W_ho.");
-    let _ = writeln!(out, "pub const RNN_W_HO: [f64; {}] = {};", w_ho.len(), array(&w_ho));
+    let _ = writeln!(
+        out,
+        "pub const RNN_W_HO: [f64; {}] = {};",
+        w_ho.len(),
+        array(&w_ho)
+    );
     let _ = writeln!(out, "/// RNN b_o.");
     let _ = writeln!(out, "pub const RNN_B_O: f64 = {};", lit(b_o));
     let _ = writeln!(out, "/// RNN input mean / std, output mean / std.");
-    let _ = writeln!(out, "pub const RNN_IN_MEAN: [f64; 2] = {};", array(&in_mean));
+    let _ = writeln!(
+        out,
+        "pub const RNN_IN_MEAN: [f64; 2] = {};",
+        array(&in_mean)
+    );
     let _ = writeln!(out, "/// RNN input std.");
     let _ = writeln!(out, "pub const RNN_IN_STD: [f64; 2] = {};", array(&in_std));
     let _ = writeln!(out, "/// RNN output mean.");
     let _ = writeln!(out, "pub const RNN_OUT_MEAN: f64 = {};", lit(out_mean));
     let _ = writeln!(out, "/// RNN output std.");
     let _ = writeln!(out, "pub const RNN_OUT_STD: f64 = {};", lit(out_std));
-    let _ = writeln!(out, "/// The weights are a generated dummy (budget only, no accuracy).");
+    let _ = writeln!(
+        out,
+        "/// The weights are a generated dummy (budget only, no accuracy)."
+    );
     let _ = writeln!(out, "pub const RNN_DUMMY: bool = {dummy};");
     let src = if dummy {
         "generated dummy RNN-10 (budget only)".to_string()
@@ -255,10 +295,17 @@ fn motion(out: &mut String, root: &Path) {
     let duration = (npts - 1) as f64 * dt_s;
     let last = (duration / dt_tick * (1.0 + 1e-12)).floor() as usize;
     let _ = writeln!(out, "/// El Centro 1940 NS (IELC180), g.");
-    let _ = writeln!(out, "pub static MOTION_G: [f64; {npts}] = {};", array(&values));
+    let _ = writeln!(
+        out,
+        "pub static MOTION_G: [f64; {npts}] = {};",
+        array(&values)
+    );
     let _ = writeln!(out, "/// Record step, s.");
     let _ = writeln!(out, "pub const MOTION_DT_S: f64 = {};", lit(dt_s));
-    let _ = writeln!(out, "/// Controller ticks in the record (resampled at 2048 Hz).");
+    let _ = writeln!(
+        out,
+        "/// Controller ticks in the record (resampled at 2048 Hz)."
+    );
     let _ = writeln!(out, "pub const RECORD_TICKS: u32 = {};", last + 1);
 }
 

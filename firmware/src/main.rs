@@ -15,7 +15,12 @@
 #![no_main]
 
 mod gen {
-    #![allow(dead_code, clippy::all, clippy::unreadable_literal, clippy::excessive_precision)]
+    #![allow(
+        dead_code,
+        clippy::all,
+        clippy::unreadable_literal,
+        clippy::excessive_precision
+    )]
     include!(concat!(env!("OUT_DIR"), "/gen.rs"));
 }
 mod logger;
@@ -223,11 +228,10 @@ pub struct Harness {
 mod app {
     use super::*;
     use heapless::spsc::{Consumer, Producer, Queue};
-    use rths_board_qemu::{InstrCounter, TickTimer};
+    use rths_board_qemu::{InstrCounter, Plant, TickTimer};
     use rths_core::hal::{Actuator, Daq, Error as _};
     use rths_core::integrator::{Chang, ExplicitIntegrator};
     use rths_core::structure::{LinearStructure, Vector};
-    use rths_hal_sim::VirtualRig;
     use stm32f4::stm32f405::Interrupt;
 
     /// Telemetry queue depth (records).
@@ -242,12 +246,14 @@ mod app {
 
     #[local]
     struct Local {
-        rig: VirtualRig,
+        rig: Plant,
         counter: InstrCounter,
         producer: Producer<'static, Record>,
         consumer: Consumer<'static, Record>,
         harness: Harness,
         overhead_instr: u32,
+        /// ü_g for the coming tick, mm/s².
+        ag: f64,
         calib: rths_board_qemu::Calibration,
     }
 
@@ -266,17 +272,16 @@ mod app {
             Err(e) => die(e),
         };
         let ctl = Controller::new(cfg, analytical, compensator);
-        let rig = match rths_board_qemu::rig(1, faults()) {
+        let rig = match Plant::new(1, faults()) {
             Some(r) => r,
             None => die("plant configuration"),
         };
         let proto = Prototype::paper();
-        let mut reference = match LinearStructure::prototype_pure(&proto)
-            .and_then(|s| Chang::new(s, DT_S))
-        {
-            Ok(c) => c,
-            Err(_) => die("reference structure"),
-        };
+        let mut reference =
+            match LinearStructure::prototype_pure(&proto).and_then(|s| Chang::new(s, DT_S)) {
+                Ok(c) => c,
+                Err(_) => die("reference structure"),
+            };
         reference.reset(motion::ground_accel_mm_s2(0));
         let (producer, consumer) = cx.local.queue.split();
         defmt::info!(
@@ -303,6 +308,7 @@ mod app {
                     target_row_mm: 0.0,
                 },
                 overhead_instr: calib.overhead_instructions,
+                ag: motion::ground_accel_mm_s2(0),
                 calib,
             },
         )
@@ -323,7 +329,7 @@ mod app {
     /// task, harness and plant included, must end before the next update, else that tick is counted as
     /// an overrun and passed to the supervisor (4 in a row trip it).
     #[task(binds = TIM2, priority = 3, shared = [ctl, timer, run],
-           local = [rig, counter, producer, harness, overhead_instr,
+           local = [rig, counter, producer, harness, overhead_instr, ag,
                     k: u32 = 0, overrun: bool = false, prev_state: State = State::Idle])]
     fn control(mut cx: control::Context) {
         cx.shared.timer.lock(|t| t.clear());
@@ -334,9 +340,9 @@ mod app {
         // ---- measured section: the controller's work ----
         let t0 = cx.local.counter.now();
         let sample = rig.read().map_err(|e| e.kind());
-        let ag = motion::ground_accel_mm_s2(k);
+        let ag = *cx.local.ag;
         let out = cx.shared.ctl.lock(|c| c.tick(ag, sample, overrun));
-        // A refused command (non-finite) is impossible after the supervisor; a clip shows in the log.
+        // Latching the DAC register cannot fail.
         let _ = rig.command(out.command_mm);
         let (m, f) = match sample {
             Ok(s) => (s.disp_mm, s.force_kn),
@@ -379,8 +385,12 @@ mod app {
         if out.target_mm.is_finite() {
             h.target_row_mm = out.target_mm;
         }
-        // The plant moves to the next tick (on a real rig this is the physical world).
-        rig.advance_tick();
+        // The plant converts the command and moves to the next tick (on a real rig: the DAC and the
+        // physical world). A clip cannot happen: the supervisor keeps the command within the stroke.
+        let _ = rig.advance();
+        // ü_g for the next tick, interpolated in the slack of this one (DESIGN §8 counts only the DAQ
+        // read, the control step, the command write and the log record).
+        *cx.local.ag = motion::ground_accel_mm_s2(k.saturating_add(1));
 
         let prev_state = *cx.local.prev_state;
         let notify = cx.shared.run.lock(|r| {

@@ -17,7 +17,8 @@
 
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
-use rths_hal_sim::{FaultPlan, Preset, RigConfig, Specimen, VirtualRig};
+use rths_core::hal::{Actuator, Daq, Sample};
+use rths_hal_sim::{FaultPlan, Preset, RigConfig, SimError, Specimen, VirtualRig};
 use stm32f4::stm32f405 as pac;
 
 /// Core clock QEMU's netduinoplus2 machine gives the Cortex-M4 (and SysTick with CLKSOURCE = core), Hz.
@@ -187,13 +188,59 @@ fn spin(n: u32) {
     }
 }
 
-/// The plant of the study's default runs (`rths reproduce`): the `unr-compact` preset, a linear
-/// specimen at the paper's stiffness, `seed`, with `faults`. `None` if the configuration is invalid.
-pub fn rig(seed: u64, faults: FaultPlan) -> Option<VirtualRig> {
-    let mut c = RigConfig::new(Preset::UnrCompact);
-    c.specimen = Specimen::Linear;
-    c.seed = seed;
-    c.build().ok().map(|p| VirtualRig::with_faults(p, faults))
+/// The virtual rig as the MCU sees it: the DAQ is the rig's sensors; the actuator is a DAC register.
+///
+/// Writing a command latches it, as writing a DAC's data register does; the conversion (clip to the
+/// stroke, 16-bit quantization) is the DAC's physics and is simulated with the plant in
+/// [`Plant::advance`], outside the controller's measured section. The sequence seen by the plant is
+/// exactly the host loop's: `read`, `command(u)`, `advance_tick`.
+pub struct Plant {
+    rig: VirtualRig,
+    dac_mm: f64,
+}
+
+impl Plant {
+    /// The plant of the study's default runs (`rths reproduce`): the `unr-compact` preset, a linear
+    /// specimen at the paper's stiffness, `seed`, with `faults`. `None` if the configuration is
+    /// invalid.
+    pub fn new(seed: u64, faults: FaultPlan) -> Option<Self> {
+        let mut c = RigConfig::new(Preset::UnrCompact);
+        c.specimen = Specimen::Linear;
+        c.seed = seed;
+        c.build().ok().map(|p| Self {
+            rig: VirtualRig::with_faults(p, faults),
+            dac_mm: 0.0,
+        })
+    }
+
+    /// Convert the latched command and move the plant one tick (the physical world between ticks).
+    /// The error reports a clip or a refused command (the rig then holds the previous one).
+    pub fn advance(&mut self) -> Result<(), SimError> {
+        let r = self.rig.command(self.dac_mm);
+        self.rig.advance_tick();
+        r
+    }
+
+    /// The simulated rig.
+    pub fn rig(&self) -> &VirtualRig {
+        &self.rig
+    }
+}
+
+impl Daq for Plant {
+    type Error = SimError;
+    fn read(&mut self) -> Result<Sample, SimError> {
+        self.rig.read()
+    }
+}
+
+impl Actuator for Plant {
+    type Error = SimError;
+    /// Latch the command in the DAC register.
+    fn command(&mut self, disp_mm: f64) -> Result<(), SimError> {
+        self.dac_mm = disp_mm;
+        Ok(())
+    }
 }
 
 /// End the QEMU run with `success` as the exit status (0 or 1).
