@@ -6,7 +6,9 @@
 pub mod analysis;
 pub mod cmd;
 pub mod model_file;
+pub mod models;
 pub mod motion;
 pub mod plot;
 pub mod scenario;
+pub mod study;
 pub mod train;

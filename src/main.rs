@@ -19,6 +19,10 @@ enum Command {
     Analyze(cmd::analyze::Args),
     /// Properties of the virtual servo-hydraulic plant: delay, gain and phase, Bode plot.
     Plant(cmd::plant::Args),
+    /// Run one hybrid-simulation scenario in closed loop against the virtual plant.
+    Simulate(cmd::simulate::Args),
+    /// The whole study end to end: train, run every scenario, write figures and report.md.
+    Reproduce(cmd::reproduce::Args),
     /// Train a metamodel (LR or RNN) on the pure response and write its model file.
     Train(cmd::train::Args),
 }
@@ -28,6 +32,8 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Analyze(a) => cmd::analyze::run(a),
         Command::Plant(a) => cmd::plant::run(a),
+        Command::Simulate(a) => cmd::simulate::run(a),
+        Command::Reproduce(a) => cmd::reproduce::run(a),
         Command::Train(a) => cmd::train::run(a),
     };
     match result {

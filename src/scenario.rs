@@ -310,11 +310,15 @@ fn analytical(setup: &ScenarioSetup<'_>, proto: Prototype) -> Result<Analytical,
     let id = setup.id;
     Ok(if id.uses_lr() {
         Analytical::Lr(Lr::new(
-            setup.lr.ok_or(ScenarioError::MissingModel(id, "an LR model"))?,
+            setup
+                .lr
+                .ok_or(ScenarioError::MissingModel(id, "an LR model"))?,
         ))
     } else if id.rnn_hidden().is_some() {
         Analytical::Rnn(Rnn::new(
-            setup.rnn.ok_or(ScenarioError::MissingModel(id, "an RNN model"))?,
+            setup
+                .rnn
+                .ok_or(ScenarioError::MissingModel(id, "an RNN model"))?,
         ))
     } else {
         Analytical::Fe(FeModel::new(proto, DT_S)?)

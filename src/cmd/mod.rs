@@ -2,4 +2,6 @@
 
 pub mod analyze;
 pub mod plant;
+pub mod reproduce;
+pub mod simulate;
 pub mod train;

@@ -1,0 +1,173 @@
+//! `rths simulate`: one hybrid-simulation scenario in closed loop against the virtual plant.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use rths_core::params::DT_S;
+use rths_hal_sim::{BoucWen, Preset, Specimen};
+
+use crate::cmd::analyze::load_motion;
+use crate::cmd::plant::{PresetArg, SpecimenArg};
+use crate::model_file::{ModelFile, ModelKind};
+use crate::models;
+use crate::scenario::{self, ScenarioId, ScenarioSetup};
+use crate::study::{self, StudyJson};
+
+/// The LR model `rths reproduce` trained on El Centro (phase 2), shipped as the default.
+const DEFAULT_LR: &str = include_str!("../../data/models/lr.json");
+
+/// Arguments of `rths simulate`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Scenario: fe-pure, fe-offline, fe-online, fe-online-ats, lr-pure, lr-offline, lr-online,
+    /// rnn-pure-H, rnn-online-H.
+    #[arg(long)]
+    pub scenario: ScenarioId,
+    /// Ground motion: an AT2/CSV file or an embedded record name (default El Centro).
+    #[arg(long, value_name = "PATH|NAME")]
+    pub motion: Option<String>,
+    /// Model file (LR or RNN) for metamodel scenarios. Default for LR: the shipped
+    /// `data/models/lr.json`; for RNN: `data/models/rnn-H.json` if present.
+    #[arg(long, value_name = "MODEL.json")]
+    pub model: Option<PathBuf>,
+    /// Plant preset.
+    #[arg(long, value_enum, default_value = "unr-compact")]
+    pub preset: PresetArg,
+    /// Specimen model.
+    #[arg(long, value_enum, default_value = "linear")]
+    pub specimen: SpecimenArg,
+    /// Scales the physical specimen's stiffness only; the reference is then the pure FE response of
+    /// the structure with that specimen.
+    #[arg(long, default_value_t = 1.0, value_name = "F")]
+    pub specimen_stiffness_factor: f64,
+    /// Seed of the sensor noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Also draw the plant parameters from the benchmark's uncertainty with the seed.
+    #[arg(long)]
+    pub uncertainty: bool,
+    /// Output directory for `history.csv` and the figure.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Print one JSON object on stdout and nothing else.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn load_model(args: &Args, kind: ModelKind) -> anyhow::Result<ModelFile> {
+    let file = match (&args.model, kind) {
+        (Some(p), _) => ModelFile::load(p).with_context(|| format!("model {}", p.display()))?,
+        (None, ModelKind::Lr) => {
+            ModelFile::from_json(DEFAULT_LR).context("the shipped data/models/lr.json")?
+        }
+        (None, ModelKind::Rnn) => {
+            let h = args.scenario.rnn_hidden().unwrap_or(10);
+            let p = PathBuf::from(format!("data/models/rnn-{h}.json"));
+            ModelFile::load(&p)
+                .with_context(|| format!("no --model given and {} is not readable", p.display()))?
+        }
+    };
+    file.expect_kind(kind)?;
+    Ok(file)
+}
+
+/// Run `rths simulate`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let f = args.specimen_stiffness_factor;
+    if !(f.is_finite() && f > 0.0) {
+        anyhow::bail!("--specimen-stiffness-factor must be a positive number, got {f}");
+    }
+    let motion = load_motion(args.motion.as_deref())?;
+    let ag = motion.resample_mm_s2(DT_S);
+    let preset = match args.preset {
+        PresetArg::Benchmark => Preset::Benchmark,
+        PresetArg::UnrCompact => Preset::UnrCompact,
+    };
+    let specimen = match args.specimen {
+        SpecimenArg::Linear => Specimen::Linear,
+        SpecimenArg::BoucWen => Specimen::BoucWen(BoucWen::default()),
+    };
+    let reference = study::reference_for(&ag, specimen, f)?;
+    let id = args.scenario;
+    let (mut lr, mut rnn, mut delay, mut coeffs, mut cond) = (None, None, 28, Vec::new(), None);
+    if id.uses_lr() {
+        let m = load_model(&args, ModelKind::Lr)?;
+        let p = models::lr_params(&m)?;
+        coeffs = p.theta().to_vec();
+        cond = m.scores.lr_condition_number;
+        delay = m.delay_steps;
+        lr = Some(p);
+    } else if let Some(h) = id.rnn_hidden() {
+        let m = load_model(&args, ModelKind::Rnn)?;
+        let p = models::rnn_params(&m)?;
+        if p.hidden() != h {
+            anyhow::bail!(
+                "scenario {id} needs hidden size {h}, the model has {}",
+                p.hidden()
+            );
+        }
+        delay = m.delay_steps;
+        rnn = Some(p);
+    }
+    let mut rig = scenario::rig_config(preset, specimen, f, args.seed);
+    rig.uncertainty = args.uncertainty;
+    let run = scenario::run(&ScenarioSetup {
+        id,
+        ground_accel_mm_s2: &ag,
+        reference_mm: &reference,
+        rig,
+        stiffness_factor: f,
+        lr,
+        rnn,
+        delay_steps: delay,
+    })?;
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        run.history.write_csv(&dir.join("history.csv"))?;
+        study::plot_run(
+            &run,
+            &dir.join(format!("{id}.png")),
+            &format!(
+                "{id} ({}, {}, {}, F = {f})",
+                motion.name,
+                preset.name(),
+                specimen.name()
+            ),
+        )?;
+    }
+    let json = StudyJson {
+        scenarios: vec![run.report.clone()],
+        lr_coefficients: coeffs,
+        lr_condition_number: cond,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string(&json)?);
+        return Ok(());
+    }
+    let r = &run.report;
+    let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
+    println!(
+        "scenario            {id} ({}, {}, {}, F = {f}, seed {})",
+        motion.name,
+        preset.name(),
+        specimen.name(),
+        args.seed
+    );
+    match (&r.stop_reason, r.stop_time_s) {
+        (Some(why), Some(t)) => {
+            println!("stable              no: the supervisor stopped it ({why} at {t:.3} s)")
+        }
+        _ => println!("stable              yes"),
+    }
+    println!("NRMSE command       {} %", o(r.nrmse_pct));
+    println!("NRMSE measured      {} %", o(r.nrmse_measured_pct));
+    println!("J1 delay            {} ms", o(r.j1_ms));
+    println!("J2 / J3             {} / {} %", o(r.j2_pct), o(r.j3_pct));
+    println!("J4 / J5             {} / {} %", o(r.j4_pct), o(r.j5_pct));
+    println!("peak command        {} mm", o(r.peak_disp_mm));
+    if let Some(dir) = &args.out {
+        println!("wrote {}", dir.join("history.csv").display());
+        println!("wrote {}", dir.join(format!("{id}.png")).display());
+    }
+    Ok(())
+}

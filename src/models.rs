@@ -1,0 +1,105 @@
+//! From a validated model file to the `no_std` inference parameters the controller runs.
+
+use rths_core::metamodel::{LrParams, ModelError, RnnParams, RnnScaling, RnnWeights};
+
+use crate::model_file::{ModelFile, ModelFileError, ModelKind};
+
+/// Why a model file could not become controller parameters.
+#[derive(Debug, thiserror::Error)]
+pub enum ToParamsError {
+    /// The file itself is invalid or of the other kind.
+    #[error(transparent)]
+    File(#[from] ModelFileError),
+    /// The core validation refused the weights.
+    #[error("model rejected by the controller: {0:?}")]
+    Core(ModelError),
+}
+
+/// The LR coefficients of an LR model file.
+pub fn lr_params(m: &ModelFile) -> Result<LrParams, ToParamsError> {
+    m.expect_kind(ModelKind::Lr)?;
+    m.validate()?;
+    let w =
+        m.lr.as_ref()
+            .ok_or(ModelFileError::MissingSection { kind: m.kind })?;
+    LrParams::from_slice(&w.theta).map_err(ToParamsError::Core)
+}
+
+/// The RNN parameters of an RNN model file.
+pub fn rnn_params(m: &ModelFile) -> Result<RnnParams, ToParamsError> {
+    m.expect_kind(ModelKind::Rnn)?;
+    m.validate()?;
+    let w = m
+        .rnn
+        .as_ref()
+        .ok_or(ModelFileError::MissingSection { kind: m.kind })?;
+    let w_ih: Vec<f64> = w.w_ih.iter().flatten().copied().collect();
+    let w_hh: Vec<f64> = w.w_hh.iter().flatten().copied().collect();
+    // validate() checked the two-element shapes.
+    let pair = |v: &[f64]| {
+        [
+            v.first().copied().unwrap_or(0.0),
+            v.get(1).copied().unwrap_or(0.0),
+        ]
+    };
+    RnnParams::new(
+        RnnWeights {
+            w_ih: &w_ih,
+            w_hh: &w_hh,
+            b_h: &w.b_h,
+            w_ho: &w.w_ho,
+            b_o: w.b_o,
+        },
+        RnnScaling {
+            input_mean: pair(&w.input_mean),
+            input_std: pair(&w.input_std),
+            output_mean: w.output_mean,
+            output_std: w.output_std,
+        },
+    )
+    .map_err(ToParamsError::Core)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model_file::RnnWeights as FileRnn;
+
+    #[test]
+    fn lr_file_to_params_and_kind_checks() {
+        let m = ModelFile::new_lr(vec![0.0, 1e-7, 0.0, 0.0, 2.0, -1.0], 28, 1.0 / 2048.0);
+        assert_eq!(lr_params(&m).unwrap().theta()[4], 2.0);
+        assert!(matches!(
+            rnn_params(&m),
+            Err(ToParamsError::File(ModelFileError::WrongKind { .. }))
+        ));
+    }
+
+    #[test]
+    fn rnn_file_to_params() {
+        let h = 3;
+        let w = FileRnn {
+            hidden: h,
+            w_ih: vec![vec![0.1, 0.2]; h],
+            w_hh: vec![vec![0.0; h]; h],
+            b_h: vec![0.0; h],
+            w_ho: vec![1.0; h],
+            b_o: 0.5,
+            input_mean: vec![0.0, 0.0],
+            input_std: vec![1.0, 1.0],
+            output_mean: 0.0,
+            output_std: 2.0,
+        };
+        let m = ModelFile::new_rnn(w, 28, 1.0 / 2048.0);
+        let p = rnn_params(&m).unwrap();
+        assert_eq!(p.hidden(), h);
+        let mut bad = m.clone();
+        if let Some(r) = bad.rnn.as_mut() {
+            r.w_hh[1].pop();
+        }
+        assert!(matches!(
+            rnn_params(&bad),
+            Err(ToParamsError::File(ModelFileError::WrongShape { .. }))
+        ));
+    }
+}
