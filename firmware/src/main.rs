@@ -25,6 +25,7 @@ mod gen {
 }
 mod logger;
 mod motion;
+mod stack;
 
 use core::sync::atomic::{AtomicBool, Ordering};
 
@@ -229,7 +230,6 @@ mod app {
     use super::*;
     use heapless::spsc::{Consumer, Producer, Queue};
     use rths_board_qemu::{InstrCounter, Plant, TickTimer};
-    use rths_core::hal::{Actuator, Daq, Error as _};
     use rths_core::integrator::{Chang, ExplicitIntegrator};
     use rths_core::structure::{LinearStructure, Vector};
     use stm32f4::stm32f405::Interrupt;
@@ -259,6 +259,7 @@ mod app {
 
     #[init(local = [queue: Queue<Record, QUEUE> = Queue::new()])]
     fn init(cx: init::Context) -> (Shared, Local) {
+        stack::paint();
         let dp = cx.device;
         let counter = InstrCounter::new(cx.core.SYST);
         let mut timer = TickTimer::new(dp.TIM2, &dp.RCC);
@@ -339,27 +340,12 @@ mod app {
 
         // ---- measured section: the controller's work ----
         let t0 = cx.local.counter.now();
-        let sample = rig.read().map_err(|e| e.kind());
         let ag = *cx.local.ag;
-        let out = cx.shared.ctl.lock(|c| c.tick(ag, sample, overrun));
-        // Latching the DAC register cannot fail.
-        let _ = rig.command(out.command_mm);
-        let (m, f) = match sample {
-            Ok(s) => (s.disp_mm, s.force_kn),
-            Err(_) => (f64::NAN, f64::NAN),
-        };
-        let queued = cx
-            .local
-            .producer
-            .enqueue(Record {
-                tick: k,
-                command_mm: out.command_mm,
-                target_mm: out.target_mm,
-                measured_mm: m,
-                force_kn: f,
-                state: out.state,
-            })
-            .is_ok();
+        let producer = cx.local.producer;
+        let (out, queued) = cx
+            .shared
+            .ctl
+            .lock(|c| control_step(c, rig, producer, k, ag, overrun));
         let t1 = cx.local.counter.now();
         // ---- end of the measured section ----
 
@@ -521,6 +507,42 @@ mod app {
     }
 }
 
+/// The controller's work in one tick, the measured section: DAQ read, control step, command write,
+/// log record. Kept out of line so that `panic-check.sh` can walk its call graph.
+#[inline(never)]
+fn control_step<D, A>(
+    ctl: &mut Controller,
+    daq_act: &mut D,
+    producer: &mut heapless::spsc::Producer<'static, Record>,
+    k: u32,
+    ag: f64,
+    overrun: bool,
+) -> (rths_core::control::TickOutput, bool)
+where
+    D: rths_core::hal::Daq<Error = A> + rths_core::hal::Actuator<Error = A>,
+    A: rths_core::hal::Error,
+{
+    let sample = daq_act.read().map_err(|e| e.kind());
+    let out = ctl.tick(ag, sample, overrun);
+    // The supervisor's command is finite and within the stroke; a refusal would hold the last one.
+    let _ = daq_act.command(out.command_mm);
+    let (m, f) = match sample {
+        Ok(s) => (s.disp_mm, s.force_kn),
+        Err(_) => (f64::NAN, f64::NAN),
+    };
+    let queued = producer
+        .enqueue(Record {
+            tick: k,
+            command_mm: out.command_mm,
+            target_mm: out.target_mm,
+            measured_mm: m,
+            force_kn: f,
+            state: out.state,
+        })
+        .is_ok();
+    (out, queued)
+}
+
 fn reason_str(r: rths_core::supervisor::FaultReason) -> &'static str {
     use rths_core::supervisor::FaultReason as F;
     match r {
@@ -605,6 +627,10 @@ fn report(
             r.max_step_after_fault_mm
         ));
     }
+    let (stack_used, stack_size) = stack::high_water();
+    ok &= l.put(format_args!(
+        ",\"stack_bytes\":{stack_used},\"stack_avail_bytes\":{stack_size}"
+    ));
     ok &= l.put(format_args!(
         ",\"daq_errors\":{},\"held_samples\":{},\"telemetry_dropped\":{},\"step_limits_mm\":{{\"fault\":{:?},\"end\":{:?}}}}}",
         daq_errors,
