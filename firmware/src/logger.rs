@@ -35,9 +35,8 @@ static STATE: Mutex<RefCell<State>> = Mutex::new(RefCell::new(State {
 }));
 
 /// Frames cut to [`FRAME_BYTES`] so far.
-#[allow(dead_code)]
 pub fn truncated_frames() -> u32 {
-    interrupt::free(|cs| STATE.borrow(&cs).borrow().truncated)
+    interrupt::free(|cs| STATE.borrow(cs).borrow().truncated)
 }
 
 fn push(st: &mut State, bytes: &[u8]) {

@@ -632,10 +632,11 @@ fn report(
         ",\"stack_bytes\":{stack_used},\"stack_avail_bytes\":{stack_size}"
     ));
     ok &= l.put(format_args!(
-        ",\"daq_errors\":{},\"held_samples\":{},\"telemetry_dropped\":{},\"step_limits_mm\":{{\"fault\":{:?},\"end\":{:?}}}}}",
+        ",\"daq_errors\":{},\"held_samples\":{},\"telemetry_dropped\":{},\"log_frames_cut\":{},\"step_limits_mm\":{{\"fault\":{:?},\"end\":{:?}}}}}",
         daq_errors,
         held_samples,
         r.telemetry_dropped,
+        logger::truncated_frames(),
         lim.fault_ramp_rate_mm_s() * DT_S,
         END_RAMP_RATE_MM_S * DT_S,
     ));
