@@ -283,7 +283,12 @@ fn motion(out: &mut String, root: &Path) {
                 .unwrap_or_else(|_| fail(format!("{}: bad value `{t}`", path.display())))
         })
         .collect();
-    if values.len() != npts || npts < 2 || !dt_s.is_finite() || dt_s <= 0.0 || values.iter().any(|v| !v.is_finite()) {
+    if values.len() != npts
+        || npts < 2
+        || !dt_s.is_finite()
+        || dt_s <= 0.0
+        || values.iter().any(|v| !v.is_finite())
+    {
         fail(format!(
             "{}: expected {npts} finite values at DT > 0, found {}",
             path.display(),
