@@ -1,0 +1,232 @@
+//! The firmware in the loop: builds `firmware/` for the emulated STM32F405 and runs it in QEMU
+//! (`qemu-system-arm`, netduinoplus2, `-icount shift=0`), then checks its RESULT line against the host
+//! simulation of the same scenario and seed, the supervisor's trip and ramp under an injected fault,
+//! and the timing budget.
+//!
+//! Skipped (with a loud message) only when `qemu-system-arm` is not installed; CI installs it.
+#![cfg(feature = "sim")]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use rths::analysis::{pure_response, Method};
+use rths::motion::GroundMotion;
+use rths::scenario::{self, ScenarioId, ScenarioSetup};
+use rths_core::params::{Prototype, DT_S};
+use rths_hal_sim::{Preset, Specimen};
+
+/// Builds share `firmware/target`: one at a time, and each ELF is copied before the next build.
+static BUILD: Mutex<()> = Mutex::new(());
+
+/// Core clock of the STM32F405/407, Hz, and the cycles-per-instruction assumption of the budget.
+const CPU_HZ: f64 = 168e6;
+const CYCLES_PER_INSTR: f64 = 1.5;
+/// The timing budget: the controller's share of the 488 µs tick.
+const MAX_TICK_SHARE: f64 = 0.10;
+
+fn firmware_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("firmware")
+}
+
+fn qemu_missing() -> bool {
+    let found = Command::new("qemu-system-arm")
+        .arg("--version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !found {
+        eprintln!(
+            "\n*** SKIPPED: firmware-in-the-loop test: `qemu-system-arm` is not installed \
+             (apt-get install qemu-system-arm). CI installs it, so this never skips there. ***\n"
+        );
+    }
+    !found
+}
+
+/// `cargo build --release` of the firmware with `features` (on top of the defaults unless
+/// `no_default`), ELF copied to a private path.
+fn build(name: &str, no_default: bool, features: &str) -> PathBuf {
+    let _guard = BUILD.lock().unwrap_or_else(|e| e.into_inner());
+    let mut cmd = Command::new(env!("CARGO"));
+    cmd.current_dir(firmware_dir())
+        .args(["build", "--release"])
+        // The outer cargo's target dir belongs to the host workspace.
+        .env_remove("CARGO_TARGET_DIR");
+    if no_default {
+        cmd.arg("--no-default-features");
+    }
+    if !features.is_empty() {
+        cmd.args(["--features", features]);
+    }
+    let status = cmd.status().unwrap();
+    assert!(status.success(), "firmware build ({features}) failed");
+    let elf = firmware_dir().join("target/thumbv7em-none-eabihf/release/rths-firmware");
+    let dest = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("rths-firmware-{name}.elf"));
+    std::fs::copy(&elf, &dest).unwrap();
+    dest
+}
+
+/// The QEMU command line of `firmware/.cargo/config.toml`'s runner (one source of truth).
+fn runner() -> Vec<String> {
+    let cfg = std::fs::read_to_string(firmware_dir().join(".cargo/config.toml")).unwrap();
+    let line = cfg
+        .lines()
+        .find(|l| l.trim_start().starts_with("runner"))
+        .unwrap();
+    let quoted = line.split('"').nth(1).unwrap();
+    quoted.split_whitespace().map(str::to_string).collect()
+}
+
+/// Run an ELF in QEMU (5 min timeout); its RESULT line as JSON and the exit status.
+fn run(elf: &Path) -> (serde_json::Value, bool) {
+    let argv = runner();
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = Command::new(&argv[0])
+        .args(&argv[1..])
+        .arg(elf)
+        .current_dir(dir.path())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if start.elapsed() > Duration::from_secs(300) {
+            let _ = child.kill();
+            panic!("QEMU did not finish within 300 s");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut out = String::new();
+    std::io::Read::read_to_string(&mut child.stdout.take().unwrap(), &mut out).unwrap();
+    println!("{out}");
+    let line = out
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("RESULT "))
+        .unwrap_or_else(|| panic!("no RESULT line in:\n{out}"));
+    (serde_json::from_str(line).unwrap(), status.success())
+}
+
+fn f(v: &serde_json::Value, key: &str) -> f64 {
+    v[key]
+        .as_f64()
+        .unwrap_or_else(|| panic!("{key} missing in {v}"))
+}
+
+/// The host simulation of `lr-online` with the `rths reproduce` defaults (unr-compact, linear
+/// specimen, seed 1) and the model the firmware compiled in.
+fn host_lr_online_nrmse() -> f64 {
+    let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let reference = pure_response(&Prototype::paper(), &ag, DT_S, Method::Chang)
+        .unwrap()
+        .brace_disp_mm;
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json");
+    let model = rths::model_file::ModelFile::load(&path).unwrap();
+    let theta: [f64; 6] = model.lr.as_ref().unwrap().theta.clone().try_into().unwrap();
+    let setup = ScenarioSetup {
+        id: ScenarioId::LrOnline,
+        ground_accel_mm_s2: &ag,
+        reference_mm: &reference,
+        rig: scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        stiffness_factor: 1.0,
+        lr: Some(rths_core::metamodel::LrParams::new(theta).unwrap()),
+        rnn: None,
+        delay_steps: model.delay_steps,
+    };
+    let run = scenario::run(&setup).unwrap();
+    assert!(run.report.stable, "host run stopped: {:?}", run.report);
+    run.report.nrmse_pct.unwrap()
+}
+
+fn tick_share(instr: f64) -> f64 {
+    instr * CYCLES_PER_INSTR / (CPU_HZ * DT_S)
+}
+
+#[test]
+fn lr_online_in_qemu_matches_the_host_and_fits_the_budget() {
+    if qemu_missing() {
+        return;
+    }
+    let elf = build("lr", false, "");
+    let (r, ok) = run(&elf);
+    assert!(ok, "firmware exit status was not 0: {r}");
+    assert_eq!(r["scenario"], "lr-online");
+    assert_eq!(r["ticks"], 81_900, "the whole El Centro record");
+    assert_eq!(r["overruns"], 0);
+    assert_eq!(r["faults"], 0);
+    let fw = f(&r, "nrmse_pct");
+    let host = host_lr_online_nrmse();
+    println!(
+        "lr-online NRMSE: firmware {fw:?} %, host {host:?} %, bit-identical: {}",
+        fw.to_bits() == host.to_bits()
+    );
+    assert!(
+        (fw - host).abs() <= 0.01,
+        "firmware {fw} % vs host {host} %"
+    );
+
+    // End of test: the supervisor ramps to zero, never faster than its end ramp, and reports Done.
+    assert_eq!(r["end_state"], "done");
+    assert!(f(&r, "ramp_ticks") > 1.0);
+    let end_step = f(&r["step_limits_mm"], "end");
+    assert!(f(&r, "max_ramp_step_mm") <= end_step * (1.0 + 1e-9));
+    assert_eq!(f(&r, "final_cmd_mm"), 0.0);
+
+    // Timing budget: the controller's worst tick within 10% of the 488 µs tick at 168 MHz.
+    let max = f(&r["instr_per_tick"], "max");
+    let share = tick_share(max);
+    println!(
+        "LR budget: max {max} instructions/tick = {:.2}% of the tick",
+        share * 100.0
+    );
+    assert!(share <= MAX_TICK_SHARE, "{:.2}% of the tick", share * 100.0);
+}
+
+#[test]
+fn injected_sensor_fault_trips_and_holds_without_a_jump() {
+    if qemu_missing() {
+        return;
+    }
+    let elf = build("fault", false, "fault-inject");
+    let (r, ok) = run(&elf);
+    assert!(ok, "fault build did not end as planned: {r}");
+    assert_eq!(r["faults"], 1);
+    assert_eq!(r["end_state"], "fault");
+    assert_eq!(r["fault_reason"], "NonFiniteSample");
+    // The NaN appears in the sample of tick 10 s (20480 ticks).
+    assert_eq!(r["fault_tick"], 20_480);
+    assert!(r["nrmse_pct"].is_null(), "a stopped run has no figure");
+    let fault_step = f(&r["step_limits_mm"], "fault");
+    assert!(f(&r, "max_step_after_fault_mm") <= fault_step * (1.0 + 1e-9));
+    // Ends on the last safe command (the one sent before the trip).
+    assert_eq!(f(&r, "final_cmd_mm"), f(&r, "cmd_before_fault_mm"));
+}
+
+/// The other analytical parts: they must build and run the whole record in QEMU; their instructions
+/// per tick are reported (the 10% budget is the LR path's: f64 on the F4's single-precision FPU is
+/// software floating point, and the RNN's tanh alone costs thousands of instructions).
+#[test]
+fn rnn_and_fe_ats_paths_build_and_run() {
+    if qemu_missing() {
+        return;
+    }
+    for (name, features) in [("rnn", "model-rnn"), ("fe-ats", "fe-ats")] {
+        let elf = build(name, true, &format!("board-qemu,{features}"));
+        let (r, _) = run(&elf);
+        let max = f(&r["instr_per_tick"], "max");
+        println!(
+            "{name}: {} max {max} instructions/tick = {:.2}% of the tick",
+            r["scenario"],
+            tick_share(max) * 100.0
+        );
+        assert_eq!(r["ticks"], 81_900, "{name}: {r}");
+        assert!(max > 0.0, "{name}: {r}");
+    }
+}
