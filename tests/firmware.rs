@@ -190,7 +190,7 @@ fn lr_online_in_qemu_matches_the_host_and_fits_the_budget() {
 }
 
 #[test]
-fn injected_sensor_fault_trips_and_holds_without_a_jump() {
+fn injected_sensor_fault_trips_and_ramps_without_a_jump() {
     if qemu_missing() {
         return;
     }
@@ -205,8 +205,24 @@ fn injected_sensor_fault_trips_and_holds_without_a_jump() {
     assert!(r["nrmse_pct"].is_null(), "a stopped run has no figure");
     let fault_step = f(&r["step_limits_mm"], "fault");
     assert!(f(&r, "max_step_after_fault_mm") <= fault_step * (1.0 + 1e-9));
-    // Ends on the last safe command (the one sent before the trip).
-    assert_eq!(f(&r, "final_cmd_mm"), f(&r, "cmd_before_fault_mm"));
+    // Ramps at the fault rate back to the safe position (where the test was armed, 0 mm): as many
+    // ticks as the distance takes at that step, and ends exactly there.
+    assert_eq!(f(&r, "final_cmd_mm"), 0.0);
+    let before = f(&r, "cmd_before_fault_mm").abs();
+    let ramp = f(&r, "fault_ramp_ticks");
+    assert!(
+        before > 0.1,
+        "the fault should strike mid-motion: {before} mm"
+    );
+    let expect = (before / fault_step).ceil();
+    assert!(
+        (ramp - expect).abs() <= 1.0,
+        "ramp of {ramp} ticks for {before} mm"
+    );
+    println!(
+        "fault ramp: {before:.3} mm in {ramp} ticks ({:.1} ms)",
+        ramp / 2.048
+    );
 }
 
 /// The other analytical parts: they must build and run the whole record in QEMU; their instructions

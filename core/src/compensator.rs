@@ -625,9 +625,10 @@ impl Compensator {
     /// way whatever the compensator.
     pub fn compensate(&mut self, target_mm: f64, measured_mm: f64) -> Result<f64, InputError> {
         match self {
+            // Nothing to compute: only refuse what is not a number (the supervisor trips on it).
             Compensator::None => {
-                input(measured_mm, "measured_mm")?;
-                input(target_mm, "target_mm")
+                finite(measured_mm, "measured_mm")?;
+                finite(target_mm, "target_mm")
             }
             Compensator::Horiuchi(h) => {
                 input(measured_mm, "measured_mm")?;

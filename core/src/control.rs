@@ -16,8 +16,6 @@
 //! model (and counted), while the supervisor sees the raw result and trips on a non-finite value or a
 //! sensor timeout. Nothing here allocates or panics.
 
-use heapless::HistoryBuf;
-
 use crate::compensator::Compensator;
 use crate::hal::{ErrorKind, Sample};
 use crate::integrator::{Chang, ExplicitIntegrator};
@@ -153,6 +151,42 @@ impl Analytical {
     }
 }
 
+/// The last targets, a power-of-two ring indexed with a mask: O(1), and no index can panic.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct TargetRing {
+    buf: [f64; RING_LEN],
+    /// Index of the newest entry.
+    newest: usize,
+}
+
+/// Ring length: a power of two above [`MAX_DELAY_STEPS`].
+const RING_LEN: usize = (MAX_DELAY_STEPS + 1).next_power_of_two();
+
+impl Default for TargetRing {
+    /// Full of zeros: the structure was at rest before the test.
+    fn default() -> Self {
+        Self {
+            buf: [0.0; RING_LEN],
+            newest: 0,
+        }
+    }
+}
+
+impl TargetRing {
+    fn push(&mut self, x: f64) {
+        self.newest = (self.newest + 1) & (RING_LEN - 1);
+        if let Some(slot) = self.buf.get_mut(self.newest) {
+            *slot = x;
+        }
+    }
+
+    /// The target `delay` pushes ago (0: the newest); `delay` ≤ [`MAX_DELAY_STEPS`] (validated).
+    fn delayed(&self, delay: usize) -> f64 {
+        let i = self.newest.wrapping_sub(delay) & (RING_LEN - 1);
+        self.buf.get(i).copied().unwrap_or(0.0)
+    }
+}
+
 /// Everything about a controller that is fixed for a test, validated.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ControlConfig {
@@ -219,8 +253,8 @@ pub struct Controller {
     analytical: Analytical,
     compensator: Compensator,
     supervisor: Supervisor,
-    /// Targets by tick, newest last: target(k) was produced at tick k−1.
-    targets: HistoryBuf<f64, { MAX_DELAY_STEPS + 1 }>,
+    /// Targets by tick: target(k) was produced at tick k−1.
+    targets: TargetRing,
     last_good: Sample,
     held_samples: u32,
     step_errors: u32,
@@ -234,7 +268,7 @@ impl Controller {
             analytical,
             compensator,
             supervisor: Supervisor::new(config.limits),
-            targets: HistoryBuf::new_with(0.0),
+            targets: TargetRing::default(),
             last_good: Sample::default(),
             held_samples: 0,
             step_errors: 0,
@@ -248,8 +282,7 @@ impl Controller {
         self.analytical.reset();
         self.compensator.reset();
         self.supervisor.reset();
-        // Full of zeros: the structure was at rest before the test.
-        self.targets.clear_with(0.0);
+        self.targets = TargetRing::default();
         self.last_good = Sample::default();
         self.held_samples = 0;
         self.step_errors = 0;
@@ -291,15 +324,6 @@ impl Controller {
     /// Ticks on which the analytical part failed (non-finite input or output).
     pub fn step_errors(&self) -> u32 {
         self.step_errors
-    }
-
-    fn target_delayed(&self, delay_steps: usize) -> f64 {
-        // The buffer is always full (reset fills it), so storage index arithmetic is O(1);
-        // newest = target(k).
-        let cap = self.targets.capacity();
-        let newest = self.targets.recent_index().unwrap_or(0);
-        let idx = (newest + cap - delay_steps % cap) % cap;
-        self.targets.as_slice().get(idx).copied().unwrap_or(0.0)
     }
 
     /// One controller tick `k`: ground acceleration `ü_g(k)` (mm/s²), the DAQ result of tick `k`, and
@@ -348,14 +372,14 @@ impl Controller {
         if !ag_mm_s2.is_finite() {
             return Err(StepError::NonFiniteGroundAccel);
         }
-        let cfg = self.config;
+        let cfg = &self.config;
         let fb = match cfg.feedback {
             FeedbackSource::Measured => Feedback {
                 brace_disp_mm: cfg.scale.prototype_disp_mm(self.last_good.disp_mm),
                 brace_force_kn: cfg.scale.prototype_force_kn(self.last_good.force_kn),
             },
             FeedbackSource::OwnDelayed { delay_steps } => {
-                let x = self.target_delayed(delay_steps);
+                let x = self.targets.delayed(delay_steps);
                 Feedback {
                     brace_disp_mm: x,
                     brace_force_kn: cfg.proto.brace_force_kn(x),
@@ -363,7 +387,7 @@ impl Controller {
             }
         };
         let target = self.analytical.next_target(ag_mm_s2, &fb)?;
-        self.targets.write(target);
+        self.targets.push(target);
         let target_specimen = cfg.scale.specimen_disp_mm(target);
         let command = self
             .compensator

@@ -195,16 +195,18 @@ impl Lr {
     /// x̂(i+1) from the features at i and the last two predictions; shifts the state.
     /// Refuses non-finite features (or an overflowing prediction) and keeps the state.
     pub fn predict(&mut self, f: Features) -> Result<f64, InputError> {
-        let x = [
-            1.0,
-            finite(f.ground_accel_mm_s2, "ground_accel_mm_s2")?,
-            finite(f.brace_disp_fb_mm, "brace_disp_fb_mm")?,
-            finite(f.brace_force_fb_kn, "brace_force_fb_kn")?,
-            self.state.pred_mm,
-            self.state.prev_pred_mm,
-        ];
+        let ag = finite(f.ground_accel_mm_s2, "ground_accel_mm_s2")?;
+        let x_fb = finite(f.brace_disp_fb_mm, "brace_disp_fb_mm")?;
+        let f_fb = finite(f.brace_force_fb_kn, "brace_force_fb_kn")?;
+        let [t0, t1, t2, t3, t4, t5] = self.params.theta;
+        // Summed in feature order, as the trainer does; the bias needs no multiplication by 1 (the
+        // MCU does f64 in software, so each operation saved is ~60 instructions).
         let y = finite(
-            self.params.theta.iter().zip(&x).map(|(t, v)| t * v).sum(),
+            t0 + t1 * ag
+                + t2 * x_fb
+                + t3 * f_fb
+                + t4 * self.state.pred_mm
+                + t5 * self.state.prev_pred_mm,
             "LR prediction",
         )?;
         self.state = LrState {

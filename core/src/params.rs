@@ -217,6 +217,11 @@ impl Prototype {
 pub struct SpecimenScale {
     disp: f64,
     force: f64,
+    // Reciprocals, derived once: the MCU does f64 division in software.
+    inv_disp: f64,
+    inv_force: f64,
+    // Displacement scale exactly 1 (full-scale stroke): no multiplication at all.
+    unit_disp: bool,
 }
 
 impl Default for SpecimenScale {
@@ -224,6 +229,9 @@ impl Default for SpecimenScale {
         Self {
             disp: DISP_SCALE,
             force: FORCE_SCALE,
+            inv_disp: 1.0 / DISP_SCALE,
+            inv_force: 1.0 / FORCE_SCALE,
+            unit_disp: DISP_SCALE == 1.0,
         }
     }
 }
@@ -232,18 +240,31 @@ impl SpecimenScale {
     /// A validated scale: prototype = `disp_scale` × specimen displacement,
     /// prototype = `force_scale` × specimen force.
     pub fn new(disp_scale: f64, force_scale: f64) -> Result<Self, ParamError> {
+        let disp = positive(disp_scale, "displacement scale")?;
+        let force = positive(force_scale, "force scale")?;
         Ok(Self {
-            disp: positive(disp_scale, "displacement scale")?,
-            force: positive(force_scale, "force scale")?,
+            disp,
+            force,
+            inv_disp: 1.0 / disp,
+            inv_force: 1.0 / force,
+            unit_disp: disp == 1.0,
         })
     }
     /// Actuator (specimen) displacement for a prototype brace deformation, mm.
     pub fn specimen_disp_mm(&self, prototype_brace_disp_mm: f64) -> f64 {
-        prototype_brace_disp_mm / self.disp
+        if self.unit_disp {
+            prototype_brace_disp_mm
+        } else {
+            prototype_brace_disp_mm * self.inv_disp
+        }
     }
     /// Prototype brace deformation from a measured specimen displacement, mm.
     pub fn prototype_disp_mm(&self, specimen_disp_mm: f64) -> f64 {
-        specimen_disp_mm * self.disp
+        if self.unit_disp {
+            specimen_disp_mm
+        } else {
+            specimen_disp_mm * self.disp
+        }
     }
     /// Prototype brace axial force from a load-cell force, kN.
     pub fn prototype_force_kn(&self, specimen_force_kn: f64) -> f64 {
@@ -251,7 +272,7 @@ impl SpecimenScale {
     }
     /// Load-cell force for a prototype brace axial force, kN.
     pub fn specimen_force_kn(&self, prototype_force_kn: f64) -> f64 {
-        prototype_force_kn / self.force
+        prototype_force_kn * self.inv_force
     }
     /// Specimen stiffness that stands for a prototype brace of axial stiffness `brace_k`, kN/mm.
     pub fn specimen_stiffness_kn_per_mm(&self, prototype_brace_k_kn_per_mm: f64) -> f64 {

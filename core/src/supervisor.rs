@@ -10,9 +10,13 @@
 //!   errors (sensor timeout), `max_overruns` consecutive overruns.
 //! - The output is always rate-limited to `ramp_rate_mm_s`·Δt per tick and clamped to the stroke limit,
 //!   so it never jumps, whatever the input.
-//! - On a fault the output ramps (at `fault_ramp_rate_mm_s`) from where it is to the *last safe
-//!   command* (the last one that passed every check) and holds there. At the end of a test
-//!   (`finish()`) or on `abort()`, it ramps to zero (`RampDown`) and then reports `Done`.
+//! - On a fault the output ramps (at `fault_ramp_rate_mm_s`) from where it is to the *safe position*:
+//!   the command held when the test was armed, i.e. where the specimen was installed, unloaded. That
+//!   is the last position known to be safe for the specimen: any later one may be the very one that
+//!   overloaded it (a force or stroke trip), and holding it would keep the overload. The ramp
+//!   continues whatever the sensors say (a NaN or a dead sensor cannot stop it), then holds there.
+//!   At the end of a test (`finish()`) or on `abort()`, it ramps to zero (`RampDown`) and then reports
+//!   `Done`.
 //!
 //! Parameters ([`Limits`]) are validated and immutable; [`Supervisor::reset`] returns to `Idle`.
 
@@ -33,6 +37,11 @@ pub struct Limits {
     fault_ramp_rate_mm_s: f64,
     end_ramp_rate_mm_s: f64,
     dt_s: f64,
+    // Per-tick steps, derived once (the MCU does f64 in software: no multiplications per tick).
+    max_step_mm: f64,
+    max_step_tol_mm: f64,
+    fault_step_mm: f64,
+    end_step_mm: f64,
 }
 
 impl Limits {
@@ -49,7 +58,21 @@ impl Limits {
             fault_ramp_rate_mm_s: 20.0,
             end_ramp_rate_mm_s: 10.0,
             dt_s: DT_S,
+            max_step_mm: 0.0,
+            max_step_tol_mm: 0.0,
+            fault_step_mm: 0.0,
+            end_step_mm: 0.0,
         }
+        .derive()
+    }
+
+    fn derive(mut self) -> Self {
+        self.max_step_mm = self.velocity_mm_s * self.dt_s;
+        // A small tolerance so that a command exactly at the velocity limit is not a fault.
+        self.max_step_tol_mm = self.max_step_mm * (1.0 + 1e-9);
+        self.fault_step_mm = (self.fault_ramp_rate_mm_s * self.dt_s).min(self.max_step_mm);
+        self.end_step_mm = (self.end_ramp_rate_mm_s * self.dt_s).min(self.max_step_mm);
+        self
     }
 
     /// Validated limits. Counts must be ≥ 1; all values finite and > 0; the ramp rates must not exceed
@@ -83,7 +106,12 @@ impl Limits {
             fault_ramp_rate_mm_s: fault,
             end_ramp_rate_mm_s: end,
             dt_s: positive(dt_s, "time step")?,
-        })
+            max_step_mm: 0.0,
+            max_step_tol_mm: 0.0,
+            fault_step_mm: 0.0,
+            end_step_mm: 0.0,
+        }
+        .derive())
     }
 
     /// Stroke limit, ±mm.
@@ -100,7 +128,11 @@ impl Limits {
     }
     /// Largest command change per tick, mm.
     pub fn max_step_mm(&self) -> f64 {
-        self.velocity_mm_s * self.dt_s
+        self.max_step_mm
+    }
+    /// Largest command change per tick on the fault ramp, mm.
+    pub fn fault_step_mm(&self) -> f64 {
+        self.fault_step_mm
     }
     /// Fault ramp rate, mm/s.
     pub fn fault_ramp_rate_mm_s(&self) -> f64 {
@@ -170,8 +202,7 @@ pub struct Supervisor {
     limits: Limits,
     state: State,
     output_mm: f64,
-    last_safe_mm: f64,
-    last_request_mm: Option<f64>,
+    safe_position_mm: f64,
     daq_errors: u32,
     overruns: u32,
     total_overruns: u32,
@@ -185,8 +216,7 @@ impl Supervisor {
             limits,
             state: State::Idle,
             output_mm: 0.0,
-            last_safe_mm: 0.0,
-            last_request_mm: None,
+            safe_position_mm: 0.0,
             daq_errors: 0,
             overruns: 0,
             total_overruns: 0,
@@ -220,9 +250,15 @@ impl Supervisor {
         self.total_daq_errors
     }
 
-    /// `Idle → Armed`.
+    /// `Idle → Armed`; the command held now becomes the safe position a fault ramps back to.
     pub fn arm(&mut self) -> Result<(), InvalidTransition> {
-        self.transition(State::Idle, State::Armed)
+        self.transition(State::Idle, State::Armed)?;
+        self.safe_position_mm = self.output_mm;
+        Ok(())
+    }
+    /// The position a fault ramps to, mm (the command held when the test was armed).
+    pub fn safe_position_mm(&self) -> f64 {
+        self.safe_position_mm
     }
     /// `Armed → Running`.
     pub fn start(&mut self) -> Result<(), InvalidTransition> {
@@ -259,15 +295,17 @@ impl Supervisor {
         }
     }
 
-    /// Move the output toward `goal` by at most `rate`·Δt (and never more than the velocity limit).
-    fn ramp_toward(&mut self, goal: f64, rate_mm_s: f64) {
-        let step = (rate_mm_s * self.limits.dt_s).min(self.limits.max_step_mm());
+    /// Move the output toward `goal` by at most `step_mm` (never more than the velocity limit).
+    fn ramp_toward(&mut self, goal: f64, step_mm: f64) {
         let delta = goal - self.output_mm;
-        // Land exactly on the goal when within reach (no rounding residue on pass-through).
-        self.output_mm = if delta.abs() <= step {
-            goal
+        // Land exactly on the goal when within reach (no rounding residue on pass-through). Written
+        // with comparisons, not `clamp`, which has a panic path.
+        self.output_mm = if delta > step_mm {
+            self.output_mm + step_mm
+        } else if delta < -step_mm {
+            self.output_mm - step_mm
         } else {
-            self.output_mm + delta.clamp(-step, step)
+            goal
         };
     }
 
@@ -315,14 +353,12 @@ impl Supervisor {
             self.check_request(requested_mm);
         }
         match self.state {
-            State::Running => {
-                // check_request passed: the request is safe and within one step.
-                self.ramp_toward(requested_mm, lim.velocity_mm_s);
-                self.last_safe_mm = self.output_mm;
-            }
-            State::Fault(_) => self.ramp_toward(self.last_safe_mm, lim.fault_ramp_rate_mm_s),
+            // check_request passed: the request is finite, within the stroke and within one
+            // velocity-limited step of the last command, so it is sent as it is.
+            State::Running => self.output_mm = requested_mm,
+            State::Fault(_) => self.ramp_toward(self.safe_position_mm, lim.fault_step_mm),
             State::RampDown => {
-                self.ramp_toward(0.0, lim.end_ramp_rate_mm_s);
+                self.ramp_toward(0.0, lim.end_step_mm);
                 if self.output_mm == 0.0 {
                     self.state = State::Done;
                 }
@@ -341,14 +377,9 @@ impl Supervisor {
             self.trip(FaultReason::NonFiniteCommand);
         } else if requested_mm.abs() > lim.stroke_mm {
             self.trip(FaultReason::CommandStroke);
-        } else {
-            let prev = self.last_request_mm.unwrap_or(self.output_mm);
-            // A small tolerance so that a command exactly at the limit is not a fault.
-            if (requested_mm - prev).abs() > lim.max_step_mm() * (1.0 + 1e-9) {
-                self.trip(FaultReason::CommandVelocity);
-            }
+        } else if (requested_mm - self.output_mm).abs() > lim.max_step_tol_mm {
+            self.trip(FaultReason::CommandVelocity);
         }
-        self.last_request_mm = Some(requested_mm);
     }
 }
 

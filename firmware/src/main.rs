@@ -91,6 +91,8 @@ pub struct Run {
     cmd_before_fault_mm: f64,
     /// Largest |Δcommand| per tick from the trip on, mm.
     max_step_after_fault_mm: f64,
+    /// Ticks after the trip on which the command moved (the fault ramp).
+    fault_ramp_ticks: u32,
     /// Ticks the command has not moved while in fault.
     fault_steady_ticks: u32,
     /// Ticks from `finish()` to `Done`.
@@ -117,6 +119,7 @@ impl Run {
             fault_tick: None,
             cmd_before_fault_mm: 0.0,
             max_step_after_fault_mm: 0.0,
+            fault_ramp_ticks: 0,
             fault_steady_ticks: 0,
             ramp_ticks: 0,
             max_ramp_step_mm: 0.0,
@@ -405,6 +408,9 @@ mod app {
                         notify = true;
                     }
                     r.max_step_after_fault_mm = r.max_step_after_fault_mm.max(step);
+                    if step > 0.0 {
+                        r.fault_ramp_ticks = r.fault_ramp_ticks.saturating_add(1);
+                    }
                     r.fault_steady_ticks = if step == 0.0 {
                         r.fault_steady_ticks.saturating_add(1)
                     } else {
@@ -620,11 +626,12 @@ fn report(
     ));
     if let (State::Fault(reason), Some(t)) = (end, r.fault_tick) {
         ok &= l.put(format_args!(
-            ",\"fault_reason\":\"{}\",\"fault_tick\":{},\"cmd_before_fault_mm\":{:?},\"max_step_after_fault_mm\":{:?}",
+            ",\"fault_reason\":\"{}\",\"fault_tick\":{},\"cmd_before_fault_mm\":{:?},\"max_step_after_fault_mm\":{:?},\"fault_ramp_ticks\":{}",
             reason_str(reason),
             t,
             r.cmd_before_fault_mm,
-            r.max_step_after_fault_mm
+            r.max_step_after_fault_mm,
+            r.fault_ramp_ticks
         ));
     }
     let (stack_used, stack_size) = stack::high_water();
@@ -637,7 +644,7 @@ fn report(
         held_samples,
         r.telemetry_dropped,
         logger::truncated_frames(),
-        lim.fault_ramp_rate_mm_s() * DT_S,
+        lim.fault_step_mm(),
         END_RAMP_RATE_MM_S * DT_S,
     ));
     logger::host_line(&l.0);
@@ -645,11 +652,11 @@ fn report(
         logger::host_line("ERROR the RESULT line did not fit its buffer");
     }
     // A normal build must finish the record without a fault or an overrun; a fault-injection build must
-    // trip and hold its last safe command without a jump.
+    // trip and ramp, never jumping, to the safe position (where the test was armed: 0 mm).
     let expected = if cfg!(feature = "fault-inject") {
         matches!(end, State::Fault(_))
-            && r.max_step_after_fault_mm <= lim.fault_ramp_rate_mm_s() * DT_S * (1.0 + 1e-9)
-            && r.last_cmd_mm == r.cmd_before_fault_mm
+            && r.max_step_after_fault_mm <= lim.fault_step_mm() * (1.0 + 1e-9)
+            && r.last_cmd_mm == 0.0
     } else {
         completed && end == State::Done && r.overruns == 0 && r.last_cmd_mm == 0.0
     };

@@ -44,7 +44,7 @@ fn lifecycle_and_end_ramp() {
 }
 
 #[test]
-fn every_interlock_trips_and_ramps_to_last_safe() {
+fn every_interlock_trips_and_ramps_to_the_safe_position() {
     type Case = (fn(&mut Supervisor) -> Decision, FaultReason);
     let cases: [Case; 7] = [
         (
@@ -89,12 +89,31 @@ fn every_interlock_trips_and_ramps_to_last_safe() {
         }
         let d = f(&mut s);
         assert_eq!(d.state, State::Fault(reason));
-        assert!((d.command_mm - 2.0).abs() <= s.limits().max_step_mm());
+        let step = s.limits().fault_step_mm();
+        // (The sensor-timeout case trips on its 8th error and has ramped 3 ticks by its 11th.)
+        assert!(
+            d.command_mm <= 2.0 && 2.0 - d.command_mm <= 4.0 * step,
+            "{reason:?}"
+        );
+        // A smooth, monotonic ramp at the fault rate back to where the test was armed (0 mm),
+        // whatever the sensors say meanwhile; it takes 2 mm / (20 mm/s) = 0.1 s.
+        let mut prev = d.command_mm;
+        let mut ticks = 0;
         for _ in 0..5000 {
-            let d = s.tick(f64::NAN, ok(2.0, 0.0), false);
+            let d = s.tick(f64::NAN, ok(f64::NAN, 0.0), false);
             assert!(d.command_mm.is_finite());
+            assert!(d.command_mm <= prev && prev - d.command_mm <= step * (1.0 + 1e-12));
+            if d.command_mm != prev {
+                ticks += 1;
+            }
+            prev = d.command_mm;
         }
-        assert!((s.output_mm() - 2.0).abs() < 1e-12, "{reason:?}");
+        assert_eq!(s.output_mm(), s.safe_position_mm(), "{reason:?}");
+        assert_eq!(s.safe_position_mm(), 0.0);
+        assert!(
+            (200..=206).contains(&ticks),
+            "{reason:?}: ramp of {ticks} ticks"
+        );
     }
 }
 
