@@ -7,6 +7,7 @@
 //! Source of the servo-hydraulic model and its nominal values and uncertainty: Silva, Gomez, Dyke et
 //! al., "Benchmark control problem for real-time hybrid simulation", MSSP 2020 (DESIGN §4).
 
+use crate::plant::Zoh;
 use libm::sqrt;
 use rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -59,13 +60,28 @@ pub const DEFAULT_DISP_NOISE_MM: f64 = 0.002;
 /// Default load-cell noise σ, kN: 0.003 kN ≈ 0.01% of the 31.14 kN full scale (about 3 LSB).
 pub const DEFAULT_FORCE_NOISE_KN: f64 = 0.003;
 
-/// Default number of RK4 sub-steps per controller tick. The fastest closed-loop pole has
+/// Default number of RK4 sub-steps per controller tick (for the ticks that take the RK4 path: see
+/// [`Integration`]). The fastest closed-loop pole has
 /// |λ| = 423 rad/s (`benchmark`) and 783 rad/s (`unr-compact`) (test
 /// `poles_are_stable_and_substeps_resolve_them`), so with 4 sub-steps of 122 µs |λ·h| ≤ 0.096 and
 /// the RK4 local error (λh)⁵/120 < 1e-7: 4 and 64 sub-steps agree to 1e-4 mm, and the frequency
 /// response matches the continuous one inside 1% and 1°. More sub-steps only cost time on the MCU
 /// (soft f64); the end stops and saturations are applied per sub-step.
 pub const DEFAULT_SUBSTEPS: u32 = 4;
+
+/// How the plant is advanced over a controller tick.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Integration {
+    /// While the dynamics are linear (linear specimen) and no saturation can engage during the
+    /// tick, one exact zero-order-hold step `y ← Φ·y + Γ·r` (Φ = e^{A·dt}, Γ = ∫e^{A·s}ds·B,
+    /// computed when the parameters are built); any other tick (Bouc–Wen, a tick within 2% of a
+    /// valve-flow, force, velocity or stroke limit) is redone by RK4 with sub-steps from the
+    /// same start state, so saturated ticks are exactly the RK4 ones.
+    #[default]
+    ExactLinear,
+    /// RK4 with sub-steps on every tick (the reference the exact path is tested against).
+    Rk4,
+}
 
 /// A configuration value that failed validation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -243,8 +259,10 @@ pub struct RigConfig {
     pub seed: u64,
     /// Draw the uncertain parameters (β1, β2, a3, k_e) from their normal distributions.
     pub uncertainty: bool,
-    /// RK4 sub-steps per controller tick (≥ 4).
+    /// RK4 sub-steps per controller tick (≥ 4), for the ticks that take the RK4 path.
     pub substeps: u32,
+    /// Exact linear ticks with RK4 fallback (default), or RK4 throughout.
+    pub integration: Integration,
     /// Controller step, s.
     pub dt_s: f64,
 }
@@ -263,6 +281,7 @@ impl RigConfig {
             seed: 0,
             uncertainty: false,
             substeps: DEFAULT_SUBSTEPS,
+            integration: Integration::ExactLinear,
             dt_s: rths_core::params::DT_S,
         }
     }
@@ -306,7 +325,7 @@ impl RigConfig {
         // valve and leakage poles move r times faster, the specimen keeps its stiffness and damping
         // ratio with mass m/r², and a2 is unchanged.
         let mass = NOMINAL_SPECIMEN_MASS_KG / (r * r);
-        Ok(PlantParams {
+        let mut params = PlantParams {
             preset: self.preset,
             specimen: self.specimen,
             sensors: self.sensors,
@@ -326,7 +345,14 @@ impl RigConfig {
             stroke_m: ACTUATOR_STROKE_MM * 1e-3,
             velocity_m_s: ACTUATOR_VELOCITY_MM_S * 1e-3,
             capacity_n: ACTUATOR_CAPACITY_KN * 1e3,
-        })
+            integration: self.integration,
+            zoh: None,
+        };
+        if self.integration == Integration::ExactLinear && matches!(self.specimen, Specimen::Linear)
+        {
+            params.zoh = Some(Zoh::new(&params, 1.0));
+        }
+        Ok(params)
     }
 }
 
@@ -362,6 +388,9 @@ pub struct PlantParams {
     pub(crate) stroke_m: f64,
     pub(crate) velocity_m_s: f64,
     pub(crate) capacity_n: f64,
+    pub(crate) integration: Integration,
+    /// The exact tick of the healthy linear plant (`None`: Bouc–Wen or [`Integration::Rk4`]).
+    pub(crate) zoh: Option<Zoh>,
 }
 
 /// Gain and phase of a frequency response.
@@ -390,9 +419,13 @@ impl PlantParams {
     pub fn seed(&self) -> u64 {
         self.seed
     }
-    /// RK4 sub-steps per tick.
+    /// RK4 sub-steps per tick (on the ticks that take the RK4 path).
     pub fn substeps(&self) -> u32 {
         self.substeps
+    }
+    /// How ticks are integrated.
+    pub fn integration(&self) -> Integration {
+        self.integration
     }
     /// Controller step, s.
     pub fn dt_s(&self) -> f64 {

@@ -12,7 +12,7 @@ use rths_core::hal::{Actuator, Daq, Error, ErrorKind, Sample};
 
 use crate::fault::{FaultKind, FaultPlan};
 use crate::params::PlantParams;
-use crate::plant::{self, Modifiers, PlantState};
+use crate::plant::{self, Modifiers, PlantState, Zoh};
 
 /// Full-scale voltage of the converters, ±V.
 pub const CONVERTER_FULL_SCALE_V: f64 = 10.0;
@@ -75,6 +75,13 @@ pub struct VirtualRig {
     fresh: Sample,
     /// The last sample `read()` returned, per channel, for stuck and lost-tick faults.
     last_read: Sample,
+    /// The plan holds at least one fault (without, the per-tick fault scans are skipped).
+    has_faults: bool,
+    /// The exact tick at a faulted stiffness factor, computed when that factor first applies (a
+    /// pure function of the parameters and the factor, so `reset()` keeps it).
+    zoh_faulted: Option<(f64, Zoh)>,
+    /// Ticks taken by the exact linear step since the last reset.
+    exact_ticks: u64,
 }
 
 impl VirtualRig {
@@ -94,6 +101,9 @@ impl VirtualRig {
             command_mm: 0.0,
             fresh: Sample::default(),
             last_read: Sample::default(),
+            has_faults: faults.iter().next().is_some(),
+            zoh_faulted: None,
+            exact_ticks: 0,
         };
         rig.reset();
         rig
@@ -104,6 +114,7 @@ impl VirtualRig {
         self.state.reset();
         self.rng = noise_rng(self.params.seed());
         self.tick = 0;
+        self.exact_ticks = 0;
         self.command_mm = 0.0;
         self.fresh = self.sense();
         self.last_read = self.fresh;
@@ -122,6 +133,12 @@ impl VirtualRig {
     /// Ticks advanced since the last reset.
     pub fn tick(&self) -> u64 {
         self.tick
+    }
+
+    /// Ticks since the last reset that the plant advanced by the exact linear step (the others took
+    /// RK4 with sub-steps: Bouc–Wen, [`crate::Integration::Rk4`], or near a saturation).
+    pub fn exact_ticks(&self) -> u64 {
+        self.exact_ticks
     }
 
     /// The command the servo-controller is holding (after the DAC), mm.
@@ -156,6 +173,9 @@ impl VirtualRig {
 
     fn modifiers(&self) -> Modifiers {
         let mut m = Modifiers::default();
+        if !self.has_faults {
+            return m;
+        }
         for f in self.faults.active(self.tick) {
             match f.kind {
                 FaultKind::ValveSaturation(frac) => m.valve_factor *= frac,
@@ -167,15 +187,36 @@ impl VirtualRig {
     }
 
     fn lost(&self) -> bool {
-        self.faults
-            .active(self.tick)
-            .any(|f| matches!(f.kind, FaultKind::LostTicks))
+        self.has_faults
+            && self
+                .faults
+                .active(self.tick)
+                .any(|f| matches!(f.kind, FaultKind::LostTicks))
     }
 
     /// Move the plant one controller step holding the last command (ZOH), then sample the sensors.
     pub fn advance_tick(&mut self) {
         let m = self.modifiers();
-        plant::advance(&self.params, &mut self.state, self.command_mm * 1e-3, m);
+        let zoh = match self.params.zoh.as_ref() {
+            Some(z) if m.stiffness_factor == 1.0 => Some(z),
+            Some(_) => {
+                let factor = m.stiffness_factor;
+                if self.zoh_faulted.map(|(f, _)| f) != Some(factor) {
+                    self.zoh_faulted = Some((factor, Zoh::new(&self.params, factor)));
+                }
+                self.zoh_faulted.as_ref().map(|(_, z)| z)
+            }
+            None => None,
+        };
+        if plant::advance(
+            &self.params,
+            &mut self.state,
+            self.command_mm * 1e-3,
+            m,
+            zoh,
+        ) {
+            self.exact_ticks += 1;
+        }
         self.tick = self.tick.saturating_add(1);
         self.fresh = self.sense();
     }
@@ -183,10 +224,14 @@ impl VirtualRig {
     /// Sensor readings of the current state: noise, then the 16-bit ADC.
     fn sense(&mut self) -> Sample {
         let s = self.params.sensors();
-        let nd: f64 = StandardNormal.sample(&mut self.rng);
-        let nf: f64 = StandardNormal.sample(&mut self.rng);
-        let disp = self.true_disp_mm() + s.disp_noise_mm * nd;
-        let force = self.true_force_kn() + s.force_noise_kn * nf;
+        let (mut disp, mut force) = (self.true_disp_mm(), self.true_force_kn());
+        // The stream serves only the sensor noise: without noise the draws change nothing.
+        if s.disp_noise_mm != 0.0 || s.force_noise_kn != 0.0 {
+            let nd: f64 = StandardNormal.sample(&mut self.rng);
+            let nf: f64 = StandardNormal.sample(&mut self.rng);
+            disp += s.disp_noise_mm * nd;
+            force += s.force_noise_kn * nf;
+        }
         if s.quantize {
             Sample {
                 disp_mm: quantize(disp, self.params.stroke_mm()),
@@ -216,34 +261,37 @@ impl Daq for VirtualRig {
         if self.lost() {
             return Ok(self.last_read);
         }
-        for f in self.faults.active(self.tick) {
-            match f.kind {
-                FaultKind::Dropout => return Err(SimError::Dropout),
-                FaultKind::Stuck(ch) => {
-                    if ch.disp() {
-                        out.disp_mm = self.last_read.disp_mm;
+        // Most plans are empty: skip the scan.
+        if self.has_faults {
+            for f in self.faults.active(self.tick) {
+                match f.kind {
+                    FaultKind::Dropout => return Err(SimError::Dropout),
+                    FaultKind::Stuck(ch) => {
+                        if ch.disp() {
+                            out.disp_mm = self.last_read.disp_mm;
+                        }
+                        if ch.force() {
+                            out.force_kn = self.last_read.force_kn;
+                        }
                     }
-                    if ch.force() {
-                        out.force_kn = self.last_read.force_kn;
+                    FaultKind::NaN(ch) => {
+                        if ch.disp() {
+                            out.disp_mm = f64::NAN;
+                        }
+                        if ch.force() {
+                            out.force_kn = f64::NAN;
+                        }
                     }
+                    FaultKind::Spike(ch, m) => {
+                        if ch.disp() {
+                            out.disp_mm += m;
+                        }
+                        if ch.force() {
+                            out.force_kn += m;
+                        }
+                    }
+                    _ => {}
                 }
-                FaultKind::NaN(ch) => {
-                    if ch.disp() {
-                        out.disp_mm = f64::NAN;
-                    }
-                    if ch.force() {
-                        out.force_kn = f64::NAN;
-                    }
-                }
-                FaultKind::Spike(ch, m) => {
-                    if ch.disp() {
-                        out.disp_mm += m;
-                    }
-                    if ch.force() {
-                        out.force_kn += m;
-                    }
-                }
-                _ => {}
             }
         }
         // Keep the last finite reading per channel for stuck channels.
