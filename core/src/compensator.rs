@@ -2,8 +2,9 @@
 //! polynomial extrapolation, and none. `no_std`, allocation-free, panic-free.
 //!
 //! All compensators map a target displacement x_t (mm, the integrator's command) and the measured
-//! displacement x_m (mm, LVDT) to the displacement u_c sent to the actuator. Inputs that are NaN,
-//! infinite, or beyond [`MAX_ABS_INPUT_MM`] are refused with [`InputError`] and leave the state untouched.
+//! displacement x_m (mm, LVDT) to the displacement u_c sent to the actuator. Inputs that are NaN or
+//! infinite (and, for ATS and Horiuchi, beyond [`MAX_ABS_INPUT_MM`]) are refused with [`InputError`]
+//! and leave the state untouched.
 //!
 //! # ATS (Chae, Kazemibidokhti, Ricles, EESD 2013)
 //! `u_c = a0·x_t + a1·ẋ_t + a2·ẍ_t`, target derivatives by backward differences. Every `update_period`
