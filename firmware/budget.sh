@@ -15,6 +15,7 @@ ELF=target/thumbv7em-none-eabihf/release/rths-firmware
 CPU_HZ=168000000
 CPI=1.5
 LIMIT_PCT=10
+LR_MAX_INSTR=2000
 RUNNER=$(sed -n 's/^runner = "\(.*\)"$/\1/p' .cargo/config.toml)
 
 if ! command -v qemu-system-arm >/dev/null; then
@@ -60,6 +61,10 @@ for label in LR RNN-10 FE+ATS; do
   printf '%-8s %-14s %8s %8s %8s %9s %9s%%  %s\n' "$label" "$scen" "$min" "$mean" "$max" "$us" "$pct" "$model"
   if [ "$label" = LR ] && awk -v p="$pct" -v l="$LIMIT_PCT" 'BEGIN { exit !(p > l) }'; then
     echo "FAIL: the LR control tick exceeds $LIMIT_PCT% of the tick"
+    fail=1
+  fi
+  if [ "$label" = LR ] && [ "$max" -gt "$LR_MAX_INSTR" ]; then
+    echo "FAIL: the LR control tick takes $max instructions (target: at most $LR_MAX_INSTR)"
     fail=1
   fi
 done

@@ -184,8 +184,9 @@ pub struct ScenarioSetup<'a> {
     pub reference_mm: &'a [f64],
     /// The plant.
     pub rig: RigConfig,
-    /// Specimen stiffness relative to the paper's brace (the analytical model knows 1.0 unless the
-    /// scenario is a pure/offline FE one, which models the specimen it stands for).
+    /// Specimen stiffness relative to the paper's brace. The physical specimen (the rig) always has
+    /// it; of the analytical parts only `fe-pure` and `fe-offline`, which stand for the FE analysis of
+    /// that structure, know it; every other analytical part is built for the paper's brace (1.0).
     pub stiffness_factor: f64,
     /// The LR model, for LR scenarios.
     pub lr: Option<LrParams>,
@@ -292,6 +293,13 @@ pub struct ScenarioReport {
     pub j5_pct: Option<f64>,
     /// Peak command (brace deformation asked of the specimen), mm.
     pub peak_disp_mm: Option<f64>,
+    /// J1 of measured against the *target* (before compensation), ms, signed: negative when the
+    /// actuator leads the target (over-compensation). Equal to `j1_ms` without a compensator.
+    pub j1_target_ms: Option<f64>,
+    /// J2 of measured against the target, %: how well the compensated actuator tracks.
+    pub j2_target_pct: Option<f64>,
+    /// J3 of measured against the target, %.
+    pub j3_target_pct: Option<f64>,
 }
 
 /// A finished run: figures and history.
@@ -349,7 +357,12 @@ pub fn simulate(setup: &ScenarioSetup<'_>) -> Result<(History, Stop), ScenarioEr
         });
     }
     let id = setup.id;
-    let proto = Prototype::paper().with_brace_factor(setup.stiffness_factor)?;
+    let proto = match id {
+        ScenarioId::FePure | ScenarioId::FeOffline => {
+            Prototype::paper().with_brace_factor(setup.stiffness_factor)?
+        }
+        _ => Prototype::paper(),
+    };
     let feedback = match id {
         ScenarioId::FePure | ScenarioId::FeOffline => FeedbackSource::OwnDelayed { delay_steps: 0 },
         ScenarioId::LrPure | ScenarioId::LrOffline | ScenarioId::RnnPure(_) => {
@@ -372,7 +385,12 @@ pub fn simulate(setup: &ScenarioSetup<'_>) -> Result<(History, Stop), ScenarioEr
         proto,
         SpecimenScale::default(),
         feedback,
-        Limits::paper_actuator(),
+        // A run without the actuator has nothing physical to protect (and no sensor to follow).
+        if id.uses_rig() {
+            Limits::paper_actuator()
+        } else {
+            Limits::unbounded()
+        },
     )?;
     let mut ctl = Controller::new(config, analytical(setup, proto)?, compensator);
     let mut rig = if id.uses_rig() {
@@ -444,6 +462,9 @@ pub fn figures(id: ScenarioId, h: &History, stop: Stop) -> ScenarioReport {
         j4_pct: None,
         j5_pct: None,
         peak_disp_mm: None,
+        j1_target_ms: None,
+        j2_target_pct: None,
+        j3_target_pct: None,
     };
     if stop.is_some() {
         return r;
@@ -460,6 +481,13 @@ pub fn figures(id: ScenarioId, h: &History, stop: Stop) -> ScenarioReport {
             r.j4_pct = Some(t.j4_pct);
             r.j5_pct = Some(t.j5_pct);
         }
+        let m = &h.measured_mm;
+        let t = &h.target_mm;
+        r.j1_target_ms = metrics::delay_steps_signed(m, t, J1_MAX_LAG)
+            .ok()
+            .map(|k| k as f64 * DT_S * 1e3);
+        r.j2_target_pct = metrics::normalized_std_error_pct(m, t).ok();
+        r.j3_target_pct = metrics::normalized_peak_error_pct(m, t).ok();
     }
     r
 }

@@ -399,14 +399,16 @@ pub fn report_md(cfg: &StudyConfig, r: &StudyResult) -> String {
         s,
         "`NRMSE` is the command (target) displacement vs the reference, the paper's figure; \
          `NRMSE meas.` is the displacement the actuator imposed vs the reference. J1 (delay of measured \
-         behind command), J2, J3 are the RTHS benchmark tracking criteria. A run stopped by the \
+         behind command), J2, J3 are the RTHS benchmark tracking criteria, measured vs command; \
+         `vs target` compares the measured displacement with the analytical target before \
+         compensation (signed J1: negative = the actuator leads), which is what a compensator improves. A run stopped by the \
          supervisor is `stable: no` and has no figures.\n"
     );
     let _ = writeln!(
         s,
-        "| scenario | stable | NRMSE % | paper NRMSE % | meets paper | NRMSE meas. % | J1 ms | J2 % | J3 % | peak mm |"
+        "| scenario | stable | NRMSE % | paper NRMSE % | meets paper | NRMSE meas. % | J1 ms | J2 % | J3 % | J1 / J2 vs target | peak mm |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
     for rep in &r.json.scenarios {
         let id: Option<ScenarioId> = rep.id.parse().ok();
         let paper = id.and_then(|i| i.paper_nrmse_pct());
@@ -437,9 +439,13 @@ pub fn report_md(cfg: &StudyConfig, r: &StudyResult) -> String {
             (Some(why), Some(t)) => format!("no ({why} at {t:.2} s)"),
             _ => "yes".to_string(),
         };
+        let vs_target = match (rep.j1_target_ms, rep.j2_target_pct) {
+            (Some(j1), Some(j2)) => format!("{j1:.2} ms / {j2:.2} %"),
+            _ => "—".to_string(),
+        };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             rep.id,
             stop,
             fmt_opt(rep.nrmse_pct, 4),
@@ -449,6 +455,7 @@ pub fn report_md(cfg: &StudyConfig, r: &StudyResult) -> String {
             fmt_opt(rep.j1_ms, 2),
             fmt_opt(rep.j2_pct, 2),
             fmt_opt(rep.j3_pct, 2),
+            vs_target,
             fmt_opt(rep.peak_disp_mm, 3),
         );
     }

@@ -22,7 +22,7 @@ use crate::integrator::{Chang, ExplicitIntegrator};
 use crate::metamodel::{Features, Lr, Rnn, RnnInputs};
 use crate::params::{ParamError, Prototype, SpecimenScale};
 use crate::structure::{LinearStructure, Vector};
-use crate::supervisor::{Decision, Limits, State, Supervisor};
+use crate::supervisor::{Busy, Decision, Limits, State, Supervisor};
 
 /// Longest feedback delay a controller can hold, ticks (the paper's is 28).
 pub const MAX_DELAY_STEPS: usize = 64;
@@ -273,32 +273,35 @@ impl Controller {
             held_samples: 0,
             step_errors: 0,
         };
-        c.reset();
+        c.clear();
         c
     }
 
-    /// Back to rest: model, compensator and supervisor state cleared, parameters kept.
-    pub fn reset(&mut self) {
+    /// Back to rest: model, compensator and supervisor state cleared, parameters kept, the command
+    /// held where it is (a reset never moves the actuator). Refused unless the supervisor is at rest
+    /// (idle, done, or faulted with its ramp finished).
+    pub fn reset(&mut self) -> Result<(), Busy> {
+        self.supervisor.reset()?;
+        self.clear();
+        Ok(())
+    }
+
+    fn clear(&mut self) {
         self.analytical.reset();
         self.compensator.reset();
-        self.supervisor.reset();
         self.targets = TargetRing::default();
         self.last_good = Sample::default();
         self.held_samples = 0;
         self.step_errors = 0;
     }
 
-    /// Swap in a new analytical part (whole) and reset. Refused unless the supervisor is idle, done or
-    /// faulted: parameters never change under a running test.
-    pub fn set_analytical(&mut self, analytical: Analytical) -> Result<(), State> {
-        match self.supervisor.state() {
-            State::Idle | State::Done | State::Fault(_) => {
-                self.analytical = analytical;
-                self.reset();
-                Ok(())
-            }
-            s => Err(s),
-        }
+    /// Swap in a new analytical part (whole) and reset. Refused unless the supervisor is at rest:
+    /// parameters never change under a running test or a moving fault ramp.
+    pub fn set_analytical(&mut self, analytical: Analytical) -> Result<(), Busy> {
+        self.supervisor.reset()?;
+        self.analytical = analytical;
+        self.clear();
+        Ok(())
     }
 
     /// The supervisor (to arm, start, finish, abort, read counters).

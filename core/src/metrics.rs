@@ -101,6 +101,37 @@ pub fn delay_steps(measured: &[f64], target: &[f64], max_lag: usize) -> Result<u
     Ok(best.0)
 }
 
+/// J1 with a sign: the lag in samples, `-max_lag..=max_lag`, that maximizes the overlap-averaged
+/// cross-correlation; positive when `measured` trails `target`, negative when it leads (an
+/// over-compensated actuator).
+pub fn delay_steps_signed(
+    measured: &[f64],
+    target: &[f64],
+    max_lag: usize,
+) -> Result<isize, MetricError> {
+    check(measured, target)?;
+    if measured.len() <= max_lag {
+        return Err(MetricError::Empty);
+    }
+    let corr = |a: &[f64], b: &[f64]| {
+        a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>() / a.len().min(b.len()) as f64
+    };
+    let mut best = (0isize, f64::NEG_INFINITY);
+    for lag in 0..=max_lag {
+        let n = target.len() - lag;
+        // measured trails: measured[k + lag] ~ target[k]
+        let trail = corr(&target[..n], &measured[lag..]);
+        if trail > best.1 {
+            best = (lag as isize, trail);
+        }
+        let lead = corr(&measured[..n], &target[lag..]);
+        if lag > 0 && lead > best.1 {
+            best = (-(lag as isize), lead);
+        }
+    }
+    Ok(best.0)
+}
+
 /// J2 (or J4 against the reference): `100·std(x − x_t)/std(x_t)`, percent.
 pub fn normalized_std_error_pct(x: &[f64], x_t: &[f64]) -> Result<f64, MetricError> {
     check(x, x_t)?;

@@ -6,8 +6,10 @@
 //!
 //! - Interlocks (each trips `Fault` with its reason): measured stroke beyond the stroke limit,
 //!   requested command beyond the stroke limit, requested command velocity beyond the velocity limit,
-//!   measured force beyond the force limit, any non-finite value, `max_daq_errors` consecutive DAQ
-//!   errors (sensor timeout), `max_overruns` consecutive overruns.
+//!   measured force beyond the force limit, following error (measured vs command, while armed or
+//!   running) beyond its limit, a measured displacement change no actuator can make in one tick
+//!   (1.5× the velocity limit: a broken sensor or a runaway), any non-finite value, `max_daq_errors`
+//!   consecutive DAQ errors (sensor timeout), `max_overruns` consecutive overruns.
 //! - The output is always rate-limited to `ramp_rate_mm_s`·Δt per tick and clamped to the stroke limit,
 //!   so it never jumps, whatever the input.
 //! - On a fault the output ramps (at `fault_ramp_rate_mm_s`) from where it is to the *safe position*:
@@ -26,6 +28,15 @@ use crate::params::{
     positive, ParamError, ACTUATOR_CAPACITY_KN, ACTUATOR_STROKE_MM, ACTUATOR_VELOCITY_MM_S, DT_S,
 };
 
+/// `|x| > limit` for a validated, positive `limit`, as an integer compare of the IEEE bit patterns:
+/// non-negative doubles order like their bits, so this is exact, and a NaN `x` counts as beyond (its
+/// bits exceed infinity's). On the MCU, whose FPU is single-precision, it replaces a ~30-instruction
+/// soft-float compare by a handful of integer instructions.
+#[inline]
+fn beyond(x: f64, limit: f64) -> bool {
+    x.abs().to_bits() > limit.to_bits()
+}
+
 /// Interlock limits and ramp rates, validated.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Limits {
@@ -37,17 +48,24 @@ pub struct Limits {
     fault_ramp_rate_mm_s: f64,
     end_ramp_rate_mm_s: f64,
     dt_s: f64,
+    following_error_mm: f64,
     // Per-tick steps, derived once (the MCU does f64 in software: no multiplications per tick).
     max_step_mm: f64,
     max_step_tol_mm: f64,
     fault_step_mm: f64,
     end_step_mm: f64,
+    implausible_step_mm: f64,
+    // The two coarse motion checks in single precision (below).
+    following_error_f32: f32,
+    implausible_step_f32: f32,
 }
 
 impl Limits {
     /// Limits of the paper's actuator (±25.4 mm, 338.84 mm/s, 31.14 kN) with 95% margins, a sensor
-    /// timeout of 8 ticks (3.9 ms), 4 consecutive overruns, and ramps at 20 mm/s (fault) and 10 mm/s
-    /// (end of test): slow enough to be gentle on a specimen, fast enough to be safe within ~1 s.
+    /// timeout of 8 ticks (3.9 ms), 4 consecutive overruns, ramps at 20 mm/s (fault) and 10 mm/s
+    /// (end of test): slow enough to be gentle on a specimen, fast enough to be safe within ~1 s; and a
+    /// following error of 30% of the stroke (7.6 mm: twice the 3.5 mm a 13.7 ms delay costs at El
+    /// Centro's 266 mm/s peak brace velocity).
     pub fn paper_actuator() -> Self {
         Self {
             stroke_mm: 0.95 * ACTUATOR_STROKE_MM,
@@ -58,10 +76,14 @@ impl Limits {
             fault_ramp_rate_mm_s: 20.0,
             end_ramp_rate_mm_s: 10.0,
             dt_s: DT_S,
+            following_error_mm: 0.3 * ACTUATOR_STROKE_MM,
             max_step_mm: 0.0,
             max_step_tol_mm: 0.0,
             fault_step_mm: 0.0,
             end_step_mm: 0.0,
+            implausible_step_mm: 0.0,
+            following_error_f32: 0.0,
+            implausible_step_f32: 0.0,
         }
         .derive()
     }
@@ -72,7 +94,35 @@ impl Limits {
         self.max_step_tol_mm = self.max_step_mm * (1.0 + 1e-9);
         self.fault_step_mm = (self.fault_ramp_rate_mm_s * self.dt_s).min(self.max_step_mm);
         self.end_step_mm = (self.end_ramp_rate_mm_s * self.dt_s).min(self.max_step_mm);
+        self.implausible_step_mm = 1.5 * self.max_step_mm;
+        self.following_error_f32 = self.following_error_mm as f32;
+        self.implausible_step_f32 = self.implausible_step_mm as f32;
         self
+    }
+
+    /// Limits for a run with no actuator (a pure simulation): nothing physical to protect, so the
+    /// stroke, velocity, force and following-error checks are effectively off (1e9); non-finite
+    /// values still trip.
+    pub fn unbounded() -> Self {
+        Self {
+            stroke_mm: 1e9,
+            velocity_mm_s: 1e9,
+            force_kn: 1e9,
+            following_error_mm: 1e9,
+            fault_ramp_rate_mm_s: 1e9,
+            end_ramp_rate_mm_s: 1e9,
+            ..Self::paper_actuator()
+        }
+        .derive()
+    }
+
+    /// The same limits with another following-error limit (mm, > 0).
+    pub fn with_following_error_mm(self, following_error_mm: f64) -> Result<Self, ParamError> {
+        Ok(Self {
+            following_error_mm: positive(following_error_mm, "following error limit")?,
+            ..self
+        }
+        .derive())
     }
 
     /// Validated limits. Counts must be ≥ 1; all values finite and > 0; the ramp rates must not exceed
@@ -106,10 +156,14 @@ impl Limits {
             fault_ramp_rate_mm_s: fault,
             end_ramp_rate_mm_s: end,
             dt_s: positive(dt_s, "time step")?,
+            following_error_mm: 0.3 * stroke_mm,
             max_step_mm: 0.0,
             max_step_tol_mm: 0.0,
             fault_step_mm: 0.0,
             end_step_mm: 0.0,
+            implausible_step_mm: 0.0,
+            following_error_f32: 0.0,
+            implausible_step_f32: 0.0,
         }
         .derive())
     }
@@ -129,6 +183,10 @@ impl Limits {
     /// Largest command change per tick, mm.
     pub fn max_step_mm(&self) -> f64 {
         self.max_step_mm
+    }
+    /// Largest |measured − command| while armed or running, mm.
+    pub fn following_error_mm(&self) -> f64 {
+        self.following_error_mm
     }
     /// Largest command change per tick on the fault ramp, mm.
     pub fn fault_step_mm(&self) -> f64 {
@@ -151,6 +209,10 @@ pub enum FaultReason {
     CommandVelocity,
     /// Measured force beyond the force limit.
     Force,
+    /// The measured displacement is farther from the command than the following-error limit.
+    FollowingError,
+    /// The measured displacement moved more in one tick than any actuator can (sensor or runaway).
+    ImplausibleMotion,
     /// A non-finite requested command.
     NonFiniteCommand,
     /// A non-finite sensor value.
@@ -166,7 +228,7 @@ pub enum FaultReason {
 /// The supervisor's state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum State {
-    /// Powered, holding zero; waiting to be armed.
+    /// Powered, holding the command; waiting to be armed.
     Idle,
     /// Armed: checks run, command holds; waiting for `start()`.
     Armed,
@@ -176,8 +238,15 @@ pub enum State {
     RampDown,
     /// Back at zero after a ramp-down.
     Done,
-    /// Tripped: ramping to, then holding, the last safe command.
+    /// Tripped: ramping to, then holding, the safe position.
     Fault(FaultReason),
+}
+
+/// Why a reset or parameter change was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Busy {
+    /// The state at the time.
+    pub state: State,
 }
 
 /// What the supervisor decided for one tick.
@@ -203,6 +272,7 @@ pub struct Supervisor {
     state: State,
     output_mm: f64,
     safe_position_mm: f64,
+    last_measured_mm: Option<f32>,
     daq_errors: u32,
     overruns: u32,
     total_overruns: u32,
@@ -217,6 +287,7 @@ impl Supervisor {
             state: State::Idle,
             output_mm: 0.0,
             safe_position_mm: 0.0,
+            last_measured_mm: None,
             daq_errors: 0,
             overruns: 0,
             total_overruns: 0,
@@ -224,9 +295,26 @@ impl Supervisor {
         }
     }
 
-    /// Back to `Idle` at zero, counters cleared.
-    pub fn reset(&mut self) {
+    /// Back to `Idle`, counters cleared, *holding the current command* (a reset never moves the
+    /// actuator). Refused while armed, running, ramping down, or while a fault ramp is still moving.
+    pub fn reset(&mut self) -> Result<(), Busy> {
+        if !self.at_rest() {
+            return Err(Busy { state: self.state });
+        }
+        let output = self.output_mm;
         *self = Self::new(self.limits);
+        self.output_mm = output;
+        self.safe_position_mm = output;
+        Ok(())
+    }
+
+    /// Idle, done, or faulted with the fault ramp finished: nothing is moving or about to.
+    pub fn at_rest(&self) -> bool {
+        match self.state {
+            State::Idle | State::Done => true,
+            State::Fault(_) => self.output_mm == self.safe_position_mm,
+            State::Armed | State::Running | State::RampDown => false,
+        }
     }
 
     /// The limits in force.
@@ -250,11 +338,26 @@ impl Supervisor {
         self.total_daq_errors
     }
 
-    /// `Idle → Armed`; the command held now becomes the safe position a fault ramps back to.
+    /// `Idle → Armed`; the command held now becomes the safe position a fault ramps back to. The
+    /// following-error check then verifies, every tick, that the actuator really is there.
     pub fn arm(&mut self) -> Result<(), InvalidTransition> {
         self.transition(State::Idle, State::Armed)?;
         self.safe_position_mm = self.output_mm;
         Ok(())
+    }
+
+    /// `Idle → Armed` at the measured position of the actuator (where the specimen is installed): the
+    /// command is set to it first, so the first command sent never steps. Refused (stays `Idle`) if
+    /// the position is not finite or beyond the stroke limit.
+    pub fn arm_at(&mut self, measured_mm: f64) -> Result<(), InvalidTransition> {
+        if self.state != State::Idle
+            || !measured_mm.is_finite()
+            || beyond(measured_mm, self.limits.stroke_mm)
+        {
+            return Err(InvalidTransition { from: self.state });
+        }
+        self.output_mm = measured_mm;
+        self.arm()
     }
     /// The position a fault ramps to, mm (the command held when the test was armed).
     pub fn safe_position_mm(&self) -> f64 {
@@ -322,7 +425,7 @@ impl Supervisor {
         let lim = self.limits;
         // Counters run in every state: a sensor that dies while armed must be noticed.
         if overrun {
-            self.overruns += 1;
+            self.overruns = self.overruns.saturating_add(1);
             self.total_overruns = self.total_overruns.saturating_add(1);
         } else {
             self.overruns = 0;
@@ -332,14 +435,33 @@ impl Supervisor {
                 self.daq_errors = 0;
                 if !s.disp_mm.is_finite() || !s.force_kn.is_finite() {
                     self.trip(FaultReason::NonFiniteSample);
-                } else if s.disp_mm.abs() > lim.stroke_mm {
-                    self.trip(FaultReason::MeasuredStroke);
-                } else if s.force_kn.abs() > lim.force_kn {
-                    self.trip(FaultReason::Force);
+                } else {
+                    if beyond(s.disp_mm, lim.stroke_mm) {
+                        self.trip(FaultReason::MeasuredStroke);
+                    } else if beyond(s.force_kn, lim.force_kn) {
+                        self.trip(FaultReason::Force);
+                    }
+                    // Following error and motion per tick in single precision: 2 µm resolution at
+                    // full stroke, far finer than their limits (7.6 mm, 0.24 mm), and the F4's FPU
+                    // does it in hardware (f64 is software there).
+                    let x = s.disp_mm as f32;
+                    if matches!(self.state, State::Armed | State::Running)
+                        && (x - self.output_mm as f32).abs() > lim.following_error_f32
+                    {
+                        self.trip(FaultReason::FollowingError);
+                    }
+                    if let Some(prev) = self.last_measured_mm {
+                        if (x - prev).abs() > lim.implausible_step_f32 {
+                            self.trip(FaultReason::ImplausibleMotion);
+                        }
+                    }
+                    self.last_measured_mm = Some(x);
                 }
             }
             Err(_) => {
-                self.daq_errors += 1;
+                // The actuator moves on while a sample is missing: do not compare across the gap.
+                self.last_measured_mm = None;
+                self.daq_errors = self.daq_errors.saturating_add(1);
                 self.total_daq_errors = self.total_daq_errors.saturating_add(1);
             }
         }
@@ -375,9 +497,9 @@ impl Supervisor {
         let lim = self.limits;
         if !requested_mm.is_finite() {
             self.trip(FaultReason::NonFiniteCommand);
-        } else if requested_mm.abs() > lim.stroke_mm {
+        } else if beyond(requested_mm, lim.stroke_mm) {
             self.trip(FaultReason::CommandStroke);
-        } else if (requested_mm - self.output_mm).abs() > lim.max_step_tol_mm {
+        } else if beyond(requested_mm - self.output_mm, lim.max_step_tol_mm) {
             self.trip(FaultReason::CommandVelocity);
         }
     }

@@ -561,6 +561,8 @@ fn reason_str(r: rths_core::supervisor::FaultReason) -> &'static str {
         F::SensorTimeout => "SensorTimeout",
         F::Overrun => "Overrun",
         F::EmergencyStop => "EmergencyStop",
+        F::FollowingError => "FollowingError",
+        F::ImplausibleMotion => "ImplausibleMotion",
     }
 }
 

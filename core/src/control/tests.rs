@@ -122,13 +122,55 @@ fn bad_inputs_trip_safely_and_hold_the_sample() {
 }
 
 #[test]
-fn parameters_swap_only_when_not_running() {
-    let mut c = fe(FeedbackSource::Measured);
-    let lr = Analytical::Lr(Lr::new(LrParams::new([0.0; 6]).unwrap()));
-    assert_eq!(c.set_analytical(lr.clone()), Err(State::Running));
+fn parameters_swap_only_at_rest_and_never_move_the_actuator() {
+    use crate::supervisor::Busy;
+    let lr = || Analytical::Lr(Lr::new(LrParams::new([0.0; 6]).unwrap()));
+    let mut c = fe(FeedbackSource::OwnDelayed { delay_steps: 0 });
+    // Run until the structure has moved well away from zero.
+    let mut k = 0;
+    while c.supervisor().output_mm().abs() < 3.0 {
+        c.tick(ground(k) * 5.0, Ok(Sample::default()), false);
+        k += 1;
+    }
+    assert_eq!(
+        c.set_analytical(lr()),
+        Err(Busy {
+            state: State::Running
+        })
+    );
+    assert_eq!(
+        c.reset(),
+        Err(Busy {
+            state: State::Running
+        })
+    );
     c.supervisor_mut().emergency_stop();
-    assert_eq!(c.set_analytical(lr), Ok(()));
+    let mut prev = c.supervisor().output_mm();
+    // Mid fault ramp: refused, and the ramp goes on undisturbed.
+    let out = c.tick(0.0, Ok(Sample::default()), false);
+    assert!(matches!(
+        c.set_analytical(lr()),
+        Err(Busy {
+            state: State::Fault(_)
+        })
+    ));
+    assert!(
+        (out.command_mm - prev).abs() <= c.supervisor().limits().fault_step_mm() * (1.0 + 1e-12)
+    );
+    prev = out.command_mm;
+    while !c.supervisor().at_rest() {
+        let out = c.tick(0.0, Ok(Sample::default()), false);
+        assert!(
+            (out.command_mm - prev).abs()
+                <= c.supervisor().limits().fault_step_mm() * (1.0 + 1e-12)
+        );
+        prev = out.command_mm;
+    }
+    // At rest at the safe position: the swap is allowed and holds the command where it is.
+    assert_eq!(c.set_analytical(lr()), Ok(()));
     assert_eq!(c.supervisor().state(), State::Idle);
+    assert_eq!(c.supervisor().output_mm(), prev);
+    assert_eq!(c.reset(), Ok(()));
     assert!(ControlConfig::new(
         Prototype::paper(),
         SpecimenScale::default(),

@@ -51,3 +51,11 @@ fn tracking_of_perfect_run() {
     assert_eq!(t.j1_steps, 0);
     assert!(t.j2_pct.abs() < 1e-12 && t.j3_pct.abs() < 1e-12);
 }
+
+#[test]
+fn signed_delay_finds_lead_and_lag() {
+    let t = sine(2000, 0);
+    assert_eq!(delay_steps_signed(&sine(2000, 28), &t, 100), Ok(28));
+    assert_eq!(delay_steps_signed(&t, &sine(2000, 5), 100), Ok(-5));
+    assert_eq!(delay_steps_signed(&t, &t, 100), Ok(0));
+}

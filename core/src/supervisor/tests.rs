@@ -33,7 +33,8 @@ fn lifecycle_and_end_ramp() {
     let mut prev = s.output_mm();
     let mut n = 0;
     while s.state() == State::RampDown {
-        let d = s.tick(123.0, ok(0.0, 0.0), false);
+        // The actuator follows the command; the request is ignored while ramping down.
+        let d = s.tick(123.0, ok(prev, 0.0), false);
         assert!((d.command_mm - prev).abs() <= step * (1.0 + 1e-12));
         prev = d.command_mm;
         n += 1;
@@ -172,5 +173,100 @@ proptest::proptest! {
             proptest::prop_assert!((d.command_mm - prev).abs() <= s.limits().max_step_mm() * (1.0 + 1e-12));
             prev = d.command_mm;
         }
+    }
+}
+
+#[test]
+fn following_error_and_implausible_motion_trip() {
+    // The actuator does not follow (stuck at 0 while the command walks away).
+    let mut s = running();
+    let lim = *s.limits();
+    let mut x: f64 = 0.0;
+    let mut tripped = None;
+    for _ in 0..1000 {
+        x += 0.1;
+        let d = s.tick(x, ok(0.0, 0.0), false);
+        if let State::Fault(r) = d.state {
+            tripped = Some((r, x));
+            break;
+        }
+    }
+    let (reason, at) = tripped.unwrap();
+    assert_eq!(reason, FaultReason::FollowingError);
+    // Checked against the command in force (sent last tick): trips within two 0.1 mm steps.
+    assert!(
+        at > lim.following_error_mm() && at <= lim.following_error_mm() + 0.2 + 1e-9,
+        "tripped at {at}"
+    );
+
+    // A reading that jumps 1 mm in one tick: no actuator does that.
+    let mut s = running();
+    s.tick(0.0, ok(0.0, 0.0), false);
+    let d = s.tick(0.0, ok(1.0, 0.0), false);
+    assert_eq!(d.state, State::Fault(FaultReason::ImplausibleMotion));
+
+    // After a dropout gap the next sample is not compared across the gap.
+    let mut s = running();
+    s.tick(0.0, ok(0.0, 0.0), false);
+    for _ in 0..5 {
+        s.tick(0.0, Err(ErrorKind::Timeout), false);
+    }
+    let d = s.tick(0.0, ok(0.5, 0.0), false);
+    assert_eq!(d.state, State::Running);
+}
+
+#[test]
+fn arm_at_the_measured_position_and_guarded_reset() {
+    let mut s = Supervisor::new(Limits::paper_actuator());
+    assert!(s.arm_at(f64::NAN).is_err());
+    assert!(s.arm_at(30.0).is_err());
+    assert_eq!(s.state(), State::Idle);
+    s.arm_at(3.0).unwrap();
+    assert_eq!((s.output_mm(), s.safe_position_mm()), (3.0, 3.0));
+    // Armed at 3 mm with the actuator there: holds 3 mm, no step.
+    assert_eq!(s.tick(0.0, ok(3.0, 0.0), false).command_mm, 3.0);
+    assert_eq!(
+        s.reset(),
+        Err(Busy {
+            state: State::Armed
+        })
+    );
+    s.start().unwrap();
+    s.tick(3.1, ok(3.0, 0.0), false);
+    s.emergency_stop();
+    assert!(s.reset().is_err(), "the fault ramp is still moving");
+    while !s.at_rest() {
+        s.tick(0.0, ok(s.output_mm(), 0.0), false);
+    }
+    assert_eq!(s.output_mm(), 3.0, "ramped back to where it was armed");
+    assert_eq!(s.reset(), Ok(()));
+    assert_eq!(
+        (s.state(), s.output_mm()),
+        (State::Idle, 3.0),
+        "a reset never moves the actuator"
+    );
+}
+
+#[test]
+fn bit_pattern_compare_matches_float_compare() {
+    let lims = [1e-9, 0.157, 24.13, 1e9];
+    let xs = [
+        0.0,
+        -0.0,
+        1e-12,
+        0.157,
+        -0.157,
+        0.1570001,
+        24.13,
+        -24.2,
+        1e300,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for l in lims {
+        for x in xs {
+            assert_eq!(super::beyond(x, l), x.abs() > l, "{x} vs {l}");
+        }
+        assert!(super::beyond(f64::NAN, l));
     }
 }
