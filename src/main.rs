@@ -25,6 +25,10 @@ enum Command {
     Reproduce(cmd::reproduce::Args),
     /// Train a metamodel (LR or RNN) on the pure response and write its model file.
     Train(cmd::train::Args),
+    /// Run the fault-injection matrix against the closed loop and print its table.
+    Faults(cmd::faults::Args),
+    /// Validate a model file: exit 0 with a summary, or 1 with the reason it is rejected.
+    CheckModel(cmd::check_model::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -35,6 +39,8 @@ fn main() -> std::process::ExitCode {
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Reproduce(a) => cmd::reproduce::run(a),
         Command::Train(a) => cmd::train::run(a),
+        Command::Faults(a) => cmd::faults::run(a),
+        Command::CheckModel(a) => cmd::check_model::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -16,7 +16,7 @@ use rths_core::metamodel::{Lr, LrParams, Rnn, RnnParams};
 use rths_core::metrics;
 use rths_core::params::{ParamError, Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
 use rths_core::supervisor::{Limits, State};
-use rths_hal_sim::{Preset, RigConfig, Specimen, VirtualRig};
+use rths_hal_sim::{FaultPlan, Preset, RigConfig, Specimen, VirtualRig};
 use serde::Serialize;
 
 /// The scenarios of DESIGN §7 (plus `fe-online` and `rnn-online-H`).
@@ -343,9 +343,70 @@ pub fn run(setup: &ScenarioSetup<'_>) -> Result<ScenarioRun, ScenarioError> {
 /// Why and when the supervisor stopped a run.
 pub type Stop = Option<(String, f64)>;
 
+/// Faults injected into a closed-loop run: the virtual rig's fault plan and the controller's
+/// `overrun` input (a control tick that missed its deadline). Default: none.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Injection {
+    /// Faults of the virtual rig (ignored by runs without the actuator).
+    pub faults: FaultPlan,
+    /// Ticks on which the controller is told the previous tick overran: (first tick, count).
+    pub overruns: Option<(u64, u64)>,
+}
+
+/// One tick of a closed-loop run, as [`simulate_observed`] reports it (a row of [`History`], plus
+/// the supervisor's state after the tick and the command it produced for the next one).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TickRow {
+    /// Tick index k.
+    pub k: usize,
+    /// Time k·Δt, s.
+    pub time_s: f64,
+    /// Ground acceleration, mm/s².
+    pub ground_accel_mm_s2: f64,
+    /// Reference brace deformation, mm.
+    pub reference_mm: f64,
+    /// Target in force at k (produced at tick k−1), mm.
+    pub target_mm: f64,
+    /// Command in force at k (produced at tick k−1), mm.
+    pub command_mm: f64,
+    /// Measured displacement at k, mm (NaN without an actuator or on a DAQ error).
+    pub measured_mm: f64,
+    /// Measured force at k, kN (NaN without an actuator or on a DAQ error).
+    pub measured_force_kn: f64,
+    /// The command the controller produced at k for k+1, mm.
+    pub next_command_mm: f64,
+    /// The supervisor's state after tick k.
+    pub state: State,
+    /// The true (noise-free) actuator displacement at k, mm (NaN without an actuator).
+    pub true_disp_mm: f64,
+    /// The command the servo-controller holds during tick k (what reached it, after the DAC), mm
+    /// (NaN without an actuator). Differs from `command_mm` when the link lost ticks.
+    pub servo_command_mm: f64,
+}
+
 /// The closed loop alone: run one scenario to the end of the record, returning the history and the
 /// supervisor's stop (reason, time), if any.
 pub fn simulate(setup: &ScenarioSetup<'_>) -> Result<(History, Stop), ScenarioError> {
+    let mut h = History::with_capacity(setup.ground_accel_mm_s2.len());
+    let stop = simulate_observed(setup, &Injection::default(), |r| {
+        h.time_s.push(r.time_s);
+        h.ground_accel_mm_s2.push(r.ground_accel_mm_s2);
+        h.reference_mm.push(r.reference_mm);
+        h.target_mm.push(r.target_mm);
+        h.command_mm.push(r.command_mm);
+        h.measured_mm.push(r.measured_mm);
+        h.measured_force_kn.push(r.measured_force_kn);
+    })?;
+    Ok((h, stop))
+}
+
+/// The closed loop with injected faults, streaming: `observe` sees every tick (nothing is stored,
+/// so a run can be as long as its slices). Returns the supervisor's stop (reason, time), if any.
+pub fn simulate_observed(
+    setup: &ScenarioSetup<'_>,
+    injection: &Injection,
+    mut observe: impl FnMut(&TickRow),
+) -> Result<Stop, ScenarioError> {
     let n = setup.ground_accel_mm_s2.len();
     if n == 0 {
         return Err(ScenarioError::EmptyMotion);
@@ -394,7 +455,10 @@ pub fn simulate(setup: &ScenarioSetup<'_>) -> Result<(History, Stop), ScenarioEr
     )?;
     let mut ctl = Controller::new(config, analytical(setup, proto)?, compensator);
     let mut rig = if id.uses_rig() {
-        Some(VirtualRig::new(setup.rig.build()?))
+        Some(VirtualRig::with_faults(
+            setup.rig.build()?,
+            injection.faults,
+        ))
     } else {
         None
     };
@@ -403,7 +467,6 @@ pub fn simulate(setup: &ScenarioSetup<'_>) -> Result<(History, Stop), ScenarioEr
     let _ = ctl.supervisor_mut().arm();
     let _ = ctl.supervisor_mut().start();
 
-    let mut h = History::with_capacity(n);
     let (mut command, mut target) = (0.0, 0.0);
     let mut stop: Stop = None;
     for (k, (&ag, &reference)) in setup
@@ -421,15 +484,24 @@ pub fn simulate(setup: &ScenarioSetup<'_>) -> Result<(History, Stop), ScenarioEr
             (Some(_), Ok(s)) => (s.disp_mm, s.force_kn),
             _ => (f64::NAN, f64::NAN),
         };
-        h.time_s.push(t);
-        h.ground_accel_mm_s2.push(ag);
-        h.reference_mm.push(reference);
-        h.target_mm.push(target);
-        h.command_mm.push(command);
-        h.measured_mm.push(m);
-        h.measured_force_kn.push(f);
-
-        let out = ctl.tick(ag, sample, false);
+        let overrun = injection
+            .overruns
+            .is_some_and(|(first, count)| (k as u64).wrapping_sub(first) < count);
+        let out = ctl.tick(ag, sample, overrun);
+        observe(&TickRow {
+            k,
+            time_s: t,
+            ground_accel_mm_s2: ag,
+            reference_mm: reference,
+            target_mm: target,
+            command_mm: command,
+            measured_mm: m,
+            measured_force_kn: f,
+            next_command_mm: out.command_mm,
+            state: out.state,
+            true_disp_mm: rig.as_ref().map_or(f64::NAN, |r| r.true_disp_mm()),
+            servo_command_mm: rig.as_ref().map_or(f64::NAN, |r| r.held_command_mm()),
+        });
         command = out.command_mm;
         if out.target_mm.is_finite() {
             target = out.target_mm;
@@ -444,7 +516,7 @@ pub fn simulate(setup: &ScenarioSetup<'_>) -> Result<(History, Stop), ScenarioEr
             r.advance_tick();
         }
     }
-    Ok((h, stop))
+    Ok(stop)
 }
 
 /// The figures of a finished run (DESIGN §7).

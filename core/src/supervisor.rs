@@ -8,7 +8,8 @@
 //!   requested command beyond the stroke limit, requested command velocity beyond the velocity limit,
 //!   measured force beyond the force limit, following error (measured vs command, while armed or
 //!   running) beyond its limit, a measured displacement change no actuator can make in one tick
-//!   (1.5× the velocity limit: a broken sensor or a runaway), any non-finite value, `max_daq_errors`
+//!   (1.5× the velocity limit: a broken sensor or a runaway), a frozen LVDT (its reading unchanged,
+//!   bit for bit, while the command moved more than [`FROZEN_SENSOR_MM`]), any non-finite value, `max_daq_errors`
 //!   consecutive DAQ errors (sensor timeout), `max_overruns` consecutive overruns.
 //! - The output is always rate-limited to `ramp_rate_mm_s`·Δt per tick and clamped to the stroke limit,
 //!   so it never jumps, whatever the input.
@@ -37,6 +38,13 @@ fn beyond(x: f64, limit: f64) -> bool {
     x.abs().to_bits() > limit.to_bits()
 }
 
+/// How far the command may move while the LVDT reading stays bit-for-bit unchanged before the sensor
+/// counts as frozen, mm. A design choice: 0.5 mm is ~640 codes of the 16-bit ADC over ±25.4 mm, so a
+/// live sensor (which the actuator, following the command, moves by hundreds of codes) never reads
+/// the same value over such a move, while a stuck one is caught after 2% of the stroke instead of
+/// the 7.6 mm following-error limit.
+pub const FROZEN_SENSOR_MM: f64 = 0.5;
+
 /// Interlock limits and ramp rates, validated.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Limits {
@@ -49,6 +57,7 @@ pub struct Limits {
     end_ramp_rate_mm_s: f64,
     dt_s: f64,
     following_error_mm: f64,
+    frozen_sensor_mm: f64,
     // Per-tick steps, derived once (the MCU does f64 in software: no multiplications per tick).
     max_step_mm: f64,
     max_step_tol_mm: f64,
@@ -58,6 +67,7 @@ pub struct Limits {
     // The two coarse motion checks in single precision (below).
     following_error_f32: f32,
     implausible_step_f32: f32,
+    frozen_sensor_f32: f32,
 }
 
 impl Limits {
@@ -77,6 +87,7 @@ impl Limits {
             end_ramp_rate_mm_s: 10.0,
             dt_s: DT_S,
             following_error_mm: 0.3 * ACTUATOR_STROKE_MM,
+            frozen_sensor_mm: FROZEN_SENSOR_MM,
             max_step_mm: 0.0,
             max_step_tol_mm: 0.0,
             fault_step_mm: 0.0,
@@ -84,6 +95,7 @@ impl Limits {
             implausible_step_mm: 0.0,
             following_error_f32: 0.0,
             implausible_step_f32: 0.0,
+            frozen_sensor_f32: 0.0,
         }
         .derive()
     }
@@ -97,18 +109,20 @@ impl Limits {
         self.implausible_step_mm = 1.5 * self.max_step_mm;
         self.following_error_f32 = self.following_error_mm as f32;
         self.implausible_step_f32 = self.implausible_step_mm as f32;
+        self.frozen_sensor_f32 = self.frozen_sensor_mm as f32;
         self
     }
 
     /// Limits for a run with no actuator (a pure simulation): nothing physical to protect, so the
-    /// stroke, velocity, force and following-error checks are effectively off (1e9); non-finite
-    /// values still trip.
+    /// stroke, velocity, force, following-error and frozen-sensor checks are effectively off (1e9);
+    /// non-finite values still trip.
     pub fn unbounded() -> Self {
         Self {
             stroke_mm: 1e9,
             velocity_mm_s: 1e9,
             force_kn: 1e9,
             following_error_mm: 1e9,
+            frozen_sensor_mm: 1e9,
             fault_ramp_rate_mm_s: 1e9,
             end_ramp_rate_mm_s: 1e9,
             ..Self::paper_actuator()
@@ -157,6 +171,7 @@ impl Limits {
             end_ramp_rate_mm_s: end,
             dt_s: positive(dt_s, "time step")?,
             following_error_mm: 0.3 * stroke_mm,
+            frozen_sensor_mm: FROZEN_SENSOR_MM,
             max_step_mm: 0.0,
             max_step_tol_mm: 0.0,
             fault_step_mm: 0.0,
@@ -164,6 +179,7 @@ impl Limits {
             implausible_step_mm: 0.0,
             following_error_f32: 0.0,
             implausible_step_f32: 0.0,
+            frozen_sensor_f32: 0.0,
         }
         .derive())
     }
@@ -187,6 +203,10 @@ impl Limits {
     /// Largest |measured − command| while armed or running, mm.
     pub fn following_error_mm(&self) -> f64 {
         self.following_error_mm
+    }
+    /// Largest command move while the LVDT reading stays unchanged, mm.
+    pub fn frozen_sensor_mm(&self) -> f64 {
+        self.frozen_sensor_mm
     }
     /// Largest command change per tick on the fault ramp, mm.
     pub fn fault_step_mm(&self) -> f64 {
@@ -213,6 +233,9 @@ pub enum FaultReason {
     FollowingError,
     /// The measured displacement moved more in one tick than any actuator can (sensor or runaway).
     ImplausibleMotion,
+    /// The LVDT reading stayed bit-for-bit unchanged while the command moved more than
+    /// [`FROZEN_SENSOR_MM`]: a stuck sensor or a dead link.
+    FrozenSensor,
     /// A non-finite requested command.
     NonFiniteCommand,
     /// A non-finite sensor value.
@@ -273,6 +296,8 @@ pub struct Supervisor {
     output_mm: f64,
     safe_position_mm: f64,
     last_measured_mm: Option<f32>,
+    /// The command (single precision) when the LVDT reading last changed.
+    frozen_ref_mm: f32,
     daq_errors: u32,
     overruns: u32,
     total_overruns: u32,
@@ -288,6 +313,7 @@ impl Supervisor {
             output_mm: 0.0,
             safe_position_mm: 0.0,
             last_measured_mm: None,
+            frozen_ref_mm: 0.0,
             daq_errors: 0,
             overruns: 0,
             total_overruns: 0,
@@ -450,10 +476,23 @@ impl Supervisor {
                     {
                         self.trip(FaultReason::FollowingError);
                     }
-                    if let Some(prev) = self.last_measured_mm {
-                        if (x - prev).abs() > lim.implausible_step_f32 {
-                            self.trip(FaultReason::ImplausibleMotion);
+                    let out = self.output_mm as f32;
+                    match self.last_measured_mm {
+                        // Unchanged reading: the command may not have moved far since it changed.
+                        Some(prev) if prev == x => {
+                            if self.state == State::Running
+                                && (out - self.frozen_ref_mm).abs() > lim.frozen_sensor_f32
+                            {
+                                self.trip(FaultReason::FrozenSensor);
+                            }
                         }
+                        Some(prev) => {
+                            if (x - prev).abs() > lim.implausible_step_f32 {
+                                self.trip(FaultReason::ImplausibleMotion);
+                            }
+                            self.frozen_ref_mm = out;
+                        }
+                        None => self.frozen_ref_mm = out,
                     }
                     self.last_measured_mm = Some(x);
                 }

@@ -563,6 +563,7 @@ fn reason_str(r: rths_core::supervisor::FaultReason) -> &'static str {
         F::EmergencyStop => "EmergencyStop",
         F::FollowingError => "FollowingError",
         F::ImplausibleMotion => "ImplausibleMotion",
+        F::FrozenSensor => "FrozenSensor",
     }
 }
 

@@ -1,6 +1,8 @@
 //! The subcommands of the `rths` binary, one module each.
 
 pub mod analyze;
+pub mod check_model;
+pub mod faults;
 pub mod plant;
 pub mod reproduce;
 pub mod simulate;
