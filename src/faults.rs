@@ -33,7 +33,18 @@ pub enum Expect {
     Trip(&'static [FaultReason]),
     /// Tolerated or not a fault of the rig: the supervisor must not trip.
     NoTrip,
+    /// Not a fault in itself, unsafe only if it drives the rig past a limit: judged against the
+    /// simulation's ground truth (noise-free). Must trip (following error, force or stroke) if the
+    /// true following error, force or displacement went beyond its limit by more than the sensor
+    /// noise can explain ([`ORACLE_MARGIN`]); must not trip if all stayed below by that margin.
+    IffLimitHit,
+    /// May trip (for one of these reasons) or not, depending on the motion at the time; the
+    /// envelope is what is asserted. Used for short link losses (see the notes).
+    Either(&'static [FaultReason]),
 }
+
+/// Margin of the ground-truth oracle, in limit units (mm or kN): ~25 σ of the sensor noise.
+pub const ORACLE_MARGIN: f64 = 0.05;
 
 impl Expect {
     fn label(self) -> String {
@@ -43,6 +54,11 @@ impl Expect {
                 format!("trip ({})", names.join("/"))
             }
             Expect::NoTrip => "no trip".to_string(),
+            Expect::IffLimitHit => "trip iff a limit is hit".to_string(),
+            Expect::Either(rs) => {
+                let names: Vec<String> = rs.iter().map(|r| format!("{r:?}")).collect();
+                format!("either (or {})", names.join("/"))
+            }
         }
     }
 }
@@ -93,6 +109,9 @@ pub struct CaseResult {
     /// After a trip, the command ramped (never faster than the fault ramp) to the safe position
     /// and ended there; `true` when there was no trip.
     pub ramp_ok: bool,
+    /// Ground truth: the largest excess of the true following error, force or displacement over its
+    /// limit between the fault and the trip (negative: that far below), mm or kN.
+    pub truth_excess: f64,
     /// The outcome matches the expectation, the envelope was kept and the ramp was clean.
     pub pass: bool,
     /// Why the expectation is what it is.
@@ -236,22 +255,24 @@ fn lr_cases(v: &mut Vec<FaultCase>, id: ScenarioId, t: f64) -> Result<(), Faults
     push(v, id, t, "NaN load cell 1 tick", plan(FaultKind::NaN(Channel::Force), k, 1)?,
         trip(&[R::NonFiniteSample]), "a non-finite reading is never plausible");
     push(v, id, t, "spike LVDT +5 mm 1 tick", plan(FaultKind::Spike(Channel::Disp, 5.0), k, 1)?,
-        trip(&[R::ImplausibleMotion]), "a 5 mm step in 0.49 ms is 30× what the actuator can do");
+        trip(&[R::ImplausibleMotion, R::FollowingError]),
+        "a 5 mm step in 0.49 ms is 30× what the actuator can do (or 5 mm off the command)");
     push(v, id, t, "spike LVDT +0.1 mm 1 tick", plan(FaultKind::Spike(Channel::Disp, 0.1), k, 1)?,
         Expect::NoTrip, "below the 0.24 mm/tick plausibility bound: indistinguishable from motion, harmless");
     push(v, id, t, "spike load cell +40 kN 1 tick", plan(FaultKind::Spike(Channel::Force, 40.0), k, 1)?,
         trip(&[R::Force]), "beyond the 29.6 kN force limit: an overload is unsafe whatever its cause");
     push(v, id, t, "valve at 2% flow", plan(FaultKind::ValveSaturation(0.02), k, FOREVER)?,
-        trip(&[R::FollowingError]),
-        "the actuator can no longer follow: the following error must trip");
+        Expect::IffLimitHit,
+        "the actuator lags: unsafe only if the lag exceeds the following-error limit");
     push(v, id, t, "valve at 50% flow", plan(FaultKind::ValveSaturation(0.5), k, FOREVER)?,
-        Expect::NoTrip, "half the rated flow still covers the test's velocities: no limit is reached");
+        Expect::IffLimitHit, "half the rated flow: the actuator lags a little more");
     push(v, id, t, "specimen 50% softer", plan(FaultKind::StiffnessChange(0.5), k, FOREVER)?,
-        Expect::NoTrip, "a change of the specimen is what the test measures, not a rig fault; no limit is hit");
+        Expect::IffLimitHit, "a change of the specimen is what the test measures, not a rig fault");
     push(v, id, t, "specimen 2× stiffer", plan(FaultKind::StiffnessChange(2.0), k, FOREVER)?,
-        Expect::NoTrip, "a change of the specimen is what the test measures, not a rig fault; no limit is hit");
-    push(v, id, t, "lost ticks 2", plan(FaultKind::LostTicks, k, 2)?, Expect::NoTrip,
-        "two commands lost on the link: the servo catches up with a 3-step move");
+        Expect::IffLimitHit, "a change of the specimen is what the test measures, not a rig fault");
+    push(v, id, t, "lost ticks 2", plan(FaultKind::LostTicks, k, 2)?,
+        Expect::Either(&[R::ImplausibleMotion]),
+        "two commands lost: the servo catches up with a 3-step move; the stale-then-fresh reading trips only at speed");
     push(v, id, t, "lost ticks permanent", plan(FaultKind::LostTicks, k, FOREVER)?,
         trip(&[R::FrozenSensor, R::FollowingError]),
         "link dead: the reading freezes while the command moves");
@@ -276,13 +297,16 @@ fn fe_cases(v: &mut Vec<FaultCase>, t: f64) -> Result<(), FaultsError> {
     push(v, id, t, "NaN load cell 1 tick", plan(FaultKind::NaN(Channel::Force), k, 1)?,
         Expect::Trip(&[R::NonFiniteSample]), "never fed to the FE model; trips");
     push(v, id, t, "spike load cell +5 kN 1 tick", plan(FaultKind::Spike(Channel::Force, 5.0), k, 1)?,
-        Expect::NoTrip, "within the force limit: the FE model takes a 5 MN prototype kick; the command stays in the envelope");
+        Expect::Trip(&[R::CommandVelocity]),
+        "the FE model answers a 5 MN prototype kick with a command step no actuator may make: refused");
+    push(v, id, t, "spike load cell +0.5 kN 1 tick", plan(FaultKind::Spike(Channel::Force, 0.5), k, 1)?,
+        Expect::NoTrip, "a small glitch: the FE model absorbs it within the velocity limit");
     push(v, id, t, "LVDT stuck", plan(FaultKind::Stuck(Channel::Disp), k, FOREVER)?,
         Expect::Trip(&[R::FrozenSensor, R::FollowingError]), "position unknown");
     push(v, id, t, "valve at 2% flow", plan(FaultKind::ValveSaturation(0.02), k, FOREVER)?,
-        Expect::Trip(&[R::FollowingError]), "the actuator can no longer follow");
+        Expect::IffLimitHit, "the actuator lags");
     push(v, id, t, "specimen 50% softer", plan(FaultKind::StiffnessChange(0.5), k, FOREVER)?,
-        Expect::NoTrip, "the specimen changes; FE + ATS follows it");
+        Expect::IffLimitHit, "the specimen changes; FE + ATS follows it");
     push(v, id, t, "overrun 4 ticks", Injection { faults: FaultPlan::none(), overruns: Some((k, 4)) },
         Expect::Trip(&[R::Overrun]), "missed deadlines");
     Ok(())
@@ -337,7 +361,16 @@ impl Bench {
         let mut ramp_ok = true;
         let mut tripped_at: Option<usize> = None;
         let mut last_cmd = 0.0;
+        let start_k = tick(case.start_s) as usize;
+        // Ground truth up to the trip: the largest excess over each limit (negative: below it).
+        let mut excess = f64::NEG_INFINITY;
         let stop = scenario::simulate_observed(&self.setup(case.scenario), &case.injection, |r: &TickRow| {
+            if r.k >= start_k && tripped_at.is_none() && r.true_disp_mm.is_finite() {
+                let fe = (r.true_disp_mm - r.command_mm).abs() - lim.following_error_mm();
+                let force = r.true_force_kn.abs() - lim.force_kn();
+                let stroke = r.true_disp_mm.abs() - lim.stroke_mm();
+                excess = excess.max(fe).max(force).max(stroke);
+            }
             let c = r.next_command_mm;
             let d = (c - prev_cmd).abs();
             peak_jump = peak_jump.max(d);
@@ -370,6 +403,23 @@ impl Bench {
         let time_to_trip_ms = stop.as_ref().map(|s| (s.1 - case.start_s) * 1e3);
         let outcome_ok = match case.expect {
             Expect::NoTrip => !detected,
+            Expect::Either(rs) => reason
+                .as_deref()
+                .is_none_or(|r| rs.iter().any(|x| format!("{x:?}") == r)),
+            Expect::IffLimitHit => {
+                let limit_reason = reason.as_deref().is_some_and(|r| {
+                    [R::FollowingError, R::Force, R::MeasuredStroke]
+                        .iter()
+                        .any(|x| format!("{x:?}") == r)
+                });
+                if excess > ORACLE_MARGIN {
+                    limit_reason
+                } else if excess < -ORACLE_MARGIN {
+                    !detected
+                } else {
+                    !detected || limit_reason
+                }
+            }
             Expect::Trip(rs) => reason
                 .as_deref()
                 .is_some_and(|r| rs.iter().any(|x| format!("{x:?}") == r)),
@@ -387,6 +437,7 @@ impl Bench {
             peak_command_mm: peak_cmd,
             envelope_kept: envelope,
             ramp_ok,
+            truth_excess: excess,
             pass: outcome_ok && envelope && ramp_ok,
             why: case.why.to_string(),
         })

@@ -379,6 +379,8 @@ pub struct TickRow {
     pub state: State,
     /// The true (noise-free) actuator displacement at k, mm (NaN without an actuator).
     pub true_disp_mm: f64,
+    /// The true force on the specimen at k, kN (NaN without an actuator).
+    pub true_force_kn: f64,
     /// The command the servo-controller holds during tick k (what reached it, after the DAC), mm
     /// (NaN without an actuator). Differs from `command_mm` when the link lost ticks.
     pub servo_command_mm: f64,
@@ -500,6 +502,7 @@ pub fn simulate_observed(
             next_command_mm: out.command_mm,
             state: out.state,
             true_disp_mm: rig.as_ref().map_or(f64::NAN, |r| r.true_disp_mm()),
+            true_force_kn: rig.as_ref().map_or(f64::NAN, |r| r.true_force_kn()),
             servo_command_mm: rig.as_ref().map_or(f64::NAN, |r| r.held_command_mm()),
         });
         command = out.command_mm;

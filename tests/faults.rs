@@ -23,3 +23,26 @@ fn every_fault_case_passes() {
     assert!(m.cases.iter().any(|c| c.detected));
     assert!(m.cases.iter().any(|c| !c.detected));
 }
+
+/// What reached the servo-controller: within the rate limit (plus the DAC's rounding) unless the
+/// link lost commands, and then within one step per lost tick plus one.
+#[test]
+fn servo_side_steps_are_bounded() {
+    let m = faults::run_matrix().unwrap();
+    // One code of the 16-bit DAC over ±25.4 mm, twice (two roundings).
+    let dac = 2.0 * 25.4 / 32768.0;
+    for c in &m.cases {
+        let bound = if c.case == "lost ticks 2" {
+            3.0 * m.rate_limit_mm + dac
+        } else {
+            m.rate_limit_mm + dac
+        };
+        assert!(
+            c.peak_servo_jump_mm <= bound,
+            "{} {}: servo step {} mm > {bound}",
+            c.scenario,
+            c.case,
+            c.peak_servo_jump_mm
+        );
+    }
+}

@@ -23,6 +23,15 @@ fn fe(feedback: FeedbackSource) -> Controller {
     c
 }
 
+/// The sample of a perfect actuator standing at the command in force (a live sensor: with a
+/// constant placeholder the supervisor would see a frozen LVDT under a moving command).
+fn at_command(c: &Controller) -> Result<Sample, ErrorKind> {
+    Ok(Sample {
+        disp_mm: c.supervisor().output_mm(),
+        force_kn: 0.0,
+    })
+}
+
 fn ground(k: usize) -> f64 {
     let t = k as f64 * DT_S;
     2000.0 * libm::sin(2.0 * core::f64::consts::PI * 1.3 * t) * (1.0 - libm::exp(-t))
@@ -41,7 +50,7 @@ fn fe_with_own_feedback_is_the_pure_model() {
     ch.reset(ground(0));
     let (mut worst_ch, mut worst_nm): (f64, f64) = (0.0, 0.0);
     for k in 0..6000 {
-        let out = c.tick(ground(k), Ok(Sample::default()), false);
+        let out = c.tick(ground(k), at_command(&c), false);
         let x_nm = nm.step(ground(k + 1)).disp[0];
         let x_ch = ch.next_displacement()[0];
         ch.advance(ground(k + 1), &Vector::<1>::zeros());
@@ -66,7 +75,7 @@ fn lr_uses_its_own_prediction_delayed() {
     c.supervisor_mut().arm().unwrap();
     c.supervisor_mut().start().unwrap();
     let outs: [f64; 9] =
-        core::array::from_fn(|_| c.tick(0.0, Ok(Sample::default()), false).target_mm);
+        core::array::from_fn(|_| c.tick(0.0, at_command(&c), false).target_mm);
     // x_fb(k) = x̂(k−3): ticks 0..3 see x̂(−3..=0) = 0, ticks 4..7 see x̂(1..=4) = 0.01, ...
     let expect = [0.01, 0.01, 0.01, 0.01, 0.02, 0.02, 0.02, 0.02, 0.03];
     for (o, e) in outs.iter().zip(expect) {
@@ -97,10 +106,10 @@ fn measured_feedback_is_scaled_to_the_prototype() {
 fn bad_inputs_trip_safely_and_hold_the_sample() {
     let mut c = fe(FeedbackSource::Measured);
     for k in 0..500 {
-        c.tick(ground(k), Ok(Sample::default()), false);
+        c.tick(ground(k), at_command(&c), false);
     }
     let before = c.supervisor().output_mm();
-    let out = c.tick(f64::NAN, Ok(Sample::default()), false);
+    let out = c.tick(f64::NAN, at_command(&c), false);
     assert!(matches!(out.state, State::Fault(_)));
     assert!((out.command_mm - before).abs() <= c.supervisor().limits().max_step_mm());
 
@@ -129,7 +138,7 @@ fn parameters_swap_only_at_rest_and_never_move_the_actuator() {
     // Run until the structure has moved well away from zero.
     let mut k = 0;
     while c.supervisor().output_mm().abs() < 3.0 {
-        c.tick(ground(k) * 5.0, Ok(Sample::default()), false);
+        c.tick(ground(k) * 5.0, at_command(&c), false);
         k += 1;
     }
     assert_eq!(
@@ -147,7 +156,7 @@ fn parameters_swap_only_at_rest_and_never_move_the_actuator() {
     c.supervisor_mut().emergency_stop();
     let mut prev = c.supervisor().output_mm();
     // Mid fault ramp: refused, and the ramp goes on undisturbed.
-    let out = c.tick(0.0, Ok(Sample::default()), false);
+    let out = c.tick(0.0, at_command(&c), false);
     assert!(matches!(
         c.set_analytical(lr()),
         Err(Busy {
@@ -159,7 +168,7 @@ fn parameters_swap_only_at_rest_and_never_move_the_actuator() {
     );
     prev = out.command_mm;
     while !c.supervisor().at_rest() {
-        let out = c.tick(0.0, Ok(Sample::default()), false);
+        let out = c.tick(0.0, at_command(&c), false);
         assert!(
             (out.command_mm - prev).abs()
                 <= c.supervisor().limits().fault_step_mm() * (1.0 + 1e-12)

@@ -178,14 +178,16 @@ proptest::proptest! {
 
 #[test]
 fn following_error_and_implausible_motion_trip() {
-    // The actuator does not follow (stuck at 0 while the command walks away).
+    // The actuator does not follow (stuck at 0 while the command walks away; the live sensor's
+    // reading still flickers by one code, so it is not a frozen sensor).
     let mut s = running();
     let lim = *s.limits();
     let mut x: f64 = 0.0;
     let mut tripped = None;
-    for _ in 0..1000 {
+    for i in 0..1000 {
         x += 0.1;
-        let d = s.tick(x, ok(0.0, 0.0), false);
+        let flicker = if i % 2 == 0 { 0.0 } else { 0.001 };
+        let d = s.tick(x, ok(flicker, 0.0), false);
         if let State::Fault(r) = d.state {
             tripped = Some((r, x));
             break;
@@ -268,5 +270,64 @@ fn bit_pattern_compare_matches_float_compare() {
             assert_eq!(super::beyond(x, l), x.abs() > l, "{x} vs {l}");
         }
         assert!(super::beyond(f64::NAN, l));
+    }
+}
+
+#[test]
+fn frozen_lvdt_trips_once_the_command_moved_half_a_millimetre() {
+    let lim = Limits::paper_actuator();
+    assert_eq!(lim.frozen_sensor_mm(), FROZEN_SENSOR_MM);
+    // The actuator follows a ramp at 0.1 mm/tick; then the LVDT sticks at its last value.
+    let mut s = running();
+    let mut cmd = 0.0;
+    for _ in 0..20 {
+        cmd += 0.1;
+        let d = s.tick(cmd, ok(cmd - 0.05, 0.0), false);
+        assert_eq!(d.state, State::Running);
+    }
+    let stuck = cmd - 0.05;
+    // The command in force when the reading last changed (the last ramp tick's, before its step).
+    let at_stick = s.output_mm() - 0.1;
+    let mut tripped = None;
+    for _ in 0..40 {
+        cmd += 0.1;
+        let in_force = s.output_mm();
+        let d = s.tick(cmd, ok(stuck, 0.0), false);
+        if let State::Fault(r) = d.state {
+            tripped = Some((r, in_force));
+            break;
+        }
+    }
+    let (reason, out) = tripped.unwrap();
+    assert_eq!(reason, FaultReason::FrozenSensor);
+    // Trips on the first tick the command in force is more than 0.5 mm from the one in force when
+    // the reading last changed.
+    let moved = out - at_stick;
+    assert!(moved > 0.5 && moved <= 0.5 + 0.1 + 1e-6, "moved {moved}");
+}
+
+#[test]
+fn an_unchanged_reading_with_a_still_command_is_not_frozen() {
+    // At rest (or holding), a constant reading is what a healthy sensor without noise gives.
+    let mut s = running();
+    for _ in 0..10_000 {
+        let d = s.tick(1.0e-3, ok(0.0, 0.0), false);
+        assert_eq!(d.state, State::Running);
+    }
+    // A command creeping by less than the limit in all while the reading stays: no trip either.
+    let mut s = running();
+    let mut cmd = 0.0;
+    for _ in 0..4_000 {
+        cmd += 1e-4;
+        let d = s.tick(cmd, ok(0.0, 0.0), false);
+        assert_eq!(d.state, State::Running);
+    }
+    // Unbounded limits (pure runs: the sample is a constant placeholder) never see a frozen sensor.
+    let mut s = Supervisor::new(Limits::unbounded());
+    s.arm().unwrap();
+    s.start().unwrap();
+    for i in 0..2_000 {
+        let d = s.tick(i as f64, ok(0.0, 0.0), false);
+        assert_eq!(d.state, State::Running);
     }
 }
