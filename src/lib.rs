@@ -11,5 +11,6 @@ pub mod models;
 pub mod motion;
 pub mod plot;
 pub mod scenario;
+pub mod soak;
 pub mod study;
 pub mod train;

@@ -458,7 +458,9 @@ pub fn parse_at2(text: &str, name: &str) -> Result<GroundMotion, MotionError> {
     if dt_s <= 0.0 {
         return Err(MotionError::BadDt { line: hline, dt_s });
     }
-    let mut accel_g = Vec::with_capacity(npts);
+    // NPTS comes from the file: never reserve more than the text can hold (a value takes at least
+    // two bytes), so a corrupt header cannot ask for gigabytes (found by `cargo fuzz`).
+    let mut accel_g = Vec::with_capacity(npts.min(text.len() / 2 + 1));
     for (line, l) in lines {
         for token in l
             .split(|c: char| c.is_whitespace() || c == ',')

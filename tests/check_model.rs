@@ -1,0 +1,81 @@
+//! `rths check-model FILE`: exit 0 with a summary for a valid file, 1 with the reason otherwise.
+
+use std::path::Path;
+use std::process::Command;
+
+const LR: &str = include_str!("../data/models/lr.json");
+
+fn check(text: &str, extra: &[&str]) -> (bool, String, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("model.json");
+    std::fs::write(&path, text).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_rths"))
+        .arg("check-model")
+        .arg(&path)
+        .args(extra)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success() || out.status.code() == Some(1),
+        "exit status {:?}",
+        out.status
+    );
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn edited(f: impl FnOnce(&mut serde_json::Value)) -> String {
+    let mut v: serde_json::Value = serde_json::from_str(LR).unwrap();
+    f(&mut v);
+    serde_json::to_string(&v).unwrap()
+}
+
+#[test]
+fn shipped_models_are_valid_with_a_summary() {
+    let (ok, out, _) = check(LR, &[]);
+    assert!(ok);
+    assert!(out.contains("valid rths model file"), "{out}");
+    assert!(out.contains("kind              lr"), "{out}");
+    assert!(out.contains("delay_steps       28"), "{out}");
+    let rnn = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/rnn-10.json")).unwrap();
+    let (ok, out, _) = check(&rnn, &["--kind", "rnn"]);
+    assert!(ok, "{out}");
+    assert!(out.contains("hidden            10"), "{out}");
+}
+
+#[test]
+fn bad_files_are_rejected_with_the_reason() {
+    let cases: Vec<(String, Vec<&str>, &str)> = vec![
+        ("{\"format\": \"rths-model\", \"version\": 1,".to_string(), vec![], "malformed model file"),
+        ("".to_string(), vec![], "malformed model file"),
+        (edited(|v| v["version"] = 7.into()), vec![], "unsupported model file version 7"),
+        (edited(|v| v["format"] = "onnx".into()), vec![], "unknown model format"),
+        (edited(|v| v["kind"] = "cnn".into()), vec![], "malformed model file"),
+        (LR.to_string(), vec!["--kind", "rnn"], "wrong model kind: expected rnn, file holds lr"),
+        (edited(|v| v["lr"]["theta"] = serde_json::json!([1.0, 2.0])), vec![], "wrong shape of lr.theta"),
+        (LR.replacen("\"theta\": [", "\"theta\": [1e999, ", 1).replacen(",\n      -", ",\n      ", 0), vec![], "rejected"),
+        (edited(|v| v["lr"]["theta"][0] = serde_json::json!(null)), vec![], "malformed model file"),
+        (edited(|v| v["dt_s"] = serde_json::json!(-1.0)), vec![], "dt_s"),
+        (edited(|v| v["delay_steps"] = serde_json::json!(1000)), vec![], "delay_steps 1000 exceeds"),
+        (edited(|v| { v.as_object_mut().unwrap().remove("lr"); }), vec![], "section is missing"),
+    ];
+    for (text, extra, why) in cases {
+        let (ok, out, err) = check(&text, &extra);
+        assert!(!ok, "accepted: {why}: {out}");
+        assert!(err.contains("rejected"), "{why}: {err}");
+        assert!(err.contains(why), "expected `{why}` in: {err}");
+    }
+}
+
+#[test]
+fn a_missing_file_is_rejected() {
+    let out = Command::new(env!("CARGO_BIN_EXE_rths"))
+        .args(["check-model", "/nonexistent/model.json"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot access model file"));
+}

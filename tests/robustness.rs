@@ -1,0 +1,100 @@
+//! Bad input never crashes the readers: arbitrary bytes and mutated valid files to the AT2 and CSV
+//! ground-motion readers and the model-file loader (the `cargo fuzz` targets in `fuzz/` do the same
+//! with coverage guidance; these run in every `cargo test`, no nightly needed). Each must return a
+//! value or an error, never panic, and whatever it accepts must be valid.
+
+use proptest::prelude::*;
+use rths::model_file::{ModelFile, ModelKind};
+use rths::motion::{parse_at2, parse_csv};
+
+const LR: &str = include_str!("../data/models/lr.json");
+const RNN: &str = include_str!("../data/models/rnn-5.json");
+const AT2: &str = "PEER\nTEST\nUNITS G\nNPTS=    5, DT= .01000 SEC\n  .1  .2D-1  -.3E-2\n 0.004 -0.005\n";
+const CSV: &str = "time_s,accel_g\n0,0.1\n0.01,0.2\n0.02,-0.1\n0.03,0.0\n";
+
+fn check_motion(text: &str) {
+    if let Ok(m) = parse_at2(text, "prop") {
+        assert!(m.validate().is_ok(), "AT2 accepted an invalid motion: {text:?}");
+    }
+    if let Ok(m) = parse_csv(text, "prop") {
+        assert!(m.validate().is_ok(), "CSV accepted an invalid motion: {text:?}");
+    }
+}
+
+fn check_model(text: &str) {
+    if let Ok(m) = ModelFile::from_json(text) {
+        assert!(m.validate().is_ok());
+        let ok = match m.kind {
+            ModelKind::Lr => rths::models::lr_params(&m).is_ok(),
+            ModelKind::Rnn => rths::models::rnn_params(&m).is_ok(),
+        };
+        assert!(ok, "a validated model was refused by the controller");
+    }
+}
+
+/// `text` with the bytes in `edits` (position, new byte) replaced, as lossy UTF-8.
+fn mutate(text: &str, edits: &[(usize, u8)]) -> String {
+    let mut b = text.as_bytes().to_vec();
+    for &(i, v) in edits {
+        let n = b.len();
+        if n > 0 {
+            b[i % n] = v;
+        }
+    }
+    String::from_utf8_lossy(&b).into_owned()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(512))]
+
+    #[test]
+    fn arbitrary_bytes_never_crash_the_readers(bytes in proptest::collection::vec(any::<u8>(), 0..2048)) {
+        let text = String::from_utf8_lossy(&bytes);
+        check_motion(&text);
+        check_model(&text);
+    }
+
+    #[test]
+    fn number_soup_never_crashes_the_motion_readers(text in "[0-9eEdD.,;:=+\\- \\t\\r\\nNPTSDTnaif#]{0,600}") {
+        check_motion(&text);
+        // With a real AT2 header in front, the value section is exercised too.
+        check_motion(&format!("a\nb\nc\nNPTS= 20, DT= 0.01\n{text}"));
+        check_motion(&format!("time_s,accel_g\n{text}"));
+    }
+
+    #[test]
+    fn mutated_valid_files_never_crash(edits in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..8)) {
+        check_motion(&mutate(AT2, &edits));
+        check_motion(&mutate(CSV, &edits));
+        check_model(&mutate(LR, &edits));
+        check_model(&mutate(RNN, &edits));
+    }
+
+    #[test]
+    fn truncated_model_files_are_rejected_cleanly(cut in 0usize..4000) {
+        let end = cut.min(LR.len());
+        if LR.is_char_boundary(end) {
+            check_model(&LR[..end]);
+        }
+    }
+}
+
+#[test]
+fn the_seeds_are_accepted() {
+    assert!(parse_at2(AT2, "seed").is_ok());
+    assert!(parse_csv(CSV, "seed").is_ok());
+    assert!(ModelFile::from_json(LR).is_ok());
+    assert!(ModelFile::from_json(RNN).is_ok());
+}
+
+/// Found by `cargo fuzz` (at2 target): a header announcing a huge NPTS made the reader reserve memory
+/// for it before reading a value (8.9 GB here; `usize::MAX`-sized counts would abort on capacity
+/// overflow). It must be an ordinary count error.
+#[test]
+fn a_huge_npts_is_a_count_error_not_an_allocation() {
+    for npts in ["1111111115", "18446744073709551615", "99999999999999999"] {
+        let text = format!("x\ny\nz\n   {npts}  .0050  NPTS, DT\n1 2\n");
+        let e = parse_at2(&text, "huge").unwrap_err();
+        assert!(e.to_string().contains("NPTS"), "{e}");
+    }
+}
