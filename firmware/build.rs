@@ -314,6 +314,108 @@ fn motion(out: &mut String, root: &Path) {
     let _ = writeln!(out, "pub const RECORD_TICKS: u32 = {};", last + 1);
 }
 
+/// The compile-time fault plan of a `fault-inject` build: `RTHS_FAULT=KIND@SECONDS[+TICKS]` (default
+/// `nan-disp@10`, for ever). KIND: `nan-disp`, `nan-force`, `dropout`, `stuck-disp`, `stuck-force`,
+/// `spike-disp:MM`, `spike-force:KN`, `valve:FRACTION`, `stiffness:FACTOR`, `lost` (lost ticks),
+/// `overrun` (the controller is told its previous tick overran).
+fn fault(out: &mut String) {
+    println!("cargo:rerun-if-env-changed=RTHS_FAULT");
+    let spec = std::env::var("RTHS_FAULT").unwrap_or_else(|_| "nan-disp@10".to_string());
+    let bad = |why: &str| -> ! { fail(format!("RTHS_FAULT={spec}: {why}")) };
+    let (kind, when) = spec
+        .split_once('@')
+        .unwrap_or_else(|| bad("expected KIND@SECONDS[+TICKS]"));
+    let (secs, ticks) = match when.split_once('+') {
+        Some((s, t)) => (s, Some(t)),
+        None => (when, None),
+    };
+    let secs: f64 = secs
+        .parse()
+        .unwrap_or_else(|_| bad("start is not a number of seconds"));
+    if !(secs.is_finite() && secs >= 0.0) {
+        bad("start must be a finite, non-negative number of seconds");
+    }
+    let start = (secs * 2048.0).round() as u64;
+    let ticks = match ticks {
+        Some(t) => t
+            .parse::<u64>()
+            .unwrap_or_else(|_| bad("duration is not a tick count"))
+            .to_string(),
+        None => "u64::MAX".to_string(),
+    };
+    let (name, arg) = match kind.split_once(':') {
+        Some((n, a)) => {
+            let x: f64 = a
+                .parse()
+                .unwrap_or_else(|_| bad("the magnitude is not a number"));
+            if !x.is_finite() {
+                bad("the magnitude must be finite");
+            }
+            (n, Some(x))
+        }
+        None => (kind, None),
+    };
+    let need = |a: Option<f64>| a.unwrap_or_else(|| bad("this kind needs a magnitude (KIND:X)"));
+    let hs = "rths_hal_sim";
+    let kind_expr = match name {
+        "nan-disp" => Some(format!("{hs}::FaultKind::NaN({hs}::Channel::Disp)")),
+        "nan-force" => Some(format!("{hs}::FaultKind::NaN({hs}::Channel::Force)")),
+        "dropout" => Some(format!("{hs}::FaultKind::Dropout")),
+        "stuck-disp" => Some(format!("{hs}::FaultKind::Stuck({hs}::Channel::Disp)")),
+        "stuck-force" => Some(format!("{hs}::FaultKind::Stuck({hs}::Channel::Force)")),
+        "spike-disp" => Some(format!(
+            "{hs}::FaultKind::Spike({hs}::Channel::Disp, {})",
+            lit(need(arg))
+        )),
+        "spike-force" => Some(format!(
+            "{hs}::FaultKind::Spike({hs}::Channel::Force, {})",
+            lit(need(arg))
+        )),
+        "valve" => Some(format!(
+            "{hs}::FaultKind::ValveSaturation({})",
+            lit(need(arg))
+        )),
+        "stiffness" => Some(format!(
+            "{hs}::FaultKind::StiffnessChange({})",
+            lit(need(arg))
+        )),
+        "lost" => Some(format!("{hs}::FaultKind::LostTicks")),
+        "overrun" => None,
+        _ => bad("unknown kind"),
+    };
+    let _ = writeln!(
+        out,
+        "/// The fault-inject plan, as given (RTHS_FAULT).\npub const FAULT_SPEC: &str = {spec:?};"
+    );
+    let _ = writeln!(
+        out,
+        "/// First faulty tick.\npub const FAULT_START: u64 = {start};"
+    );
+    let _ = writeln!(
+        out,
+        "/// Faulty ticks.\npub const FAULT_TICKS: u64 = {ticks};"
+    );
+    match kind_expr {
+        Some(k) => {
+            let _ = writeln!(out, "/// The rig fault, if any.\npub const FAULT_KIND: Option<{hs}::FaultKind> = Some({k});");
+            let _ = writeln!(
+                out,
+                "/// Injected overruns.\npub const FAULT_OVERRUN: bool = false;"
+            );
+        }
+        None => {
+            let _ = writeln!(
+                out,
+                "/// The rig fault, if any.\npub const FAULT_KIND: Option<{hs}::FaultKind> = None;"
+            );
+            let _ = writeln!(
+                out,
+                "/// Injected overruns.\npub const FAULT_OVERRUN: bool = true;"
+            );
+        }
+    }
+}
+
 fn main() {
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap_or_default());
     let root = manifest
@@ -339,6 +441,7 @@ fn main() {
         lr(&mut gen, &root);
     }
     motion(&mut gen, &root);
+    fault(&mut gen);
     std::fs::write(out_dir.join("gen.rs"), gen)
         .unwrap_or_else(|e| fail(format!("cannot write gen.rs: {e}")));
     println!("cargo:rerun-if-changed=build.rs");

@@ -236,79 +236,253 @@ fn push(
 fn lr_cases(v: &mut Vec<FaultCase>, id: ScenarioId, t: f64) -> Result<(), FaultsError> {
     let k = tick(t);
     let trip = Expect::Trip;
-    push(v, id, t, "dropout 4 ticks", plan(FaultKind::Dropout, k, 4)?, Expect::NoTrip,
-        "short DAQ gap (2 ms) tolerated by design: last good sample held, < 8 ticks");
-    push(v, id, t, "dropout 7 ticks", plan(FaultKind::Dropout, k, 7)?, Expect::NoTrip,
-        "edge of the sensor timeout: 7 consecutive errors are tolerated");
-    push(v, id, t, "dropout 8 ticks", plan(FaultKind::Dropout, k, 8)?, trip(&[R::SensorTimeout]),
-        "edge: the 8th consecutive error (3.9 ms blind) trips");
-    push(v, id, t, "dropout permanent", plan(FaultKind::Dropout, k, FOREVER)?,
-        trip(&[R::SensorTimeout]), "DAQ dead: the actuator runs blind");
-    push(v, id, t, "LVDT stuck", plan(FaultKind::Stuck(Channel::Disp), k, FOREVER)?,
+    push(
+        v,
+        id,
+        t,
+        "dropout 4 ticks",
+        plan(FaultKind::Dropout, k, 4)?,
+        Expect::NoTrip,
+        "short DAQ gap (2 ms) tolerated by design: last good sample held, < 8 ticks",
+    );
+    push(
+        v,
+        id,
+        t,
+        "dropout 7 ticks",
+        plan(FaultKind::Dropout, k, 7)?,
+        Expect::NoTrip,
+        "edge of the sensor timeout: 7 consecutive errors are tolerated",
+    );
+    push(
+        v,
+        id,
+        t,
+        "dropout 8 ticks",
+        plan(FaultKind::Dropout, k, 8)?,
+        trip(&[R::SensorTimeout]),
+        "edge: the 8th consecutive error (3.9 ms blind) trips",
+    );
+    push(
+        v,
+        id,
+        t,
+        "dropout permanent",
+        plan(FaultKind::Dropout, k, FOREVER)?,
+        trip(&[R::SensorTimeout]),
+        "DAQ dead: the actuator runs blind",
+    );
+    push(
+        v,
+        id,
+        t,
+        "LVDT stuck",
+        plan(FaultKind::Stuck(Channel::Disp), k, FOREVER)?,
         trip(&[R::FrozenSensor, R::FollowingError]),
-        "position unknown: the reading no longer follows a moving command");
+        "position unknown: the reading no longer follows a moving command",
+    );
     push(v, id, t, "load cell stuck", plan(FaultKind::Stuck(Channel::Force), k, FOREVER)?,
         Expect::NoTrip,
         "data fault, not a safety fault: the actuator's position is still measured and kept in the envelope (see notes)");
-    push(v, id, t, "NaN LVDT 1 tick", plan(FaultKind::NaN(Channel::Disp), k, 1)?,
-        trip(&[R::NonFiniteSample]), "a non-finite reading is never plausible");
-    push(v, id, t, "NaN load cell 1 tick", plan(FaultKind::NaN(Channel::Force), k, 1)?,
-        trip(&[R::NonFiniteSample]), "a non-finite reading is never plausible");
-    push(v, id, t, "spike LVDT +5 mm 1 tick", plan(FaultKind::Spike(Channel::Disp, 5.0), k, 1)?,
+    push(
+        v,
+        id,
+        t,
+        "NaN LVDT 1 tick",
+        plan(FaultKind::NaN(Channel::Disp), k, 1)?,
+        trip(&[R::NonFiniteSample]),
+        "a non-finite reading is never plausible",
+    );
+    push(
+        v,
+        id,
+        t,
+        "NaN load cell 1 tick",
+        plan(FaultKind::NaN(Channel::Force), k, 1)?,
+        trip(&[R::NonFiniteSample]),
+        "a non-finite reading is never plausible",
+    );
+    push(
+        v,
+        id,
+        t,
+        "spike LVDT +5 mm 1 tick",
+        plan(FaultKind::Spike(Channel::Disp, 5.0), k, 1)?,
         trip(&[R::ImplausibleMotion, R::FollowingError]),
-        "a 5 mm step in 0.49 ms is 30× what the actuator can do (or 5 mm off the command)");
-    push(v, id, t, "spike LVDT +0.1 mm 1 tick", plan(FaultKind::Spike(Channel::Disp, 0.1), k, 1)?,
-        Expect::NoTrip, "below the 0.24 mm/tick plausibility bound: indistinguishable from motion, harmless");
-    push(v, id, t, "spike load cell +40 kN 1 tick", plan(FaultKind::Spike(Channel::Force, 40.0), k, 1)?,
-        trip(&[R::Force]), "beyond the 29.6 kN force limit: an overload is unsafe whatever its cause");
-    push(v, id, t, "valve at 2% flow", plan(FaultKind::ValveSaturation(0.02), k, FOREVER)?,
+        "a 5 mm step in 0.49 ms is 30× what the actuator can do (or 5 mm off the command)",
+    );
+    push(
+        v,
+        id,
+        t,
+        "spike LVDT +0.1 mm 1 tick",
+        plan(FaultKind::Spike(Channel::Disp, 0.1), k, 1)?,
+        Expect::NoTrip,
+        "below the 0.24 mm/tick plausibility bound: indistinguishable from motion, harmless",
+    );
+    push(
+        v,
+        id,
+        t,
+        "spike load cell +40 kN 1 tick",
+        plan(FaultKind::Spike(Channel::Force, 40.0), k, 1)?,
+        trip(&[R::Force]),
+        "beyond the 29.6 kN force limit: an overload is unsafe whatever its cause",
+    );
+    push(
+        v,
+        id,
+        t,
+        "valve at 2% flow",
+        plan(FaultKind::ValveSaturation(0.02), k, FOREVER)?,
         Expect::IffLimitHit,
-        "the actuator lags: unsafe only if the lag exceeds the following-error limit");
-    push(v, id, t, "valve at 50% flow", plan(FaultKind::ValveSaturation(0.5), k, FOREVER)?,
-        Expect::IffLimitHit, "half the rated flow: the actuator lags a little more");
-    push(v, id, t, "specimen 50% softer", plan(FaultKind::StiffnessChange(0.5), k, FOREVER)?,
-        Expect::IffLimitHit, "a change of the specimen is what the test measures, not a rig fault");
-    push(v, id, t, "specimen 2× stiffer", plan(FaultKind::StiffnessChange(2.0), k, FOREVER)?,
-        Expect::IffLimitHit, "a change of the specimen is what the test measures, not a rig fault");
+        "the actuator lags: unsafe only if the lag exceeds the following-error limit",
+    );
+    push(
+        v,
+        id,
+        t,
+        "valve at 50% flow",
+        plan(FaultKind::ValveSaturation(0.5), k, FOREVER)?,
+        Expect::IffLimitHit,
+        "half the rated flow: the actuator lags a little more",
+    );
+    push(
+        v,
+        id,
+        t,
+        "specimen 50% softer",
+        plan(FaultKind::StiffnessChange(0.5), k, FOREVER)?,
+        Expect::IffLimitHit,
+        "a change of the specimen is what the test measures, not a rig fault",
+    );
+    push(
+        v,
+        id,
+        t,
+        "specimen 2× stiffer",
+        plan(FaultKind::StiffnessChange(2.0), k, FOREVER)?,
+        Expect::IffLimitHit,
+        "a change of the specimen is what the test measures, not a rig fault",
+    );
     push(v, id, t, "lost ticks 2", plan(FaultKind::LostTicks, k, 2)?,
         Expect::Either(&[R::ImplausibleMotion]),
         "two commands lost: the servo catches up with a 3-step move; the stale-then-fresh reading trips only at speed");
-    push(v, id, t, "lost ticks permanent", plan(FaultKind::LostTicks, k, FOREVER)?,
+    push(
+        v,
+        id,
+        t,
+        "lost ticks permanent",
+        plan(FaultKind::LostTicks, k, FOREVER)?,
         trip(&[R::FrozenSensor, R::FollowingError]),
-        "link dead: the reading freezes while the command moves");
+        "link dead: the reading freezes while the command moves",
+    );
     let over = |n| Injection {
         faults: FaultPlan::none(),
         overruns: Some((k, n)),
     };
-    push(v, id, t, "overrun 3 ticks", over(3), Expect::NoTrip,
-        "3 consecutive late ticks are tolerated by design");
-    push(v, id, t, "overrun 4 ticks", over(4), trip(&[R::Overrun]),
-        "the 4th consecutive missed deadline trips");
+    push(
+        v,
+        id,
+        t,
+        "overrun 3 ticks",
+        over(3),
+        Expect::NoTrip,
+        "3 consecutive late ticks are tolerated by design",
+    );
+    push(
+        v,
+        id,
+        t,
+        "overrun 4 ticks",
+        over(4),
+        trip(&[R::Overrun]),
+        "the 4th consecutive missed deadline trips",
+    );
     Ok(())
 }
 
 fn fe_cases(v: &mut Vec<FaultCase>, t: f64) -> Result<(), FaultsError> {
     let id = ScenarioId::FeOnlineAts;
     let k = tick(t);
-    push(v, id, t, "dropout 7 ticks", plan(FaultKind::Dropout, k, 7)?, Expect::NoTrip,
-        "tolerated; the FE model sees the held force");
-    push(v, id, t, "dropout permanent", plan(FaultKind::Dropout, k, FOREVER)?,
-        Expect::Trip(&[R::SensorTimeout]), "DAQ dead");
-    push(v, id, t, "NaN load cell 1 tick", plan(FaultKind::NaN(Channel::Force), k, 1)?,
-        Expect::Trip(&[R::NonFiniteSample]), "never fed to the FE model; trips");
+    push(
+        v,
+        id,
+        t,
+        "dropout 7 ticks",
+        plan(FaultKind::Dropout, k, 7)?,
+        Expect::NoTrip,
+        "tolerated; the FE model sees the held force",
+    );
+    push(
+        v,
+        id,
+        t,
+        "dropout permanent",
+        plan(FaultKind::Dropout, k, FOREVER)?,
+        Expect::Trip(&[R::SensorTimeout]),
+        "DAQ dead",
+    );
+    push(
+        v,
+        id,
+        t,
+        "NaN load cell 1 tick",
+        plan(FaultKind::NaN(Channel::Force), k, 1)?,
+        Expect::Trip(&[R::NonFiniteSample]),
+        "never fed to the FE model; trips",
+    );
     push(v, id, t, "spike load cell +5 kN 1 tick", plan(FaultKind::Spike(Channel::Force, 5.0), k, 1)?,
         Expect::Trip(&[R::CommandVelocity]),
         "the FE model answers a 5 MN prototype kick with a command step no actuator may make: refused");
-    push(v, id, t, "spike load cell +0.5 kN 1 tick", plan(FaultKind::Spike(Channel::Force, 0.5), k, 1)?,
-        Expect::NoTrip, "a small glitch: the FE model absorbs it within the velocity limit");
-    push(v, id, t, "LVDT stuck", plan(FaultKind::Stuck(Channel::Disp), k, FOREVER)?,
-        Expect::Trip(&[R::FrozenSensor, R::FollowingError]), "position unknown");
-    push(v, id, t, "valve at 2% flow", plan(FaultKind::ValveSaturation(0.02), k, FOREVER)?,
-        Expect::IffLimitHit, "the actuator lags");
-    push(v, id, t, "specimen 50% softer", plan(FaultKind::StiffnessChange(0.5), k, FOREVER)?,
-        Expect::IffLimitHit, "the specimen changes; FE + ATS follows it");
-    push(v, id, t, "overrun 4 ticks", Injection { faults: FaultPlan::none(), overruns: Some((k, 4)) },
-        Expect::Trip(&[R::Overrun]), "missed deadlines");
+    push(
+        v,
+        id,
+        t,
+        "spike load cell +0.5 kN 1 tick",
+        plan(FaultKind::Spike(Channel::Force, 0.5), k, 1)?,
+        Expect::NoTrip,
+        "a small glitch: the FE model absorbs it within the velocity limit",
+    );
+    push(
+        v,
+        id,
+        t,
+        "LVDT stuck",
+        plan(FaultKind::Stuck(Channel::Disp), k, FOREVER)?,
+        Expect::Trip(&[R::FrozenSensor, R::FollowingError]),
+        "position unknown",
+    );
+    push(
+        v,
+        id,
+        t,
+        "valve at 2% flow",
+        plan(FaultKind::ValveSaturation(0.02), k, FOREVER)?,
+        Expect::IffLimitHit,
+        "the actuator lags",
+    );
+    push(
+        v,
+        id,
+        t,
+        "specimen 50% softer",
+        plan(FaultKind::StiffnessChange(0.5), k, FOREVER)?,
+        Expect::IffLimitHit,
+        "the specimen changes; FE + ATS follows it",
+    );
+    push(
+        v,
+        id,
+        t,
+        "overrun 4 ticks",
+        Injection {
+            faults: FaultPlan::none(),
+            overruns: Some((k, 4)),
+        },
+        Expect::Trip(&[R::Overrun]),
+        "missed deadlines",
+    );
     Ok(())
 }
 
@@ -324,9 +498,10 @@ impl Bench {
     /// El Centro at 2048 Hz, its pure FE reference and the shipped LR model.
     pub fn el_centro() -> Result<Self, FaultsError> {
         let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
-        let reference =
-            crate::study::reference_mm(&ag, 1.0).map_err(|e| FaultsError::Reference(e.to_string()))?;
-        let model = ModelFile::from_json(SHIPPED_LR).map_err(|e| FaultsError::Model(e.to_string()))?;
+        let reference = crate::study::reference_mm(&ag, 1.0)
+            .map_err(|e| FaultsError::Reference(e.to_string()))?;
+        let model =
+            ModelFile::from_json(SHIPPED_LR).map_err(|e| FaultsError::Model(e.to_string()))?;
         let lr = crate::models::lr_params(&model).map_err(|e| FaultsError::Model(e.to_string()))?;
         Ok(Self {
             ag,
@@ -364,35 +539,39 @@ impl Bench {
         let start_k = tick(case.start_s) as usize;
         // Ground truth up to the trip: the largest excess over each limit (negative: below it).
         let mut excess = f64::NEG_INFINITY;
-        let stop = scenario::simulate_observed(&self.setup(case.scenario), &case.injection, |r: &TickRow| {
-            if r.k >= start_k && tripped_at.is_none() && r.true_disp_mm.is_finite() {
-                let fe = (r.true_disp_mm - r.command_mm).abs() - lim.following_error_mm();
-                let force = r.true_force_kn.abs() - lim.force_kn();
-                let stroke = r.true_disp_mm.abs() - lim.stroke_mm();
-                excess = excess.max(fe).max(force).max(stroke);
-            }
-            let c = r.next_command_mm;
-            let d = (c - prev_cmd).abs();
-            peak_jump = peak_jump.max(d);
-            peak_cmd = peak_cmd.max(c.abs());
-            if !(c.is_finite() && c.abs() <= lim.stroke_mm() && d <= step_tol) {
-                envelope = false;
-            }
-            if r.servo_command_mm.is_finite() {
-                peak_servo_jump = peak_servo_jump.max((r.servo_command_mm - prev_servo).abs());
-                prev_servo = r.servo_command_mm;
-            }
-            if let State::Fault(_) = r.state {
-                if tripped_at.is_none() {
-                    tripped_at = Some(r.k);
+        let stop = scenario::simulate_observed(
+            &self.setup(case.scenario),
+            &case.injection,
+            |r: &TickRow| {
+                if r.k >= start_k && tripped_at.is_none() && r.true_disp_mm.is_finite() {
+                    let fe = (r.true_disp_mm - r.command_mm).abs() - lim.following_error_mm();
+                    let force = r.true_force_kn.abs() - lim.force_kn();
+                    let stroke = r.true_disp_mm.abs() - lim.stroke_mm();
+                    excess = excess.max(fe).max(force).max(stroke);
                 }
-                if d > fault_tol {
-                    ramp_ok = false;
+                let c = r.next_command_mm;
+                let d = (c - prev_cmd).abs();
+                peak_jump = peak_jump.max(d);
+                peak_cmd = peak_cmd.max(c.abs());
+                if !(c.is_finite() && c.abs() <= lim.stroke_mm() && d <= step_tol) {
+                    envelope = false;
                 }
-            }
-            prev_cmd = c;
-            last_cmd = c;
-        })?;
+                if r.servo_command_mm.is_finite() {
+                    peak_servo_jump = peak_servo_jump.max((r.servo_command_mm - prev_servo).abs());
+                    prev_servo = r.servo_command_mm;
+                }
+                if let State::Fault(_) = r.state {
+                    if tripped_at.is_none() {
+                        tripped_at = Some(r.k);
+                    }
+                    if d > fault_tol {
+                        ramp_ok = false;
+                    }
+                }
+                prev_cmd = c;
+                last_cmd = c;
+            },
+        )?;
         // After a trip the command must end at the safe position (0 mm, where the test was armed):
         // every case leaves at least 15 s after the fault, far more than the longest ramp (~1.3 s).
         if tripped_at.is_some() && last_cmd != 0.0 {

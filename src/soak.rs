@@ -107,15 +107,20 @@ pub fn run(ticks: usize, window_ticks: usize, seed: u64) -> Result<SoakReport, F
     one.resize(cycle.max(record.len()), 0.0);
     let cycle = one.len();
     let two: Vec<f64> = one.iter().chain(one.iter()).copied().collect();
-    let ref_two = crate::study::reference_mm(&two, 1.0)
-        .map_err(|e| FaultsError::Reference(e.to_string()))?;
+    let ref_two =
+        crate::study::reference_mm(&two, 1.0).map_err(|e| FaultsError::Reference(e.to_string()))?;
     let tiling = ref_two[..cycle]
         .iter()
         .zip(&ref_two[cycle..])
         .map(|(a, b)| (a - b).abs())
         .fold(0.0, f64::max);
     let ag: Vec<f64> = one.iter().cycle().take(ticks).copied().collect();
-    let reference: Vec<f64> = ref_two[..cycle].iter().cycle().take(ticks).copied().collect();
+    let reference: Vec<f64> = ref_two[..cycle]
+        .iter()
+        .cycle()
+        .take(ticks)
+        .copied()
+        .collect();
 
     let model = ModelFile::from_json(include_str!("../data/models/lr.json"))
         .map_err(|e| FaultsError::Model(e.to_string()))?;

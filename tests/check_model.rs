@@ -40,7 +40,10 @@ fn shipped_models_are_valid_with_a_summary() {
     assert!(out.contains("valid rths model file"), "{out}");
     assert!(out.contains("kind              lr"), "{out}");
     assert!(out.contains("delay_steps       28"), "{out}");
-    let rnn = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/rnn-10.json")).unwrap();
+    let rnn = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/rnn-10.json"),
+    )
+    .unwrap();
     let (ok, out, _) = check(&rnn, &["--kind", "rnn"]);
     assert!(ok, "{out}");
     assert!(out.contains("hidden            10"), "{out}");
@@ -49,18 +52,65 @@ fn shipped_models_are_valid_with_a_summary() {
 #[test]
 fn bad_files_are_rejected_with_the_reason() {
     let cases: Vec<(String, Vec<&str>, &str)> = vec![
-        ("{\"format\": \"rths-model\", \"version\": 1,".to_string(), vec![], "malformed model file"),
+        (
+            "{\"format\": \"rths-model\", \"version\": 1,".to_string(),
+            vec![],
+            "malformed model file",
+        ),
         ("".to_string(), vec![], "malformed model file"),
-        (edited(|v| v["version"] = 7.into()), vec![], "unsupported model file version 7"),
-        (edited(|v| v["format"] = "onnx".into()), vec![], "unknown model format"),
-        (edited(|v| v["kind"] = "cnn".into()), vec![], "malformed model file"),
-        (LR.to_string(), vec!["--kind", "rnn"], "wrong model kind: expected rnn, file holds lr"),
-        (edited(|v| v["lr"]["theta"] = serde_json::json!([1.0, 2.0])), vec![], "wrong shape of lr.theta"),
-        (LR.replacen("\"theta\": [", "\"theta\": [1e999, ", 1).replacen(",\n      -", ",\n      ", 0), vec![], "rejected"),
-        (edited(|v| v["lr"]["theta"][0] = serde_json::json!(null)), vec![], "malformed model file"),
-        (edited(|v| v["dt_s"] = serde_json::json!(-1.0)), vec![], "dt_s"),
-        (edited(|v| v["delay_steps"] = serde_json::json!(1000)), vec![], "delay_steps 1000 exceeds"),
-        (edited(|v| { v.as_object_mut().unwrap().remove("lr"); }), vec![], "section is missing"),
+        (
+            edited(|v| v["version"] = 7.into()),
+            vec![],
+            "unsupported model file version 7",
+        ),
+        (
+            edited(|v| v["format"] = "onnx".into()),
+            vec![],
+            "unknown model format",
+        ),
+        (
+            edited(|v| v["kind"] = "cnn".into()),
+            vec![],
+            "malformed model file",
+        ),
+        (
+            LR.to_string(),
+            vec!["--kind", "rnn"],
+            "wrong model kind: expected rnn, file holds lr",
+        ),
+        (
+            edited(|v| v["lr"]["theta"] = serde_json::json!([1.0, 2.0])),
+            vec![],
+            "wrong shape of lr.theta",
+        ),
+        (
+            LR.replacen("\"theta\": [", "\"theta\": [1e999, ", 1)
+                .replacen(",\n      -", ",\n      ", 0),
+            vec![],
+            "rejected",
+        ),
+        (
+            edited(|v| v["lr"]["theta"][0] = serde_json::json!(null)),
+            vec![],
+            "malformed model file",
+        ),
+        (
+            edited(|v| v["dt_s"] = serde_json::json!(-1.0)),
+            vec![],
+            "dt_s",
+        ),
+        (
+            edited(|v| v["delay_steps"] = serde_json::json!(1000)),
+            vec![],
+            "delay_steps 1000 exceeds",
+        ),
+        (
+            edited(|v| {
+                v.as_object_mut().unwrap().remove("lr");
+            }),
+            vec![],
+            "section is missing",
+        ),
     ];
     for (text, extra, why) in cases {
         let (ok, out, err) = check(&text, &extra);

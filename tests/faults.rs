@@ -9,7 +9,11 @@ fn every_fault_case_passes() {
     println!("{}", m.to_markdown());
     assert!(m.cases.len() >= 60, "{} cases", m.cases.len());
     for c in &m.cases {
-        assert!(c.envelope_kept, "{} {}: command left the envelope", c.scenario, c.case);
+        assert!(
+            c.envelope_kept,
+            "{} {}: command left the envelope",
+            c.scenario, c.case
+        );
         assert!(
             c.peak_jump_mm <= m.rate_limit_mm * (1.0 + 1e-9),
             "{} {}: jump {} mm above the rate limit",

@@ -56,12 +56,21 @@ fn qemu_missing() -> bool {
 /// `cargo build --release` of the firmware with `features` (on top of the defaults unless
 /// `no_default`), ELF copied to a private path.
 fn build(name: &str, no_default: bool, features: &str) -> PathBuf {
+    build_env(name, no_default, features, None)
+}
+
+/// [`build`] with the `fault-inject` plan `RTHS_FAULT` set to `fault` (or unset: the default plan).
+fn build_env(name: &str, no_default: bool, features: &str, fault: Option<&str>) -> PathBuf {
     let _guard = BUILD.lock().unwrap_or_else(|e| e.into_inner());
     let mut cmd = Command::new(env!("CARGO"));
     cmd.current_dir(firmware_dir())
         .args(["build", "--release"])
         // The outer cargo's target dir belongs to the host workspace.
         .env_remove("CARGO_TARGET_DIR");
+    match fault {
+        Some(f) => cmd.env("RTHS_FAULT", f),
+        None => cmd.env_remove("RTHS_FAULT"),
+    };
     if no_default {
         cmd.arg("--no-default-features");
     }
@@ -261,5 +270,65 @@ fn rnn_and_fe_ats_paths_build_and_run() {
         );
         assert_eq!(r["ticks"], 81_900, "{name}: {r}");
         assert!(max > 0.0, "{name}: {r}");
+    }
+}
+
+/// A subset of the fault matrix (`rths faults`) in QEMU: the firmware built with a compile-time fault
+/// plan (`RTHS_FAULT`) must trip (or not) exactly as the host run of the same case, at the same tick,
+/// for the same reason, and keep the command within the envelope.
+#[test]
+fn fault_matrix_subset_in_qemu_matches_the_host() {
+    if qemu_missing() {
+        return;
+    }
+    let bench = rths::faults::Bench::el_centro().unwrap();
+    let cases = rths::faults::cases().unwrap();
+    let lim = rths_core::supervisor::Limits::paper_actuator();
+    for (spec, host_name) in [
+        ("dropout@10+7", "dropout 7 ticks"),
+        ("dropout@10+8", "dropout 8 ticks"),
+        ("stuck-disp@10", "LVDT stuck"),
+        ("overrun@10+4", "overrun 4 ticks"),
+    ] {
+        let case = cases
+            .iter()
+            .find(|c| {
+                c.name == host_name && c.start_s == 10.0 && c.scenario == ScenarioId::LrOnline
+            })
+            .unwrap();
+        let host = bench.run_case(case).unwrap();
+        assert!(host.pass, "host case failed: {host:?}");
+        let elf = build_env(
+            &format!("fault-{host_name}"),
+            false,
+            "fault-inject",
+            Some(spec),
+        );
+        let (r, ok) = run(&elf);
+        assert!(ok, "{spec}: the firmware's own checks failed: {r}");
+        assert_eq!(r["fault"], spec);
+        // The envelope, on target.
+        assert!(
+            f(&r, "max_step_mm") <= lim.max_step_mm() * (1.0 + 1e-9),
+            "{spec}: {r}"
+        );
+        assert!(f(&r, "peak_cmd_mm") <= lim.stroke_mm(), "{spec}: {r}");
+        match (&host.reason, host.time_to_trip_ms) {
+            (Some(reason), Some(ms)) => {
+                assert_eq!(r["end_state"], "fault", "{spec}: {r}");
+                assert_eq!(r["fault_reason"].as_str(), Some(reason.as_str()), "{spec}");
+                let host_tick = 20_480.0 + (ms * 2.048).round();
+                assert_eq!(f(&r, "fault_tick"), host_tick, "{spec}: trip tick");
+            }
+            _ => {
+                assert_eq!(r["end_state"], "done", "{spec}: {r}");
+                assert_eq!(r["faults"], 0, "{spec}");
+                assert_eq!(r["ticks"], 81_900, "{spec}");
+            }
+        }
+        println!(
+            "qemu {spec}: {} (host: {:?} after {:?} ms), max jump {} mm",
+            r["fault_reason"], host.reason, host.time_to_trip_ms, r["max_step_mm"]
+        );
     }
 }

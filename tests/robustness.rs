@@ -9,15 +9,22 @@ use rths::motion::{parse_at2, parse_csv};
 
 const LR: &str = include_str!("../data/models/lr.json");
 const RNN: &str = include_str!("../data/models/rnn-5.json");
-const AT2: &str = "PEER\nTEST\nUNITS G\nNPTS=    5, DT= .01000 SEC\n  .1  .2D-1  -.3E-2\n 0.004 -0.005\n";
+const AT2: &str =
+    "PEER\nTEST\nUNITS G\nNPTS=    5, DT= .01000 SEC\n  .1  .2D-1  -.3E-2\n 0.004 -0.005\n";
 const CSV: &str = "time_s,accel_g\n0,0.1\n0.01,0.2\n0.02,-0.1\n0.03,0.0\n";
 
 fn check_motion(text: &str) {
     if let Ok(m) = parse_at2(text, "prop") {
-        assert!(m.validate().is_ok(), "AT2 accepted an invalid motion: {text:?}");
+        assert!(
+            m.validate().is_ok(),
+            "AT2 accepted an invalid motion: {text:?}"
+        );
     }
     if let Ok(m) = parse_csv(text, "prop") {
-        assert!(m.validate().is_ok(), "CSV accepted an invalid motion: {text:?}");
+        assert!(
+            m.validate().is_ok(),
+            "CSV accepted an invalid motion: {text:?}"
+        );
     }
 }
 

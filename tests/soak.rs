@@ -24,7 +24,10 @@ fn print(r: &SoakReport) {
             w.peak_command_mm
         );
     }
-    println!("error growth (last / first window): {:.4}", r.error_growth());
+    println!(
+        "error growth (last / first window): {:.4}",
+        r.error_growth()
+    );
 }
 
 fn assert_healthy(r: &SoakReport) {
@@ -40,14 +43,23 @@ fn assert_healthy(r: &SoakReport) {
             w.mean_command_mm,
             first.mean_command_mm
         );
-        assert!(w.peak_target_mm <= first.peak_target_mm * 1.001 + 1e-6, "LR state grew");
-        assert!(w.rms_error_mm <= first.rms_error_mm * 1.10 + 1e-4, "error grew: {w:?}");
+        assert!(
+            w.peak_target_mm <= first.peak_target_mm * 1.001 + 1e-6,
+            "LR state grew"
+        );
+        assert!(
+            w.rms_error_mm <= first.rms_error_mm * 1.10 + 1e-4,
+            "error grew: {w:?}"
+        );
         // Bounded error: well under 1% of the 12.66 mm peak response.
         assert!(w.peak_error_mm < 0.1, "error not bounded: {w:?}");
         assert!((w.rms_tracking_mm - first.rms_tracking_mm).abs() <= 0.02 * first.rms_tracking_mm);
     }
     assert!(r.error_growth() <= 1.10, "growth {}", r.error_growth());
-    assert!(last.peak_command_mm > 10.0, "the run really moved: {last:?}");
+    assert!(
+        last.peak_command_mm > 10.0,
+        "the run really moved: {last:?}"
+    );
 }
 
 #[test]

@@ -74,8 +74,7 @@ fn lr_uses_its_own_prediction_delayed() {
     );
     c.supervisor_mut().arm().unwrap();
     c.supervisor_mut().start().unwrap();
-    let outs: [f64; 9] =
-        core::array::from_fn(|_| c.tick(0.0, at_command(&c), false).target_mm);
+    let outs: [f64; 9] = core::array::from_fn(|_| c.tick(0.0, at_command(&c), false).target_mm);
     // x_fb(k) = x̂(k−3): ticks 0..3 see x̂(−3..=0) = 0, ticks 4..7 see x̂(1..=4) = 0.01, ...
     let expect = [0.01, 0.01, 0.01, 0.01, 0.02, 0.02, 0.02, 0.02, 0.03];
     for (o, e) in outs.iter().zip(expect) {
