@@ -89,6 +89,13 @@ if ! ./panic-check.sh target/budget-lr.elf; then
   echo "FAIL: panic paths reachable from the control step (listed above)"
   fail=1
 fi
+# The other two tasks of the controller: the supervisor (UART4) and telemetry (USART3).
+for task in UART4 USART3; do
+  if ! ./panic-check.sh target/budget-lr.elf "$task"; then
+    echo "FAIL: panic paths reachable from the $task task (listed above)"
+    fail=1
+  fi
+done
 
 if [ "$fail" = 1 ]; then
   exit 1
