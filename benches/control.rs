@@ -124,6 +124,7 @@ fn bench_run(c: &mut Criterion) {
         lr: Some(lr()),
         rnn: None,
         delay_steps: PAPER_DELAY_STEPS,
+        lrx: None,
     };
     let mut g = c.benchmark_group("whole_run");
     g.sample_size(10);

@@ -11,4 +11,5 @@ pub mod motion;
 pub mod plot;
 pub mod scenario;
 pub mod study;
+pub mod sweep;
 pub mod train;

@@ -9,10 +9,10 @@
 use std::fmt;
 use std::str::FromStr;
 
-use rths_core::compensator::{Ats, AtsConfig, AtsParams, Compensator};
+use rths_core::compensator::{Ats, AtsConfig, AtsParams, Compensator, Lead, LeadParams};
 use rths_core::control::{Analytical, ControlConfig, Controller, FeModel, FeedbackSource};
 use rths_core::hal::{Actuator, Daq, Error as _, Sample};
-use rths_core::metamodel::{Lr, LrParams, Rnn, RnnParams};
+use rths_core::metamodel::{Lr, LrParams, Lrx, LrxParams, Rnn, RnnParams};
 use rths_core::metrics;
 use rths_core::params::{ParamError, Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
 use rths_core::supervisor::{Limits, State};
@@ -40,6 +40,9 @@ pub enum ScenarioId {
     RnnPure(usize),
     /// RNN of hidden size H with the measured force fed back.
     RnnOnline(usize),
+    /// The specimen-faithful LRX metamodel (frame alone, measured force corrected to its own
+    /// displacement) with its learned lead filter.
+    LrxOnline,
 }
 
 impl ScenarioId {
@@ -110,13 +113,14 @@ impl fmt::Display for ScenarioId {
             ScenarioId::LrOnline => f.write_str("lr-online"),
             ScenarioId::RnnPure(h) => write!(f, "rnn-pure-{h}"),
             ScenarioId::RnnOnline(h) => write!(f, "rnn-online-{h}"),
+            ScenarioId::LrxOnline => f.write_str("lrx-online"),
         }
     }
 }
 
 /// An unknown scenario name.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown scenario `{0}` (fe-pure, fe-offline, fe-online, fe-online-ats, lr-pure, lr-offline, lr-online, rnn-pure-H, rnn-online-H with H in 1..=32)")]
+#[error("unknown scenario `{0}` (fe-pure, fe-offline, fe-online, fe-online-ats, lr-pure, lr-offline, lr-online, rnn-pure-H, rnn-online-H with H in 1..=32, lrx-online)")]
 pub struct UnknownScenario(pub String);
 
 impl FromStr for ScenarioId {
@@ -135,6 +139,7 @@ impl FromStr for ScenarioId {
             "lr-pure" => ScenarioId::LrPure,
             "lr-offline" => ScenarioId::LrOffline,
             "lr-online" => ScenarioId::LrOnline,
+            "lrx-online" => ScenarioId::LrxOnline,
             _ => {
                 if let Some(h) = s.strip_prefix("rnn-pure-").and_then(hidden) {
                     ScenarioId::RnnPure(h)
@@ -194,6 +199,8 @@ pub struct ScenarioSetup<'a> {
     pub rnn: Option<RnnParams>,
     /// Feedback delay of the pure runs, ticks (the model file's).
     pub delay_steps: usize,
+    /// The LRX frame model and its lead filter, for `lrx-online`.
+    pub lrx: Option<(LrxParams, LeadParams)>,
 }
 
 /// One row per tick.
@@ -316,7 +323,14 @@ const J1_MAX_LAG: usize = 205;
 
 fn analytical(setup: &ScenarioSetup<'_>, proto: Prototype) -> Result<Analytical, ScenarioError> {
     let id = setup.id;
-    Ok(if id.uses_lr() {
+    Ok(if id == ScenarioId::LrxOnline {
+        Analytical::Lrx(Lrx::new(
+            setup
+                .lrx
+                .ok_or(ScenarioError::MissingModel(id, "an LRX model"))?
+                .0,
+        ))
+    } else if id.uses_lr() {
         Analytical::Lr(Lr::new(
             setup
                 .lr
@@ -373,11 +387,14 @@ pub fn simulate(setup: &ScenarioSetup<'_>) -> Result<(History, Stop), ScenarioEr
         ScenarioId::FeOnline
         | ScenarioId::FeOnlineAts
         | ScenarioId::LrOnline
-        | ScenarioId::RnnOnline(_) => FeedbackSource::Measured,
+        | ScenarioId::RnnOnline(_)
+        | ScenarioId::LrxOnline => FeedbackSource::Measured,
     };
     let compensator = if id == ScenarioId::FeOnlineAts {
         let delay_s = PAPER_DELAY_STEPS as f64 * DT_S;
         Compensator::Ats(Ats::new(AtsParams::new(AtsConfig::paper(DT_S, delay_s))?))
+    } else if let (ScenarioId::LrxOnline, Some((_, lead))) = (id, setup.lrx) {
+        Compensator::Lead(Lead::new(lead))
     } else {
         Compensator::None
     };

@@ -16,7 +16,8 @@ use crate::models;
 use crate::motion::GroundMotion;
 use crate::plot::{self, Panel};
 use crate::scenario::{self, ScenarioId, ScenarioReport, ScenarioRun, ScenarioSetup};
-use crate::train::{data, lr, rnn};
+use crate::sweep::{self, SpecimenSweep, SweepModels};
+use crate::train::{data, lr, lrx, rnn};
 
 /// What to run.
 #[derive(Debug, Clone)]
@@ -44,6 +45,9 @@ pub struct StudyJson {
     pub lr_coefficients: Vec<f64>,
     /// Condition number of the normalized LR design matrix (phase 2); `null` if infinite.
     pub lr_condition_number: Option<f64>,
+    /// The specimen sweep (issue 8), when it was run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub specimen_sweep: Option<SpecimenSweep>,
 }
 
 /// Sensitivity of a scenario to the specimen stiffness (the metamodel was trained at factor 1).
@@ -203,6 +207,7 @@ fn setup<'a>(
         lr,
         rnn,
         delay_steps: PAPER_DELAY_STEPS,
+        lrx: None,
     }
 }
 
@@ -354,6 +359,42 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
         }
     }
 
+    // Specimen sweep (issue 8): the LRX metamodel, trained on other records, against the LR and
+    // FE + ATS on every shipped record.
+    let lrx_cfg = lrx::LrxConfig::new()?;
+    let lrx_tr = lrx::train(&lrx_cfg)?;
+    let lrx_path = cfg.out_dir.join("lrx.json");
+    lrx_tr.file.save(&lrx_path)?;
+    files.push(lrx_path);
+    let models = SweepModels {
+        lr: lr2,
+        lrx: models::lrx_params(&lrx_tr.file)?,
+    };
+    let mut records = Vec::new();
+    let mut motions = vec![cfg.motion.clone()];
+    for name in GroundMotion::embedded_names() {
+        if let Some(m) = GroundMotion::embedded(name) {
+            if m.name != cfg.motion.name {
+                motions.push(m);
+            }
+        }
+    }
+    for m in &motions {
+        let ag_m = m.resample_mm_s2(DT_S);
+        let scale = sweep::fitting_scale(&ag_m)?;
+        let trained = lrx_cfg.motions.iter().any(|(t, _)| t.name == m.name);
+        records.push(sweep::run_record(
+            m, scale, None, cfg.preset, cfg.seed, models, trained,
+        )?);
+    }
+    let specimen_sweep = SpecimenSweep {
+        lrx_training: lrx_tr.file.training.motion.clone(),
+        records,
+    };
+    let sweep_png = cfg.out_dir.join("specimen-sweep.png");
+    sweep::plot(&specimen_sweep, &sweep_png)?;
+    files.push(sweep_png);
+
     let json = StudyJson {
         scenarios: reports,
         lr_coefficients: sol2.theta.to_vec(),
@@ -361,6 +402,7 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
             .condition_number
             .is_finite()
             .then_some(sol2.condition_number),
+        specimen_sweep: Some(specimen_sweep),
     };
     let result = StudyResult {
         json,
@@ -521,10 +563,15 @@ pub fn report_md(cfg: &StudyConfig, r: &StudyResult) -> String {
             fmt_opt(x.report.nrmse_measured_pct, 3)
         );
     }
+    if let Some(sw) = &r.json.specimen_sweep {
+        let _ = writeln!(s, "\n## Specimen sweep (specimen-faithful metamodel)\n");
+        s.push_str(&sweep::markdown(sw));
+        let _ = writeln!(s, "Figure: `specimen-sweep.png`.");
+    }
     let _ = writeln!(
         s,
         "\nFigures: `<scenario>.png` (command and measured vs reference, and their errors); histories: \
-         `<scenario>.csv`; models: `lr.json`, `rnn-H.json`."
+         `<scenario>.csv`; models: `lr.json`, `rnn-H.json`, `lrx.json`."
     );
     s
 }
