@@ -89,9 +89,10 @@ pub struct StudyResult {
     pub files: Vec<PathBuf>,
 }
 
-/// The reference brace deformation: pure FE of the paper's frame with the brace scaled by `factor`.
+/// The reference brace deformation: pure FE of the paper's frame with the brace scaled by `factor`
+/// (the frame's damping coefficient unchanged: [`scenario::specimen_prototype`]).
 pub fn reference_mm(ag_mm_s2: &[f64], factor: f64) -> anyhow::Result<Vec<f64>> {
-    let proto = Prototype::paper().with_brace_factor(factor)?;
+    let proto = scenario::specimen_prototype(factor)?;
     Ok(pure_response(&proto, ag_mm_s2, DT_S, Method::Chang)?.brace_disp_mm)
 }
 
@@ -110,7 +111,7 @@ pub fn reference_for(
         Specimen::Linear => return reference_mm(ag_mm_s2, factor),
         Specimen::BoucWen(bw) => bw,
     };
-    let proto = Prototype::paper().with_brace_factor(factor)?;
+    let proto = scenario::specimen_prototype(factor)?;
     let scale = SpecimenScale::default();
     let k_spec = scale.specimen_stiffness_kn_per_mm(proto.brace_axial_stiffness_kn_per_mm());
     let mut ch = Chang::new(LinearStructure::prototype_hybrid(&proto)?, DT_S)?;

@@ -452,15 +452,20 @@ pub const LRX_FEATURE_NAMES: [&str; LRX_COEFFS] = [
 ///
 /// k̂ starts at the nominal `k_corr` (the paper's brace) and, if `adapt_ticks` > 0, follows the
 /// specimen by exponentially weighted least squares of the measured force on the measured
-/// displacement, k̂ = Σλ^j·F·x / Σλ^j·x² with λ = 1 − 1/`adapt_ticks`, once the weighted RMS
-/// displacement exceeds [`LRX_ADAPT_MIN_RMS_MM`], bounded to [`LRX_ADAPT_BOUNDS`] × nominal.
+/// displacement, k̂ = Σλ^j·F·x / Σλ^j·x² with λ = 1 − 1/`adapt_ticks`, while the weighted RMS
+/// displacement exceeds [`LRX_ADAPT_MIN_RMS_MM`] (below it the last estimate holds), bounded to
+/// [`LRX_ADAPT_BOUNDS`] × nominal.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LrxParams {
     coeffs: [f64; LRX_COEFFS],
     k_corr_kn_per_mm: f64,
     adapt_ticks: f64,
-    forgetting: f64,
-    min_sxx: f64,
+    // The stiffness estimate runs in f32 (the MCU's FPU; f64 is software there): it only scales
+    // the small force correction, so 1e-7 relative rounding does not matter.
+    forgetting: f32,
+    min_sxx: f32,
+    k_lo: f32,
+    k_hi: f32,
 }
 
 /// Weighted RMS brace deformation (mm) above which the stiffness estimate is used.
@@ -492,18 +497,21 @@ impl LrxParams {
         }
         let (forgetting, min_sxx) = if adapt_ticks > 0.0 {
             (
-                1.0 - 1.0 / adapt_ticks,
-                LRX_ADAPT_MIN_RMS_MM * LRX_ADAPT_MIN_RMS_MM * adapt_ticks,
+                (1.0 - 1.0 / adapt_ticks) as f32,
+                (LRX_ADAPT_MIN_RMS_MM * LRX_ADAPT_MIN_RMS_MM * adapt_ticks) as f32,
             )
         } else {
-            (0.0, f64::INFINITY)
+            (0.0, f32::INFINITY)
         };
+        let [lo, hi] = LRX_ADAPT_BOUNDS;
         Ok(Self {
             coeffs,
             k_corr_kn_per_mm,
             adapt_ticks,
             forgetting,
             min_sxx,
+            k_lo: (lo * k_corr_kn_per_mm) as f32,
+            k_hi: (hi * k_corr_kn_per_mm) as f32,
         })
     }
 
@@ -555,11 +563,11 @@ pub struct LrxState {
     pub ground_accel_mm_s2: [f64; LRX_ORDER - 1],
     /// F̃(i−1), F̃(i−2), kN.
     pub force_kn: [f64; LRX_ORDER - 1],
-    /// Weighted Σ x_fb², mm².
-    pub sxx: f64,
+    /// Weighted Σ x_fb², mm² (f32: see [`LrxParams`]).
+    pub sxx: f32,
     /// Weighted Σ F_fb·x_fb, kN·mm.
-    pub sfx: f64,
-    /// The stiffness estimate in use, kN/mm (0 at rest: the nominal is used).
+    pub sfx: f32,
+    /// The stiffness estimate in use, kN/mm (0 at rest: the nominal is used until the first estimate).
     pub k_est_kn_per_mm: f64,
 }
 
@@ -612,15 +620,22 @@ impl Lrx {
         let [d0, d1, d2] = s.pred_mm;
         let [g1, g2] = s.ground_accel_mm_s2;
         let [f1, f2] = s.force_kn;
-        let (mut sxx, mut sfx, mut k) = (s.sxx, s.sfx, p.k_corr_kn_per_mm);
+        // The last estimate holds while the motion is too small to estimate (0 at rest: nominal).
+        let k_held = if s.k_est_kn_per_mm > 0.0 {
+            s.k_est_kn_per_mm
+        } else {
+            p.k_corr_kn_per_mm
+        };
+        let (mut sxx, mut sfx, mut k) = (s.sxx, s.sfx, k_held);
         if p.forgetting > 0.0 {
-            sxx = finite(p.forgetting * sxx + x_fb * x_fb, "LRX stiffness sum")?;
-            sfx = finite(p.forgetting * sfx + f_fb * x_fb, "LRX stiffness sum")?;
+            let (x, f) = (x_fb as f32, f_fb as f32);
+            sxx = p.forgetting * sxx + x * x;
+            sfx = p.forgetting * sfx + f * x;
+            if !(sxx.is_finite() && sfx.is_finite()) {
+                return Err(InputError::NotFinite("LRX stiffness sum"));
+            }
             if sxx > p.min_sxx {
-                let [lo, hi] = LRX_ADAPT_BOUNDS;
-                k = (sfx / sxx)
-                    .max(lo * p.k_corr_kn_per_mm)
-                    .min(hi * p.k_corr_kn_per_mm);
+                k = f64::from((sfx / sxx).max(p.k_lo).min(p.k_hi));
             }
         }
         let f0 = finite(f_fb + k * (d0 - x_fb), "LRX corrected force")?;
