@@ -400,13 +400,13 @@ pub fn train(cfg: &LrxConfig) -> Result<LrxTraining, TrainError> {
                 .map(|d| scale.specimen_disp_mm(*d))
                 .collect();
             let (u, xm) = plant_run(cfg.preset, Specimen::Linear, factor, cfg.seed, &cmd)?;
-            for k in 0..u.len() {
+            for (k, uk) in u.iter().enumerate() {
                 let mut r = [0.0; LEAD_TAPS];
                 for (i, v) in r.iter_mut().enumerate() {
                     *v = lag(&xm, k, i * s);
                 }
                 rows.push(r);
-                ys.push(u[k]);
+                ys.push(*uk);
             }
         }
     }
