@@ -47,7 +47,7 @@ pub enum ScenarioId {
 
 impl ScenarioId {
     /// Every scenario `rths reproduce` runs, in report order.
-    pub const ALL: [ScenarioId; 11] = [
+    pub const ALL: [ScenarioId; 12] = [
         ScenarioId::FePure,
         ScenarioId::FeOffline,
         ScenarioId::FeOnline,
@@ -59,6 +59,7 @@ impl ScenarioId {
         ScenarioId::RnnPure(10),
         ScenarioId::RnnPure(20),
         ScenarioId::RnnOnline(10),
+        ScenarioId::LrxOnline,
     ];
 
     /// Does the actuator take part?

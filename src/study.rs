@@ -5,7 +5,8 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use rths_core::metamodel::{LrParams, RnnParams};
+use rths_core::compensator::LeadParams;
+use rths_core::metamodel::{LrParams, LrxParams, RnnParams};
 use rths_core::params::{Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{Preset, Specimen};
 use serde::Serialize;
@@ -190,6 +191,7 @@ pub fn lr_phase2(
     Ok((file, sol))
 }
 
+#[allow(clippy::too_many_arguments)]
 fn setup<'a>(
     id: ScenarioId,
     ag: &'a [f64],
@@ -198,6 +200,7 @@ fn setup<'a>(
     factor: f64,
     lr: Option<LrParams>,
     rnn: Option<RnnParams>,
+    lrx: Option<(LrxParams, LeadParams)>,
 ) -> ScenarioSetup<'a> {
     ScenarioSetup {
         id,
@@ -208,7 +211,7 @@ fn setup<'a>(
         lr,
         rnn,
         delay_steps: PAPER_DELAY_STEPS,
-        lrx: None,
+        lrx,
     }
 }
 
@@ -279,6 +282,7 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
         1.0,
         Some(lr1),
         None,
+        None,
     ))?;
     let (mut lr_file, sol2) = lr_phase2(&ag, &reference, &offline1, lr::DEFAULT_RCOND)?;
     lr_file.training.motion = cfg.motion.name.clone();
@@ -317,6 +321,14 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
     }
     let rnn_for = |h: usize| rnn_models.iter().find(|(k, _)| *k == h).map(|(_, p)| *p);
 
+    // The specimen-faithful LRX metamodel (issue 8), trained on other records than El Centro.
+    let lrx_cfg = lrx::LrxConfig::new()?;
+    let lrx_tr = lrx::train(&lrx_cfg)?;
+    let lrx_path = cfg.out_dir.join("lrx.json");
+    lrx_tr.file.save(&lrx_path)?;
+    files.push(lrx_path);
+    let lrx_params = models::lrx_params(&lrx_tr.file)?;
+
     // Every scenario.
     let mut reports = Vec::new();
     for id in ScenarioId::ALL {
@@ -333,6 +345,7 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
             1.0,
             Some(lr2),
             id.rnn_hidden().and_then(rnn_for),
+            Some(lrx_params),
         ))?;
         let csv = cfg.out_dir.join(format!("{id}.csv"));
         run.history.write_csv(&csv)?;
@@ -352,7 +365,16 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
     for factor in [0.8, 1.2] {
         let reference_f = reference_mm(&ag, factor)?;
         for id in [ScenarioId::LrOnline, ScenarioId::FeOnlineAts] {
-            let run = scenario::run(&setup(id, &ag, &reference_f, cfg, factor, Some(lr2), None))?;
+            let run = scenario::run(&setup(
+                id,
+                &ag,
+                &reference_f,
+                cfg,
+                factor,
+                Some(lr2),
+                None,
+                None,
+            ))?;
             sensitivity.push(Sensitivity {
                 stiffness_factor: factor,
                 report: run.report,
@@ -360,16 +382,10 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
         }
     }
 
-    // Specimen sweep (issue 8): the LRX metamodel, trained on other records, against the LR and
-    // FE + ATS on every shipped record.
-    let lrx_cfg = lrx::LrxConfig::new()?;
-    let lrx_tr = lrx::train(&lrx_cfg)?;
-    let lrx_path = cfg.out_dir.join("lrx.json");
-    lrx_tr.file.save(&lrx_path)?;
-    files.push(lrx_path);
+    // Specimen sweep (issue 8): the LRX metamodel against the LR and FE + ATS on every shipped record.
     let models = SweepModels {
         lr: lr2,
-        lrx: models::lrx_params(&lrx_tr.file)?,
+        lrx: lrx_params,
     };
     let mut records = Vec::new();
     let mut motions = vec![cfg.motion.clone()];

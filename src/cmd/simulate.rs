@@ -34,6 +34,10 @@ pub struct Args {
     /// Ground motion: an AT2/CSV file or an embedded record name (default El Centro).
     #[arg(long, value_name = "PATH|NAME")]
     pub motion: Option<String>,
+    /// Multiplies the ground acceleration (e.g. El Centro × 0.85 keeps the faithful response of every
+    /// specimen of the sweep within the actuator's velocity interlock).
+    #[arg(long, default_value_t = 1.0, value_name = "F")]
+    pub scale: f64,
     /// Model file (LR, RNN or LRX) for metamodel scenarios. Default: the shipped
     /// `data/models/lr.json`, `data/models/rnn-H.json` (H = 5, 10, 20) or `data/models/lrx.json`,
     /// compiled into the binary.
@@ -95,8 +99,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !(f.is_finite() && f > 0.0) {
         anyhow::bail!("--specimen-stiffness-factor must be a positive number, got {f}");
     }
+    if !(args.scale.is_finite() && args.scale > 0.0) {
+        anyhow::bail!("--scale must be a positive number, got {}", args.scale);
+    }
     let motion = load_motion(args.motion.as_deref())?;
-    let ag = motion.resample_mm_s2(DT_S);
+    let ag = motion.scaled(args.scale).resample_mm_s2(DT_S);
+    let motion_label = if args.scale == 1.0 {
+        motion.name.clone()
+    } else {
+        format!("{} × {}", motion.name, args.scale)
+    };
     let preset = match args.preset {
         PresetArg::Benchmark => Preset::Benchmark,
         PresetArg::UnrCompact => Preset::UnrCompact,
@@ -153,7 +165,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &dir.join(format!("{id}.png")),
             &format!(
                 "{id} ({}, {}, {}, F = {f})",
-                motion.name,
+                motion_label,
                 preset.name(),
                 specimen.name()
             ),
@@ -173,7 +185,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
     println!(
         "scenario            {id} ({}, {}, {}, F = {f}, seed {})",
-        motion.name,
+        motion_label,
         preset.name(),
         specimen.name(),
         args.seed
