@@ -7,7 +7,7 @@
 //! Each record is scaled so that the reference response of every case stays within 90% of the
 //! supervisor's velocity and stroke interlocks ([`fitting_scale`]): a faithful hybrid test cannot
 //! ask the actuator more than it has (El Centro at F = 0.8 needs 340 mm/s, beyond the 322 mm/s
-//! interlock, so El Centro runs at 0.9).
+//! interlock, so El Centro runs at 0.85).
 
 use std::fmt::Write as _;
 use std::path::Path;
