@@ -130,3 +130,105 @@ fn model_file_round_trip_and_validation() {
     ));
     assert!(crate::models::lr_params(&t.file).is_err());
 }
+
+/// An N-story shear building (every floor 1.75 kN·s²/mm, every story frame 176.75 kN/mm, the paper's
+/// brace in story 1, Rayleigh 2%): hybrid split (frame analytical, brace force fed in at floor 1).
+fn mdof<const N: usize>() -> (LinearStructure<N>, LinearStructure<N>) {
+    use rths_core::structure::ShearBuilding;
+    let p = Prototype::paper();
+    let mut b =
+        ShearBuilding::<N>::uniform(p.mass_kn_s2_per_mm(), p.frame_stiffness_kn_per_mm(), 0.02);
+    b.story_stiffness_kn_per_mm[0] += p.brace_lateral_stiffness_kn_per_mm();
+    let pure = b.model().unwrap();
+    let mut k_frame = *pure.stiffness();
+    k_frame[(0, 0)] -= p.brace_lateral_stiffness_kn_per_mm();
+    let hybrid =
+        LinearStructure::new(*pure.mass(), *pure.damping(), k_frame, *pure.stiffness()).unwrap();
+    (pure, hybrid)
+}
+
+/// Brace deformation of the N-story hybrid split driven by a brace force `factor·k_b·d + p`.
+fn mdof_run<const N: usize>(
+    h: LinearStructure<N>,
+    ag: &[f64],
+    factor: f64,
+    p: &[f64],
+) -> (Vec<f64>, Vec<f64>) {
+    let proto = Prototype::paper();
+    let k = factor * proto.brace_axial_stiffness_kn_per_mm();
+    let mut ch = Chang::new(h, DT_S).unwrap();
+    let (mut d, mut f) = (vec![0.0], vec![0.0]);
+    ch.reset(ag[0]);
+    for (i, &g) in ag.iter().enumerate().skip(1) {
+        let di = proto.brace_disp_mm(ch.next_displacement()[0]);
+        let fi = k * di + p.get(i).copied().unwrap_or(0.0);
+        let mut r = Vector::<N>::zeros();
+        r[0] = proto.story_force_kn(fi);
+        ch.advance(g, &r);
+        d.push(di);
+        f.push(fi);
+    }
+    (d, f)
+}
+
+/// How far the fixed-order (3) LRX gets on an N-story frame: it is exact for N = 1 and becomes a
+/// reduced-order model for N > 1 (its cost stays 9 multiply-adds, the FE's grows as N²). Trained on
+/// the default motions, `lrx-pure` on El Centro (not trained on) vs the pure FE of the building.
+fn mdof_lrx_pure_nrmse<const N: usize>() -> f64 {
+    let cfg = LrxConfig::new().unwrap();
+    let (pure, hybrid) = mdof::<N>();
+    let mut rng = StdRng::seed_from_u64(1);
+    let (mut rows, mut ys) = (Vec::new(), Vec::new());
+    for (m, s) in &cfg.motions {
+        let ag = m.scaled(*s).resample_mm_s2(DT_S);
+        for &f in &cfg.frame_factors {
+            let (_, f0) = mdof_run(hybrid, &ag, f, &[]);
+            let p = band_limited_noise(ag.len(), 0.3 * rms_of(&f0), &mut rng).unwrap();
+            let (d, fo) = mdof_run(hybrid, &ag, f, &p);
+            frame_rows(&ag, &d, &fo, &mut rows, &mut ys);
+        }
+    }
+    let x = DMatrix::from_fn(rows.len(), LRX_COEFFS, |i, j| rows[i][j]);
+    let (theta, _) = lstsq(&x, &DVector::from_vec(ys), 1e-12).unwrap();
+    let mut c = [0.0; LRX_COEFFS];
+    c.iter_mut().zip(&theta).for_each(|(d, s)| *d = *s);
+    let params = LrxParams::new(c, 1224.1, 0.0).unwrap();
+    let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let proto = Prototype::paper();
+    let mut ch = Chang::new(pure, DT_S).unwrap();
+    ch.reset(ag[0]);
+    let mut reference = vec![0.0];
+    for &g in &ag[1..] {
+        reference.push(proto.brace_disp_mm(ch.next_displacement()[0]));
+        ch.advance(g, &Vector::<N>::zeros());
+    }
+    let mut m = Lrx::new(params);
+    let (mut out, mut d) = (Vec::new(), 0.0);
+    for &g in &ag {
+        out.push(d);
+        d = m
+            .predict(LrxInputs {
+                ground_accel_mm_s2: g,
+                brace_disp_fb_mm: d,
+                brace_force_fb_kn: proto.brace_force_kn(d),
+            })
+            .unwrap();
+        if !d.is_finite() || d.abs() > 1e6 {
+            return f64::INFINITY;
+        }
+    }
+    metrics::nrmse_pct(&out, &reference).unwrap()
+}
+
+#[test]
+fn mdof_frames_need_more_than_a_third_order_model() {
+    let e1 = mdof_lrx_pure_nrmse::<1>();
+    let e2 = mdof_lrx_pure_nrmse::<2>();
+    let e3 = mdof_lrx_pure_nrmse::<3>();
+    let e5 = mdof_lrx_pure_nrmse::<5>();
+    println!("lrx-pure (order 3) on an N-story frame, El Centro: N=1 {e1:.4}%, N=2 {e2:.3}%, N=3 {e3:.3}%, N=5 {e5:.3}%");
+    assert!(e1 < 0.01, "{e1}");
+    // The documented limitation (notes/lrx.md): a third-order model is not a reduced model of a
+    // multi-story frame. If this fails, the model got better: update the notes.
+    assert!(e2 > 5.0 && e5 > 5.0, "{e2} {e5}");
+}
