@@ -86,6 +86,10 @@ pub struct Args {
     /// paper's brace).
     #[arg(long, default_value_t = 2048.0)]
     pub k_adapt_ticks: f64,
+    /// LRX relative singular-value cut-off of both least-squares fits (it drops the frame fit's
+    /// least-determined direction, which the closed recursion does not tolerate well).
+    #[arg(long, default_value_t = 1e-9)]
+    pub lrx_rcond: f64,
     /// LRX band-limited force perturbation, RMS as a fraction of the RMS brace force.
     #[arg(long, default_value_t = 0.3)]
     pub perturbation: f64,
@@ -127,7 +131,11 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
     cfg.lead_stride = args.lead_stride;
     cfg.k_adapt_ticks = args.k_adapt_ticks;
     cfg.perturbation = args.perturbation;
-    cfg.rcond = args.rcond.min(1e-9);
+    anyhow::ensure!(
+        args.lrx_rcond.is_finite() && args.lrx_rcond > 0.0 && args.lrx_rcond < 1.0,
+        "--lrx-rcond must be in (0, 1)"
+    );
+    cfg.rcond = args.lrx_rcond;
     cfg.seed = args.seed;
     let t = crate::train::lrx::train(&cfg)?;
     println!("LRX fit on {} (seed {})", t.file.training.motion, cfg.seed);

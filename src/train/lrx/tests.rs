@@ -232,3 +232,32 @@ fn mdof_frames_need_more_than_a_third_order_model() {
     // multi-story frame. If this fails, the model got better: update the notes.
     assert!(e2 > 5.0 && e5 > 5.0, "{e2} {e5}");
 }
+
+/// The shipped `data/models/lrx.json` is what the default training produces (as `rths reproduce`
+/// and `rths train lrx` do).
+#[test]
+fn shipped_model_is_the_default_training() {
+    let shipped = ModelFile::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lrx.json"),
+    )
+    .unwrap();
+    let t = trained();
+    let (s, w) = (shipped.lrx.unwrap(), t.file.lrx.unwrap());
+    let close = |a: &[f64], b: &[f64]| {
+        a.len() == b.len()
+            && a.iter()
+                .zip(b)
+                .all(|(x, y)| (x - y).abs() <= 1e-12 * x.abs().max(y.abs()).max(1e-300))
+    };
+    assert!(
+        close(&s.coeffs, &w.coeffs),
+        "{:?} vs {:?}",
+        s.coeffs,
+        w.coeffs
+    );
+    assert!(close(&s.lead_weights, &w.lead_weights));
+    assert_eq!(
+        (s.lead_stride, s.k_corr_kn_per_mm, s.k_adapt_ticks),
+        (w.lead_stride, w.k_corr_kn_per_mm, w.k_adapt_ticks)
+    );
+}
