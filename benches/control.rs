@@ -1,5 +1,5 @@
-//! Cost of the control step (ns per `Controller::tick`) for the LR, RNN-10 and FE+ATS analytical
-//! parts, and the wall time of a whole El Centro `lr-online` run against the virtual plant
+//! Cost of the control step (ns per `Controller::tick`) for the LR, RNN-10, FE+ATS and LRX (shipped
+//! model, with its lead filter) analytical parts, and the wall time of a whole El Centro `lr-online` run against the virtual plant
 //! (compare with the record's 40 s of test time).
 
 use std::hint::black_box;
@@ -8,10 +8,10 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use rths::motion::GroundMotion;
 use rths::scenario::{self, ScenarioId, ScenarioSetup};
 use rths::study;
-use rths_core::compensator::{Ats, AtsConfig, AtsParams, Compensator};
+use rths_core::compensator::{Ats, AtsConfig, AtsParams, Compensator, Lead};
 use rths_core::control::{Analytical, ControlConfig, Controller, FeModel, FeedbackSource};
 use rths_core::hal::Sample;
-use rths_core::metamodel::{Lr, LrParams, Rnn, RnnParams, RnnScaling, RnnWeights};
+use rths_core::metamodel::{Lr, LrParams, Lrx, Rnn, RnnParams, RnnScaling, RnnWeights};
 use rths_core::params::{Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
 use rths_core::supervisor::{Limits, State};
 use rths_hal_sim::{Preset, Specimen};
@@ -65,8 +65,18 @@ fn bench_steps(c: &mut Criterion) {
     let ats = Ats::new(
         AtsParams::new(AtsConfig::paper(DT_S, PAPER_DELAY_STEPS as f64 * DT_S)).expect("ATS"),
     );
+    let lrx_file = rths::model_file::ModelFile::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lrx.json"),
+    )
+    .expect("shipped LRX model");
+    let (lrx, lead) = rths::models::lrx_params(&lrx_file).expect("valid LRX model");
     let cases = [
         ("lr", Analytical::Lr(Lr::new(lr())), Compensator::None),
+        (
+            "lrx",
+            Analytical::Lrx(Lrx::new(lrx)),
+            Compensator::Lead(Lead::new(lead)),
+        ),
         (
             "rnn-10",
             Analytical::Rnn(Rnn::new(rnn10())),
@@ -124,6 +134,7 @@ fn bench_run(c: &mut Criterion) {
         lr: Some(lr()),
         rnn: None,
         delay_steps: PAPER_DELAY_STEPS,
+        lrx: None,
     };
     let mut g = c.benchmark_group("whole_run");
     g.sample_size(10);

@@ -520,6 +520,7 @@ impl Bench {
             stiffness_factor: 1.0,
             lr: Some(self.lr),
             rnn: None,
+            lrx: None,
             delay_steps: self.delay_steps,
         }
     }

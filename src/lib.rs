@@ -13,4 +13,5 @@ pub mod plot;
 pub mod scenario;
 pub mod soak;
 pub mod study;
+pub mod sweep;
 pub mod train;

@@ -36,7 +36,25 @@ pub const LR_FEATURES: [&str; 6] = [
 /// Input order of the RNN (the columns of `w_ih`, `input_mean`, `input_std`).
 pub const RNN_FEATURES: [&str; 2] = ["ground_accel_mm_s2", "force_fb_kn"];
 
-/// The two kinds of metamodel.
+/// Coefficient order of the LRX model (`rths_core::metamodel::LRX_FEATURE_NAMES`), the order of
+/// `lrx.coeffs`.
+pub const LRX_FEATURES: [&str; 9] = [
+    "pred_disp_mm(i)",
+    "pred_disp_mm(i-1)",
+    "pred_disp_mm(i-2)",
+    "ground_accel_mm_s2(i)",
+    "ground_accel_mm_s2(i-1)",
+    "ground_accel_mm_s2(i-2)",
+    "corrected_force_kn(i)",
+    "corrected_force_kn(i-1)",
+    "corrected_force_kn(i-2)",
+];
+/// Taps of the LRX lead filter.
+pub const LRX_LEAD_TAPS: usize = 8;
+/// Largest lead-filter tap spacing, ticks.
+pub const LRX_MAX_STRIDE: usize = 8;
+
+/// The kinds of metamodel.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ModelKind {
@@ -44,6 +62,8 @@ pub enum ModelKind {
     Lr,
     /// Elman recurrent network.
     Rnn,
+    /// Specimen-faithful linear metamodel of the frame alone, with a learned lead filter.
+    Lrx,
 }
 
 impl std::fmt::Display for ModelKind {
@@ -51,6 +71,7 @@ impl std::fmt::Display for ModelKind {
         f.write_str(match self {
             ModelKind::Lr => "lr",
             ModelKind::Rnn => "rnn",
+            ModelKind::Lrx => "lrx",
         })
     }
 }
@@ -90,6 +111,56 @@ pub struct RnnWeights {
     pub output_mean: f64,
     /// Output standard deviation, mm (positive).
     pub output_std: f64,
+}
+
+/// LRX weights. Frame ARX (coefficients in [`LRX_FEATURES`] order):
+/// `d̂(i+1) = Σ_j a_j·d̂(i−j) + Σ_j b_j·ü_g(i−j) + Σ_j c_j·F̃(i−j)` with the corrected force
+/// `F̃(i) = F_fb(i) + k_corr·(d̂(i) − x_fb(i))`; lead filter (the command, specimen scale):
+/// `u = Σ_i lead_weights[i]·x_t(k − i·lead_stride)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LrxWeights {
+    /// a0..a2, b0..b2, c0..c2.
+    pub coeffs: Vec<f64>,
+    /// Nominal force-correction stiffness, kN/mm (prototype brace axial; ≥ 0).
+    pub k_corr_kn_per_mm: f64,
+    /// Time constant of the online stiffness estimate, ticks (0: fixed at nominal; else ≥ 1).
+    pub k_adapt_ticks: f64,
+    /// Lead-filter weights, newest tap first.
+    pub lead_weights: Vec<f64>,
+    /// Lead-filter tap spacing, ticks (1..=8).
+    pub lead_stride: usize,
+}
+
+impl LrxWeights {
+    /// Check shapes, finiteness and ranges.
+    pub fn validate(&self) -> Result<(), ModelFileError> {
+        shape("lrx.coeffs", LRX_FEATURES.len(), self.coeffs.len())?;
+        finite("lrx.coeffs", &self.coeffs)?;
+        finite("lrx.k_corr_kn_per_mm", &[self.k_corr_kn_per_mm])?;
+        if self.k_corr_kn_per_mm < 0.0 {
+            return Err(ModelFileError::NonPositive {
+                field: "lrx.k_corr_kn_per_mm".into(),
+                value: self.k_corr_kn_per_mm,
+            });
+        }
+        finite("lrx.k_adapt_ticks", &[self.k_adapt_ticks])?;
+        if self.k_adapt_ticks != 0.0 && self.k_adapt_ticks < 1.0 {
+            return Err(ModelFileError::NonPositive {
+                field: "lrx.k_adapt_ticks (0 or >= 1)".into(),
+                value: self.k_adapt_ticks,
+            });
+        }
+        shape("lrx.lead_weights", LRX_LEAD_TAPS, self.lead_weights.len())?;
+        finite("lrx.lead_weights", &self.lead_weights)?;
+        if !(1..=LRX_MAX_STRIDE).contains(&self.lead_stride) {
+            return Err(ModelFileError::WrongShape {
+                field: "lrx.lead_stride (1..=8)".into(),
+                expected: LRX_MAX_STRIDE,
+                found: self.lead_stride,
+            });
+        }
+        Ok(())
+    }
 }
 
 /// Where a model came from (no dates, so a retrain with the same inputs gives the same file).
@@ -164,6 +235,9 @@ pub struct ModelFile {
     /// RNN weights (kind "rnn").
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rnn: Option<RnnWeights>,
+    /// LRX weights (kind "lrx").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lrx: Option<LrxWeights>,
     /// Provenance.
     #[serde(default)]
     pub training: Training,
@@ -362,6 +436,13 @@ impl ModelFile {
         Self::new(ModelKind::Rnn, delay_steps, dt_s, None, Some(weights))
     }
 
+    /// A new LRX model file (format and version filled in).
+    pub fn new_lrx(weights: LrxWeights, delay_steps: usize, dt_s: f64) -> Self {
+        let mut m = Self::new(ModelKind::Lrx, delay_steps, dt_s, None, None);
+        m.lrx = Some(weights);
+        m
+    }
+
     fn new(
         kind: ModelKind,
         delay_steps: usize,
@@ -372,6 +453,7 @@ impl ModelFile {
         let names: &[&str] = match kind {
             ModelKind::Lr => &LR_FEATURES,
             ModelKind::Rnn => &RNN_FEATURES,
+            ModelKind::Lrx => &LRX_FEATURES,
         };
         Self {
             format: FORMAT.to_string(),
@@ -382,6 +464,7 @@ impl ModelFile {
             dt_s,
             lr,
             rnn,
+            lrx: None,
             training: Training::default(),
             scores: Scores::default(),
         }
@@ -411,6 +494,13 @@ impl ModelFile {
             ModelKind::Rnn => {
                 features(&RNN_FEATURES, &self.features)?;
                 self.rnn
+                    .as_ref()
+                    .ok_or(ModelFileError::MissingSection { kind: self.kind })?
+                    .validate()
+            }
+            ModelKind::Lrx => {
+                features(&LRX_FEATURES, &self.features)?;
+                self.lrx
                     .as_ref()
                     .ok_or(ModelFileError::MissingSection { kind: self.kind })?
                     .validate()

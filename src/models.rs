@@ -1,6 +1,7 @@
 //! From a validated model file to the `no_std` inference parameters the controller runs.
 
-use rths_core::metamodel::{LrParams, ModelError, RnnParams, RnnScaling, RnnWeights};
+use rths_core::compensator::{LeadParams, LEAD_TAPS};
+use rths_core::metamodel::{LrParams, LrxParams, ModelError, RnnParams, RnnScaling, RnnWeights};
 
 use crate::model_file::{ModelFile, ModelFileError, ModelKind};
 
@@ -13,6 +14,25 @@ pub enum ToParamsError {
     /// The core validation refused the weights.
     #[error("model rejected by the controller: {0:?}")]
     Core(ModelError),
+}
+
+/// The frame model and the lead filter of an LRX model file.
+pub fn lrx_params(m: &ModelFile) -> Result<(LrxParams, LeadParams), ToParamsError> {
+    m.expect_kind(ModelKind::Lrx)?;
+    m.validate()?;
+    let w = m
+        .lrx
+        .as_ref()
+        .ok_or(ModelFileError::MissingSection { kind: m.kind })?;
+    let frame = LrxParams::from_slice(&w.coeffs, w.k_corr_kn_per_mm, w.k_adapt_ticks)
+        .map_err(ToParamsError::Core)?;
+    let mut lead = [0.0; LEAD_TAPS];
+    lead.iter_mut()
+        .zip(&w.lead_weights)
+        .for_each(|(d, s)| *d = *s);
+    let lead = LeadParams::new(lead, w.lead_stride)
+        .map_err(|e| ToParamsError::Core(ModelError::Param(e)))?;
+    Ok((frame, lead))
 }
 
 /// The LR coefficients of an LR model file.

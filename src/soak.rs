@@ -135,6 +135,7 @@ pub fn run(ticks: usize, window_ticks: usize, seed: u64) -> Result<SoakReport, F
         stiffness_factor: 1.0,
         lr: Some(lr),
         rnn: None,
+        lrx: None,
         delay_steps: model.delay_steps,
     };
     let window_ticks = window_ticks.max(1);

@@ -5,7 +5,8 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use rths_core::metamodel::{LrParams, RnnParams};
+use rths_core::compensator::LeadParams;
+use rths_core::metamodel::{LrParams, LrxParams, RnnParams};
 use rths_core::params::{Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{Preset, Specimen};
 use serde::Serialize;
@@ -16,7 +17,8 @@ use crate::models;
 use crate::motion::GroundMotion;
 use crate::plot::{self, Panel};
 use crate::scenario::{self, ScenarioId, ScenarioReport, ScenarioRun, ScenarioSetup};
-use crate::train::{data, lr, rnn};
+use crate::sweep::{self, SpecimenSweep, SweepModels};
+use crate::train::{data, lr, lrx, rnn};
 
 /// What to run.
 #[derive(Debug, Clone)]
@@ -44,6 +46,9 @@ pub struct StudyJson {
     pub lr_coefficients: Vec<f64>,
     /// Condition number of the normalized LR design matrix (phase 2); `null` if infinite.
     pub lr_condition_number: Option<f64>,
+    /// The specimen sweep (issue 8), when it was run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub specimen_sweep: Option<SpecimenSweep>,
 }
 
 /// Sensitivity of a scenario to the specimen stiffness (the metamodel was trained at factor 1).
@@ -85,9 +90,10 @@ pub struct StudyResult {
     pub files: Vec<PathBuf>,
 }
 
-/// The reference brace deformation: pure FE of the paper's frame with the brace scaled by `factor`.
+/// The reference brace deformation: pure FE of the paper's frame with the brace scaled by `factor`
+/// (the frame's damping coefficient unchanged: [`scenario::specimen_prototype`]).
 pub fn reference_mm(ag_mm_s2: &[f64], factor: f64) -> anyhow::Result<Vec<f64>> {
-    let proto = Prototype::paper().with_brace_factor(factor)?;
+    let proto = scenario::specimen_prototype(factor)?;
     Ok(pure_response(&proto, ag_mm_s2, DT_S, Method::Chang)?.brace_disp_mm)
 }
 
@@ -106,7 +112,7 @@ pub fn reference_for(
         Specimen::Linear => return reference_mm(ag_mm_s2, factor),
         Specimen::BoucWen(bw) => bw,
     };
-    let proto = Prototype::paper().with_brace_factor(factor)?;
+    let proto = scenario::specimen_prototype(factor)?;
     let scale = SpecimenScale::default();
     let k_spec = scale.specimen_stiffness_kn_per_mm(proto.brace_axial_stiffness_kn_per_mm());
     let mut ch = Chang::new(LinearStructure::prototype_hybrid(&proto)?, DT_S)?;
@@ -185,6 +191,7 @@ pub fn lr_phase2(
     Ok((file, sol))
 }
 
+#[allow(clippy::too_many_arguments)]
 fn setup<'a>(
     id: ScenarioId,
     ag: &'a [f64],
@@ -193,6 +200,7 @@ fn setup<'a>(
     factor: f64,
     lr: Option<LrParams>,
     rnn: Option<RnnParams>,
+    lrx: Option<(LrxParams, LeadParams)>,
 ) -> ScenarioSetup<'a> {
     ScenarioSetup {
         id,
@@ -203,6 +211,7 @@ fn setup<'a>(
         lr,
         rnn,
         delay_steps: PAPER_DELAY_STEPS,
+        lrx,
     }
 }
 
@@ -273,6 +282,7 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
         1.0,
         Some(lr1),
         None,
+        None,
     ))?;
     let (mut lr_file, sol2) = lr_phase2(&ag, &reference, &offline1, lr::DEFAULT_RCOND)?;
     lr_file.training.motion = cfg.motion.name.clone();
@@ -311,6 +321,14 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
     }
     let rnn_for = |h: usize| rnn_models.iter().find(|(k, _)| *k == h).map(|(_, p)| *p);
 
+    // The specimen-faithful LRX metamodel (issue 8), trained on other records than El Centro.
+    let lrx_cfg = lrx::LrxConfig::new()?;
+    let lrx_tr = lrx::train(&lrx_cfg)?;
+    let lrx_path = cfg.out_dir.join("lrx.json");
+    lrx_tr.file.save(&lrx_path)?;
+    files.push(lrx_path);
+    let lrx_params = models::lrx_params(&lrx_tr.file)?;
+
     // Every scenario.
     let mut reports = Vec::new();
     for id in ScenarioId::ALL {
@@ -327,6 +345,7 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
             1.0,
             Some(lr2),
             id.rnn_hidden().and_then(rnn_for),
+            Some(lrx_params),
         ))?;
         let csv = cfg.out_dir.join(format!("{id}.csv"));
         run.history.write_csv(&csv)?;
@@ -346,13 +365,52 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
     for factor in [0.8, 1.2] {
         let reference_f = reference_mm(&ag, factor)?;
         for id in [ScenarioId::LrOnline, ScenarioId::FeOnlineAts] {
-            let run = scenario::run(&setup(id, &ag, &reference_f, cfg, factor, Some(lr2), None))?;
+            let run = scenario::run(&setup(
+                id,
+                &ag,
+                &reference_f,
+                cfg,
+                factor,
+                Some(lr2),
+                None,
+                None,
+            ))?;
             sensitivity.push(Sensitivity {
                 stiffness_factor: factor,
                 report: run.report,
             });
         }
     }
+
+    // Specimen sweep (issue 8): the LRX metamodel against the LR and FE + ATS on every shipped record.
+    let models = SweepModels {
+        lr: lr2,
+        lrx: lrx_params,
+    };
+    let mut records = Vec::new();
+    let mut motions = vec![cfg.motion.clone()];
+    for name in GroundMotion::embedded_names() {
+        if let Some(m) = GroundMotion::embedded(name) {
+            if m.name != cfg.motion.name {
+                motions.push(m);
+            }
+        }
+    }
+    for m in &motions {
+        let ag_m = m.resample_mm_s2(DT_S);
+        let scale = sweep::fitting_scale(&ag_m)?;
+        let trained = lrx_cfg.motions.iter().any(|(t, _)| t.name == m.name);
+        records.push(sweep::run_record(
+            m, scale, None, cfg.preset, cfg.seed, models, trained,
+        )?);
+    }
+    let specimen_sweep = SpecimenSweep {
+        lrx_training: lrx_tr.file.training.motion.clone(),
+        records,
+    };
+    let sweep_png = cfg.out_dir.join("specimen-sweep.png");
+    sweep::plot(&specimen_sweep, &sweep_png)?;
+    files.push(sweep_png);
 
     let json = StudyJson {
         scenarios: reports,
@@ -361,6 +419,7 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
             .condition_number
             .is_finite()
             .then_some(sol2.condition_number),
+        specimen_sweep: Some(specimen_sweep),
     };
     let result = StudyResult {
         json,
@@ -521,10 +580,15 @@ pub fn report_md(cfg: &StudyConfig, r: &StudyResult) -> String {
             fmt_opt(x.report.nrmse_measured_pct, 3)
         );
     }
+    if let Some(sw) = &r.json.specimen_sweep {
+        let _ = writeln!(s, "\n## Specimen sweep (specimen-faithful metamodel)\n");
+        s.push_str(&sweep::markdown(sw));
+        let _ = writeln!(s, "Figure: `specimen-sweep.png`.");
+    }
     let _ = writeln!(
         s,
         "\nFigures: `<scenario>.png` (command and measured vs reference, and their errors); histories: \
-         `<scenario>.csv`; models: `lr.json`, `rnn-H.json`."
+         `<scenario>.csv`; models: `lr.json`, `rnn-H.json`, `lrx.json`."
     );
     s
 }

@@ -155,6 +155,7 @@ fn host_lr_online_nrmse() -> f64 {
         lr: Some(rths_core::metamodel::LrParams::new(theta).unwrap()),
         rnn: None,
         delay_steps: model.delay_steps,
+        lrx: None,
     };
     let run = scenario::run(&setup).unwrap();
     assert!(run.report.stable, "host run stopped: {:?}", run.report);

@@ -34,6 +34,7 @@ fn check_model(text: &str) {
         let ok = match m.kind {
             ModelKind::Lr => rths::models::lr_params(&m).is_ok(),
             ModelKind::Rnn => rths::models::rnn_params(&m).is_ok(),
+            ModelKind::Lrx => rths::models::lrx_params(&m).is_ok(),
         };
         assert!(ok, "a validated model was refused by the controller");
     }

@@ -36,6 +36,7 @@ fn run(id: ScenarioId, specimen: Specimen, factor: f64) -> ScenarioReport {
         lr: Some(shipped_lr()),
         rnn: id.rnn_hidden().map(shipped_rnn),
         delay_steps: PAPER_DELAY_STEPS,
+        lrx: None,
     })
     .unwrap()
     .report
@@ -180,6 +181,7 @@ fn two_phase_lr_training_reproduces_the_shipped_model_and_meets_the_paper() {
         lr: Some(lr),
         rnn: None,
         delay_steps: PAPER_DELAY_STEPS,
+        lrx: None,
     };
     // The phase-1 model in the loop without feedback, recording the real feedback.
     let offline = scenario::run(&setup(ScenarioId::LrOffline, lr1)).unwrap();

@@ -19,7 +19,7 @@
 use crate::compensator::Compensator;
 use crate::hal::{ErrorKind, Sample};
 use crate::integrator::{Chang, ExplicitIntegrator};
-use crate::metamodel::{Features, Lr, Rnn, RnnInputs};
+use crate::metamodel::{Features, Lr, Lrx, LrxInputs, Rnn, RnnInputs};
 use crate::params::{ParamError, Prototype, SpecimenScale};
 use crate::structure::{LinearStructure, Vector};
 use crate::supervisor::{Busy, Decision, Limits, State, Supervisor};
@@ -115,6 +115,8 @@ pub enum Analytical {
     Lr(Lr),
     /// An Elman recurrent network metamodel.
     Rnn(Rnn),
+    /// The specimen-faithful linear metamodel of the frame alone (measured force as an input).
+    Lrx(Lrx),
 }
 
 impl Analytical {
@@ -134,6 +136,13 @@ impl Analytical {
                     brace_force_fb_kn: fb.brace_force_kn,
                 })
                 .map_err(|_| StepError::NonFiniteOutput)?,
+            Analytical::Lrx(m) => m
+                .predict(LrxInputs {
+                    ground_accel_mm_s2: ag_mm_s2,
+                    brace_disp_fb_mm: fb.brace_disp_mm,
+                    brace_force_fb_kn: fb.brace_force_kn,
+                })
+                .map_err(|_| StepError::NonFiniteOutput)?,
         };
         if y.is_finite() {
             Ok(y)
@@ -147,6 +156,7 @@ impl Analytical {
             Analytical::Fe(m) => m.reset(),
             Analytical::Lr(m) => m.reset(),
             Analytical::Rnn(m) => m.reset(),
+            Analytical::Lrx(m) => m.reset(),
         }
     }
 }

@@ -10,8 +10,9 @@
 //! - `idle`: `wfi`.
 //!
 //! The analytical part is chosen by feature: `model-lr` (default, `lr-online`), `model-rnn`
-//! (`rnn-online-H`), `fe-ats` (`fe-online-ats`). `fault-inject` injects the fault `RTHS_FAULT` names
-//! at build time (default: a NaN on the LVDT from 10 s on; see `build.rs`).
+//! (`rnn-online-H`), `fe-ats` (`fe-online-ats`), `model-lrx` (`lrx-online`). `fault-inject` injects
+//! the fault `RTHS_FAULT` names at build time (default: a NaN on the LVDT from 10 s on; see
+//! `build.rs`).
 #![no_std]
 #![no_main]
 
@@ -52,7 +53,12 @@ const LOG_EVERY: u32 = 2048;
 const SCENARIO_PREFIX: &str = "rnn-online-";
 #[cfg(all(feature = "fe-ats", not(feature = "model-rnn")))]
 const SCENARIO_PREFIX: &str = "fe-online-ats";
-#[cfg(not(any(feature = "model-rnn", feature = "fe-ats")))]
+#[cfg(all(
+    feature = "model-lrx",
+    not(any(feature = "model-rnn", feature = "fe-ats"))
+))]
+const SCENARIO_PREFIX: &str = "lrx-online";
+#[cfg(not(any(feature = "model-rnn", feature = "fe-ats", feature = "model-lrx")))]
 const SCENARIO_PREFIX: &str = "lr-online";
 
 /// One telemetry record (what the controller did at a tick).
@@ -145,7 +151,23 @@ fn config() -> Result<ControlConfig, &'static str> {
     .map_err(|_| "control config")
 }
 
-#[cfg(not(any(feature = "model-rnn", feature = "fe-ats")))]
+#[cfg(all(
+    feature = "model-lrx",
+    not(any(feature = "model-rnn", feature = "fe-ats"))
+))]
+fn analytical() -> Result<(Analytical, Compensator), &'static str> {
+    use rths_core::compensator::{Lead, LeadParams};
+    use rths_core::metamodel::{Lrx, LrxParams};
+    let p = LrxParams::new(gen::LRX_COEFFS, gen::LRX_K_CORR, gen::LRX_K_ADAPT)
+        .map_err(|_| "LRX model")?;
+    let lead = LeadParams::new(gen::LRX_LEAD, gen::LRX_LEAD_STRIDE).map_err(|_| "LRX lead")?;
+    Ok((
+        Analytical::Lrx(Lrx::new(p)),
+        Compensator::Lead(Lead::new(lead)),
+    ))
+}
+
+#[cfg(not(any(feature = "model-rnn", feature = "fe-ats", feature = "model-lrx")))]
 fn analytical() -> Result<(Analytical, Compensator), &'static str> {
     use rths_core::metamodel::{Lr, LrParams};
     let p = LrParams::new(gen::LR_THETA).map_err(|_| "LR model")?;

@@ -10,6 +10,7 @@ fuzz_target!(|data: &[u8]| {
         let ok = match m.kind {
             rths::model_file::ModelKind::Lr => rths::models::lr_params(&m).is_ok(),
             rths::model_file::ModelKind::Rnn => rths::models::rnn_params(&m).is_ok(),
+            rths::model_file::ModelKind::Lrx => rths::models::lrx_params(&m).is_ok(),
         };
         assert!(ok, "a validated model file was refused by the controller");
     }

@@ -14,6 +14,8 @@ pub enum ModelKindArg {
     Lr,
     /// Elman RNN.
     Rnn,
+    /// Specimen-faithful frame metamodel.
+    Lrx,
 }
 
 impl From<ModelKindArg> for ModelKind {
@@ -21,6 +23,7 @@ impl From<ModelKindArg> for ModelKind {
         match k {
             ModelKindArg::Lr => ModelKind::Lr,
             ModelKindArg::Rnn => ModelKind::Rnn,
+            ModelKindArg::Lrx => ModelKind::Lrx,
         }
     }
 }
@@ -81,6 +84,18 @@ pub fn check(path: &std::path::Path, kind: Option<ModelKind>) -> Result<String, 
             models::rnn_params(&m).map_err(|e| reject(e.to_string()))?;
             if let Some(w) = &m.rnn {
                 let _ = writeln!(s, "hidden            {}", w.hidden);
+            }
+        }
+        ModelKind::Lrx => {
+            models::lrx_params(&m).map_err(|e| reject(e.to_string()))?;
+            if let Some(w) = &m.lrx {
+                let _ = writeln!(s, "frame ARX         {:?}", w.coeffs);
+                let _ = writeln!(
+                    s,
+                    "lead filter       {} taps every {} ticks",
+                    w.lead_weights.len(),
+                    w.lead_stride
+                );
             }
         }
     }

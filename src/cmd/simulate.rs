@@ -15,6 +15,8 @@ use crate::study::{self, StudyJson};
 
 /// The LR model `rths reproduce` trained on El Centro (phase 2), shipped as the default.
 const DEFAULT_LR: &str = include_str!("../../data/models/lr.json");
+/// The shipped LRX model (`rths train lrx`: trained on Northridge × 0.5 and Loma Prieta).
+const DEFAULT_LRX: &str = include_str!("../../data/models/lrx.json");
 /// The shipped RNN models (`rths train rnn --hidden H`), by hidden size.
 const DEFAULT_RNN: [(usize, &str); 3] = [
     (5, include_str!("../../data/models/rnn-5.json")),
@@ -26,14 +28,19 @@ const DEFAULT_RNN: [(usize, &str); 3] = [
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Scenario: fe-pure, fe-offline, fe-online, fe-online-ats, lr-pure, lr-offline, lr-online,
-    /// rnn-pure-H, rnn-online-H.
+    /// rnn-pure-H, rnn-online-H, lrx-online.
     #[arg(long)]
     pub scenario: ScenarioId,
     /// Ground motion: an AT2/CSV file or an embedded record name (default El Centro).
     #[arg(long, value_name = "PATH|NAME")]
     pub motion: Option<String>,
-    /// Model file (LR or RNN) for metamodel scenarios. Default: the shipped `data/models/lr.json`
-    /// or `data/models/rnn-H.json` (H = 5, 10, 20), compiled into the binary.
+    /// Multiplies the ground acceleration (e.g. El Centro × 0.85 keeps the faithful response of every
+    /// specimen of the sweep within the actuator's velocity interlock).
+    #[arg(long, default_value_t = 1.0, value_name = "F")]
+    pub scale: f64,
+    /// Model file (LR, RNN or LRX) for metamodel scenarios. Default: the shipped
+    /// `data/models/lr.json`, `data/models/rnn-H.json` (H = 5, 10, 20) or `data/models/lrx.json`,
+    /// compiled into the binary.
     #[arg(long, value_name = "MODEL.json")]
     pub model: Option<PathBuf>,
     /// Plant preset.
@@ -78,6 +85,9 @@ fn load_model(args: &Args, kind: ModelKind) -> anyhow::Result<ModelFile> {
             ModelFile::from_json(text)
                 .with_context(|| format!("the shipped data/models/rnn-{h}.json"))?
         }
+        (None, ModelKind::Lrx) => {
+            ModelFile::from_json(DEFAULT_LRX).context("the shipped data/models/lrx.json")?
+        }
     };
     file.expect_kind(kind)?;
     Ok(file)
@@ -89,8 +99,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !(f.is_finite() && f > 0.0) {
         anyhow::bail!("--specimen-stiffness-factor must be a positive number, got {f}");
     }
+    if !(args.scale.is_finite() && args.scale > 0.0) {
+        anyhow::bail!("--scale must be a positive number, got {}", args.scale);
+    }
     let motion = load_motion(args.motion.as_deref())?;
-    let ag = motion.resample_mm_s2(DT_S);
+    let ag = motion.scaled(args.scale).resample_mm_s2(DT_S);
+    let motion_label = if args.scale == 1.0 {
+        motion.name.clone()
+    } else {
+        format!("{} × {}", motion.name, args.scale)
+    };
     let preset = match args.preset {
         PresetArg::Benchmark => Preset::Benchmark,
         PresetArg::UnrCompact => Preset::UnrCompact,
@@ -102,7 +120,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let reference = study::reference_for(&ag, specimen, f)?;
     let id = args.scenario;
     let (mut lr, mut rnn, mut delay, mut coeffs, mut cond) = (None, None, 28, Vec::new(), None);
-    if id.uses_lr() {
+    let mut lrx = None;
+    if id == ScenarioId::LrxOnline {
+        let m = load_model(&args, ModelKind::Lrx)?;
+        lrx = Some(models::lrx_params(&m)?);
+        delay = m.delay_steps;
+    } else if id.uses_lr() {
         let m = load_model(&args, ModelKind::Lr)?;
         let p = models::lr_params(&m)?;
         coeffs = p.theta().to_vec();
@@ -132,6 +155,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         lr,
         rnn,
         delay_steps: delay,
+        lrx,
     })?;
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -141,7 +165,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &dir.join(format!("{id}.png")),
             &format!(
                 "{id} ({}, {}, {}, F = {f})",
-                motion.name,
+                motion_label,
                 preset.name(),
                 specimen.name()
             ),
@@ -151,6 +175,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         scenarios: vec![run.report.clone()],
         lr_coefficients: coeffs,
         lr_condition_number: cond,
+        specimen_sweep: None,
     };
     if args.json {
         println!("{}", serde_json::to_string(&json)?);
@@ -160,7 +185,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
     println!(
         "scenario            {id} ({}, {}, {}, F = {f}, seed {})",
-        motion.name,
+        motion_label,
         preset.name(),
         specimen.name(),
         args.seed

@@ -4,6 +4,7 @@
 
 pub mod data;
 pub mod lr;
+pub mod lrx;
 pub mod rnn;
 
 use rths_core::metrics::MetricError;

@@ -551,3 +551,65 @@ proptest! {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------------------
+// Learned lead filter
+// ---------------------------------------------------------------------------------------------------
+
+#[test]
+fn lead_is_a_strided_fir_of_the_targets() {
+    // u(k) = 2·x(k) − x(k − s): linear extrapolation s ticks ahead, exact on a ramp.
+    for stride in 1..=LEAD_MAX_STRIDE {
+        let mut w = [0.0; LEAD_TAPS];
+        w[0] = 2.0;
+        w[1] = -1.0;
+        let mut l = Lead::new(LeadParams::new(w, stride).unwrap());
+        for k in 0..100 {
+            let x = 0.25 * k as f64;
+            let u = l.compensate(x).unwrap();
+            let expected = if k >= stride {
+                x + 0.25 * stride as f64
+            } else {
+                2.0 * x
+            };
+            assert!(
+                (u - expected).abs() < 1e-5,
+                "stride {stride} k {k}: {u} vs {expected}"
+            );
+        }
+    }
+    // The last tap reaches (taps − 1)·stride back.
+    let mut w = [0.0; LEAD_TAPS];
+    w[LEAD_TAPS - 1] = 1.0;
+    let mut l = Lead::new(LeadParams::new(w, 3).unwrap());
+    let lag = (LEAD_TAPS - 1) * 3;
+    for k in 0..60 {
+        let u = l.compensate(k as f64).unwrap();
+        let expected = if k >= lag { (k - lag) as f64 } else { 0.0 };
+        assert_eq!(u, expected, "k {k}");
+    }
+}
+
+#[test]
+fn lead_refuses_bad_targets_keeps_history_and_resets() {
+    let mut w = [0.0; LEAD_TAPS];
+    w[0] = 1.5;
+    w[1] = -0.5;
+    let mut l = Lead::new(LeadParams::new(w, 2).unwrap());
+    for k in 0..10 {
+        l.compensate(k as f64).unwrap();
+    }
+    let before = l;
+    for bad in [f64::NAN, f64::INFINITY, 2.0 * MAX_ABS_INPUT_MM] {
+        assert!(l.compensate(bad).is_err());
+        assert_eq!(l, before);
+    }
+    let mut c = Compensator::Lead(l);
+    assert!(c.compensate(1.0, f64::NAN).is_err());
+    c.reset();
+    assert_eq!(c.compensate(2.0, 0.0).unwrap(), 3.0);
+    assert!(LeadParams::new(w, 0).is_err());
+    assert!(LeadParams::new(w, LEAD_MAX_STRIDE + 1).is_err());
+    w[3] = f64::NAN;
+    assert!(LeadParams::new(w, 1).is_err());
+}

@@ -345,3 +345,186 @@ proptest! {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------------------
+// LRX
+// ---------------------------------------------------------------------------------------------------
+
+const LRX_TEST_COEFFS: [f64; LRX_COEFFS] = [1.9, -0.95, 0.04, 1e-4, -2e-5, 3e-6, -4e-5, 2e-5, 1e-6];
+
+#[test]
+fn lrx_matches_a_naive_recursion_without_adaptation() {
+    let k_c = 1000.0;
+    let mut m = Lrx::new(LrxParams::new(LRX_TEST_COEFFS, k_c, 0.0).unwrap());
+    let (mut d, mut g, mut f): (Vec<f64>, Vec<f64>, Vec<f64>) =
+        (vec![0.0; 3], vec![0.0; 3], vec![0.0; 3]);
+    let c = LRX_TEST_COEFFS;
+    for i in 0..500 {
+        let t = i as f64 * 0.01;
+        let (ag, x_fb, f_fb) = (
+            libm::sin(t) * 1000.0,
+            libm::cos(1.3 * t),
+            900.0 * libm::sin(0.7 * t),
+        );
+        let ft = f_fb + k_c * (d[0] - x_fb);
+        g.insert(0, ag);
+        f.insert(0, ft);
+        let y = (0..3)
+            .map(|j| c[j] * d[j] + c[3 + j] * g[j] + c[6 + j] * f[j])
+            .sum::<f64>();
+        d.insert(0, y);
+        let got = m
+            .predict(LrxInputs {
+                ground_accel_mm_s2: ag,
+                brace_disp_fb_mm: x_fb,
+                brace_force_fb_kn: f_fb,
+            })
+            .unwrap();
+        assert!(
+            (got - y).abs() <= 1e-9 * y.abs().max(1.0),
+            "step {i}: {got} vs {y}"
+        );
+    }
+}
+
+#[test]
+fn lrx_correction_vanishes_when_the_actuator_is_exact() {
+    // Measured displacement = the model's own target: F̃ = F, whatever k_c.
+    let run = |k_c: f64| {
+        let mut m = Lrx::new(LrxParams::new(LRX_TEST_COEFFS, k_c, 0.0).unwrap());
+        let mut d = 0.0;
+        let mut out = Vec::new();
+        for i in 0..300 {
+            let ag = 500.0 * libm::sin(i as f64 * 0.05);
+            d = m
+                .predict(LrxInputs {
+                    ground_accel_mm_s2: ag,
+                    brace_disp_fb_mm: d,
+                    brace_force_fb_kn: 700.0 * d,
+                })
+                .unwrap();
+            out.push(d);
+        }
+        out
+    };
+    assert_eq!(run(0.0), run(1224.1));
+}
+
+#[test]
+fn lrx_estimates_the_specimen_stiffness_and_holds_it() {
+    let k_nom = 1224.1;
+    let mut m = Lrx::new(LrxParams::new(LRX_TEST_COEFFS, k_nom, 2048.0).unwrap());
+    let k_true = 0.6 * k_nom;
+    let step = |m: &mut Lrx, x: f64| {
+        m.predict(LrxInputs {
+            ground_accel_mm_s2: 0.0,
+            brace_disp_fb_mm: x,
+            brace_force_fb_kn: k_true * x,
+        })
+        .unwrap();
+    };
+    // Below the excitation threshold the nominal stiffness is used.
+    step(&mut m, 0.01);
+    assert_eq!(m.state().k_est_kn_per_mm, k_nom);
+    for i in 0..8192 {
+        step(&mut m, 5.0 * libm::sin(i as f64 * 0.02));
+    }
+    let k = m.state().k_est_kn_per_mm;
+    assert!((k / k_true - 1.0).abs() < 1e-5, "{k} vs {k_true}");
+    // The motion stops: the estimate holds instead of falling back to the nominal.
+    for _ in 0..40_000 {
+        step(&mut m, 0.0);
+    }
+    assert!((m.state().k_est_kn_per_mm / k_true - 1.0).abs() < 1e-5);
+    // Bounded to 0.25..4 × nominal.
+    let mut m = Lrx::new(LrxParams::new(LRX_TEST_COEFFS, k_nom, 100.0).unwrap());
+    for i in 0..2000 {
+        let x = 5.0 * libm::sin(i as f64 * 0.05);
+        m.predict(LrxInputs {
+            ground_accel_mm_s2: 0.0,
+            brace_disp_fb_mm: x,
+            brace_force_fb_kn: -x * k_nom,
+        })
+        .unwrap();
+    }
+    assert!((m.state().k_est_kn_per_mm - 0.25 * k_nom).abs() < 1e-3);
+    m.reset();
+    assert_eq!(*m.state(), LrxState::default());
+}
+
+#[test]
+fn lrx_refuses_bad_inputs_and_keeps_its_state() {
+    let mut m = Lrx::new(LrxParams::new(LRX_TEST_COEFFS, 1224.1, 2048.0).unwrap());
+    for i in 0..50 {
+        m.predict(LrxInputs {
+            ground_accel_mm_s2: 100.0 * i as f64,
+            brace_disp_fb_mm: 0.1,
+            brace_force_fb_kn: 100.0,
+        })
+        .unwrap();
+    }
+    let before = *m.state();
+    for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        for inp in [
+            LrxInputs {
+                ground_accel_mm_s2: bad,
+                ..LrxInputs::default()
+            },
+            LrxInputs {
+                brace_disp_fb_mm: bad,
+                ..LrxInputs::default()
+            },
+            LrxInputs {
+                brace_force_fb_kn: bad,
+                ..LrxInputs::default()
+            },
+        ] {
+            assert!(m.predict(inp).is_err());
+            assert_eq!(*m.state(), before);
+        }
+    }
+    // A value f32 cannot hold (the stiffness sums) is refused too.
+    assert!(m
+        .predict(LrxInputs {
+            brace_disp_fb_mm: 1e300,
+            ..LrxInputs::default()
+        })
+        .is_err());
+    assert_eq!(*m.state(), before);
+}
+
+#[test]
+fn lrx_parameters_are_validated() {
+    assert!(LrxParams::new(LRX_TEST_COEFFS, -1.0, 0.0).is_err());
+    assert!(LrxParams::new(LRX_TEST_COEFFS, f64::NAN, 0.0).is_err());
+    assert!(LrxParams::new(LRX_TEST_COEFFS, 1.0, 0.5).is_err());
+    assert!(LrxParams::new(LRX_TEST_COEFFS, 1.0, f64::INFINITY).is_err());
+    let mut c = LRX_TEST_COEFFS;
+    c[4] = f64::NAN;
+    assert!(LrxParams::new(c, 1.0, 0.0).is_err());
+    assert!(matches!(
+        LrxParams::from_slice(&[0.0; 8], 1.0, 0.0),
+        Err(ModelError::Shape {
+            expected: 9,
+            got: 8,
+            ..
+        })
+    ));
+    assert!(LrxParams::from_slice(&LRX_TEST_COEFFS, 1.0, 2048.0).is_ok());
+}
+
+proptest! {
+    #[test]
+    fn lrx_output_is_finite_or_refused(
+        inputs in proptest::collection::vec((any_f64(), any_f64(), any_f64()), 1..200)
+    ) {
+        let mut m = Lrx::new(LrxParams::new(LRX_TEST_COEFFS, 1224.1, 2048.0).unwrap());
+        for (ag, x, f) in inputs {
+            let before = *m.state();
+            match m.predict(LrxInputs { ground_accel_mm_s2: ag, brace_disp_fb_mm: x, brace_force_fb_kn: f }) {
+                Ok(y) => prop_assert!(y.is_finite()),
+                Err(_) => prop_assert_eq!(*m.state(), before),
+            }
+        }
+    }
+}
