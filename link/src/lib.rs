@@ -280,7 +280,7 @@ pub fn decode<'a, T: Deserialize<'a>>(body: &'a mut [u8]) -> Result<T, LinkError
         return Err(LinkError::Crc);
     }
     match postcard::take_from_bytes(payload) {
-        Ok((msg, rest)) if rest.is_empty() => Ok(msg),
+        Ok((msg, [])) => Ok(msg),
         _ => Err(LinkError::Message),
     }
 }
