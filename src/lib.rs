@@ -5,6 +5,7 @@
 
 pub mod analysis;
 pub mod cmd;
+pub mod link_host;
 pub mod model_file;
 pub mod models;
 pub mod motion;

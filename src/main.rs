@@ -25,6 +25,8 @@ enum Command {
     Reproduce(cmd::reproduce::Args),
     /// Train a metamodel (LR or RNN) on the pure response and write its model file.
     Train(cmd::train::Args),
+    /// Drive and record a test on a board over the command link (serial port, QEMU socket).
+    Link(cmd::link::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -35,6 +37,7 @@ fn main() -> std::process::ExitCode {
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Reproduce(a) => cmd::reproduce::run(a),
         Command::Train(a) => cmd::train::run(a),
+        Command::Link(a) => cmd::link::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

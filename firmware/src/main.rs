@@ -43,6 +43,11 @@ static RECORD_END: AtomicBool = AtomicBool::new(false);
 /// `link`: the run is over and reported; `telemetry_link` sends `RunEnded` after the last record.
 #[cfg(feature = "link")]
 static RUN_ENDED: AtomicBool = AtomicBool::new(false);
+/// `link`: the host started the run; until then the tick only acknowledges the timer. (The timer
+/// runs from boot: in QEMU a guest that waits in `wfi` with no timer deadline stops its virtual clock
+/// from being advanced after the host's `Start`, and the run crawls.)
+#[cfg(feature = "link")]
+static LINK_RUNNING: AtomicBool = AtomicBool::new(false);
 
 /// Ticks the fault hold must be steady before the run is stopped (1 s).
 const FAULT_SETTLE_TICKS: u32 = 2048;
@@ -317,9 +322,12 @@ mod app {
             gen::MODEL_SOURCE,
             gen::RECORD_TICKS
         );
-        // Autonomous run: the supervisor arms and starts at once. With `link` the host does.
+        // Autonomous run: the supervisor arms and starts at once. With `link` the host does, and the
+        // timer runs from now on (see `LINK_RUNNING`).
         #[cfg(not(feature = "link"))]
         rtic::pend(Interrupt::UART4);
+        #[cfg(feature = "link")]
+        timer.start();
         (
             Shared {
                 ctl,
@@ -370,6 +378,10 @@ mod app {
                     k: u32 = 0, overrun: bool = false, prev_state: State = State::Idle])]
     fn control(mut cx: control::Context) {
         cx.shared.timer.lock(|t| t.clear());
+        #[cfg(feature = "link")]
+        if !LINK_RUNNING.load(Ordering::Acquire) {
+            return;
+        }
         let k = *cx.local.k;
         let rig = cx.local.rig;
         let overrun = *cx.local.overrun;
@@ -681,7 +693,7 @@ mod app {
                     });
                     if r.is_ok() {
                         defmt::info!("link: running");
-                        cx.shared.timer.lock(|t| t.start());
+                        LINK_RUNNING.store(true, Ordering::Release);
                     }
                     r
                 }

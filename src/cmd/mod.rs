@@ -1,6 +1,7 @@
 //! The subcommands of the `rths` binary, one module each.
 
 pub mod analyze;
+pub mod link;
 pub mod plant;
 pub mod reproduce;
 pub mod simulate;
