@@ -219,7 +219,8 @@ impl Link {
             if left.is_zero() {
                 return Err(LinkHostError::Timeout(timeout, "receive"));
             }
-            self.port.set_timeout(left.min(Duration::from_millis(200)))?;
+            self.port
+                .set_timeout(left.min(Duration::from_millis(200)))?;
             let n = match self.port.read(&mut buf) {
                 Ok(0) => {
                     return Err(LinkHostError::Io(std::io::Error::new(
@@ -338,13 +339,15 @@ impl Link {
     }
 
     /// Receive telemetry until the device's `RunEnded` (or `idle` without any message), handing each
-    /// record to `sink`. A sequence gap is reported on stderr as it is found and in the summary.
+    /// record to `sink`; the first record expected is `first_seq` (0 for a whole run). A sequence gap
+    /// is reported on stderr as it is found and in the summary.
     pub fn record(
         &mut self,
         idle: Duration,
+        first_seq: u32,
         mut sink: impl FnMut(&Telemetry) -> std::io::Result<()>,
     ) -> Result<RecordSummary, LinkHostError> {
-        let mut seq = SeqCheck::new();
+        let mut seq = SeqCheck::starting_at(first_seq);
         let mut s = RecordSummary {
             records: 0,
             gaps: Vec::new(),

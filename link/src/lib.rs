@@ -361,6 +361,14 @@ impl SeqCheck {
         }
     }
 
+    /// Expect `seq` `first` first (a recording that picks up a stream already under way).
+    pub fn starting_at(first: u32) -> Self {
+        Self {
+            next: Some(first),
+            missing: 0,
+        }
+    }
+
     /// Observe one record's `seq`; a gap (or a number going backwards) is returned and counted.
     pub fn observe(&mut self, seq: u32) -> Result<(), Gap> {
         let expected = self.next.unwrap_or(seq);

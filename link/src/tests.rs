@@ -311,6 +311,8 @@ fn seq_check_reports_gaps_and_counts_the_missing() {
     assert_eq!(s.observe(6), Ok(()));
     assert_eq!(s.missing(), 3);
     assert!(s.observe(6).is_err(), "a repeat is not silent either");
+    let mut mid = SeqCheck::starting_at(512);
+    assert_eq!(mid.observe(512), Ok(()));
     let mut late = SeqCheck::new();
     assert_eq!(
         late.observe(3),

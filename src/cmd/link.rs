@@ -100,10 +100,11 @@ pub fn record_csv(
     out: &std::path::Path,
     idle: Duration,
 ) -> anyhow::Result<RecordSummary> {
-    let f = std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let f =
+        std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut w = std::io::BufWriter::new(f);
     writeln!(w, "{}", link_host::CSV_HEADER)?;
-    let s = link.record(idle, |t| writeln!(w, "{}", link_host::csv_row(t)))?;
+    let s = link.record(idle, 0, |t| writeln!(w, "{}", link_host::csv_row(t)))?;
     w.flush()?;
     Ok(s)
 }
@@ -157,7 +158,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             println!("state            {}", link_host::state_name(s.state));
             println!("model checksum   {:08x}", s.model_checksum);
             println!("tick             {}", s.tick);
-            println!("records sent     {} (dropped by the device: {})", s.records_sent, s.records_dropped);
+            println!(
+                "records sent     {} (dropped by the device: {})",
+                s.records_sent, s.records_dropped
+            );
             println!(
                 "limits           ±{} mm, {} mm/s, ±{} kN",
                 s.stroke_mm, s.velocity_mm_s, s.force_kn
