@@ -304,8 +304,8 @@ fn upload_run_and_record_el_centro_over_the_link_matches_the_host() {
     // force at time k).
     let mut max_cmd = 0.0f64;
     let mut identical = 0usize;
-    for k in 0..n - 1 {
-        let (fw, hs) = (rows[k].command_mm, h.command_mm[k + 1]);
+    for (row, hs) in rows.iter().zip(&h.command_mm[1..]) {
+        let fw = row.command_mm;
         max_cmd = max_cmd.max((fw - hs).abs());
         identical += usize::from(fw.to_bits() == hs.to_bits());
     }

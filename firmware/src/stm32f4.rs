@@ -103,6 +103,14 @@ fn controller() -> Option<Controller> {
     ))
 }
 
+/// Stop at boot with a message: nothing was started, the DAC (if it came up) holds 0 V.
+fn halt(msg: &str) -> ! {
+    defmt::error!("halted: {=str}", msg);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
     // The DAC holds its last output; the servo-controller's own limits and its E-stop chain are the
@@ -145,14 +153,17 @@ mod app {
     fn init(cx: init::Context) -> (Shared, Local) {
         // The lab's calibration goes here (notes/hardware.md); the default is the paper actuator's.
         let Ok(cal) = Calibration::new(CalibrationConfig::paper_actuator()) else {
-            defmt::panic!("calibration");
+            halt("calibration")
         };
         let board = match Board::init(cx.device, cal) {
             Ok(b) => b,
-            Err(e) => defmt::panic!("board bring-up failed: {}", defmt::Debug2Format(&e)),
+            Err(e) => {
+                defmt::error!("board: {}", defmt::Debug2Format(&e));
+                halt("board bring-up")
+            }
         };
         let Some(ctl) = controller() else {
-            defmt::panic!("controller configuration");
+            halt("controller configuration")
         };
         let Board {
             mut timer,
