@@ -13,3 +13,5 @@ size -A "$elf" | awk '
   $1 == ".bss" || $1 == ".uninit" { ram += $2 }
   END { printf "STM32F407 board build: flash %d bytes (%.1f%% of 1 MiB), static RAM %d bytes (%.1f%% of 128 KiB)\n",
         flash, 100 * flash / 1048576, ram, 100 * ram / 131072 }'
+# No panic reachable from the board's control step either (drivers and HAL SPI included).
+./panic-check.sh "$elf"

@@ -439,3 +439,69 @@ fn limits_arm_abort_over_the_link() {
         after[0].tick, after[0].command_mm
     );
 }
+
+/// The `rths link` command itself: `--qemu ELF status`, and `--port` on the pty QEMU gives with
+/// `-serial pty` (the serial-port path a real board uses).
+#[test]
+fn the_cli_talks_through_its_own_qemu_and_through_a_pty() {
+    if qemu_missing() {
+        return;
+    }
+    let elf = link_elf();
+    let exe = env!("CARGO_BIN_EXE_rths");
+    let out = Command::new(exe)
+        .args(["link", "--qemu"])
+        .arg(&elf)
+        .arg("status")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("state            idle"), "{text}");
+    assert!(text.contains("bad frames       0"), "{text}");
+
+    // QEMU on a pty: it prints the pty's path first.
+    let dir = tempfile::tempdir().unwrap();
+    let mut args = rths::link_host::qemu_args(&elf, 0);
+    let i = args.iter().position(|a| a == "-serial").unwrap();
+    args[i + 1] = "pty".into();
+    let log = dir.path().join("qemu.txt");
+    let mut child = Command::new("qemu-system-arm")
+        .args(&args)
+        .current_dir(dir.path())
+        .stdout(std::fs::File::create(&log).unwrap())
+        .stderr(std::fs::File::create(dir.path().join("err.txt")).unwrap())
+        .spawn()
+        .unwrap();
+    let mut pty = None;
+    for _ in 0..100 {
+        let s = std::fs::read_to_string(&log).unwrap_or_default()
+            + &std::fs::read_to_string(dir.path().join("err.txt")).unwrap_or_default();
+        if let Some(p) = s.split_whitespace().find(|w| w.starts_with("/dev/pts/")) {
+            pty = Some(p.to_string());
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let Some(pty) = pty else {
+        let _ = child.kill();
+        panic!("QEMU printed no pty path");
+    };
+    let out = Command::new(exe)
+        .args(["link", "--port", &pty, "status"])
+        .output()
+        .unwrap();
+    let _ = child.kill();
+    let _ = child.wait();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("state            idle"), "{text}");
+}

@@ -132,7 +132,11 @@ fn report(s: &RecordSummary, out: &std::path::Path) -> anyhow::Result<()> {
 /// Run `rths link`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let timeout = Duration::from_secs_f64(a.timeout_s.max(0.01));
-    let dir = tempfile_dir()?;
+    let dir = if a.qemu.is_some() {
+        tempfile_dir()?
+    } else {
+        PathBuf::new()
+    };
     let mut qemu = None;
     let mut link = if let Some(p) = &a.port {
         Link::serial(p, a.baud)?
@@ -223,6 +227,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         if let Some(line) = out.lines().rev().find(|l| l.starts_with("RESULT ")) {
             println!("{line}");
         }
+        drop(q);
+        let _ = std::fs::remove_dir_all(&dir);
     }
     Ok(())
 }

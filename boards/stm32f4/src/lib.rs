@@ -14,8 +14,6 @@
 #![no_std]
 #![deny(missing_docs)]
 
-use core::convert::Infallible;
-
 use embedded_hal::delay::DelayNs;
 use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
 use rths_board_drivers::ad5754::{Ad5754, Ad5754Error};
@@ -252,8 +250,7 @@ impl Board {
         serial.listen(stm32f4xx_hal::serial::Event::RxNotEmpty);
         let (tx, rx) = serial.split();
 
-        // TIM2's clock.
-        // SAFETY-free: the HAL's RCC enable for TIM2.
+        // TIM2's clock, through the HAL's RCC enable and reset.
         let tim = dp.TIM2;
         {
             use stm32f4xx_hal::rcc::{Enable, Reset};
@@ -267,9 +264,4 @@ impl Board {
             link: LinkSerial { tx, rx },
         })
     }
-}
-
-/// Never happens: the GPIO errors of this HAL are `Infallible`.
-pub fn infallible(e: Infallible) -> ! {
-    match e {}
 }
