@@ -13,6 +13,7 @@
 //! - **Link**: USART2 (PA2 TX, PA3 RX) at 2 Mbaud (exact at 42 MHz: USARTDIV = 1.3125), 8N1.
 #![no_std]
 #![deny(missing_docs)]
+#![forbid(unsafe_code)]
 
 use embedded_hal::delay::DelayNs;
 use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
