@@ -29,6 +29,8 @@ enum Command {
     Faults(cmd::faults::Args),
     /// Validate a model file: exit 0 with a summary, or 1 with the reason it is rejected.
     CheckModel(cmd::check_model::Args),
+    /// Drive and record a test on a board over the command link (serial port, QEMU socket).
+    Link(cmd::link::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -41,6 +43,7 @@ fn main() -> std::process::ExitCode {
         Command::Train(a) => cmd::train::run(a),
         Command::Faults(a) => cmd::faults::run(a),
         Command::CheckModel(a) => cmd::check_model::run(a),
+        Command::Link(a) => cmd::link::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

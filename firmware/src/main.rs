@@ -25,6 +25,8 @@ mod gen {
     )]
     include!(concat!(env!("OUT_DIR"), "/gen.rs"));
 }
+#[cfg(feature = "link")]
+mod link;
 mod logger;
 mod motion;
 mod stack;
@@ -40,13 +42,22 @@ use rths_core::supervisor::{Limits, State};
 static FINISHED: AtomicBool = AtomicBool::new(false);
 /// The record has been played to its end (set by `control`).
 static RECORD_END: AtomicBool = AtomicBool::new(false);
+/// `link`: the run is over and reported; `telemetry_link` sends `RunEnded` after the last record.
+#[cfg(feature = "link")]
+static RUN_ENDED: AtomicBool = AtomicBool::new(false);
+/// `link`: the host started the run; until then the tick only acknowledges the timer. (The timer
+/// runs from boot: in QEMU a guest that waits in `wfi` with no timer deadline stops its virtual clock
+/// from being advanced after the host's `Start`, and the run crawls.)
+#[cfg(feature = "link")]
+static LINK_RUNNING: AtomicBool = AtomicBool::new(false);
 
 /// Ticks the fault hold must be steady before the run is stopped (1 s).
 const FAULT_SETTLE_TICKS: u32 = 2048;
 /// The end-of-test ramp rate of `Limits::paper_actuator()`, mm/s (core has no accessor for it; only
 /// reported, for the ramp check of the integration test).
-const END_RAMP_RATE_MM_S: f64 = 10.0;
+pub const END_RAMP_RATE_MM_S: f64 = 10.0;
 /// Telemetry decimation for the defmt log (one record per second of test time).
+#[cfg_attr(feature = "link", allow(dead_code))]
 const LOG_EVERY: u32 = 2048;
 
 #[cfg(feature = "model-rnn")]
@@ -236,6 +247,7 @@ fn injected_overrun(k: u32) -> bool {
     }
 }
 
+#[cfg_attr(feature = "link", allow(dead_code))]
 fn state_code(s: State) -> u8 {
     match s {
         State::Idle => 0,
@@ -281,12 +293,19 @@ mod app {
 
     /// Telemetry queue depth (records).
     const QUEUE: usize = 64;
+    /// The telemetry task's interrupt (the link's streaming task with `link`).
+    #[cfg(not(feature = "link"))]
+    const TELEMETRY_IRQ: Interrupt = Interrupt::USART3;
+    #[cfg(feature = "link")]
+    const TELEMETRY_IRQ: Interrupt = Interrupt::UART5;
 
     #[shared]
     struct Shared {
         ctl: Controller,
         timer: TickTimer,
         run: Run,
+        /// `link`: the port and the telemetry stream's state (nothing without `link`).
+        link: LinkPort,
     }
 
     #[local]
@@ -294,12 +313,21 @@ mod app {
         rig: Plant,
         counter: InstrCounter,
         producer: Producer<'static, Record>,
+        #[cfg(not(feature = "link"))]
         consumer: Consumer<'static, Record>,
+        #[cfg(feature = "link")]
+        link_consumer: Consumer<'static, Record>,
         harness: Harness,
         overhead_instr: u32,
         /// ü_g for the coming tick, mm/s².
         ag: f64,
         calib: rths_board_qemu::Calibration,
+        /// `link`: the active model's checksum.
+        #[cfg(feature = "link")]
+        model_checksum: u32,
+        /// `link`: the frame reader of the host's requests.
+        #[cfg(feature = "link")]
+        reader: LinkReader,
     }
 
     #[init(local = [queue: Queue<Record, QUEUE> = Queue::new()])]
@@ -336,18 +364,27 @@ mod app {
             gen::MODEL_SOURCE,
             gen::RECORD_TICKS
         );
+        // Autonomous run: the supervisor arms and starts at once. With `link` the host does, and the
+        // timer runs from now on (see `LINK_RUNNING`).
+        #[cfg(not(feature = "link"))]
         rtic::pend(Interrupt::UART4);
+        #[cfg(feature = "link")]
+        timer.start();
         (
             Shared {
                 ctl,
                 timer,
                 run: Run::new(),
+                link: LinkPort::new(dp.USART1, &dp.RCC),
             },
             Local {
                 rig,
                 counter,
                 producer,
+                #[cfg(not(feature = "link"))]
                 consumer,
+                #[cfg(feature = "link")]
+                link_consumer: consumer,
                 harness: Harness {
                     reference,
                     proto,
@@ -356,6 +393,10 @@ mod app {
                 overhead_instr: calib.overhead_instructions,
                 ag: motion::ground_accel_mm_s2(0),
                 calib,
+                #[cfg(feature = "link")]
+                model_checksum: link::compiled_model_checksum(&gen::LR_THETA),
+                #[cfg(feature = "link")]
+                reader: rths_link::FrameReader::new(),
             },
         )
     }
@@ -379,6 +420,10 @@ mod app {
                     k: u32 = 0, overrun: bool = false, prev_state: State = State::Idle])]
     fn control(mut cx: control::Context) {
         cx.shared.timer.lock(|t| t.clear());
+        #[cfg(feature = "link")]
+        if !LINK_RUNNING.load(Ordering::Acquire) {
+            return;
+        }
         let k = *cx.local.k;
         let rig = cx.local.rig;
         let overrun = *cx.local.overrun || injected_overrun(k);
@@ -482,7 +527,7 @@ mod app {
         if notify {
             rtic::pend(Interrupt::UART4);
         }
-        rtic::pend(Interrupt::USART3);
+        rtic::pend(TELEMETRY_IRQ);
         // The next update already fired: this tick overran its deadline.
         *cx.local.overrun = cx.shared.timer.lock(|t| t.pending());
     }
@@ -490,7 +535,7 @@ mod app {
     /// The supervisor: starts the test, ends it at the end of the record (ramp-down), stops on a
     /// settled fault or at `Done`, and reports.
     #[task(binds = UART4, priority = 2, shared = [ctl, timer, run],
-           local = [calib, started: bool = false])]
+           local = [calib, started: bool = cfg!(feature = "link")])]
     fn supervisor(mut cx: supervisor::Context) {
         if !*cx.local.started {
             *cx.local.started = true;
@@ -533,11 +578,20 @@ mod app {
                 .ctl
                 .lock(|c| (c.supervisor().total_daq_errors(), c.held_samples()));
             let ok = report(&run, state, cx.local.calib, daq_errors, held);
+            // With `link` the board stays up for the host (status, the telemetry's end).
+            #[cfg(feature = "link")]
+            {
+                let _ = ok;
+                RUN_ENDED.store(true, Ordering::Release);
+                rtic::pend(TELEMETRY_IRQ);
+            }
+            #[cfg(not(feature = "link"))]
             rths_board_qemu::exit(ok);
         }
     }
 
     /// Drains the telemetry queue at the lowest priority; logs one record per second of test time.
+    #[cfg(not(feature = "link"))]
     #[task(binds = USART3, priority = 1, local = [consumer, received: u32 = 0])]
     fn telemetry(cx: telemetry::Context) {
         while let Some(r) = cx.local.consumer.dequeue() {
@@ -552,6 +606,201 @@ mod app {
                     r.measured_mm,
                     r.force_kn
                 );
+            }
+        }
+    }
+
+    /// `link`: drains the telemetry queue and streams every `every`-th record to the host, numbered;
+    /// after the run's last record, `RunEnded`.
+    #[cfg(feature = "link")]
+    #[task(binds = UART5, priority = 1, shared = [link, run], local = [link_consumer])]
+    fn telemetry_link(mut cx: telemetry_link::Context) {
+        use rths_link::{DeviceMsg, Telemetry};
+        let consumer = cx.local.link_consumer;
+        cx.shared.link.lock(|l| {
+            while let Some(r) = consumer.dequeue() {
+                if r.tick % l.every != 0 {
+                    continue;
+                }
+                let seq = l.seq;
+                l.seq = l.seq.wrapping_add(1);
+                l.send(&DeviceMsg::Telemetry(Telemetry {
+                    seq,
+                    tick: r.tick,
+                    state: link::run_state(r.state),
+                    command_mm: r.command_mm,
+                    target_mm: r.target_mm,
+                    measured_mm: r.measured_mm,
+                    force_kn: r.force_kn,
+                }));
+            }
+        });
+        if RUN_ENDED.swap(false, Ordering::AcqRel) {
+            let run = cx.shared.run.lock(|r| *r);
+            cx.shared.link.lock(|l| {
+                l.send(&DeviceMsg::RunEnded {
+                    state: link::run_state(run.state),
+                    ticks: run.ticks,
+                    records_sent: l.seq,
+                    records_dropped: run.telemetry_dropped,
+                })
+            });
+        }
+    }
+
+    /// `link`: the host's requests, one answer each (USART1 receive interrupt, lowest priority).
+    #[cfg(feature = "link")]
+    #[task(binds = USART1, priority = 1, shared = [ctl, timer, run, link],
+           local = [model_checksum, reader])]
+    fn link_rx(mut cx: link_rx::Context) {
+        use rths_link::{DeviceMsg, HostMsg, NackReason};
+        while let Some(byte) = cx.shared.link.lock(|l| l.uart.read_byte()) {
+            let msg = match cx.local.reader.push::<HostMsg>(byte) {
+                None => continue,
+                Some(Err(_)) => {
+                    cx.shared
+                        .link
+                        .lock(|l| l.bad_frames = l.bad_frames.saturating_add(1));
+                    continue;
+                }
+                Some(Ok(m)) => m,
+            };
+            let req = msg.request();
+            let result: Result<(), NackReason> = match msg {
+                HostMsg::Status => {
+                    let (tick, dropped) = cx.shared.run.lock(|r| (r.ticks, r.telemetry_dropped));
+                    let crc = *cx.local.model_checksum;
+                    let (sent, bad) = cx.shared.link.lock(|l| (l.seq, l.bad_frames));
+                    let st = cx
+                        .shared
+                        .ctl
+                        .lock(|c| link::status(c, crc, tick, sent, dropped, bad));
+                    cx.shared.link.lock(|l| l.send(&DeviceMsg::Status(st)));
+                    continue;
+                }
+                HostMsg::UploadLr {
+                    features,
+                    theta,
+                    delay_steps,
+                    checksum,
+                } => {
+                    #[cfg(not(any(feature = "model-rnn", feature = "fe-ats")))]
+                    {
+                        let r = cx
+                            .shared
+                            .ctl
+                            .lock(|c| link::upload_lr(c, features, &theta, delay_steps, checksum));
+                        r.map(|crc| *cx.local.model_checksum = crc)
+                    }
+                    #[cfg(any(feature = "model-rnn", feature = "fe-ats"))]
+                    {
+                        let _ = (features, theta, delay_steps, checksum);
+                        Err(NackReason::Unsupported)
+                    }
+                }
+                HostMsg::SetLimits {
+                    stroke_mm,
+                    velocity_mm_s,
+                    force_kn,
+                } => cx
+                    .shared
+                    .ctl
+                    .lock(|c| link::set_limits(c, stroke_mm, velocity_mm_s, force_kn)),
+                HostMsg::Arm { telemetry_every } => {
+                    if telemetry_every == 0 {
+                        Err(NackReason::OutOfRange)
+                    } else if FINISHED.load(Ordering::Acquire) {
+                        // The emulated plant and the record play once per power-up.
+                        Err(NackReason::Unsupported)
+                    } else {
+                        // The emulated plant starts exactly at rest at 0 mm, as the host
+                        // simulation's does: arm there (a real board arms at its measured position).
+                        let r = cx.shared.ctl.lock(|c| {
+                            c.supervisor_mut()
+                                .arm()
+                                .map_err(|_| NackReason::InvalidState)
+                        });
+                        if r.is_ok() {
+                            cx.shared.link.lock(|l| {
+                                l.every = u32::from(telemetry_every);
+                                l.seq = 0;
+                            });
+                        }
+                        r
+                    }
+                }
+                HostMsg::Start => {
+                    let r = cx.shared.ctl.lock(|c| {
+                        c.supervisor_mut()
+                            .start()
+                            .map_err(|_| NackReason::InvalidState)
+                    });
+                    if r.is_ok() {
+                        defmt::info!("link: running");
+                        LINK_RUNNING.store(true, Ordering::Release);
+                    }
+                    r
+                }
+                HostMsg::Abort => {
+                    cx.shared.ctl.lock(|c| c.supervisor_mut().abort());
+                    Ok(())
+                }
+            };
+            let answer = match result {
+                Ok(()) => DeviceMsg::Ack(req),
+                Err(n) => DeviceMsg::Nack(req, n),
+            };
+            cx.shared.link.lock(|l| l.send(&answer));
+        }
+    }
+}
+
+/// The frame reader of the host's requests.
+#[cfg(feature = "link")]
+pub type LinkReader = rths_link::FrameReader<{ rths_link::MAX_FRAME }>;
+/// Without `link`: none.
+#[cfg(not(feature = "link"))]
+pub type LinkReader = ();
+
+/// `link`: the port and the telemetry stream's state.
+#[cfg(feature = "link")]
+pub struct LinkPort {
+    uart: rths_board_qemu::LinkUart,
+    /// Telemetry decimation (≥ 1).
+    every: u32,
+    /// Next telemetry sequence number (= records sent in this run).
+    seq: u32,
+    /// Frames that failed COBS, CRC or decoding.
+    bad_frames: u32,
+}
+
+/// Without `link`: no port (USART1 stays off).
+#[cfg(not(feature = "link"))]
+pub struct LinkPort;
+
+#[cfg(not(feature = "link"))]
+impl LinkPort {
+    fn new(_: stm32f4::stm32f405::USART1, _: &stm32f4::stm32f405::RCC) -> Self {
+        Self
+    }
+}
+
+#[cfg(feature = "link")]
+impl LinkPort {
+    fn new(usart: stm32f4::stm32f405::USART1, rcc: &stm32f4::stm32f405::RCC) -> Self {
+        Self {
+            uart: rths_board_qemu::LinkUart::new(usart, rcc),
+            every: 1,
+            seq: 0,
+            bad_frames: 0,
+        }
+    }
+
+    fn send(&mut self, msg: &rths_link::DeviceMsg) {
+        let mut buf = [0u8; rths_link::MAX_FRAME + 1];
+        if let Ok(n) = rths_link::encode(msg, &mut buf) {
+            if let Some(frame) = buf.get(..n) {
+                self.uart.write_all(frame);
             }
         }
     }

@@ -255,3 +255,55 @@ pub fn exit(success: bool) -> ! {
         cortex_m::asm::wfi();
     }
 }
+
+/// USART1, the link port: QEMU maps the machine's first `-serial` to it (`-serial tcp:...` for the
+/// host's `rths link`). QEMU's USART model ignores the baud rate, sends a written byte at once (TXE
+/// stays set) and holds one received byte in DR (RXNE) until it is read.
+pub struct LinkUart {
+    usart: pac::USART1,
+}
+
+impl LinkUart {
+    /// Enable USART1: 8N1, transmitter and receiver on, the RXNE interrupt on. BRR is set for
+    /// 115 200 Bd at an 84 MHz APB2 (what the silicon would need; QEMU ignores it).
+    pub fn new(usart: pac::USART1, rcc: &pac::RCC) -> Self {
+        rcc.apb2enr.modify(|_, w| w.usart1en().set_bit());
+        usart.brr.write(|w| brr_div(w, 84_000_000 / 115_200));
+        usart.cr1.write(|w| {
+            w.ue()
+                .set_bit()
+                .te()
+                .set_bit()
+                .re()
+                .set_bit()
+                .rxneie()
+                .set_bit()
+        });
+        Self { usart }
+    }
+
+    /// A received byte, if one is waiting.
+    pub fn read_byte(&mut self) -> Option<u8> {
+        let sr = self.usart.sr.read();
+        if sr.rxne().bit_is_set() {
+            Some(self.usart.dr.read().dr().bits() as u8)
+        } else {
+            None
+        }
+    }
+
+    /// Send `bytes`, polling TXE.
+    pub fn write_all(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            while self.usart.sr.read().txe().bit_is_clear() {}
+            self.usart.dr.write(|w| w.dr().bits(u16::from(b)));
+        }
+    }
+}
+
+fn brr_div(w: &mut pac::usart1::brr::W, div: u32) -> &mut pac::usart1::brr::W {
+    w.div_mantissa()
+        .bits((div >> 4) as u16)
+        .div_fraction()
+        .bits((div & 0xF) as u8)
+}

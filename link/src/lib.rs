@@ -1,0 +1,393 @@
+//! The rths command link: the messages between the host (`rths link`) and the controller board, and
+//! their framing on a byte stream (a UART, QEMU's serial port on a TCP socket, a pty).
+//!
+//! **Frame** = COBS(postcard(message) ‖ CRC-16/IBM-SDLC(postcard bytes), little-endian) followed by a
+//! `0x00` delimiter. COBS removes every zero from the frame body, so a receiver resynchronizes at the
+//! next zero after any corruption or a lost byte; the CRC rejects a damaged body (a single error
+//! burst of ≤ 16 bits always, anything else with probability 1 − 2⁻¹⁶); postcard is the compact
+//! serde encoding (varints, f64 as 8 little-endian bytes, so floats arrive bit-exact).
+//!
+//! **Conversation**: the host sends a [`HostMsg`]; the device answers each one with exactly one
+//! [`DeviceMsg::Ack`], [`DeviceMsg::Nack`] or [`DeviceMsg::Status`]. While a run is armed or running
+//! the device also streams [`DeviceMsg::Telemetry`] records, numbered by `seq` from 0 for each run
+//! with no gap; [`SeqCheck`] finds a gap (a record lost by the device's full queue or on the wire), and
+//! the device counts what its queue dropped in [`Status::records_dropped`]. A run ends with one
+//! [`DeviceMsg::RunEnded`].
+//!
+//! **Model upload** ([`HostMsg::UploadLr`]): the device accepts a model only whole: the feature count
+//! must be the LR's 6, every coefficient finite, the end-to-end [`model_checksum`] must match, and the
+//! controller must be at rest; otherwise it answers `Nack` and keeps the model it had.
+#![cfg_attr(not(test), no_std)]
+#![deny(missing_docs)]
+#![forbid(unsafe_code)]
+
+use serde::{Deserialize, Serialize};
+
+/// Largest frame body (encoded, without the delimiter) either side sends or accepts, bytes.
+pub const MAX_FRAME: usize = 128;
+
+/// Number of LR coefficients (the features of `rths_core::metamodel::LR_FEATURE_NAMES`).
+pub const LR_COEFFS: usize = 6;
+
+/// The frame check: CRC-16/IBM-SDLC (X.25; poly 0x1021, reflected, init and xorout 0xFFFF).
+pub const FRAME_CRC: crc::Crc<u16> = crc::Crc::<u16>::new(&crc::CRC_16_IBM_SDLC);
+
+/// The model check: CRC-32/ISO-HDLC (the zlib/Ethernet CRC).
+pub const MODEL_CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// The end-to-end checksum of an LR model: CRC-32 of the coefficients' little-endian IEEE bytes,
+/// in feature order, then the delay in ticks (u16, little-endian).
+pub fn model_checksum(theta: &[f64; LR_COEFFS], delay_steps: u16) -> u32 {
+    let mut d = MODEL_CRC.digest();
+    for t in theta {
+        d.update(&t.to_le_bytes());
+    }
+    d.update(&delay_steps.to_le_bytes());
+    d.finalize()
+}
+
+/// What the host asks.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum HostMsg {
+    /// Answer with [`DeviceMsg::Status`].
+    Status,
+    /// Replace the LR model (whole, or not at all).
+    UploadLr {
+        /// Number of features the host's model has (must be [`LR_COEFFS`]).
+        features: u8,
+        /// Coefficients, in `LR_FEATURE_NAMES` order.
+        theta: [f64; LR_COEFFS],
+        /// The model's feedback delay, ticks.
+        delay_steps: u16,
+        /// [`model_checksum`] of `theta` and `delay_steps`.
+        checksum: u32,
+    },
+    /// Replace the supervisor's stroke, velocity and force limits (only at rest with the command at
+    /// 0 mm; the other interlocks keep the paper actuator's defaults).
+    SetLimits {
+        /// ±mm.
+        stroke_mm: f64,
+        /// mm/s.
+        velocity_mm_s: f64,
+        /// ±kN.
+        force_kn: f64,
+    },
+    /// Arm at the measured position; telemetry every `telemetry_every` ticks (≥ 1).
+    Arm {
+        /// Decimation of the telemetry stream (1 = every tick).
+        telemetry_every: u16,
+    },
+    /// Start the armed test (play the ground motion).
+    Start,
+    /// Stop: ramp the command to zero (end-of-test ramp).
+    Abort,
+}
+
+/// Which request an answer is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Request {
+    /// [`HostMsg::Status`].
+    Status,
+    /// [`HostMsg::UploadLr`].
+    UploadLr,
+    /// [`HostMsg::SetLimits`].
+    SetLimits,
+    /// [`HostMsg::Arm`].
+    Arm,
+    /// [`HostMsg::Start`].
+    Start,
+    /// [`HostMsg::Abort`].
+    Abort,
+}
+
+impl HostMsg {
+    /// The request kind.
+    pub fn request(&self) -> Request {
+        match self {
+            Self::Status => Request::Status,
+            Self::UploadLr { .. } => Request::UploadLr,
+            Self::SetLimits { .. } => Request::SetLimits,
+            Self::Arm { .. } => Request::Arm,
+            Self::Start => Request::Start,
+            Self::Abort => Request::Abort,
+        }
+    }
+}
+
+/// Why the device refused a request.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum NackReason {
+    /// The model has the wrong number of features.
+    Shape,
+    /// A coefficient or limit is NaN or infinite.
+    NotFinite,
+    /// The model checksum does not match its coefficients.
+    Checksum,
+    /// A value is out of its allowed range (a limit ≤ 0, a decimation of 0, a different delay).
+    OutOfRange,
+    /// The controller is not at rest (armed, running, ramping): nothing changes under a test.
+    Busy,
+    /// The request is not valid in the supervisor's state (start before arm, ...).
+    InvalidState,
+    /// The device cannot do this (e.g. a second run on the emulated board).
+    Unsupported,
+}
+
+/// The supervisor's state, as sent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum RunState {
+    /// Idle.
+    Idle,
+    /// Armed.
+    Armed,
+    /// Running.
+    Running,
+    /// Ramping to zero at the end of the test.
+    RampDown,
+    /// Done.
+    Done,
+    /// Faulted (the reason as `rths_core::supervisor::FaultReason`'s name index, see the firmware).
+    Fault(u8),
+}
+
+/// The device's answer to [`HostMsg::Status`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Status {
+    /// Supervisor state.
+    pub state: RunState,
+    /// [`model_checksum`] of the active model.
+    pub model_checksum: u32,
+    /// Ticks done in the current run.
+    pub tick: u32,
+    /// Telemetry records sent in the current run.
+    pub records_sent: u32,
+    /// Telemetry records the device's queue dropped in the current run.
+    pub records_dropped: u32,
+    /// Active stroke limit, mm.
+    pub stroke_mm: f64,
+    /// Active velocity limit, mm/s.
+    pub velocity_mm_s: f64,
+    /// Active force limit, kN.
+    pub force_kn: f64,
+    /// Frames received with a bad COBS body, CRC or message since power-up.
+    pub bad_frames: u32,
+}
+
+/// One telemetry record: what the controller did at `tick`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Telemetry {
+    /// Record number in this run, from 0, no gaps.
+    pub seq: u32,
+    /// Controller tick (0 = the first tick of the run).
+    pub tick: u32,
+    /// Supervisor state after the tick.
+    pub state: RunState,
+    /// Command sent at this tick, mm.
+    pub command_mm: f64,
+    /// Analytical target produced at this tick, mm.
+    pub target_mm: f64,
+    /// Measured displacement read at this tick, mm (NaN on a DAQ error).
+    pub measured_mm: f64,
+    /// Measured force read at this tick, kN (NaN on a DAQ error).
+    pub force_kn: f64,
+}
+
+/// What the device says.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum DeviceMsg {
+    /// The request was done.
+    Ack(Request),
+    /// The request was refused; nothing changed.
+    Nack(Request, NackReason),
+    /// The state.
+    Status(Status),
+    /// A telemetry record.
+    Telemetry(Telemetry),
+    /// The run is over (done or faulted and settled): its final state and counts.
+    RunEnded {
+        /// Final state.
+        state: RunState,
+        /// Ticks run.
+        ticks: u32,
+        /// Records sent (the last `seq` + 1).
+        records_sent: u32,
+        /// Records the device's queue dropped.
+        records_dropped: u32,
+    },
+}
+
+/// A framing or decoding failure.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LinkError {
+    /// The message or frame does not fit the buffer.
+    TooLong,
+    /// The frame body is not valid COBS.
+    Cobs,
+    /// The frame is too short to hold a CRC, or the CRC does not match.
+    Crc,
+    /// The CRC matched but the bytes are not a message (or trailing bytes remain).
+    Message,
+}
+
+impl core::fmt::Display for LinkError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::TooLong => "frame too long",
+            Self::Cobs => "bad COBS framing",
+            Self::Crc => "CRC mismatch",
+            Self::Message => "not a valid message",
+        })
+    }
+}
+
+/// Encode `msg` as one frame into `out`, delimiter included; returns the frame's length.
+pub fn encode<T: Serialize>(msg: &T, out: &mut [u8]) -> Result<usize, LinkError> {
+    let mut raw = [0u8; MAX_FRAME];
+    let n = postcard::to_slice(msg, &mut raw)
+        .map_err(|_| LinkError::TooLong)?
+        .len();
+    let crc = FRAME_CRC.checksum(raw.get(..n).ok_or(LinkError::TooLong)?);
+    let body = raw.get_mut(..n + 2).ok_or(LinkError::TooLong)?;
+    if let Some(tail) = body.get_mut(n..) {
+        tail.copy_from_slice(&crc.to_le_bytes());
+    }
+    let limit = out.len().min(MAX_FRAME + 1);
+    let dest = out
+        .get_mut(..limit.saturating_sub(1))
+        .ok_or(LinkError::TooLong)?;
+    let m = cobs::try_encode(body, dest).map_err(|_| LinkError::TooLong)?;
+    let delim = out.get_mut(m).ok_or(LinkError::TooLong)?;
+    *delim = 0;
+    Ok(m + 1)
+}
+
+/// Decode one frame body (COBS bytes without the `0x00` delimiter), in place.
+pub fn decode<'a, T: Deserialize<'a>>(body: &'a mut [u8]) -> Result<T, LinkError> {
+    if body.len() > MAX_FRAME {
+        return Err(LinkError::TooLong);
+    }
+    let n = cobs::decode_in_place(body).map_err(|_| LinkError::Cobs)?;
+    if n < 3 {
+        return Err(LinkError::Crc);
+    }
+    let raw = body.get(..n).ok_or(LinkError::Cobs)?;
+    let (payload, crc) = raw.split_at(n - 2);
+    let got = u16::from_le_bytes([
+        crc.first().copied().unwrap_or(0),
+        crc.get(1).copied().unwrap_or(0),
+    ]);
+    if FRAME_CRC.checksum(payload) != got {
+        return Err(LinkError::Crc);
+    }
+    match postcard::take_from_bytes(payload) {
+        Ok((msg, [])) => Ok(msg),
+        _ => Err(LinkError::Message),
+    }
+}
+
+/// Collects bytes from a stream into frames.
+pub struct FrameReader<const N: usize> {
+    buf: [u8; N],
+    len: usize,
+    overflow: bool,
+}
+
+impl<const N: usize> Default for FrameReader<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> FrameReader<N> {
+    /// Empty.
+    pub const fn new() -> Self {
+        Self {
+            buf: [0; N],
+            len: 0,
+            overflow: false,
+        }
+    }
+
+    /// Feed one byte; at a delimiter, decode the frame collected so far (an empty frame, i.e. two
+    /// delimiters in a row, is skipped). A frame longer than `N` is dropped whole and reported once
+    /// as [`LinkError::TooLong`] at its delimiter.
+    pub fn push<T: for<'de> Deserialize<'de>>(&mut self, byte: u8) -> Option<Result<T, LinkError>> {
+        if byte != 0 {
+            match self.buf.get_mut(self.len) {
+                Some(slot) => {
+                    *slot = byte;
+                    self.len += 1;
+                }
+                None => self.overflow = true,
+            }
+            return None;
+        }
+        let (len, overflow) = (self.len, self.overflow);
+        self.len = 0;
+        self.overflow = false;
+        if overflow {
+            return Some(Err(LinkError::TooLong));
+        }
+        if len == 0 {
+            return None;
+        }
+        let body = self.buf.get_mut(..len)?;
+        Some(decode(body))
+    }
+}
+
+/// Checks that telemetry sequence numbers come without a gap.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SeqCheck {
+    next: Option<u32>,
+    missing: u32,
+}
+
+/// A gap in the telemetry: records `expected..got` never arrived.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Gap {
+    /// The sequence number that should have come.
+    pub expected: u32,
+    /// The one that came.
+    pub got: u32,
+}
+
+impl SeqCheck {
+    /// Expect `seq` 0 first.
+    pub fn new() -> Self {
+        Self {
+            next: Some(0),
+            missing: 0,
+        }
+    }
+
+    /// Expect `seq` `first` first (a recording that picks up a stream already under way).
+    pub fn starting_at(first: u32) -> Self {
+        Self {
+            next: Some(first),
+            missing: 0,
+        }
+    }
+
+    /// Observe one record's `seq`; a gap (or a number going backwards) is returned and counted.
+    pub fn observe(&mut self, seq: u32) -> Result<(), Gap> {
+        let expected = self.next.unwrap_or(seq);
+        self.next = Some(seq.wrapping_add(1));
+        if seq == expected {
+            Ok(())
+        } else {
+            self.missing = self
+                .missing
+                .saturating_add(seq.wrapping_sub(expected).min(u32::MAX / 2));
+            Err(Gap { expected, got: seq })
+        }
+    }
+
+    /// Records found missing so far.
+    pub fn missing(&self) -> u32 {
+        self.missing
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,324 @@
+use super::*;
+use proptest::prelude::*;
+
+fn any_state() -> impl Strategy<Value = RunState> {
+    prop_oneof![
+        Just(RunState::Idle),
+        Just(RunState::Armed),
+        Just(RunState::Running),
+        Just(RunState::RampDown),
+        Just(RunState::Done),
+        any::<u8>().prop_map(RunState::Fault),
+    ]
+}
+
+fn any_f64() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        any::<f64>(),
+        Just(f64::NAN),
+        Just(f64::INFINITY),
+        Just(-0.0)
+    ]
+}
+
+fn any_host() -> impl Strategy<Value = HostMsg> {
+    prop_oneof![
+        Just(HostMsg::Status),
+        (
+            any::<u8>(),
+            prop::array::uniform6(any_f64()),
+            any::<u16>(),
+            any::<u32>()
+        )
+            .prop_map(
+                |(features, theta, delay_steps, checksum)| HostMsg::UploadLr {
+                    features,
+                    theta,
+                    delay_steps,
+                    checksum
+                }
+            ),
+        (any_f64(), any_f64(), any_f64()).prop_map(|(a, b, c)| HostMsg::SetLimits {
+            stroke_mm: a,
+            velocity_mm_s: b,
+            force_kn: c
+        }),
+        any::<u16>().prop_map(|telemetry_every| HostMsg::Arm { telemetry_every }),
+        Just(HostMsg::Start),
+        Just(HostMsg::Abort),
+    ]
+}
+
+fn any_device() -> impl Strategy<Value = DeviceMsg> {
+    let req = prop_oneof![
+        Just(Request::Status),
+        Just(Request::UploadLr),
+        Just(Request::SetLimits),
+        Just(Request::Arm),
+        Just(Request::Start),
+        Just(Request::Abort),
+    ];
+    let reason = prop_oneof![
+        Just(NackReason::Shape),
+        Just(NackReason::NotFinite),
+        Just(NackReason::Checksum),
+        Just(NackReason::OutOfRange),
+        Just(NackReason::Busy),
+        Just(NackReason::InvalidState),
+        Just(NackReason::Unsupported),
+    ];
+    prop_oneof![
+        req.clone().prop_map(DeviceMsg::Ack),
+        (req, reason).prop_map(|(r, n)| DeviceMsg::Nack(r, n)),
+        (
+            any_state(),
+            any::<[u32; 5]>(),
+            any_f64(),
+            any_f64(),
+            any_f64()
+        )
+            .prop_map(|(state, u, a, b, c)| DeviceMsg::Status(Status {
+                state,
+                model_checksum: u[0],
+                tick: u[1],
+                records_sent: u[2],
+                records_dropped: u[3],
+                stroke_mm: a,
+                velocity_mm_s: b,
+                force_kn: c,
+                bad_frames: u[4],
+            })),
+        (
+            any::<u32>(),
+            any::<u32>(),
+            any_state(),
+            prop::array::uniform4(any_f64())
+        )
+            .prop_map(|(seq, tick, state, v)| DeviceMsg::Telemetry(Telemetry {
+                seq,
+                tick,
+                state,
+                command_mm: v[0],
+                target_mm: v[1],
+                measured_mm: v[2],
+                force_kn: v[3],
+            })),
+        (any_state(), any::<[u32; 3]>()).prop_map(|(state, u)| DeviceMsg::RunEnded {
+            state,
+            ticks: u[0],
+            records_sent: u[1],
+            records_dropped: u[2],
+        }),
+    ]
+}
+
+/// Bit-level equality (NaN == NaN with the same payload): postcard sends the IEEE bytes.
+fn same<T: Serialize>(a: &T, b: &T) -> bool {
+    let mut x = [0u8; MAX_FRAME];
+    let mut y = [0u8; MAX_FRAME];
+    postcard::to_slice(a, &mut x).unwrap() == postcard::to_slice(b, &mut y).unwrap()
+}
+
+fn round_trip<T: Serialize + for<'de> Deserialize<'de> + core::fmt::Debug>(m: &T) -> T {
+    let mut buf = [0u8; MAX_FRAME + 1];
+    let n = encode(m, &mut buf).unwrap();
+    assert_eq!(buf[n - 1], 0, "ends with the delimiter");
+    assert!(
+        buf[..n - 1].iter().all(|b| *b != 0),
+        "no zero inside a frame"
+    );
+    decode(&mut buf[..n - 1]).unwrap()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    #[test]
+    fn host_messages_round_trip(m in any_host()) {
+        let d: HostMsg = round_trip(&m);
+        prop_assert!(same(&d, &m), "{:?} vs {:?}", d, m);
+    }
+
+    #[test]
+    fn device_messages_round_trip(m in any_device()) {
+        let d: DeviceMsg = round_trip(&m);
+        prop_assert!(same(&d, &m), "{:?} vs {:?}", d, m);
+    }
+
+    #[test]
+    fn arbitrary_bytes_never_panic_the_decoder(bytes in prop::collection::vec(any::<u8>(), 0..300)) {
+        let mut b = bytes.clone();
+        let _ = decode::<HostMsg>(&mut b);
+        let mut b = bytes.clone();
+        let _ = decode::<DeviceMsg>(&mut b);
+        let mut r = FrameReader::<{ MAX_FRAME }>::new();
+        for x in bytes {
+            let _ = r.push::<DeviceMsg>(x);
+        }
+    }
+
+    #[test]
+    fn a_corrupted_frame_is_rejected(m in any_host(), pos in any::<prop::sample::Index>(), flip in 1u8..=255) {
+        let mut buf = [0u8; MAX_FRAME + 1];
+        let n = encode(&m, &mut buf).unwrap();
+        let body = &mut buf[..n - 1];
+        let i = pos.index(body.len());
+        body[i] ^= flip;
+        // Any change of the body is caught: by COBS, the CRC, or a zero that splits it.
+        if body.contains(&0) {
+            // The stream reader sees two shorter frames: neither can be the message.
+            let mut r = FrameReader::<{ MAX_FRAME }>::new();
+            for &b in body.iter().chain([&0u8]) {
+                if let Some(res) = r.push::<HostMsg>(b) {
+                    prop_assert!(res.is_err() || !same(&res.unwrap(), &m));
+                }
+            }
+        } else {
+            let r = decode::<HostMsg>(body);
+            prop_assert!(r.is_err(), "accepted a corrupted frame: {:?}", r);
+        }
+    }
+
+    #[test]
+    fn a_stream_of_frames_decodes_in_order(ms in prop::collection::vec(any_device(), 1..20), noise in prop::collection::vec(1u8..=255, 0..10)) {
+        // Noise before the first delimiter is one bad frame; then every message comes through.
+        let mut stream = noise.clone();
+        stream.push(0);
+        for m in &ms {
+            let mut buf = [0u8; MAX_FRAME + 1];
+            let n = encode(m, &mut buf).unwrap();
+            stream.extend_from_slice(&buf[..n]);
+        }
+        let mut r = FrameReader::<{ MAX_FRAME }>::new();
+        let mut got = Vec::new();
+        let mut errors = 0;
+        for b in stream {
+            match r.push::<DeviceMsg>(b) {
+                Some(Ok(m)) => got.push(m),
+                Some(Err(_)) => errors += 1,
+                None => {}
+            }
+        }
+        prop_assert_eq!(got.len(), ms.len());
+        for (a, b) in got.iter().zip(&ms) {
+            prop_assert!(same(a, b));
+        }
+        prop_assert!(errors <= 1);
+    }
+}
+
+#[test]
+fn the_largest_messages_fit_a_frame() {
+    let t = DeviceMsg::Telemetry(Telemetry {
+        seq: u32::MAX,
+        tick: u32::MAX,
+        state: RunState::Fault(255),
+        command_mm: f64::MAX,
+        target_mm: f64::MAX,
+        measured_mm: f64::MAX,
+        force_kn: f64::MAX,
+    });
+    let mut buf = [0u8; MAX_FRAME + 1];
+    let n = encode(&t, &mut buf).unwrap();
+    println!("largest telemetry frame: {n} bytes");
+    assert!(n <= 50, "{n}");
+    let u = HostMsg::UploadLr {
+        features: 6,
+        theta: [f64::MAX; 6],
+        delay_steps: u16::MAX,
+        checksum: u32::MAX,
+    };
+    assert!(encode(&u, &mut buf).unwrap() <= MAX_FRAME);
+}
+
+#[test]
+fn a_too_small_buffer_and_an_overlong_frame_are_errors() {
+    let mut small = [0u8; 8];
+    assert_eq!(
+        encode(
+            &HostMsg::SetLimits {
+                stroke_mm: 1.0,
+                velocity_mm_s: 2.0,
+                force_kn: 3.0
+            },
+            &mut small
+        ),
+        Err(LinkError::TooLong)
+    );
+    let mut r = FrameReader::<4>::new();
+    for b in [1, 2, 3, 4, 5, 6] {
+        assert!(r.push::<HostMsg>(b).is_none());
+    }
+    assert_eq!(r.push::<HostMsg>(0), Some(Err(LinkError::TooLong)));
+    // The reader is usable again after the overlong frame.
+    let mut buf = [0u8; MAX_FRAME + 1];
+    let n = encode(&HostMsg::Start, &mut buf).unwrap();
+    let mut r2 = FrameReader::<{ MAX_FRAME }>::new();
+    let got: Vec<_> = buf[..n]
+        .iter()
+        .filter_map(|b| r2.push::<HostMsg>(*b))
+        .collect();
+    assert_eq!(got, vec![Ok(HostMsg::Start)]);
+}
+
+#[test]
+fn crc_and_message_errors_are_told_apart() {
+    // A valid CRC over bytes that are no message.
+    let payload = [0xFFu8, 0xFF, 0xFF];
+    let crc = FRAME_CRC.checksum(&payload).to_le_bytes();
+    let raw = [payload[0], payload[1], payload[2], crc[0], crc[1]];
+    let mut body = [0u8; 16];
+    let n = cobs::encode(&raw, &mut body);
+    assert_eq!(decode::<HostMsg>(&mut body[..n]), Err(LinkError::Message));
+    let mut short = [0x02u8, 0x01];
+    assert_eq!(decode::<HostMsg>(&mut short), Err(LinkError::Crc));
+    assert_eq!(LinkError::Crc.to_string(), "CRC mismatch");
+}
+
+#[test]
+fn model_checksum_covers_every_coefficient_and_the_delay() {
+    let theta = [
+        0.0,
+        1e-7,
+        2e-8,
+        1e-11,
+        1.9994749475973028,
+        -0.9995838569968694,
+    ];
+    let c = model_checksum(&theta, 28);
+    assert_ne!(c, model_checksum(&theta, 27));
+    for i in 0..6 {
+        let mut t = theta;
+        t[i] = f64::from_bits(t[i].to_bits() ^ 1);
+        assert_ne!(c, model_checksum(&t, 28), "coefficient {i}");
+    }
+    // CRC-32/ISO-HDLC check value.
+    assert_eq!(MODEL_CRC.checksum(b"123456789"), 0xCBF4_3926);
+}
+
+#[test]
+fn seq_check_reports_gaps_and_counts_the_missing() {
+    let mut s = SeqCheck::new();
+    assert_eq!(s.observe(0), Ok(()));
+    assert_eq!(s.observe(1), Ok(()));
+    assert_eq!(
+        s.observe(5),
+        Err(Gap {
+            expected: 2,
+            got: 5
+        })
+    );
+    assert_eq!(s.observe(6), Ok(()));
+    assert_eq!(s.missing(), 3);
+    assert!(s.observe(6).is_err(), "a repeat is not silent either");
+    let mut mid = SeqCheck::starting_at(512);
+    assert_eq!(mid.observe(512), Ok(()));
+    let mut late = SeqCheck::new();
+    assert_eq!(
+        late.observe(3),
+        Err(Gap {
+            expected: 0,
+            got: 3
+        })
+    );
+}

@@ -1,0 +1,556 @@
+//! The host side of the command link (`rths link`): open a serial port, a TCP socket (QEMU's serial
+//! port on 127.0.0.1) or a QEMU process of our own, send requests, wait for their answers, and record
+//! the telemetry stream with its sequence numbers checked. The protocol is `rths-link`'s.
+
+use std::collections::VecDeque;
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use rths_link::{
+    DeviceMsg, FrameReader, Gap, HostMsg, LinkError, NackReason, Request, RunState, SeqCheck,
+    Status, Telemetry, LR_COEFFS, MAX_FRAME,
+};
+
+use crate::model_file::{ModelFile, ModelKind};
+
+/// A failure of the host side of the link.
+#[derive(Debug, thiserror::Error)]
+pub enum LinkHostError {
+    /// Reading or writing the port failed.
+    #[error("link I/O: {0}")]
+    Io(#[from] std::io::Error),
+    /// Opening the serial port failed.
+    #[error("serial port {path}: {message}")]
+    Serial {
+        /// The device path.
+        path: String,
+        /// What the OS said.
+        message: String,
+    },
+    /// No answer in time.
+    #[error("no answer from the device within {0:?} ({1})")]
+    Timeout(Duration, &'static str),
+    /// The device refused the request; nothing changed on it.
+    #[error("the device refused {0:?}: {1:?}")]
+    Refused(Request, NackReason),
+    /// The device answered something else than expected.
+    #[error("unexpected answer to {0:?}: {1:?}")]
+    Unexpected(Request, DeviceMsg),
+    /// A frame could not be built.
+    #[error("frame: {0}")]
+    Frame(LinkError),
+    /// The model file cannot be sent (not LR, wrong shape or delay).
+    #[error("model: {0}")]
+    Model(String),
+    /// QEMU could not be started or stopped early.
+    #[error("qemu: {0}")]
+    Qemu(String),
+}
+
+/// A byte stream both ways.
+pub trait Port: Read + Write + Send {
+    /// How long a read may block.
+    fn set_timeout(&mut self, t: Duration) -> std::io::Result<()>;
+}
+
+impl Port for TcpStream {
+    fn set_timeout(&mut self, t: Duration) -> std::io::Result<()> {
+        self.set_read_timeout(Some(t))
+    }
+}
+
+/// A serial port (`serialport`, built without libudev).
+struct Serial(Box<dyn serialport::SerialPort>);
+
+impl Read for Serial {
+    fn read(&mut self, b: &mut [u8]) -> std::io::Result<usize> {
+        self.0.read(b)
+    }
+}
+
+impl Write for Serial {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        self.0.write(b)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.0.flush()
+    }
+}
+
+impl Port for Serial {
+    fn set_timeout(&mut self, t: Duration) -> std::io::Result<()> {
+        self.0.set_timeout(t).map_err(std::io::Error::other)
+    }
+}
+
+/// How a run's telemetry ended.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordSummary {
+    /// Records received.
+    pub records: usize,
+    /// Gaps in the sequence numbers (each one also reported as it happens).
+    pub gaps: Vec<Gap>,
+    /// Records missing in total.
+    pub missing: u32,
+    /// Frames that failed COBS, CRC or decoding on the host side.
+    pub bad_frames: u32,
+    /// The device's `RunEnded`: final state, ticks, records sent, records its queue dropped.
+    pub end: Option<(RunState, u32, u32, u32)>,
+}
+
+impl RecordSummary {
+    /// Nothing lost: no gap, no bad frame, the device sent all it recorded and dropped none.
+    pub fn complete(&self) -> bool {
+        self.gaps.is_empty()
+            && self.bad_frames == 0
+            && matches!(self.end, Some((_, _, sent, 0)) if sent as usize == self.records)
+    }
+}
+
+/// A connection to a device.
+pub struct Link {
+    port: Box<dyn Port>,
+    frames: FrameReader<{ MAX_FRAME }>,
+    queue: VecDeque<DeviceMsg>,
+    /// Host-side bad frames so far.
+    pub bad_frames: u32,
+    /// How long to wait for an answer.
+    pub timeout: Duration,
+}
+
+impl Link {
+    /// Over any byte stream.
+    pub fn new(port: Box<dyn Port>) -> Self {
+        Self {
+            port,
+            frames: FrameReader::new(),
+            queue: VecDeque::new(),
+            bad_frames: 0,
+            timeout: Duration::from_secs(10),
+        }
+    }
+
+    /// A TCP connection (QEMU `-serial tcp:127.0.0.1:PORT,server=on`).
+    pub fn tcp(addr: &str) -> Result<Self, LinkHostError> {
+        let s = TcpStream::connect(addr)?;
+        s.set_nodelay(true)?;
+        Ok(Self::new(Box::new(s)))
+    }
+
+    /// A serial device at `baud`, 8N1, raw.
+    pub fn serial(path: &str, baud: u32) -> Result<Self, LinkHostError> {
+        let p = serialport::new(path, baud)
+            .timeout(Duration::from_millis(100))
+            .open()
+            .map_err(|e| LinkHostError::Serial {
+                path: path.to_string(),
+                message: e.to_string(),
+            })?;
+        Ok(Self::new(Box::new(Serial(p))))
+    }
+
+    /// Send one message, after a delimiter that ends any partial frame the device may hold (bytes it
+    /// received before its UART was enabled, a frame cut by a reset).
+    pub fn send(&mut self, msg: &HostMsg) -> Result<(), LinkHostError> {
+        let mut buf = [0u8; MAX_FRAME + 2];
+        let n = rths_link::encode(msg, buf.get_mut(1..).unwrap_or(&mut []))
+            .map_err(LinkHostError::Frame)?;
+        self.send_raw(buf.get(..n + 1).unwrap_or(&[]))
+    }
+
+    /// Wait until the device answers a status request (it may still be booting: bytes sent before
+    /// its UART is enabled are lost), asking every 250 ms, for at most `total`.
+    pub fn wait_ready(&mut self, total: Duration) -> Result<Status, LinkHostError> {
+        let start = Instant::now();
+        while start.elapsed() < total {
+            self.send(&HostMsg::Status)?;
+            let until = Instant::now() + Duration::from_millis(250);
+            loop {
+                let left = until.saturating_duration_since(Instant::now());
+                match self.recv(left) {
+                    Ok(DeviceMsg::Status(s)) => {
+                        // Answers to the earlier asks may follow: drop them.
+                        self.drain(Duration::from_millis(100));
+                        return Ok(s);
+                    }
+                    Ok(other) => self.queue.push_back(other),
+                    Err(LinkHostError::Timeout(..)) => break,
+                    Err(e) => return Err(e),
+                }
+                if left.is_zero() {
+                    break;
+                }
+            }
+        }
+        Err(LinkHostError::Timeout(total, "device ready"))
+    }
+
+    /// Read and drop whatever status answers arrive within `t`.
+    fn drain(&mut self, t: Duration) {
+        let until = Instant::now() + t;
+        let mut kept = VecDeque::new();
+        while let Ok(m) = self.recv(until.saturating_duration_since(Instant::now())) {
+            if !matches!(m, DeviceMsg::Status(_)) {
+                kept.push_back(m);
+            }
+        }
+        self.queue = kept;
+    }
+
+    /// Send bytes as they are (tests: a corrupted frame).
+    pub fn send_raw(&mut self, bytes: &[u8]) -> Result<(), LinkHostError> {
+        self.port.write_all(bytes)?;
+        self.port.flush()?;
+        Ok(())
+    }
+
+    /// The next message from the device, waiting up to `timeout`.
+    pub fn recv(&mut self, timeout: Duration) -> Result<DeviceMsg, LinkHostError> {
+        if let Some(m) = self.queue.pop_front() {
+            return Ok(m);
+        }
+        let start = Instant::now();
+        let mut buf = [0u8; 4096];
+        loop {
+            let left = timeout.saturating_sub(start.elapsed());
+            if left.is_zero() {
+                return Err(LinkHostError::Timeout(timeout, "receive"));
+            }
+            self.port
+                .set_timeout(left.min(Duration::from_millis(200)))?;
+            let n = match self.port.read(&mut buf) {
+                Ok(0) => {
+                    return Err(LinkHostError::Io(std::io::Error::new(
+                        std::io::ErrorKind::UnexpectedEof,
+                        "the device closed the link",
+                    )))
+                }
+                Ok(n) => n,
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                    ) =>
+                {
+                    continue
+                }
+                Err(e) => return Err(e.into()),
+            };
+            for &b in buf.get(..n).unwrap_or(&[]) {
+                match self.frames.push::<DeviceMsg>(b) {
+                    Some(Ok(m)) => self.queue.push_back(m),
+                    Some(Err(_)) => self.bad_frames = self.bad_frames.saturating_add(1),
+                    None => {}
+                }
+            }
+            if let Some(m) = self.queue.pop_front() {
+                return Ok(m);
+            }
+        }
+    }
+
+    /// Send a request and wait for its answer; telemetry and run ends that arrive meanwhile are kept
+    /// for [`Self::record`].
+    pub fn request(&mut self, msg: &HostMsg) -> Result<DeviceMsg, LinkHostError> {
+        self.send(msg)?;
+        let req = msg.request();
+        let deadline = Instant::now() + self.timeout;
+        let mut kept = VecDeque::new();
+        let answer = loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            let m = match self.recv(left) {
+                Ok(m) => m,
+                Err(LinkHostError::Timeout(..)) => {
+                    self.queue.extend(kept);
+                    return Err(LinkHostError::Timeout(self.timeout, "answer"));
+                }
+                Err(e) => return Err(e),
+            };
+            match m {
+                DeviceMsg::Ack(r) | DeviceMsg::Nack(r, _) if r == req => break m,
+                DeviceMsg::Status(_) if req == Request::Status => break m,
+                other => kept.push_back(other),
+            }
+        };
+        // Keep the stream's order for the recorder.
+        kept.extend(self.queue.drain(..));
+        self.queue = kept;
+        match answer {
+            DeviceMsg::Nack(r, why) => Err(LinkHostError::Refused(r, why)),
+            m => Ok(m),
+        }
+    }
+
+    fn expect_ack(&mut self, msg: &HostMsg) -> Result<(), LinkHostError> {
+        match self.request(msg)? {
+            DeviceMsg::Ack(_) => Ok(()),
+            other => Err(LinkHostError::Unexpected(msg.request(), other)),
+        }
+    }
+
+    /// The device's status.
+    pub fn status(&mut self) -> Result<Status, LinkHostError> {
+        match self.request(&HostMsg::Status)? {
+            DeviceMsg::Status(s) => Ok(s),
+            other => Err(LinkHostError::Unexpected(Request::Status, other)),
+        }
+    }
+
+    /// Upload an LR model; its checksum on success.
+    pub fn upload(&mut self, model: &ModelFile) -> Result<u32, LinkHostError> {
+        let msg = upload_message(model)?;
+        self.expect_ack(&msg)?;
+        match msg {
+            HostMsg::UploadLr { checksum, .. } => Ok(checksum),
+            _ => Err(LinkHostError::Model("not an LR upload".into())),
+        }
+    }
+
+    /// New stroke, velocity and force limits.
+    pub fn set_limits(
+        &mut self,
+        stroke_mm: f64,
+        velocity_mm_s: f64,
+        force_kn: f64,
+    ) -> Result<(), LinkHostError> {
+        self.expect_ack(&HostMsg::SetLimits {
+            stroke_mm,
+            velocity_mm_s,
+            force_kn,
+        })
+    }
+
+    /// Arm, telemetry every `telemetry_every` ticks.
+    pub fn arm(&mut self, telemetry_every: u16) -> Result<(), LinkHostError> {
+        self.expect_ack(&HostMsg::Arm { telemetry_every })
+    }
+
+    /// Start the armed test.
+    pub fn start(&mut self) -> Result<(), LinkHostError> {
+        self.expect_ack(&HostMsg::Start)
+    }
+
+    /// Abort: ramp to zero.
+    pub fn abort(&mut self) -> Result<(), LinkHostError> {
+        self.expect_ack(&HostMsg::Abort)
+    }
+
+    /// Receive telemetry until the device's `RunEnded` (or `idle` without any message), handing each
+    /// record to `sink`; the first record expected is `first_seq` (0 for a whole run). A sequence gap
+    /// is reported on stderr as it is found and in the summary.
+    pub fn record(
+        &mut self,
+        idle: Duration,
+        first_seq: u32,
+        mut sink: impl FnMut(&Telemetry) -> std::io::Result<()>,
+    ) -> Result<RecordSummary, LinkHostError> {
+        let mut seq = SeqCheck::starting_at(first_seq);
+        let mut s = RecordSummary {
+            records: 0,
+            gaps: Vec::new(),
+            missing: 0,
+            bad_frames: 0,
+            end: None,
+        };
+        let bad0 = self.bad_frames;
+        loop {
+            match self.recv(idle)? {
+                DeviceMsg::Telemetry(t) => {
+                    if let Err(g) = seq.observe(t.seq) {
+                        eprintln!(
+                            "warning: telemetry gap: expected record {}, got {} ({} missing)",
+                            g.expected,
+                            g.got,
+                            g.got.wrapping_sub(g.expected)
+                        );
+                        s.gaps.push(g);
+                    }
+                    s.records += 1;
+                    sink(&t)?;
+                }
+                DeviceMsg::RunEnded {
+                    state,
+                    ticks,
+                    records_sent,
+                    records_dropped,
+                } => {
+                    s.end = Some((state, ticks, records_sent, records_dropped));
+                    break;
+                }
+                _ => {}
+            }
+        }
+        s.missing = seq.missing();
+        s.bad_frames = self.bad_frames - bad0;
+        Ok(s)
+    }
+}
+
+/// The upload message of an LR model file (validated here too: kind, 6 coefficients, finite).
+pub fn upload_message(model: &ModelFile) -> Result<HostMsg, LinkHostError> {
+    if model.kind != ModelKind::Lr {
+        return Err(LinkHostError::Model(
+            "only LR models can be uploaded over the link".into(),
+        ));
+    }
+    let theta: [f64; LR_COEFFS] = model
+        .lr
+        .as_ref()
+        .and_then(|w| w.theta.clone().try_into().ok())
+        .ok_or_else(|| LinkHostError::Model(format!("lr.theta must have {LR_COEFFS} values")))?;
+    let delay = u16::try_from(model.delay_steps)
+        .map_err(|_| LinkHostError::Model("delay_steps does not fit 16 bits".into()))?;
+    Ok(HostMsg::UploadLr {
+        features: LR_COEFFS as u8,
+        theta,
+        delay_steps: delay,
+        checksum: rths_link::model_checksum(&theta, delay),
+    })
+}
+
+/// The CSV header of a recording.
+pub const CSV_HEADER: &str = "seq,tick,time_s,state,command_mm,target_mm,measured_mm,force_kn";
+
+/// One CSV row (floats in shortest round-trip form: reading them back gives the same bits).
+pub fn csv_row(t: &Telemetry) -> String {
+    format!(
+        "{},{},{:?},{},{:?},{:?},{:?},{:?}",
+        t.seq,
+        t.tick,
+        t.tick as f64 * rths_core::params::DT_S,
+        state_name(t.state),
+        t.command_mm,
+        t.target_mm,
+        t.measured_mm,
+        t.force_kn
+    )
+}
+
+/// A state's name in the CSV and the status print.
+pub fn state_name(s: RunState) -> String {
+    match s {
+        RunState::Idle => "idle".into(),
+        RunState::Armed => "armed".into(),
+        RunState::Running => "running".into(),
+        RunState::RampDown => "ramp-down".into(),
+        RunState::Done => "done".into(),
+        RunState::Fault(c) => format!("fault-{}", fault_name(c)),
+    }
+}
+
+/// The name of a fault code (the firmware's `link::fault_code` order).
+pub fn fault_name(code: u8) -> &'static str {
+    const NAMES: [&str; 12] = [
+        "MeasuredStroke",
+        "CommandStroke",
+        "CommandVelocity",
+        "Force",
+        "NonFiniteCommand",
+        "NonFiniteSample",
+        "SensorTimeout",
+        "Overrun",
+        "EmergencyStop",
+        "FollowingError",
+        "ImplausibleMotion",
+        "FrozenSensor",
+    ];
+    NAMES.get(code as usize).copied().unwrap_or("Unknown")
+}
+
+/// The QEMU command line of the emulated board with its serial port connected, as a client, to
+/// `127.0.0.1:port` (the runner of `firmware/.cargo/config.toml` with `-serial tcp:` instead of
+/// `-serial null`).
+pub fn qemu_args(elf: &Path, port: u16) -> Vec<String> {
+    let serial = format!("tcp:127.0.0.1:{port}");
+    [
+        "-cpu",
+        "cortex-m4",
+        "-machine",
+        "netduinoplus2",
+        "-nographic",
+        "-monitor",
+        "none",
+        "-serial",
+        &serial,
+        "-semihosting-config",
+        "enable=on,target=native",
+        "-icount",
+        "shift=0,align=off,sleep=off",
+        "-kernel",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .chain([elf.display().to_string()])
+    .collect()
+}
+
+/// A QEMU of our own running the link firmware, its serial port on a loopback socket.
+pub struct Qemu {
+    child: Child,
+    /// The link to it.
+    pub link: Link,
+    /// Where QEMU's stdout (the semihosting RESULT line) goes.
+    pub stdout_path: PathBuf,
+}
+
+impl Qemu {
+    /// Start `qemu-system-arm` on `elf` (built with `--features link`), run in `dir` (its defmt.bin
+    /// and stdout file go there), and accept its serial connection.
+    pub fn start(elf: &Path, dir: &Path) -> Result<Self, LinkHostError> {
+        let listener = TcpListener::bind("127.0.0.1:0")?;
+        let port = listener.local_addr()?.port();
+        let stdout_path = dir.join("qemu-stdout.txt");
+        let out = std::fs::File::create(&stdout_path)?;
+        let mut child = Command::new("qemu-system-arm")
+            .args(qemu_args(elf, port))
+            .current_dir(dir)
+            .stdin(Stdio::null())
+            .stdout(out)
+            .stderr(Stdio::inherit())
+            .spawn()
+            .map_err(|e| LinkHostError::Qemu(format!("cannot start qemu-system-arm: {e}")))?;
+        listener.set_nonblocking(true)?;
+        let start = Instant::now();
+        let stream = loop {
+            match listener.accept() {
+                Ok((s, _)) => break s,
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                    if let Some(st) = child.try_wait()? {
+                        return Err(LinkHostError::Qemu(format!("exited early: {st}")));
+                    }
+                    if start.elapsed() > Duration::from_secs(20) {
+                        let _ = child.kill();
+                        let _ = child.wait();
+                        return Err(LinkHostError::Qemu("did not connect within 20 s".into()));
+                    }
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+                Err(e) => return Err(e.into()),
+            }
+        };
+        stream.set_nonblocking(false)?;
+        stream.set_nodelay(true)?;
+        let mut q = Self {
+            child,
+            link: Link::new(Box::new(stream)),
+            stdout_path,
+        };
+        q.link.wait_ready(Duration::from_secs(20))?;
+        Ok(q)
+    }
+
+    /// What QEMU printed so far (semihosting: the CALIB and RESULT lines).
+    pub fn stdout(&self) -> String {
+        std::fs::read_to_string(&self.stdout_path).unwrap_or_default()
+    }
+}
+
+impl Drop for Qemu {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}

@@ -1,0 +1,510 @@
+//! The command link end to end: the firmware built with `--features link` runs in QEMU with its
+//! USART1 on a loopback socket; the host (`rths::link_host`) uploads a freshly trained LR model,
+//! runs El Centro, records the telemetry to CSV and checks it against the host simulation of the
+//! same scenario, model and seed. Corrupted and invalid uploads are refused and the old model stays.
+//!
+//! Skipped (with a loud message) only when `qemu-system-arm` is not installed; with
+//! `RTHS_REQUIRE_QEMU` set (CI) a missing QEMU fails instead.
+#![cfg(feature = "sim")]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use rths::link_host::{upload_message, LinkHostError, Qemu};
+use rths::model_file::ModelFile;
+use rths::scenario::{self, ScenarioId, ScenarioRun, ScenarioSetup};
+use rths::study;
+use rths::train::{data, lr};
+use rths_core::metamodel::LrParams;
+use rths_core::params::{Prototype, DT_S, PAPER_DELAY_STEPS};
+use rths_hal_sim::{Preset, Specimen};
+use rths_link::{HostMsg, NackReason, Request, RunState};
+
+fn firmware_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("firmware")
+}
+
+fn qemu_missing() -> bool {
+    let found = Command::new("qemu-system-arm")
+        .arg("--version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !found {
+        assert!(
+            std::env::var_os("RTHS_REQUIRE_QEMU").is_none(),
+            "RTHS_REQUIRE_QEMU is set but `qemu-system-arm` cannot be run"
+        );
+        eprintln!(
+            "\n*** SKIPPED: link test: `qemu-system-arm` is not installed \
+             (apt-get install qemu-system-arm). CI installs it, so this never skips there. ***\n"
+        );
+    }
+    !found
+}
+
+/// `cargo build --release --features link` of the firmware, ELF copied to a private path. Built
+/// once per test binary.
+fn link_elf() -> PathBuf {
+    static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    ELF.get_or_init(|| {
+        let status = Command::new(env!("CARGO"))
+            .current_dir(firmware_dir())
+            .args(["build", "--release", "--features", "link"])
+            .env_remove("CARGO_TARGET_DIR")
+            .status()
+            .unwrap();
+        assert!(status.success(), "firmware build (link) failed");
+        let elf = firmware_dir().join("target/thumbv7em-none-eabihf/release/rths-firmware");
+        let dest = Path::new(env!("CARGO_TARGET_TMPDIR")).join("rths-firmware-link.elf");
+        std::fs::copy(&elf, &dest).unwrap();
+        dest
+    })
+    .clone()
+}
+
+struct Trained {
+    ag: Vec<f64>,
+    reference: Vec<f64>,
+    phase1: ModelFile,
+    phase2: ModelFile,
+}
+
+/// The paper's two-phase LR training, from scratch (as `rths reproduce` does it).
+fn train() -> Trained {
+    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let proto = Prototype::paper();
+    let reference = study::reference_mm(&ag, 1.0).unwrap();
+    let resp = data::pure_response(&proto, &ag, DT_S).unwrap();
+    let fit1 = lr::fit_pure(
+        &resp,
+        PAPER_DELAY_STEPS,
+        proto.brace_axial_stiffness_kn_per_mm(),
+        lr::DEFAULT_RCOND,
+    )
+    .unwrap();
+    let phase1 = ModelFile::new_lr(fit1.solution.theta.to_vec(), PAPER_DELAY_STEPS, DT_S);
+    let offline = scenario::run(&setup(
+        ScenarioId::LrOffline,
+        &ag,
+        &reference,
+        &fit1.solution.theta,
+    ))
+    .unwrap();
+    let (phase2, _) = study::lr_phase2(&ag, &reference, &offline, lr::DEFAULT_RCOND).unwrap();
+    Trained {
+        ag,
+        reference,
+        phase1,
+        phase2,
+    }
+}
+
+fn setup<'a>(
+    id: ScenarioId,
+    ag: &'a [f64],
+    reference: &'a [f64],
+    theta: &[f64],
+) -> ScenarioSetup<'a> {
+    ScenarioSetup {
+        id,
+        ground_accel_mm_s2: ag,
+        reference_mm: reference,
+        // The qemu board's plant: unr-compact, linear specimen, seed 1.
+        rig: scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        stiffness_factor: 1.0,
+        lr: Some(LrParams::from_slice(theta).unwrap()),
+        rnn: None,
+        lrx: None,
+        delay_steps: PAPER_DELAY_STEPS,
+    }
+}
+
+fn theta(m: &ModelFile) -> [f64; 6] {
+    m.lr.as_ref().unwrap().theta.clone().try_into().unwrap()
+}
+
+fn checksum_of(m: &ModelFile) -> u32 {
+    match upload_message(m).unwrap() {
+        HostMsg::UploadLr { checksum, .. } => checksum,
+        _ => unreachable!(),
+    }
+}
+
+struct Row {
+    seq: u32,
+    tick: u32,
+    state: String,
+    command_mm: f64,
+    target_mm: f64,
+}
+
+fn read_csv(path: &Path) -> Vec<Row> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some(rths::link_host::CSV_HEADER));
+    lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            assert_eq!(f.len(), 8, "{l}");
+            Row {
+                seq: f[0].parse().unwrap(),
+                tick: f[1].parse().unwrap(),
+                state: f[3].to_string(),
+                command_mm: f[4].parse().unwrap(),
+                target_mm: f[5].parse().unwrap(),
+            }
+        })
+        .collect()
+}
+
+fn nrmse_pct(x: &[f64], reference: &[f64]) -> f64 {
+    let n = reference.len() as f64;
+    let peak = reference.iter().fold(0.0f64, |m, r| m.max(r.abs()));
+    let ss: f64 = x.iter().zip(reference).map(|(a, b)| (a - b).powi(2)).sum();
+    100.0 * (ss / n).sqrt() / peak
+}
+
+#[test]
+fn upload_run_and_record_el_centro_over_the_link_matches_the_host() {
+    if qemu_missing() {
+        return;
+    }
+    let t = train();
+    let elf = link_elf();
+    let dir = tempfile::tempdir().unwrap();
+    let mut q = Qemu::start(&elf, dir.path()).unwrap();
+    let link = &mut q.link;
+    link.timeout = Duration::from_secs(20);
+
+    // Boot: the compiled-in model (data/models/lr.json) is active, the run idle.
+    let s0 = link.status().unwrap();
+    assert_eq!(s0.state, RunState::Idle);
+    let compiled =
+        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json"))
+            .unwrap();
+    // The compiled-in coefficients are the file's exact f64 values (build.rs parses with
+    // serde_json's float_roundtrip), so the checksums agree.
+    assert_eq!(
+        s0.model_checksum,
+        checksum_of(&compiled),
+        "boot model vs data/models/lr.json"
+    );
+
+    // A fresh phase-1 model: accepted, now active.
+    let c1 = link.upload(&t.phase1).unwrap();
+    assert_eq!(c1, checksum_of(&t.phase1));
+    assert_eq!(link.status().unwrap().model_checksum, c1);
+
+    // A corrupted upload of the phase-2 model (one bit flipped on the wire): the frame is dropped
+    // (CRC), counted, no answer; the phase-1 model stays.
+    let mut frame = [0u8; rths_link::MAX_FRAME + 1];
+    let n = rths_link::encode(&upload_message(&t.phase2).unwrap(), &mut frame).unwrap();
+    frame[n / 2] ^= 0x10;
+    link.send_raw(&[0]).unwrap();
+    link.send_raw(&frame[..n]).unwrap();
+    let s = link.status().unwrap();
+    assert_eq!(
+        s.model_checksum, c1,
+        "a corrupted upload must not change the model"
+    );
+    assert_eq!(
+        s.bad_frames,
+        s0.bad_frames + 1,
+        "the corrupted frame is counted"
+    );
+
+    // Well-framed but invalid uploads: refused whole, the old model kept.
+    let good = upload_message(&t.phase2).unwrap();
+    let HostMsg::UploadLr {
+        theta: th,
+        delay_steps,
+        checksum,
+        ..
+    } = good
+    else {
+        unreachable!()
+    };
+    let mut nan = th;
+    nan[3] = f64::NAN;
+    let cases = [
+        (
+            HostMsg::UploadLr {
+                features: 5,
+                theta: th,
+                delay_steps,
+                checksum,
+            },
+            NackReason::Shape,
+        ),
+        (
+            HostMsg::UploadLr {
+                features: 6,
+                theta: nan,
+                delay_steps,
+                checksum: rths_link::model_checksum(&nan, delay_steps),
+            },
+            NackReason::NotFinite,
+        ),
+        (
+            HostMsg::UploadLr {
+                features: 6,
+                theta: th,
+                delay_steps,
+                checksum: checksum ^ 1,
+            },
+            NackReason::Checksum,
+        ),
+    ];
+    for (msg, why) in cases {
+        match link.request(&msg) {
+            Err(LinkHostError::Refused(Request::UploadLr, got)) => assert_eq!(got, why),
+            other => panic!("expected a refusal ({why:?}), got {other:?}"),
+        }
+        assert_eq!(link.status().unwrap().model_checksum, c1);
+    }
+    // Start before arm is refused.
+    assert!(matches!(
+        link.start(),
+        Err(LinkHostError::Refused(
+            Request::Start,
+            NackReason::InvalidState
+        ))
+    ));
+
+    // The phase-2 model: accepted; arm, start, record the whole run.
+    let c2 = link.upload(&t.phase2).unwrap();
+    assert_eq!(link.status().unwrap().model_checksum, c2);
+    link.arm(1).unwrap();
+    link.start().unwrap();
+    let csv = dir.path().join("run.csv");
+    let summary = rths::cmd::link::record_csv(link, &csv, Duration::from_secs(60)).unwrap();
+    println!("{summary:?}");
+    assert!(summary.complete(), "lost telemetry: {summary:?}");
+    let (end, ticks, _, _) = summary.end.unwrap();
+    assert_eq!(end, RunState::Done);
+    assert_eq!(ticks, t.ag.len() as u32, "the whole El Centro record");
+
+    // The recording against the host simulation of the same scenario, model and seed.
+    let rows = read_csv(&csv);
+    assert_eq!(rows.len(), summary.records);
+    for (i, r) in rows.iter().enumerate() {
+        assert_eq!((r.seq, r.tick), (i as u32, i as u32), "row {i}");
+    }
+    let host: ScenarioRun = scenario::run(&setup(
+        ScenarioId::LrOnline,
+        &t.ag,
+        &t.reference,
+        &theta(&t.phase2),
+    ))
+    .unwrap();
+    assert!(host.report.stable);
+    let h = &host.history;
+    let n = t.ag.len();
+    // Firmware record k holds the command of tick k; host row k+1 holds it (row k is the command in
+    // force at time k).
+    let mut max_cmd = 0.0f64;
+    let mut identical = 0usize;
+    for (row, hs) in rows.iter().zip(&h.command_mm[1..]) {
+        let fw = row.command_mm;
+        max_cmd = max_cmd.max((fw - hs).abs());
+        identical += usize::from(fw.to_bits() == hs.to_bits());
+    }
+    // Target rows as the host counts them: row k = target produced at tick k−1 (0 at k = 0).
+    let target_rows: Vec<f64> = (0..n)
+        .map(|k| if k == 0 { 0.0 } else { rows[k - 1].target_mm })
+        .collect();
+    let fw_nrmse = nrmse_pct(&target_rows, &t.reference);
+    let host_nrmse = host.report.nrmse_pct.unwrap();
+    println!(
+        "command history: max |firmware − host| = {max_cmd:e} mm over {} ticks, {identical} bit-identical; \
+         NRMSE from the recording {fw_nrmse:?} %, host {host_nrmse:?} %",
+        n - 1
+    );
+    assert!(max_cmd <= 1e-9, "command history differs by {max_cmd} mm");
+    assert!(
+        (fw_nrmse - host_nrmse).abs() <= 0.01,
+        "NRMSE {fw_nrmse} vs host {host_nrmse}"
+    );
+    assert!((fw_nrmse - host_nrmse).abs() <= 1e-6 * host_nrmse.abs());
+    // The end of the record: a ramp to zero, ending done at 0 mm.
+    let last = rows.last().unwrap();
+    assert_eq!(last.state, "done");
+    assert_eq!(last.command_mm, 0.0);
+    // The board's own report (semihosting RESULT) agrees.
+    let out = q.stdout();
+    let line = out
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("RESULT "))
+        .unwrap();
+    let r: serde_json::Value = serde_json::from_str(line).unwrap();
+    assert_eq!(r["end_state"], "done");
+    assert_eq!(r["telemetry_dropped"], 0);
+    let fw_result = r["nrmse_pct"].as_f64().unwrap();
+    assert!(
+        (fw_result - fw_nrmse).abs() <= 1e-9 * fw_nrmse,
+        "{fw_result} vs {fw_nrmse}"
+    );
+    // A second run needs a new power-up on the emulated board.
+    assert!(matches!(
+        q.link.arm(1),
+        Err(LinkHostError::Refused(
+            Request::Arm,
+            NackReason::Unsupported
+        ))
+    ));
+}
+
+#[test]
+fn limits_arm_abort_over_the_link() {
+    if qemu_missing() {
+        return;
+    }
+    let elf = link_elf();
+    let dir = tempfile::tempdir().unwrap();
+    let mut q = Qemu::start(&elf, dir.path()).unwrap();
+    let link = &mut q.link;
+    // Limits: a bad one is refused, a good one shows in the status.
+    assert!(matches!(
+        link.set_limits(-1.0, 300.0, 25.0),
+        Err(LinkHostError::Refused(
+            Request::SetLimits,
+            NackReason::OutOfRange
+        ))
+    ));
+    assert!(matches!(
+        link.set_limits(f64::NAN, 300.0, 25.0),
+        Err(LinkHostError::Refused(
+            Request::SetLimits,
+            NackReason::NotFinite
+        ))
+    ));
+    link.set_limits(20.0, 300.0, 25.0).unwrap();
+    let s = link.status().unwrap();
+    assert_eq!(
+        (s.stroke_mm, s.velocity_mm_s, s.force_kn),
+        (20.0, 300.0, 25.0)
+    );
+    assert!(matches!(
+        link.arm(0),
+        Err(LinkHostError::Refused(Request::Arm, NackReason::OutOfRange))
+    ));
+    // Arm, start with telemetry every 4th tick, abort after ~1 s of test time.
+    link.arm(4).unwrap();
+    assert!(matches!(
+        link.upload(&ModelFile::new_lr(vec![0.0; 6], 28, DT_S)),
+        Err(LinkHostError::Refused(Request::UploadLr, NackReason::Busy))
+    ));
+    assert!(matches!(
+        link.set_limits(20.0, 300.0, 25.0),
+        Err(LinkHostError::Refused(Request::SetLimits, NackReason::Busy))
+    ));
+    link.start().unwrap();
+    let mut got = Vec::new();
+    while got.len() < 512 {
+        if let rths_link::DeviceMsg::Telemetry(t) = link.recv(Duration::from_secs(20)).unwrap() {
+            got.push(t);
+        }
+    }
+    link.abort().unwrap();
+    let mut rest = Vec::new();
+    let summary = link
+        .record(Duration::from_secs(20), got.len() as u32, |t| {
+            rest.push(*t);
+            Ok(())
+        })
+        .unwrap();
+    assert!(summary.gaps.is_empty(), "{summary:?}");
+    let all: Vec<_> = got.iter().chain(&rest).collect();
+    for (i, t) in all.iter().enumerate() {
+        assert_eq!(t.seq, i as u32);
+        assert_eq!(t.tick, 4 * i as u32, "decimated by 4");
+    }
+    let (end, ticks, sent, dropped) = summary.end.unwrap();
+    assert_eq!(end, RunState::Done);
+    assert_eq!((sent as usize, dropped), (all.len(), 0));
+    assert!(ticks < 81_900, "aborted early: {ticks} ticks");
+    // The abort ramps to zero no faster than the end ramp (10 mm/s: 4 ticks ≤ 4 × 0.00488 mm).
+    let after: Vec<_> = all
+        .iter()
+        .filter(|t| matches!(t.state, RunState::RampDown | RunState::Done))
+        .collect();
+    assert!(!after.is_empty());
+    for w in after.windows(2) {
+        assert!((w[1].command_mm - w[0].command_mm).abs() <= 4.0 * 10.0 * DT_S * (1.0 + 1e-9));
+    }
+    assert!(all.last().unwrap().command_mm.abs() <= 4.0 * 10.0 * DT_S);
+    println!(
+        "aborted at tick {} from {:.4} mm, done after {ticks} ticks",
+        after[0].tick, after[0].command_mm
+    );
+}
+
+/// The `rths link` command itself: `--qemu ELF status`, and `--port` on the pty QEMU gives with
+/// `-serial pty` (the serial-port path a real board uses).
+#[test]
+fn the_cli_talks_through_its_own_qemu_and_through_a_pty() {
+    if qemu_missing() {
+        return;
+    }
+    let elf = link_elf();
+    let exe = env!("CARGO_BIN_EXE_rths");
+    let out = Command::new(exe)
+        .args(["link", "--qemu"])
+        .arg(&elf)
+        .arg("status")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("state            idle"), "{text}");
+    assert!(text.contains("bad frames       0"), "{text}");
+
+    // QEMU on a pty: it prints the pty's path first.
+    let dir = tempfile::tempdir().unwrap();
+    let mut args = rths::link_host::qemu_args(&elf, 0);
+    let i = args.iter().position(|a| a == "-serial").unwrap();
+    args[i + 1] = "pty".into();
+    let log = dir.path().join("qemu.txt");
+    let mut child = Command::new("qemu-system-arm")
+        .args(&args)
+        .current_dir(dir.path())
+        .stdout(std::fs::File::create(&log).unwrap())
+        .stderr(std::fs::File::create(dir.path().join("err.txt")).unwrap())
+        .spawn()
+        .unwrap();
+    let mut pty = None;
+    for _ in 0..100 {
+        let s = std::fs::read_to_string(&log).unwrap_or_default()
+            + &std::fs::read_to_string(dir.path().join("err.txt")).unwrap_or_default();
+        if let Some(p) = s.split_whitespace().find(|w| w.starts_with("/dev/pts/")) {
+            pty = Some(p.to_string());
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let Some(pty) = pty else {
+        let _ = child.kill();
+        panic!("QEMU printed no pty path");
+    };
+    let out = Command::new(exe)
+        .args(["link", "--port", &pty, "status"])
+        .output()
+        .unwrap();
+    let _ = child.kill();
+    let _ = child.wait();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("state            idle"), "{text}");
+}
