@@ -6,6 +6,8 @@
 //! Skipped (with a loud message) only when `qemu-system-arm` is not installed; CI installs it.
 #![cfg(feature = "sim")]
 
+mod common;
+use common::*;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::Mutex;
@@ -20,38 +22,8 @@ use rths_hal_sim::{Preset, Specimen};
 /// Builds share `firmware/target`: one at a time, and each ELF is copied before the next build.
 static BUILD: Mutex<()> = Mutex::new(());
 
-/// Core clock of the STM32F405/407, Hz, and the cycles-per-instruction assumption of the budget.
-const CPU_HZ: f64 = 168e6;
-const CYCLES_PER_INSTR: f64 = 1.5;
-/// The timing budget: the controller's share of the 488 µs tick.
-const MAX_TICK_SHARE: f64 = 0.10;
 /// The issue's target for the LR path: at most 2000 instructions per control tick.
 const MAX_LR_INSTR: f64 = 2000.0;
-
-fn firmware_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("firmware")
-}
-
-fn qemu_missing() -> bool {
-    let found = Command::new("qemu-system-arm")
-        .arg("--version")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !found {
-        // CI sets RTHS_REQUIRE_QEMU once it has installed QEMU: a skip there would hide a failure.
-        assert!(
-            std::env::var_os("RTHS_REQUIRE_QEMU").is_none(),
-            "RTHS_REQUIRE_QEMU is set but `qemu-system-arm` cannot be run"
-        );
-        eprintln!(
-            "\n*** SKIPPED: firmware-in-the-loop test: `qemu-system-arm` is not installed \
-             (apt-get install qemu-system-arm). CI installs it, so this never skips there. ***\n"
-        );
-    }
-    !found
-}
 
 /// `cargo build --release` of the firmware with `features` (on top of the defaults unless
 /// `no_default`), ELF copied to a private path.
@@ -168,7 +140,7 @@ fn tick_share(instr: f64) -> f64 {
 
 #[test]
 fn lr_online_in_qemu_matches_the_host_and_fits_the_budget() {
-    if qemu_missing() {
+    if qemu_missing("firmware-in-the-loop test") {
         return;
     }
     let elf = build("lr", false, "");
@@ -218,7 +190,7 @@ fn lr_online_in_qemu_matches_the_host_and_fits_the_budget() {
 
 #[test]
 fn injected_sensor_fault_trips_and_ramps_without_a_jump() {
-    if qemu_missing() {
+    if qemu_missing("firmware-in-the-loop test") {
         return;
     }
     let elf = build("fault", false, "fault-inject");
@@ -257,7 +229,7 @@ fn injected_sensor_fault_trips_and_ramps_without_a_jump() {
 /// software floating point, and the RNN's tanh alone costs thousands of instructions).
 #[test]
 fn rnn_and_fe_ats_paths_build_and_run() {
-    if qemu_missing() {
+    if qemu_missing("firmware-in-the-loop test") {
         return;
     }
     for (name, features) in [("rnn", "model-rnn"), ("fe-ats", "fe-ats")] {
@@ -279,7 +251,7 @@ fn rnn_and_fe_ats_paths_build_and_run() {
 /// for the same reason, and keep the command within the envelope.
 #[test]
 fn fault_matrix_subset_in_qemu_matches_the_host() {
-    if qemu_missing() {
+    if qemu_missing("firmware-in-the-loop test") {
         return;
     }
     let bench = rths::faults::Bench::el_centro().unwrap();

@@ -7,8 +7,10 @@
 //! `RTHS_REQUIRE_QEMU` set (CI) a missing QEMU fails instead.
 #![cfg(feature = "sim")]
 
+mod common;
+use common::*;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::Duration;
 
 use rths::link_host::{upload_message, LinkHostError, Qemu};
@@ -20,30 +22,6 @@ use rths_core::metamodel::LrParams;
 use rths_core::params::{Prototype, DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{Preset, Specimen};
 use rths_link::{HostMsg, NackReason, Request, RunState};
-
-fn firmware_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("firmware")
-}
-
-fn qemu_missing() -> bool {
-    let found = Command::new("qemu-system-arm")
-        .arg("--version")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !found {
-        assert!(
-            std::env::var_os("RTHS_REQUIRE_QEMU").is_none(),
-            "RTHS_REQUIRE_QEMU is set but `qemu-system-arm` cannot be run"
-        );
-        eprintln!(
-            "\n*** SKIPPED: link test: `qemu-system-arm` is not installed \
-             (apt-get install qemu-system-arm). CI installs it, so this never skips there. ***\n"
-        );
-    }
-    !found
-}
 
 /// `cargo build --release --features link` of the firmware, ELF copied to a private path. Built
 /// once per test binary.
@@ -169,7 +147,7 @@ fn nrmse_pct(x: &[f64], reference: &[f64]) -> f64 {
 
 #[test]
 fn upload_run_and_record_el_centro_over_the_link_matches_the_host() {
-    if qemu_missing() {
+    if qemu_missing("link test") {
         return;
     }
     let t = train();
@@ -360,7 +338,7 @@ fn upload_run_and_record_el_centro_over_the_link_matches_the_host() {
 
 #[test]
 fn limits_arm_abort_over_the_link() {
-    if qemu_missing() {
+    if qemu_missing("link test") {
         return;
     }
     let elf = link_elf();
@@ -447,7 +425,7 @@ fn limits_arm_abort_over_the_link() {
 /// `-serial pty` (the serial-port path a real board uses).
 #[test]
 fn the_cli_talks_through_its_own_qemu_and_through_a_pty() {
-    if qemu_missing() {
+    if qemu_missing("link test") {
         return;
     }
     let elf = link_elf();

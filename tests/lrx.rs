@@ -3,7 +3,9 @@
 //! within the 10% tick budget).
 #![cfg(feature = "sim")]
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::*;
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -127,37 +129,12 @@ fn specimen_sweep_kobe_first_15_s() {
 // Firmware
 // ---------------------------------------------------------------------------------------------------
 
-const CPU_HZ: f64 = 168e6;
-const CYCLES_PER_INSTR: f64 = 1.5;
-const MAX_TICK_SHARE: f64 = 0.10;
-
-fn firmware_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("firmware")
-}
-
-fn qemu_missing() -> bool {
-    let found = Command::new("qemu-system-arm")
-        .arg("--version")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !found {
-        assert!(
-            std::env::var_os("RTHS_REQUIRE_QEMU").is_none(),
-            "RTHS_REQUIRE_QEMU is set but `qemu-system-arm` cannot be run"
-        );
-        eprintln!("\n*** SKIPPED: LRX firmware test: `qemu-system-arm` is not installed. ***\n");
-    }
-    !found
-}
-
 /// The LRX firmware (`model-lrx`, the shipped `data/models/lrx.json`) runs the whole El Centro record
 /// in QEMU: no overrun or fault, the same command NRMSE as the host's `lrx-online` (F = 1, seed 1),
 /// and its worst tick within 10% of the 488 µs tick.
 #[test]
 fn lrx_firmware_matches_the_host_and_fits_the_budget() {
-    if qemu_missing() {
+    if qemu_missing("LRX firmware test") {
         return;
     }
     let status = Command::new(env!("CARGO"))
