@@ -1,12 +1,4 @@
-//! Actuator delay compensators of the classic FE path (DESIGN §6): adaptive time series (ATS), Horiuchi
-//! polynomial extrapolation, and none. `no_std`, allocation-free, panic-free.
-//!
-//! All compensators map a target displacement x_t (mm, the integrator's command) and the measured
-//! displacement x_m (mm, LVDT) to the displacement u_c sent to the actuator. Inputs that are NaN or
-//! infinite (and, for ATS and Horiuchi, beyond [`MAX_ABS_INPUT_MM`]) are refused with [`InputError`]
-//! and leave the state untouched.
-//!
-//! # ATS (Chae, Kazemibidokhti, Ricles, EESD 2013)
+//! ATS: the adaptive time-series compensator (Chae, Kazemibidokhti, Ricles, EESD 2013).
 //! `u_c = a0·x_t + a1·ẋ_t + a2·ẍ_t`, target derivatives by backward differences. Every `update_period`
 //! samples the coefficients are re-fitted by least squares over the last `window` samples of
 //! `u_f(j) ≈ a0·x_f(j) + a1·ẋ_f(j) + a2·ẍ_f(j)`, where `x_f` is the Butterworth-filtered measured
@@ -33,6 +25,7 @@
 //! pure sine (sampled: ẍ is a combination of x and ẋ, exactly collinear). A window whose filtered
 //! velocity RMS is below `min_velocity_rms_mm_s` is skipped too (a motionless actuator).
 
+use super::input;
 use crate::filter::{finite, Butterworth, ButterworthParams, InputError};
 use crate::params::{positive, ParamError};
 use nalgebra::{Matrix3, Vector3};
@@ -40,26 +33,12 @@ use nalgebra::{Matrix3, Vector3};
 /// Largest ATS window in samples (1 s at 2048 Hz); the rings are sized for it.
 pub const ATS_MAX_WINDOW: usize = 2048;
 
-const X_RING: usize = ATS_MAX_WINDOW + 3;
-const U_RING: usize = ATS_MAX_WINDOW + 1;
-
-/// Largest admissible |target| or |measured| displacement, mm. Far beyond any stroke (±25.4 mm); it only
-/// keeps every intermediate (ẍ ≈ x·4/Δt², its square times the window) well inside f64 range, so a
-/// finite accepted input always yields finite sums and a finite command.
-pub const MAX_ABS_INPUT_MM: f64 = 1.0e6;
-
-fn input(value: f64, what: &'static str) -> Result<f64, InputError> {
-    let v = finite(value, what)?;
-    if v.abs() > MAX_ABS_INPUT_MM {
-        Err(InputError::OutOfRange(what))
-    } else {
-        Ok(v)
-    }
-}
+pub(super) const X_RING: usize = ATS_MAX_WINDOW + 3;
+pub(super) const U_RING: usize = ATS_MAX_WINDOW + 1;
 
 /// A fixed-capacity ring of the most recent samples (initially all zero: the rig starts at rest).
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Ring<const N: usize> {
+pub(super) struct Ring<const N: usize> {
     buf: [f64; N],
     newest: usize,
 }
@@ -85,7 +64,7 @@ impl<const N: usize> Ring<N> {
     }
 
     /// The k-th most recent sample (0 = newest); 0 for k ≥ N (never asked for by construction).
-    fn back(&self, k: usize) -> f64 {
+    pub(super) fn back(&self, k: usize) -> f64 {
         if k >= N {
             return 0.0;
         }
@@ -95,10 +74,6 @@ impl<const N: usize> Ring<N> {
             .unwrap_or(0.0)
     }
 }
-
-// ---------------------------------------------------------------------------------------------------
-// ATS
-// ---------------------------------------------------------------------------------------------------
 
 /// Raw ATS settings, validated into [`AtsParams`]. [`AtsConfig::paper`] gives DESIGN §6's values.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -253,13 +228,13 @@ impl AtsParams {
 
 /// Running sums of the normal equations `Σφφᵀ`, `Σφ·u`.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-struct Normal {
-    a: [[f64; 3]; 3],
+pub(super) struct Normal {
+    pub(super) a: [[f64; 3]; 3],
     b: [f64; 3],
 }
 
 impl Normal {
-    fn add(&mut self, phi: &[f64; 3], y: f64, sign: f64) {
+    pub(super) fn add(&mut self, phi: &[f64; 3], y: f64, sign: f64) {
         for (row, (bi, pi)) in self.a.iter_mut().zip(self.b.iter_mut().zip(phi)) {
             *bi += sign * pi * y;
             for (aij, pj) in row.iter_mut().zip(phi) {
@@ -276,9 +251,9 @@ pub struct AtsState {
     target_hist: [f64; 2],
     filt_x: Butterworth,
     filt_u: Butterworth,
-    xf: Ring<X_RING>,
-    uf: Ring<U_RING>,
-    sums: Normal,
+    pub(super) xf: Ring<X_RING>,
+    pub(super) uf: Ring<U_RING>,
+    pub(super) sums: Normal,
     shadow: Normal,
     shadow_count: usize,
     count: usize,
@@ -333,7 +308,7 @@ impl AtsState {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Ats {
     params: AtsParams,
-    state: AtsState,
+    pub(super) state: AtsState,
 }
 
 impl Ats {
@@ -463,7 +438,7 @@ impl Ats {
 }
 
 /// [x_f, ẋ_f, ẍ_f] of the sample `k` steps back, derivatives by backward differences.
-fn regressor<const N: usize>(ring: &Ring<N>, k: usize, dt: f64) -> [f64; 3] {
+pub(super) fn regressor<const N: usize>(ring: &Ring<N>, k: usize, dt: f64) -> [f64; 3] {
     let (x0, x1, x2) = (ring.back(k), ring.back(k + 1), ring.back(k + 2));
     [x0, (x0 - x1) / dt, (x0 - 2.0 * x1 + x2) / (dt * dt)]
 }
@@ -491,281 +466,3 @@ fn solve(n: &Normal, min_det: f64) -> Option<[f64; 3]> {
     let x = z.component_mul(&inv);
     x.iter().all(|v| v.is_finite()).then_some([x.x, x.y, x.z])
 }
-
-// ---------------------------------------------------------------------------------------------------
-// Horiuchi
-// ---------------------------------------------------------------------------------------------------
-
-/// Highest Horiuchi extrapolation order.
-pub const HORIUCHI_MAX_ORDER: usize = 3;
-
-/// Validated Horiuchi polynomial extrapolation (Horiuchi et al. 1999): order n, delay, step, and the
-/// Lagrange weights of the n+1 most recent targets.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct HoriuchiParams {
-    order: usize,
-    delay_s: f64,
-    dt_s: f64,
-    weights: [f64; HORIUCHI_MAX_ORDER + 1],
-}
-
-impl HoriuchiParams {
-    /// Order n in 1..=3, delay in [0, 1] s (extrapolating further is meaningless), dt > 0.
-    pub fn new(order: usize, delay_s: f64, dt_s: f64) -> Result<Self, ParamError> {
-        if order == 0 || order > HORIUCHI_MAX_ORDER {
-            return Err(ParamError::OutOfRange("Horiuchi order (1..=3)"));
-        }
-        let dt = positive(dt_s, "Horiuchi dt_s")?;
-        if !delay_s.is_finite() {
-            return Err(ParamError::NotFinite("Horiuchi delay"));
-        }
-        if !(0.0..=1.0).contains(&delay_s) {
-            return Err(ParamError::OutOfRange("Horiuchi delay (0..=1 s)"));
-        }
-        // Nodes at t = −j·dt (j = 0..n), evaluate at t = +delay: w_j = Π_{m≠j} (s + m)/(m − j).
-        let s = delay_s / dt;
-        let mut weights = [0.0; HORIUCHI_MAX_ORDER + 1];
-        for (j, w) in weights.iter_mut().enumerate().take(order + 1) {
-            *w = (0..=order)
-                .filter(|&m| m != j)
-                .map(|m| (s + m as f64) / (m as f64 - j as f64))
-                .product();
-        }
-        Ok(Self {
-            order,
-            delay_s,
-            dt_s: dt,
-            weights,
-        })
-    }
-
-    /// Extrapolation order n.
-    pub fn order(&self) -> usize {
-        self.order
-    }
-
-    /// Extrapolation horizon, s.
-    pub fn delay_s(&self) -> f64 {
-        self.delay_s
-    }
-
-    /// Sample step, s.
-    pub fn dt_s(&self) -> f64 {
-        self.dt_s
-    }
-
-    /// Weights of the targets, newest first (zero beyond the order).
-    pub fn weights(&self) -> &[f64; HORIUCHI_MAX_ORDER + 1] {
-        &self.weights
-    }
-}
-
-/// Horiuchi extrapolation: parameters plus the last n+1 targets (initially zero: the rig at rest).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Horiuchi {
-    params: HoriuchiParams,
-    history: [f64; HORIUCHI_MAX_ORDER + 1],
-}
-
-impl Horiuchi {
-    /// An extrapolator at rest.
-    pub fn new(params: HoriuchiParams) -> Self {
-        Self {
-            params,
-            history: [0.0; HORIUCHI_MAX_ORDER + 1],
-        }
-    }
-
-    /// The parameters.
-    pub fn params(&self) -> &HoriuchiParams {
-        &self.params
-    }
-
-    /// Back to rest.
-    pub fn reset(&mut self) {
-        self.history = [0.0; HORIUCHI_MAX_ORDER + 1];
-    }
-
-    /// Push the new target and return its extrapolation `delay_s` ahead, mm.
-    pub fn compensate(&mut self, target_mm: f64) -> Result<f64, InputError> {
-        let xt = input(target_mm, "target_mm")?;
-        let mut h = self.history;
-        h.rotate_right(1);
-        if let Some(first) = h.first_mut() {
-            *first = xt;
-        }
-        let u = finite(
-            self.params.weights.iter().zip(&h).map(|(w, x)| w * x).sum(),
-            "Horiuchi command",
-        )?;
-        self.history = h;
-        Ok(u)
-    }
-}
-
-// ---------------------------------------------------------------------------------------------------
-// Learned lead filter
-// ---------------------------------------------------------------------------------------------------
-
-/// Taps of the learned lead filter.
-pub const LEAD_TAPS: usize = 8;
-
-/// Longest tap spacing of the lead filter, ticks.
-pub const LEAD_MAX_STRIDE: usize = 8;
-
-/// Ring length of the lead filter's target history (power of two ≥ (taps−1)·max stride + 1).
-const LEAD_RING: usize = ((LEAD_TAPS - 1) * LEAD_MAX_STRIDE + 1).next_power_of_two();
-
-/// Validated parameters of the learned lead filter: u(k) = Σ_i w_i·x_t(k − i·stride).
-///
-/// A fixed linear inverse of the plant (delay and gain), identified offline by least squares from
-/// plant runs (`rths train lrx`): the same form as the ATS law (a0·x + a1·ẋ + a2·ẍ is a 3-tap filter
-/// at stride 1) with more taps and no online adaptation, at a fraction of its cost.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LeadParams {
-    weights: [f64; LEAD_TAPS],
-    stride: usize,
-}
-
-impl LeadParams {
-    /// From the weights (finite) and the tap spacing in ticks (1..=[`LEAD_MAX_STRIDE`]).
-    pub fn new(weights: [f64; LEAD_TAPS], stride: usize) -> Result<Self, ParamError> {
-        if !weights.iter().all(|w| w.is_finite()) {
-            return Err(ParamError::NotFinite("lead filter weight"));
-        }
-        if !(1..=LEAD_MAX_STRIDE).contains(&stride) {
-            return Err(ParamError::OutOfRange("lead filter stride"));
-        }
-        Ok(Self { weights, stride })
-    }
-
-    /// The weights, newest tap first.
-    pub fn weights(&self) -> &[f64; LEAD_TAPS] {
-        &self.weights
-    }
-
-    /// Tap spacing, ticks.
-    pub fn stride(&self) -> usize {
-        self.stride
-    }
-}
-
-/// The learned lead filter: parameters plus the last targets (zeros at rest).
-///
-/// It runs in single precision (the MCU's FPU is single precision; f64 is software): the command is
-/// a sum of 8 products of magnitude ≲ 10× the target, so f32 rounding (6e-8 relative) costs
-/// ≲ 1e-5 mm, 80× below the DAC's 16-bit step (0.78 µm over ±25.4 mm).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Lead {
-    params: LeadParams,
-    weights: [f32; LEAD_TAPS],
-    ring: [f32; LEAD_RING],
-    newest: usize,
-}
-
-impl Lead {
-    /// A filter at rest.
-    pub fn new(params: LeadParams) -> Self {
-        let mut weights = [0.0f32; LEAD_TAPS];
-        weights
-            .iter_mut()
-            .zip(&params.weights)
-            .for_each(|(d, s)| *d = *s as f32);
-        Self {
-            params,
-            weights,
-            ring: [0.0; LEAD_RING],
-            newest: 0,
-        }
-    }
-
-    /// The parameters.
-    pub fn params(&self) -> &LeadParams {
-        &self.params
-    }
-
-    /// Back to rest.
-    pub fn reset(&mut self) {
-        self.ring = [0.0; LEAD_RING];
-        self.newest = 0;
-    }
-
-    /// Push the new target and return the command, mm. Refuses a bad target and keeps the history.
-    pub fn compensate(&mut self, target_mm: f64) -> Result<f64, InputError> {
-        let xt = input(target_mm, "target_mm")? as f32;
-        let newest = (self.newest + 1) & (LEAD_RING - 1);
-        let mut u = 0.0f32;
-        let mut i = newest;
-        for (k, w) in self.weights.iter().enumerate() {
-            let x = if k == 0 {
-                xt
-            } else {
-                self.ring.get(i).copied().unwrap_or(0.0)
-            };
-            u += w * x;
-            i = i.wrapping_sub(self.params.stride) & (LEAD_RING - 1);
-        }
-        let u = finite(f64::from(u), "lead command")?;
-        if let Some(slot) = self.ring.get_mut(newest) {
-            *slot = xt;
-        }
-        self.newest = newest;
-        Ok(u)
-    }
-}
-
-// ---------------------------------------------------------------------------------------------------
-// One entry point
-// ---------------------------------------------------------------------------------------------------
-
-/// The compensator of a run.
-// Boxing the ~33 KiB ATS is not possible without an allocator; the enum lives in a static/resource.
-#[allow(clippy::large_enum_variant)]
-#[derive(Debug, Clone, PartialEq)]
-pub enum Compensator {
-    /// Command = target.
-    None,
-    /// Polynomial extrapolation of the target.
-    Horiuchi(Horiuchi),
-    /// Adaptive time series.
-    Ats(Ats),
-    /// Learned (fixed) lead filter.
-    Lead(Lead),
-}
-
-impl Compensator {
-    /// Command (mm) for this tick. Every variant refuses a non-finite or out-of-range target *or*
-    /// measured displacement (even those that ignore x_m), so the supervisor sees a bad sensor the same
-    /// way whatever the compensator.
-    pub fn compensate(&mut self, target_mm: f64, measured_mm: f64) -> Result<f64, InputError> {
-        match self {
-            // Nothing to compute: only refuse what is not a number (the supervisor trips on it).
-            Compensator::None => {
-                finite(measured_mm, "measured_mm")?;
-                finite(target_mm, "target_mm")
-            }
-            Compensator::Horiuchi(h) => {
-                input(measured_mm, "measured_mm")?;
-                h.compensate(target_mm)
-            }
-            Compensator::Ats(a) => a.compensate(target_mm, measured_mm),
-            Compensator::Lead(l) => {
-                input(measured_mm, "measured_mm")?;
-                l.compensate(target_mm)
-            }
-        }
-    }
-
-    /// Back to rest.
-    pub fn reset(&mut self) {
-        match self {
-            Compensator::None => {}
-            Compensator::Horiuchi(h) => h.reset(),
-            Compensator::Ats(a) => a.reset(),
-            Compensator::Lead(l) => l.reset(),
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests;

@@ -1,0 +1,203 @@
+//! A basic Elman RNN metamodel (inference only; training is on the host).
+
+use super::{all_finite, shape, ModelError};
+use crate::filter::{finite, InputError};
+
+/// Number of RNN inputs: [ü_g (mm/s²), F_fb (kN)].
+pub const RNN_INPUTS: usize = 2;
+
+/// Input order of the RNN (model files carry it).
+pub const RNN_INPUT_NAMES: [&str; RNN_INPUTS] = ["ground_accel_mm_s2", "brace_force_fb_kn"];
+
+/// Largest supported RNN hidden size (storage is fixed at this capacity).
+pub const RNN_MAX_HIDDEN: usize = 32;
+
+/// Raw weights of an Elman RNN with hidden size H, row-major, as a model file stores them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RnnWeights<'a> {
+    /// Input-to-hidden W_ih, H×[`RNN_INPUTS`] row-major (row j = hidden unit j).
+    pub w_ih: &'a [f64],
+    /// Hidden-to-hidden W_hh, H×H row-major.
+    pub w_hh: &'a [f64],
+    /// Hidden bias b_h, H (the sum of PyTorch-style b_ih + b_hh, if the trainer has both).
+    pub b_h: &'a [f64],
+    /// Hidden-to-output W_ho, 1×H.
+    pub w_ho: &'a [f64],
+    /// Output bias b_o.
+    pub b_o: f64,
+}
+
+/// Input normalization and output de-normalization of the RNN: `in_n = (in − mean)/std`,
+/// `y = y_n·std + mean`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RnnScaling {
+    /// Per-input mean, order [`RNN_INPUT_NAMES`] (mm/s², kN).
+    pub input_mean: [f64; RNN_INPUTS],
+    /// Per-input standard deviation (> 0).
+    pub input_std: [f64; RNN_INPUTS],
+    /// Output mean, mm.
+    pub output_mean: f64,
+    /// Output standard deviation, mm (> 0).
+    pub output_std: f64,
+}
+
+/// Validated Elman RNN parameters in fixed-capacity storage (sized for [`RNN_MAX_HIDDEN`]; entries
+/// beyond the hidden size are zero and never read).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RnnParams {
+    hidden: usize,
+    w_ih: [[f64; RNN_INPUTS]; RNN_MAX_HIDDEN],
+    w_hh: [[f64; RNN_MAX_HIDDEN]; RNN_MAX_HIDDEN],
+    b_h: [f64; RNN_MAX_HIDDEN],
+    w_ho: [f64; RNN_MAX_HIDDEN],
+    b_o: f64,
+    scaling: RnnScaling,
+}
+
+impl RnnParams {
+    /// Validate shapes (hidden size H = `b_h.len()` in 1..=32; W_ih H×2, W_hh H×H, W_ho 1×H),
+    /// finiteness of every weight and scale, and std > 0.
+    pub fn new(w: RnnWeights<'_>, scaling: RnnScaling) -> Result<Self, ModelError> {
+        let h = w.b_h.len();
+        if h == 0 || h > RNN_MAX_HIDDEN {
+            return Err(ModelError::HiddenSize(h));
+        }
+        shape(w.w_ih, h * RNN_INPUTS, "RNN W_ih")?;
+        shape(w.w_hh, h * h, "RNN W_hh")?;
+        shape(w.w_ho, h, "RNN W_ho")?;
+        all_finite(w.w_ih, "RNN W_ih")?;
+        all_finite(w.w_hh, "RNN W_hh")?;
+        all_finite(w.b_h, "RNN b_h")?;
+        all_finite(w.w_ho, "RNN W_ho")?;
+        all_finite(&[w.b_o], "RNN b_o")?;
+        all_finite(&scaling.input_mean, "RNN input mean")?;
+        all_finite(&[scaling.output_mean], "RNN output mean")?;
+        for s in scaling.input_std {
+            crate::params::positive(s, "RNN input std")?;
+        }
+        crate::params::positive(scaling.output_std, "RNN output std")?;
+
+        let mut p = Self {
+            hidden: h,
+            w_ih: [[0.0; RNN_INPUTS]; RNN_MAX_HIDDEN],
+            w_hh: [[0.0; RNN_MAX_HIDDEN]; RNN_MAX_HIDDEN],
+            b_h: [0.0; RNN_MAX_HIDDEN],
+            w_ho: [0.0; RNN_MAX_HIDDEN],
+            b_o: w.b_o,
+            scaling,
+        };
+        for (row, src) in p.w_ih.iter_mut().zip(w.w_ih.chunks_exact(RNN_INPUTS)) {
+            row.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
+        }
+        for (row, src) in p.w_hh.iter_mut().zip(w.w_hh.chunks_exact(h)) {
+            row.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
+        }
+        p.b_h.iter_mut().zip(w.b_h).for_each(|(d, s)| *d = *s);
+        p.w_ho.iter_mut().zip(w.w_ho).for_each(|(d, s)| *d = *s);
+        Ok(p)
+    }
+
+    /// Hidden size H.
+    pub fn hidden(&self) -> usize {
+        self.hidden
+    }
+
+    /// Normalization constants.
+    pub fn scaling(&self) -> &RnnScaling {
+        &self.scaling
+    }
+}
+
+/// The inputs of one RNN step (time i).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RnnInputs {
+    /// Ground acceleration ü_g(i), mm/s².
+    pub ground_accel_mm_s2: f64,
+    /// Prototype brace axial force F_fb(i), kN.
+    pub brace_force_fb_kn: f64,
+}
+
+/// Recurrent state of the RNN: the hidden vector (first H entries used).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RnnState {
+    /// Hidden activations h(i).
+    pub hidden: [f64; RNN_MAX_HIDDEN],
+}
+
+impl RnnState {
+    /// Zero hidden vector.
+    pub fn reset(&mut self) {
+        *self = Self::default();
+    }
+}
+
+/// Elman RNN metamodel: parameters plus state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rnn {
+    params: RnnParams,
+    pub(super) state: RnnState,
+}
+
+impl Rnn {
+    /// A model with a zero hidden state.
+    pub fn new(params: RnnParams) -> Self {
+        Self {
+            params,
+            state: RnnState::default(),
+        }
+    }
+
+    /// The weights.
+    pub fn params(&self) -> &RnnParams {
+        &self.params
+    }
+
+    /// The hidden state.
+    pub fn state(&self) -> &RnnState {
+        &self.state
+    }
+
+    /// Zero hidden state.
+    pub fn reset(&mut self) {
+        self.state.reset();
+    }
+
+    /// One step: `h = tanh(W_ih·in_n + W_hh·h + b_h)`, `y = (W_ho·h + b_o)·std + mean`, in mm.
+    /// Refuses non-finite inputs (or a non-finite hidden/output) and keeps the state.
+    pub fn predict(&mut self, inputs: RnnInputs) -> Result<f64, InputError> {
+        let p = &self.params;
+        let s = &p.scaling;
+        let raw = [
+            finite(inputs.ground_accel_mm_s2, "ground_accel_mm_s2")?,
+            finite(inputs.brace_force_fb_kn, "brace_force_fb_kn")?,
+        ];
+        let mut x = [0.0; RNN_INPUTS];
+        for (((xn, r), m), sd) in x.iter_mut().zip(raw).zip(s.input_mean).zip(s.input_std) {
+            *xn = finite((r - m) / sd, "normalized RNN input")?;
+        }
+        let mut h_new = [0.0; RNN_MAX_HIDDEN];
+        let hidden_rows = p.w_ih.iter().zip(&p.w_hh).zip(&p.b_h).take(p.hidden);
+        for (hj, ((wi, wh), b)) in h_new.iter_mut().zip(hidden_rows) {
+            let from_in: f64 = wi.iter().zip(&x).map(|(w, v)| w * v).sum();
+            let from_h: f64 = wh
+                .iter()
+                .zip(&self.state.hidden)
+                .take(p.hidden)
+                .map(|(w, v)| w * v)
+                .sum();
+            // tanh saturates at ±1, so only ∞ − ∞ (a NaN pre-activation) can make this non-finite.
+            *hj = finite(libm::tanh(from_in + from_h + b), "RNN hidden state")?;
+        }
+        let y_n: f64 = p
+            .w_ho
+            .iter()
+            .zip(&h_new)
+            .take(p.hidden)
+            .map(|(w, v)| w * v)
+            .sum::<f64>()
+            + p.b_o;
+        let y = finite(y_n * s.output_std + s.output_mean, "RNN prediction")?;
+        self.state.hidden = h_new;
+        Ok(y)
+    }
+}
