@@ -15,6 +15,7 @@ use rths_link::{
 };
 
 use crate::model_file::{ModelFile, ModelKind};
+use rths_core::supervisor::FaultReason;
 
 /// A failure of the host side of the link.
 #[derive(Debug, thiserror::Error)]
@@ -441,23 +442,10 @@ pub fn state_name(s: RunState) -> String {
     }
 }
 
-/// The name of a fault code (the firmware's `link::fault_code` order).
+/// The name of a fault code (`rths_core::supervisor::FaultReason`'s table); "Unknown" for a code
+/// this host does not know (a newer firmware's).
 pub fn fault_name(code: u8) -> &'static str {
-    const NAMES: [&str; 12] = [
-        "MeasuredStroke",
-        "CommandStroke",
-        "CommandVelocity",
-        "Force",
-        "NonFiniteCommand",
-        "NonFiniteSample",
-        "SensorTimeout",
-        "Overrun",
-        "EmergencyStop",
-        "FollowingError",
-        "ImplausibleMotion",
-        "FrozenSensor",
-    ];
-    NAMES.get(code as usize).copied().unwrap_or("Unknown")
+    FaultReason::from_code(code).map_or("Unknown", FaultReason::name)
 }
 
 /// The QEMU command line of the emulated board with its serial port connected, as a client, to

@@ -28,8 +28,8 @@ pub const SYSCLK_HZ: u32 = 168_000_000;
 /// virtual time, whatever the RCC says).
 pub const TIM_CLOCK_HZ: u32 = 1_000_000_000;
 
-/// The controller rate the tick aims at, Hz (DESIGN §2: Δt = 1/2048 s).
-pub const TARGET_TICK_HZ: u32 = 2048;
+/// The controller rate the tick aims at, Hz (`rths_core::params::CONTROL_RATE_HZ`).
+pub const TARGET_TICK_HZ: u32 = rths_core::params::CONTROL_RATE_HZ;
 
 /// Timer counts per tick: `round(TIM_CLOCK_HZ / 2048)` = 488 281 (the exact value is 488 281.25).
 pub const TICK_PERIOD_COUNTS: u32 = (TIM_CLOCK_HZ + TARGET_TICK_HZ / 2) / TARGET_TICK_HZ;

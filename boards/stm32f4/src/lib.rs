@@ -34,7 +34,7 @@ pub const SYSCLK_HZ: u32 = 168_000_000;
 /// TIM2's counting clock (APB1 = 42 MHz, doubled for the timers since its prescaler is not 1), Hz.
 pub const TIM2_CLOCK_HZ: u32 = 84_000_000;
 /// The controller rate the tick aims at, Hz.
-pub const TARGET_TICK_HZ: u32 = 2048;
+pub const TARGET_TICK_HZ: u32 = rths_core::params::CONTROL_RATE_HZ;
 /// Timer counts per tick: round(84 MHz / 2048) = 41 016.
 pub const TICK_PERIOD_COUNTS: u32 = (TIM2_CLOCK_HZ + TARGET_TICK_HZ / 2) / TARGET_TICK_HZ;
 /// The link's baud rate.
