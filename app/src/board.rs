@@ -51,6 +51,56 @@ impl EStop for NoEStop {
     }
 }
 
+/// What a board runs after each tick, outside the measured section: on the emulated board the
+/// reference response (for the NRMSE) and the plant's advance; nothing on a real rig.
+pub trait Harness<R> {
+    /// After tick `k` (`in_record`: a row of the record) with ground acceleration `ag_mm_s2` and
+    /// the controller's target `target_mm`: the row's ((target − reference)², |reference|), mm², mm,
+    /// if the board has a reference.
+    fn after_tick(
+        &mut self,
+        rig: &mut R,
+        k: u32,
+        in_record: bool,
+        ag_mm_s2: f64,
+        target_mm: f64,
+    ) -> Option<(f64, f64)>;
+    /// Back to rest under the ground acceleration of tick 0, mm/s² (before the first tick).
+    fn reset(&mut self, ag0_mm_s2: f64);
+}
+
+/// The board's calibration of its instruction counter, measured at boot.
+pub trait Calibration {
+    /// The calibration line (`CALIB {...}`) printed before the report; nothing if the board has none.
+    fn write_line<W: core::fmt::Write>(&self, w: &mut W) -> core::fmt::Result;
+    /// Instructions the counter itself takes between two readings (subtracted from each tick's).
+    fn counter_overhead_instr(&self) -> u32;
+}
+
+/// No calibration.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoCalibration;
+
+impl Calibration for NoCalibration {
+    fn write_line<W: core::fmt::Write>(&self, _: &mut W) -> core::fmt::Result {
+        Ok(())
+    }
+    fn counter_overhead_instr(&self) -> u32 {
+        0
+    }
+}
+
+/// A board with nothing to do between ticks (a real rig: the world moves by itself).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoHarness;
+
+impl<R> Harness<R> for NoHarness {
+    fn after_tick(&mut self, _: &mut R, _: u32, _: bool, _: f64, _: f64) -> Option<(f64, f64)> {
+        None
+    }
+    fn reset(&mut self, _: f64) {}
+}
+
 /// One board: its parts' types and what sets it apart.
 pub trait Board {
     /// The tick timer.
@@ -65,11 +115,25 @@ pub trait Board {
     type Counter: InstrCounter;
     /// The E-stop input.
     type EStop: EStop;
+    /// What runs between ticks.
+    type Harness: Harness<Self::Rig>;
+    /// The instruction counter's calibration.
+    type Calibration: Calibration + Copy;
     /// The plant runs inside the MCU (QEMU): the record plays once per power-up from rest at 0 mm,
     /// the controller ticks only during that run, the board advances the plant after each tick and
     /// the run ends with the `RESULT` report. A real rig instead ticks from boot (the interlocks
     /// watch it whenever a test is armed), arms at the measured position and can run again.
     const EMULATED_PLANT: bool;
+
+    /// The tick's actual rate, Hz (the timer's period is rounded to whole counts).
+    fn tick_rate_hz() -> f64;
+    /// Print a line for the user (the emulated board's stdout; the log on a real one).
+    fn host_line(line: &str);
+    /// End the program: the emulated board exits with `success` as its status; a real one halts
+    /// (the DAC holds its output; the servo-controller's own limits protect the rig).
+    fn exit(success: bool) -> !;
+    /// Log frames cut or lost so far.
+    fn log_frames_cut() -> u32;
 }
 
 /// The board's parts, as the firmware takes them over at boot.
@@ -84,4 +148,8 @@ pub struct Parts<B: Board> {
     pub counter: B::Counter,
     /// The E-stop input.
     pub estop: B::EStop,
+    /// What runs between ticks.
+    pub harness: B::Harness,
+    /// The instruction counter's calibration.
+    pub calibration: B::Calibration,
 }
