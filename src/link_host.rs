@@ -448,9 +448,9 @@ pub fn fault_name(code: u8) -> &'static str {
     FaultReason::from_code(code).map_or("Unknown", FaultReason::name)
 }
 
-/// The QEMU command line of the emulated board with its serial port connected, as a client, to
-/// `127.0.0.1:port` (the runner of `firmware/.cargo/config.toml` with `-serial tcp:` instead of
-/// `-serial null`).
+/// The QEMU command line of the emulated board with its link port (USART2, QEMU's second serial
+/// port) connected, as a client, to `127.0.0.1:port` (the runner of `firmware/.cargo/config.toml`
+/// with `-serial tcp:` after its `-serial null`).
 pub fn qemu_args(elf: &Path, port: u16) -> Vec<String> {
     let serial = format!("tcp:127.0.0.1:{port}");
     [
@@ -461,6 +461,8 @@ pub fn qemu_args(elf: &Path, port: u16) -> Vec<String> {
         "-nographic",
         "-monitor",
         "none",
+        "-serial",
+        "null",
         "-serial",
         &serial,
         "-semihosting-config",

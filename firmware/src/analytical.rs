@@ -6,8 +6,6 @@ use rths_core::control::{Analytical, ControlConfig, Controller, FeedbackSource};
 use rths_core::params::{Prototype, SpecimenScale};
 use rths_core::supervisor::Limits;
 
-use crate::gen;
-
 const _: () = assert!(
     cfg!(feature = "model-lr") as u8
         + cfg!(feature = "model-rnn") as u8
@@ -30,7 +28,7 @@ pub const SCENARIO_PREFIX: &str = if cfg!(feature = "model-rnn") {
 
 /// The suffix of the scenario's name: the RNN's hidden size.
 #[cfg(feature = "model-rnn")]
-pub const SCENARIO_SUFFIX: Option<usize> = Some(gen::RNN_HIDDEN);
+pub const SCENARIO_SUFFIX: Option<usize> = Some(crate::gen::RNN_HIDDEN);
 /// The suffix of the scenario's name: none.
 #[cfg(not(feature = "model-rnn"))]
 pub const SCENARIO_SUFFIX: Option<usize> = None;
@@ -60,25 +58,25 @@ fn analytical() -> Result<(Analytical, Compensator, u32), &'static str> {
     #[cfg(feature = "model-lr")]
     {
         use rths_core::metamodel::{Lr, LrParams};
-        let p = LrParams::new(gen::LR_THETA).map_err(|_| "LR model")?;
-        let crc = rths_app::link::compiled_model_checksum(&gen::LR_THETA);
+        let p = LrParams::new(crate::gen::LR_THETA).map_err(|_| "LR model")?;
+        let crc = rths_app::link::compiled_model_checksum(&crate::gen::LR_THETA);
         Ok((Analytical::Lr(Lr::new(p)), Compensator::None, crc))
     }
     #[cfg(feature = "model-rnn")]
     {
         use rths_core::metamodel::{Rnn, RnnParams, RnnScaling, RnnWeights};
         let w = RnnWeights {
-            w_ih: &gen::RNN_W_IH,
-            w_hh: &gen::RNN_W_HH,
-            b_h: &gen::RNN_B_H,
-            w_ho: &gen::RNN_W_HO,
-            b_o: gen::RNN_B_O,
+            w_ih: &crate::gen::RNN_W_IH,
+            w_hh: &crate::gen::RNN_W_HH,
+            b_h: &crate::gen::RNN_B_H,
+            w_ho: &crate::gen::RNN_W_HO,
+            b_o: crate::gen::RNN_B_O,
         };
         let s = RnnScaling {
-            input_mean: gen::RNN_IN_MEAN,
-            input_std: gen::RNN_IN_STD,
-            output_mean: gen::RNN_OUT_MEAN,
-            output_std: gen::RNN_OUT_STD,
+            input_mean: crate::gen::RNN_IN_MEAN,
+            input_std: crate::gen::RNN_IN_STD,
+            output_mean: crate::gen::RNN_OUT_MEAN,
+            output_std: crate::gen::RNN_OUT_STD,
         };
         let p = RnnParams::new(w, s).map_err(|_| "RNN model")?;
         Ok((Analytical::Rnn(Rnn::new(p)), Compensator::None, 0))
@@ -97,9 +95,14 @@ fn analytical() -> Result<(Analytical, Compensator, u32), &'static str> {
     {
         use rths_core::compensator::{Lead, LeadParams};
         use rths_core::metamodel::{Lrx, LrxParams};
-        let p = LrxParams::new(gen::LRX_COEFFS, gen::LRX_K_CORR, gen::LRX_K_ADAPT)
-            .map_err(|_| "LRX model")?;
-        let lead = LeadParams::new(gen::LRX_LEAD, gen::LRX_LEAD_STRIDE).map_err(|_| "LRX lead")?;
+        let p = LrxParams::new(
+            crate::gen::LRX_COEFFS,
+            crate::gen::LRX_K_CORR,
+            crate::gen::LRX_K_ADAPT,
+        )
+        .map_err(|_| "LRX model")?;
+        let lead = LeadParams::new(crate::gen::LRX_LEAD, crate::gen::LRX_LEAD_STRIDE)
+            .map_err(|_| "LRX lead")?;
         Ok((
             Analytical::Lrx(Lrx::new(p)),
             Compensator::Lead(Lead::new(lead)),
@@ -112,8 +115,8 @@ fn analytical() -> Result<(Analytical, Compensator, u32), &'static str> {
 #[cfg(feature = "fault-inject")]
 pub fn faults() -> rths_hal_sim::FaultPlan {
     use rths_hal_sim::{Fault, FaultPlan};
-    match gen::FAULT_KIND {
-        Some(kind) => match Fault::new(kind, gen::FAULT_START, gen::FAULT_TICKS)
+    match crate::gen::FAULT_KIND {
+        Some(kind) => match Fault::new(kind, crate::gen::FAULT_START, crate::gen::FAULT_TICKS)
             .and_then(|f| FaultPlan::none().with(f))
         {
             Ok(p) => p,

@@ -6,10 +6,15 @@
 //! - `control` (the board's tick timer, TIM2, priority 3, `CONTROL_RATE_HZ`): E-stop, DAQ read,
 //!   `Controller::tick`, command write, one telemetry record: the measured section. Then, outside
 //!   it, the board's harness (on QEMU: the reference response, the NRMSE sums, the plant's advance).
-//! - `supervisor` (software task, priority 2): starts an autonomous run, ends an emulated run (at
+//! - `supervisor` (UART4, pended, priority 2): starts an autonomous run, ends an emulated run (at
 //!   `Done` or a settled fault) and reports it.
-//! - `telemetry` (software task, priority 1): drains the record queue to the link (`link`) or the
-//!   defmt log.
+//! - `telemetry` (USART3, pended every tick, priority 1): drains the record queue to the link
+//!   (`link`) or the defmt log.
+//!
+//! The two lower tasks are bound to spare interrupt vectors and pended by hand rather than being
+//! RTIC 2 async software tasks: an async task compiles to a state machine whose resume-after-end arm
+//! calls a panic, which `panic-check.sh` (rightly) finds reachable; these tasks stay provably
+//! panic-free.
 //! - `link_rx` (`link`; the link UART's receive interrupt, USART2, priority 1): the host's requests.
 //! - `idle`: `wfi`.
 //!
@@ -47,7 +52,6 @@ use rths_app::board::{Board, Calibration as _};
 use rths_app::report::{as_expected, write_result, ReportInfo};
 use rths_app::Run;
 use rths_core::supervisor::{Limits, State};
-use rtic_sync::signal::Signal;
 
 /// The board this build is for.
 type B = board::ThisBoard;
@@ -61,10 +65,11 @@ static FINISHED: AtomicBool = AtomicBool::new(false);
 static RECORD_END: AtomicBool = AtomicBool::new(false);
 /// `link`: the run ended; `telemetry` sends `RunEnded` after its last record.
 static RUN_ENDED: AtomicBool = AtomicBool::new(false);
-/// Wakes `supervisor`: a fault, a settled fault, the end of the record or `Done`.
-static SUPERVISE: Signal<()> = Signal::new();
-/// Wakes `telemetry`: records are queued.
-static TELEMETRY: Signal<()> = Signal::new();
+/// The supervisor task's interrupt (pended on a fault, a settled fault, the end of the record or
+/// `Done`).
+const SUPERVISOR_IRQ: board::pac::Interrupt = board::pac::Interrupt::UART4;
+/// The telemetry task's interrupt (pended every tick).
+const TELEMETRY_IRQ: board::pac::Interrupt = board::pac::Interrupt::USART3;
 
 /// Telemetry queue depth (records).
 const QUEUE: usize = 64;
@@ -139,15 +144,14 @@ fn report(
     )
 }
 
-#[rtic::app(device = crate::board::pac, peripherals = true, dispatchers = [UART4, UART5])]
+#[rtic::app(device = crate::board::pac, peripherals = true)]
 mod app {
     use super::*;
     use heapless::spsc::{Consumer, Producer, Queue};
-    use rths_app::board::{EStop as _, Harness as _, InstrCounter as _};
+    use rths_app::board::{EStop, Harness, InstrCounter, TickTimer};
     use rths_app::run::TickFacts;
     use rths_app::{control_step, Record};
     use rths_core::control::Controller;
-    use rtic_sync::signal::SignalReader;
 
     /// The link port and the session (the stream's numbering, the model in force). Without `link`
     /// the port is idle.
@@ -177,8 +181,6 @@ mod app {
         ag: f64,
         /// The instruction counter's own overhead, subtracted from each tick's count.
         overhead_instr: u32,
-        supervise: SignalReader<'static, ()>,
-        telemetry: SignalReader<'static, ()>,
         /// `link`: the frame reader of the host's requests.
         #[cfg(feature = "link")]
         reader: rths_link::FrameReader<{ rths_link::MAX_FRAME }>,
@@ -197,15 +199,13 @@ mod app {
         };
         #[cfg(feature = "fault-inject")]
         parts.rig.inject(analytical::faults());
-        parts.harness.reset(motion::ground_accel_mm_s2(0));
+        <<B as Board>::Harness as Harness<<B as Board>::Rig>>::reset(
+            &mut parts.harness,
+            motion::ground_accel_mm_s2(0),
+        );
         let (ctl, model_checksum) = match analytical::controller() {
             Ok(c) => c,
             Err(e) => die(e),
-        };
-        let (Some(supervise), Some(telemetry)) =
-            (SUPERVISE.try_take_reader(), TELEMETRY.try_take_reader())
-        else {
-            die("signals")
         };
         let (producer, consumer) = cx.local.queue.split();
         defmt::info!(
@@ -215,16 +215,15 @@ mod app {
             gen::RECORD_TICKS,
             B::tick_rate_hz()
         );
-        if supervisor::spawn().is_err() || telemetry::spawn().is_err() {
-            die("tasks");
-        }
         // An autonomous run: `supervisor` arms, starts and starts the timer. With the link the host
         // does, and the timer runs from now on: a real rig's interlocks watch it whenever a test is
         // armed, and in QEMU a guest that waits in `wfi` with no timer deadline stops its virtual
         // clock from being advanced after the host's `Start`, and the run crawls.
         let mut timer = parts.timer;
         if cfg!(feature = "link") {
-            timer.start();
+            TickTimer::start(&mut timer);
+        } else {
+            rtic::pend(SUPERVISOR_IRQ);
         }
         (
             Shared {
@@ -254,8 +253,6 @@ mod app {
                 consumer,
                 ag: motion::ground_accel_mm_s2(0),
                 overhead_instr: parts.calibration.counter_overhead_instr(),
-                supervise,
-                telemetry,
                 #[cfg(feature = "link")]
                 reader: rths_link::FrameReader::new(),
             },
@@ -280,7 +277,7 @@ mod app {
            local = [rig, counter, estop, harness, producer, ag, overhead_instr,
                     k: u32 = 0, overrun: bool = false])]
     fn control(mut cx: control::Context) {
-        cx.shared.timer.lock(|t| t.clear());
+        cx.shared.timer.lock(TickTimer::clear);
         let running = RUNNING.load(Ordering::Acquire);
         // The emulated plant moves only during its run (it must match the host simulation's).
         if !running && B::EMULATED_PLANT {
@@ -289,7 +286,7 @@ mod app {
         let k = if running { *cx.local.k } else { 0 };
         let ag = if running { *cx.local.ag } else { 0.0 };
         let overrun = *cx.local.overrun || injected_overrun(k);
-        if cx.local.estop.asserted() {
+        if EStop::asserted(cx.local.estop) {
             // Ramps the command to the safe position, whatever the state.
             cx.shared.ctl.lock(|c| c.supervisor_mut().emergency_stop());
         }
@@ -298,22 +295,18 @@ mod app {
         let counter = cx.local.counter;
         let rig = cx.local.rig;
         let producer = cx.local.producer;
-        let t0 = counter.now();
+        let t0 = InstrCounter::now(counter);
         let step = cx
             .shared
             .ctl
             .lock(|c| control_step(c, rig, producer, k, ag, overrun, running));
-        let t1 = counter.now();
+        let t1 = InstrCounter::now(counter);
         // ---- end of the measured section ----
 
-        let instr = counter
-            .instructions(t0, t1)
-            .saturating_sub(*cx.local.overhead_instr);
+        let instr =
+            InstrCounter::instructions(counter, t0, t1).saturating_sub(*cx.local.overhead_instr);
         let in_record = k < gen::RECORD_TICKS;
-        let row = cx
-            .local
-            .harness
-            .after_tick(rig, k, in_record, ag, step.out.target_mm);
+        let row = Harness::after_tick(cx.local.harness, rig, k, in_record, ag, step.out.target_mm);
         let next_k = if running { k.saturating_add(1) } else { 0 };
         // ü_g for the next tick, interpolated in the slack of this one (docs/design.md §8 counts
         // only the DAQ read, the control step, the command write and the log record).
@@ -355,18 +348,20 @@ mod app {
             RECORD_END.store(true, Ordering::Release);
         }
         if notify || record_end {
-            SUPERVISE.writer().write(());
+            rtic::pend(SUPERVISOR_IRQ);
         }
-        TELEMETRY.writer().write(());
+        rtic::pend(TELEMETRY_IRQ);
         // The next update already fired: this tick overran its deadline.
-        *cx.local.overrun = cx.shared.timer.lock(|t| t.pending());
+        *cx.local.overrun = cx.shared.timer.lock(|t| TickTimer::pending(t));
     }
 
     /// The supervisor: starts an autonomous run; stops an emulated run on a settled fault or at
     /// `Done`, and reports it.
-    #[task(priority = 2, shared = [ctl, timer, run], local = [supervise, calibration])]
-    async fn supervisor(mut cx: supervisor::Context) {
-        if !cfg!(feature = "link") {
+    #[task(binds = UART4, priority = 2, shared = [ctl, timer, run],
+           local = [calibration, started: bool = cfg!(feature = "link")])]
+    fn supervisor(mut cx: supervisor::Context) {
+        if !*cx.local.started {
+            *cx.local.started = true;
             let ok = cx.shared.ctl.lock(|c| {
                 let s = c.supervisor_mut();
                 s.arm().is_ok() && s.start().is_ok()
@@ -376,40 +371,38 @@ mod app {
             }
             defmt::info!("supervisor: armed, running");
             RUNNING.store(true, Ordering::Release);
-            cx.shared.timer.lock(|t| t.start());
+            cx.shared.timer.lock(TickTimer::start);
+            return;
         }
-        loop {
-            cx.local.supervise.wait().await;
-            if RECORD_END.swap(false, Ordering::AcqRel) {
-                defmt::info!("supervisor: end of record, ramp-down");
+        if RECORD_END.swap(false, Ordering::AcqRel) {
+            defmt::info!("supervisor: end of record, ramp-down");
+        }
+        let state = cx.shared.ctl.lock(|c| c.supervisor().state());
+        let run = cx.shared.run.lock(|r| *r);
+        let stop = B::EMULATED_PLANT
+            && match state {
+                State::Done => true,
+                State::Fault(_) => run.fault_settled(),
+                _ => false,
+            };
+        if let (State::Fault(reason), Some(t)) = (state, run.fault_tick) {
+            if !stop {
+                defmt::warn!("supervisor: fault {=str} at tick {=u32}", reason.name(), t);
             }
-            let state = cx.shared.ctl.lock(|c| c.supervisor().state());
-            let run = cx.shared.run.lock(|r| *r);
-            let stop = B::EMULATED_PLANT
-                && match state {
-                    State::Done => true,
-                    State::Fault(_) => run.fault_settled(),
-                    _ => false,
-                };
-            if let (State::Fault(reason), Some(t)) = (state, run.fault_tick) {
-                if !stop {
-                    defmt::warn!("supervisor: fault {=str} at tick {=u32}", reason.name(), t);
-                }
-            }
-            if stop && !FINISHED.swap(true, Ordering::AcqRel) {
-                cx.shared.timer.lock(|t| t.stop());
-                let (daq_errors, held) = cx
-                    .shared
-                    .ctl
-                    .lock(|c| (c.supervisor().total_daq_errors(), c.held_samples()));
-                let ok = report(&run, state, cx.local.calibration, daq_errors, held);
-                if cfg!(feature = "link") {
-                    // The board stays up for the host (status, the telemetry's end).
-                    RUN_ENDED.store(true, Ordering::Release);
-                    TELEMETRY.writer().write(());
-                } else {
-                    B::exit(ok);
-                }
+        }
+        if stop && !FINISHED.swap(true, Ordering::AcqRel) {
+            cx.shared.timer.lock(TickTimer::stop);
+            let (daq_errors, held) = cx
+                .shared
+                .ctl
+                .lock(|c| (c.supervisor().total_daq_errors(), c.held_samples()));
+            let ok = report(&run, state, cx.local.calibration, daq_errors, held);
+            if cfg!(feature = "link") {
+                // The board stays up for the host (status, the telemetry's end).
+                RUN_ENDED.store(true, Ordering::Release);
+                rtic::pend(TELEMETRY_IRQ);
+            } else {
+                B::exit(ok);
             }
         }
     }
@@ -417,41 +410,38 @@ mod app {
     /// Drains the telemetry queue at the lowest priority. With `link` it streams every `every`-th
     /// record to the host, numbered, and after the run's last record `RunEnded`; without, it logs
     /// one record per second of test time.
-    #[task(priority = 1, shared = [link, run], local = [consumer, telemetry])]
-    async fn telemetry(mut cx: telemetry::Context) {
+    #[task(binds = USART3, priority = 1, shared = [link, run], local = [consumer])]
+    fn telemetry(mut cx: telemetry::Context) {
         use rths_app::link::send;
-        loop {
-            cx.local.telemetry.wait().await;
-            let consumer = &mut *cx.local.consumer;
-            if !cfg!(feature = "link") {
-                while let Some(r) = consumer.dequeue() {
-                    if r.tick % rths_app::ONE_SECOND_TICKS == 0 {
-                        defmt::info!(
-                            "t={=u32} state={=u8} cmd={=f64} mm target={=f64} mm meas={=f64} mm F={=f64} kN",
-                            r.tick,
-                            state_code(r.state),
-                            r.command_mm,
-                            r.target_mm,
-                            r.measured_mm,
-                            r.force_kn
-                        );
-                    }
+        let consumer = cx.local.consumer;
+        if !cfg!(feature = "link") {
+            while let Some(r) = consumer.dequeue() {
+                if r.tick % rths_app::ONE_SECOND_TICKS == 0 {
+                    defmt::info!(
+                        "t={=u32} state={=u8} cmd={=f64} mm target={=f64} mm meas={=f64} mm F={=f64} kN",
+                        r.tick,
+                        state_code(r.state),
+                        r.command_mm,
+                        r.target_mm,
+                        r.measured_mm,
+                        r.force_kn
+                    );
                 }
-                continue;
             }
-            cx.shared.link.lock(|l| {
-                while let Some(r) = consumer.dequeue() {
-                    if let Some(m) = l.session.telemetry(&r) {
-                        send(&mut l.port, &m);
-                    }
+            return;
+        }
+        cx.shared.link.lock(|l| {
+            while let Some(r) = consumer.dequeue() {
+                if let Some(m) = l.session.telemetry(&r) {
+                    send(&mut l.port, &m);
                 }
-            });
-            if RUN_ENDED.swap(false, Ordering::AcqRel) {
-                let run = cx.shared.run.lock(|r| *r);
-                cx.shared
-                    .link
-                    .lock(|l| send(&mut l.port, &l.session.run_ended(&run)));
             }
+        });
+        if RUN_ENDED.swap(false, Ordering::AcqRel) {
+            let run = cx.shared.run.lock(|r| *r);
+            cx.shared
+                .link
+                .lock(|l| send(&mut l.port, &l.session.run_ended(&run)));
         }
     }
 
@@ -460,10 +450,10 @@ mod app {
     #[cfg(feature = "link")]
     #[task(binds = USART2, priority = 1, shared = [ctl, run, link], local = [reader])]
     fn link_rx(mut cx: link_rx::Context) {
-        use rths_app::board::LinkPort as _;
+        use rths_app::board::LinkPort;
         use rths_app::link::{handle, send, Effect};
         use rths_link::HostMsg;
-        while let Some(byte) = cx.shared.link.lock(|l| l.port.read_byte()) {
+        while let Some(byte) = cx.shared.link.lock(|l| LinkPort::read_byte(&mut l.port)) {
             let msg = match cx.local.reader.push::<HostMsg>(byte) {
                 None => continue,
                 Some(Err(_)) => {
