@@ -22,6 +22,7 @@ pub mod logger;
 
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
+use rths_app::board::TickTimer as _;
 use rths_core::hal::{Actuator, Daq, Sample};
 use rths_core::integrator::{Chang, ExplicitIntegrator};
 use rths_core::params::{Prototype, DT_S};
@@ -68,28 +69,6 @@ impl TickTimer {
         tim.sr.write(|w| w.uif().clear_bit());
         tim.dier.write(|w| w.uie().set_bit());
         Self { tim }
-    }
-
-    /// Start counting: the first tick fires one period from now.
-    pub fn start(&mut self) {
-        self.tim.cnt.reset();
-        self.tim.cr1.modify(|_, w| w.cen().set_bit());
-    }
-
-    /// Stop counting and clear a pending update.
-    pub fn stop(&mut self) {
-        self.tim.cr1.modify(|_, w| w.cen().clear_bit());
-        self.clear();
-    }
-
-    /// Acknowledge the update interrupt.
-    pub fn clear(&mut self) {
-        self.tim.sr.write(|w| w.uif().clear_bit());
-    }
-
-    /// The next update already happened (the tick in progress ran past its deadline).
-    pub fn pending(&self) -> bool {
-        self.tim.sr.read().uif().bit_is_set()
     }
 
     /// The counter, timer counts since the last update.
@@ -290,24 +269,6 @@ impl LinkUart {
         });
         Self { usart }
     }
-
-    /// A received byte, if one is waiting.
-    pub fn read_byte(&mut self) -> Option<u8> {
-        let sr = self.usart.sr.read();
-        if sr.rxne().bit_is_set() {
-            Some(self.usart.dr.read().dr().bits() as u8)
-        } else {
-            None
-        }
-    }
-
-    /// Send `bytes`, polling TXE.
-    pub fn write_all(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            while self.usart.sr.read().txe().bit_is_clear() {}
-            self.usart.dr.write(|w| w.dr().bits(u16::from(b)));
-        }
-    }
 }
 
 fn brr_div(w: &mut pac::usart1::brr::W, div: u32) -> &mut pac::usart1::brr::W {
@@ -319,16 +280,18 @@ fn brr_div(w: &mut pac::usart1::brr::W, div: u32) -> &mut pac::usart1::brr::W {
 
 impl rths_app::board::TickTimer for TickTimer {
     fn start(&mut self) {
-        TickTimer::start(self);
+        self.tim.cnt.reset();
+        self.tim.cr1.modify(|_, w| w.cen().set_bit());
     }
     fn stop(&mut self) {
-        TickTimer::stop(self);
+        self.tim.cr1.modify(|_, w| w.cen().clear_bit());
+        self.clear();
     }
     fn clear(&mut self) {
-        TickTimer::clear(self);
+        self.tim.sr.write(|w| w.uif().clear_bit());
     }
     fn pending(&self) -> bool {
-        TickTimer::pending(self)
+        self.tim.sr.read().uif().bit_is_set()
     }
 }
 
@@ -345,10 +308,19 @@ impl rths_app::board::InstrCounter for InstrCounter {
 
 impl rths_app::board::LinkPort for LinkUart {
     fn read_byte(&mut self) -> Option<u8> {
-        LinkUart::read_byte(self)
+        let sr = self.usart.sr.read();
+        if sr.rxne().bit_is_set() {
+            Some(self.usart.dr.read().dr().bits() as u8)
+        } else {
+            None
+        }
     }
+    /// Polls TXE.
     fn write_all(&mut self, bytes: &[u8]) {
-        LinkUart::write_all(self, bytes);
+        for &b in bytes {
+            while self.usart.sr.read().txe().bit_is_clear() {}
+            self.usart.dr.write(|w| w.dr().bits(u16::from(b)));
+        }
     }
 }
 

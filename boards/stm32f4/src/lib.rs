@@ -120,51 +120,12 @@ impl TickTimer {
         tim.dier().write(|w| w.uie().set_bit());
         Self { tim }
     }
-
-    /// Start counting.
-    pub fn start(&mut self) {
-        self.tim.cnt().reset();
-        self.tim.cr1().modify(|_, w| w.cen().set_bit());
-    }
-
-    /// Stop counting and clear a pending update.
-    pub fn stop(&mut self) {
-        self.tim.cr1().modify(|_, w| w.cen().clear_bit());
-        self.clear();
-    }
-
-    /// Acknowledge the update interrupt.
-    pub fn clear(&mut self) {
-        self.tim.sr().write(|w| w.uif().clear_bit());
-    }
-
-    /// The next update already happened (the tick in progress overran).
-    pub fn pending(&self) -> bool {
-        self.tim.sr().read().uif().bit_is_set()
-    }
 }
 
 /// The link port: USART2, receive interrupt on.
 pub struct LinkSerial {
     tx: Tx<pac::USART2>,
     rx: Rx<pac::USART2>,
-}
-
-impl LinkSerial {
-    /// A received byte, if one is waiting (an overrun or framing error drops the byte; the frame's
-    /// CRC then rejects the frame).
-    pub fn read_byte(&mut self) -> Option<u8> {
-        use embedded_hal_nb::serial::Read;
-        self.rx.read().ok()
-    }
-
-    /// Send `bytes` (blocking on TXE; 5 µs a byte at 2 Mbaud).
-    pub fn write_all(&mut self, bytes: &[u8]) {
-        use embedded_hal_nb::serial::Write;
-        for &b in bytes {
-            let _ = nb::block!(self.tx.write(b));
-        }
-    }
 }
 
 /// The board, brought up.
@@ -272,25 +233,33 @@ impl Board {
 
 impl rths_app::board::TickTimer for TickTimer {
     fn start(&mut self) {
-        TickTimer::start(self);
+        self.tim.cnt().reset();
+        self.tim.cr1().modify(|_, w| w.cen().set_bit());
     }
     fn stop(&mut self) {
-        TickTimer::stop(self);
+        self.tim.cr1().modify(|_, w| w.cen().clear_bit());
+        self.clear();
     }
     fn clear(&mut self) {
-        TickTimer::clear(self);
+        self.tim.sr().write(|w| w.uif().clear_bit());
     }
     fn pending(&self) -> bool {
-        TickTimer::pending(self)
+        self.tim.sr().read().uif().bit_is_set()
     }
 }
 
 impl rths_app::board::LinkPort for LinkSerial {
+    /// An overrun or framing error drops the byte; the frame's CRC then rejects the frame.
     fn read_byte(&mut self) -> Option<u8> {
-        LinkSerial::read_byte(self)
+        use embedded_hal_nb::serial::Read;
+        self.rx.read().ok()
     }
+    /// Blocks on TXE; 5 µs a byte at 2 Mbaud.
     fn write_all(&mut self, bytes: &[u8]) {
-        LinkSerial::write_all(self, bytes);
+        use embedded_hal_nb::serial::Write;
+        for &b in bytes {
+            let _ = nb::block!(self.tx.write(b));
+        }
     }
 }
 
