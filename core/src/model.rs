@@ -83,14 +83,14 @@ impl ModelSpec<'_> {
                 lead_weights,
                 lead_stride,
             } => {
-                let frame = LrxParams::from_slice(coeffs, k_corr_kn_per_mm, k_adapt_ticks)?;
-                let weights: [f64; LEAD_TAPS] =
-                    lead_weights.try_into().map_err(|_| ModelError::Shape {
-                        what: "LRX lead weights",
-                        expected: LEAD_TAPS,
-                        got: lead_weights.len(),
-                    })?;
-                Model::Lrx(frame, LeadParams::new(weights, lead_stride)?)
+                let (frame, lead) = lrx_params(
+                    coeffs,
+                    k_corr_kn_per_mm,
+                    k_adapt_ticks,
+                    lead_weights,
+                    lead_stride,
+                )?;
+                Model::Lrx(frame, lead)
             }
             ModelSpec::Fe => Model::Fe,
             ModelSpec::FeAts { expected_delay_s } => Model::FeAts { expected_delay_s },
@@ -106,35 +106,95 @@ impl Model {
         proto: Prototype,
         dt_s: f64,
     ) -> Result<(Analytical, Compensator), ModelError> {
-        Ok(match *self {
-            Model::Lr(p) => (Analytical::Lr(Lr::new(p)), Compensator::None),
-            Model::Rnn(p) => (Analytical::Rnn(Rnn::new(p)), Compensator::None),
-            Model::Lrx(p, lead) => (
-                Analytical::Lrx(Lrx::new(p)),
-                Compensator::Lead(Lead::new(lead)),
-            ),
-            Model::Fe => (
-                Analytical::Fe(FeModel::new(proto, dt_s)?),
-                Compensator::None,
-            ),
-            Model::FeAts { expected_delay_s } => (
-                Analytical::Fe(FeModel::new(proto, dt_s)?),
-                Compensator::Ats(Ats::new(AtsParams::new(AtsConfig::paper(
-                    dt_s,
-                    expected_delay_s,
-                ))?)),
-            ),
-        })
+        match *self {
+            Model::Lr(p) => Ok(lr_parts(p)),
+            Model::Rnn(p) => Ok(rnn_parts(p)),
+            Model::Lrx(p, lead) => Ok(lrx_parts(p, lead)),
+            Model::Fe => fe_parts(proto, dt_s, None),
+            Model::FeAts { expected_delay_s } => fe_parts(proto, dt_s, Some(expected_delay_s)),
+        }
     }
 }
 
-/// Validate `spec` and build its analytical part and compensator (see [`Model::assemble`]).
+/// The LRX frame model and its lead filter, validated.
+fn lrx_params(
+    coeffs: &[f64],
+    k_corr_kn_per_mm: f64,
+    k_adapt_ticks: f64,
+    lead_weights: &[f64],
+    lead_stride: usize,
+) -> Result<(LrxParams, LeadParams), ModelError> {
+    let frame = LrxParams::from_slice(coeffs, k_corr_kn_per_mm, k_adapt_ticks)?;
+    let weights: [f64; LEAD_TAPS] = lead_weights.try_into().map_err(|_| ModelError::Shape {
+        what: "LRX lead weights",
+        expected: LEAD_TAPS,
+        got: lead_weights.len(),
+    })?;
+    Ok((frame, LeadParams::new(weights, lead_stride)?))
+}
+
+fn lr_parts(p: LrParams) -> (Analytical, Compensator) {
+    (Analytical::Lr(Lr::new(p)), Compensator::None)
+}
+
+fn rnn_parts(p: RnnParams) -> (Analytical, Compensator) {
+    (Analytical::Rnn(Rnn::new(p)), Compensator::None)
+}
+
+fn lrx_parts(p: LrxParams, lead: LeadParams) -> (Analytical, Compensator) {
+    (
+        Analytical::Lrx(Lrx::new(p)),
+        Compensator::Lead(Lead::new(lead)),
+    )
+}
+
+/// The FE model of `proto`, with ATS starting from `ats_delay_s` if given.
+fn fe_parts(
+    proto: Prototype,
+    dt_s: f64,
+    ats_delay_s: Option<f64>,
+) -> Result<(Analytical, Compensator), ModelError> {
+    let compensator = match ats_delay_s {
+        Some(delay_s) => {
+            Compensator::Ats(Ats::new(AtsParams::new(AtsConfig::paper(dt_s, delay_s))?))
+        }
+        None => Compensator::None,
+    };
+    Ok((Analytical::Fe(FeModel::new(proto, dt_s)?), compensator))
+}
+
+/// Validate `spec` and build its analytical part and compensator (as [`Model::assemble`] does).
+///
+/// One kind at a time, without a whole [`Model`] in between: a `Model` is as large as its largest
+/// variant (an RNN at [`crate::metamodel::RNN_MAX_HIDDEN`], ~9 kB), stack the firmware's start-up
+/// cannot spare beside the ~44 kB FE+ATS parts.
 pub fn assemble(
     spec: &ModelSpec<'_>,
     proto: Prototype,
     dt_s: f64,
 ) -> Result<(Analytical, Compensator), ModelError> {
-    spec.validate()?.assemble(proto, dt_s)
+    match *spec {
+        ModelSpec::Lr { theta } => Ok(lr_parts(LrParams::from_slice(theta)?)),
+        ModelSpec::Rnn { weights, scaling } => Ok(rnn_parts(RnnParams::new(weights, scaling)?)),
+        ModelSpec::Lrx {
+            coeffs,
+            k_corr_kn_per_mm,
+            k_adapt_ticks,
+            lead_weights,
+            lead_stride,
+        } => {
+            let (p, lead) = lrx_params(
+                coeffs,
+                k_corr_kn_per_mm,
+                k_adapt_ticks,
+                lead_weights,
+                lead_stride,
+            )?;
+            Ok(lrx_parts(p, lead))
+        }
+        ModelSpec::Fe => fe_parts(proto, dt_s, None),
+        ModelSpec::FeAts { expected_delay_s } => fe_parts(proto, dt_s, Some(expected_delay_s)),
+    }
 }
 
 #[cfg(test)]

@@ -28,6 +28,11 @@ impl Reference {
         })
     }
 
+    /// Back to rest at t = 0 under the ground acceleration `ag0_mm_s2` (a new run of the same record).
+    pub fn reset(&mut self, ag0_mm_s2: f64) {
+        self.chang.reset(ag0_mm_s2);
+    }
+
     /// Step to the next tick under the ground acceleration `ag_mm_s2` there; returns the brace
     /// axial deformation at that tick, mm.
     pub fn advance(&mut self, ag_mm_s2: f64) -> f64 {

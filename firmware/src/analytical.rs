@@ -1,9 +1,9 @@
 //! The controller of this build: its analytical part, chosen by feature (exactly one of
 //! `model-lr`, `model-rnn`, `fe-ats`, `model-lrx`), fed from the generated `gen` constants.
 
-use rths_core::compensator::Compensator;
-use rths_core::control::{Analytical, ControlConfig, Controller, FeedbackSource};
-use rths_core::params::{Prototype, SpecimenScale};
+use rths_core::control::{ControlConfig, Controller, FeedbackSource};
+use rths_core::model::{assemble, ModelSpec};
+use rths_core::params::{Prototype, SpecimenScale, DT_S};
 use rths_core::supervisor::Limits;
 
 const _: () = assert!(
@@ -49,66 +49,55 @@ pub fn controller() -> Result<(Controller, u32), &'static str> {
         Limits::paper_actuator(),
     )
     .map_err(|_| "control config")?;
-    let (analytical, compensator, checksum) = analytical()?;
-    Ok((Controller::new(cfg, analytical, compensator), checksum))
+    // Assembled by core, as the host scenarios are.
+    let (analytical, compensator) =
+        assemble(&SPEC, Prototype::paper(), DT_S).map_err(|_| "compiled-in model")?;
+    Ok((Controller::new(cfg, analytical, compensator), checksum()))
 }
 
-/// The analytical part, its compensator and its LR checksum.
-fn analytical() -> Result<(Analytical, Compensator, u32), &'static str> {
+/// This build's analytical part as a model file would describe it (the compiled-in `gen` arrays).
+#[cfg(feature = "model-lr")]
+const SPEC: ModelSpec<'static> = ModelSpec::Lr {
+    theta: &crate::gen::LR_THETA,
+};
+/// This build's analytical part as a model file would describe it (the compiled-in `gen` arrays).
+#[cfg(feature = "model-rnn")]
+const SPEC: ModelSpec<'static> = ModelSpec::Rnn {
+    weights: rths_core::metamodel::RnnWeights {
+        w_ih: &crate::gen::RNN_W_IH,
+        w_hh: &crate::gen::RNN_W_HH,
+        b_h: &crate::gen::RNN_B_H,
+        w_ho: &crate::gen::RNN_W_HO,
+        b_o: crate::gen::RNN_B_O,
+    },
+    scaling: rths_core::metamodel::RnnScaling {
+        input_mean: crate::gen::RNN_IN_MEAN,
+        input_std: crate::gen::RNN_IN_STD,
+        output_mean: crate::gen::RNN_OUT_MEAN,
+        output_std: crate::gen::RNN_OUT_STD,
+    },
+};
+/// This build's analytical part: the FE model with ATS starting from the paper's delay.
+#[cfg(feature = "fe-ats")]
+const SPEC: ModelSpec<'static> = ModelSpec::FeAts {
+    expected_delay_s: rths_core::params::PAPER_DELAY_STEPS as f64 * DT_S,
+};
+/// This build's analytical part as a model file would describe it (the compiled-in `gen` arrays).
+#[cfg(feature = "model-lrx")]
+const SPEC: ModelSpec<'static> = ModelSpec::Lrx {
+    coeffs: &crate::gen::LRX_COEFFS,
+    k_corr_kn_per_mm: crate::gen::LRX_K_CORR,
+    k_adapt_ticks: crate::gen::LRX_K_ADAPT,
+    lead_weights: &crate::gen::LRX_LEAD,
+    lead_stride: crate::gen::LRX_LEAD_STRIDE,
+};
+
+/// The link checksum of the compiled-in model: an LR model's, else 0.
+fn checksum() -> u32 {
     #[cfg(feature = "model-lr")]
-    {
-        use rths_core::metamodel::{Lr, LrParams};
-        let p = LrParams::new(crate::gen::LR_THETA).map_err(|_| "LR model")?;
-        let crc = rths_app::link::compiled_model_checksum(&crate::gen::LR_THETA);
-        Ok((Analytical::Lr(Lr::new(p)), Compensator::None, crc))
-    }
-    #[cfg(feature = "model-rnn")]
-    {
-        use rths_core::metamodel::{Rnn, RnnParams, RnnScaling, RnnWeights};
-        let w = RnnWeights {
-            w_ih: &crate::gen::RNN_W_IH,
-            w_hh: &crate::gen::RNN_W_HH,
-            b_h: &crate::gen::RNN_B_H,
-            w_ho: &crate::gen::RNN_W_HO,
-            b_o: crate::gen::RNN_B_O,
-        };
-        let s = RnnScaling {
-            input_mean: crate::gen::RNN_IN_MEAN,
-            input_std: crate::gen::RNN_IN_STD,
-            output_mean: crate::gen::RNN_OUT_MEAN,
-            output_std: crate::gen::RNN_OUT_STD,
-        };
-        let p = RnnParams::new(w, s).map_err(|_| "RNN model")?;
-        Ok((Analytical::Rnn(Rnn::new(p)), Compensator::None, 0))
-    }
-    #[cfg(feature = "fe-ats")]
-    {
-        use rths_core::compensator::{Ats, AtsConfig, AtsParams};
-        use rths_core::control::FeModel;
-        use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
-        let fe = FeModel::new(Prototype::paper(), DT_S).map_err(|_| "FE model")?;
-        let delay_s = PAPER_DELAY_STEPS as f64 * DT_S;
-        let ats = AtsParams::new(AtsConfig::paper(DT_S, delay_s)).map_err(|_| "ATS")?;
-        Ok((Analytical::Fe(fe), Compensator::Ats(Ats::new(ats)), 0))
-    }
-    #[cfg(feature = "model-lrx")]
-    {
-        use rths_core::compensator::{Lead, LeadParams};
-        use rths_core::metamodel::{Lrx, LrxParams};
-        let p = LrxParams::new(
-            crate::gen::LRX_COEFFS,
-            crate::gen::LRX_K_CORR,
-            crate::gen::LRX_K_ADAPT,
-        )
-        .map_err(|_| "LRX model")?;
-        let lead = LeadParams::new(crate::gen::LRX_LEAD, crate::gen::LRX_LEAD_STRIDE)
-            .map_err(|_| "LRX lead")?;
-        Ok((
-            Analytical::Lrx(Lrx::new(p)),
-            Compensator::Lead(Lead::new(lead)),
-            0,
-        ))
-    }
+    return rths_app::link::compiled_model_checksum(&crate::gen::LR_THETA);
+    #[cfg(not(feature = "model-lr"))]
+    0
 }
 
 /// The fault plan `RTHS_FAULT` named at build time (`fault-inject`).

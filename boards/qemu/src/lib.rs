@@ -24,9 +24,8 @@ use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
 use rths_app::board::TickTimer as _;
 use rths_core::hal::{Actuator, Daq, Sample};
-use rths_core::integrator::{Chang, ExplicitIntegrator};
 use rths_core::params::{Prototype, DT_S};
-use rths_core::structure::{LinearStructure, Vector};
+use rths_core::reference::Reference;
 use rths_hal_sim::{FaultPlan, Preset, RigConfig, SimError, Specimen, VirtualRig};
 /// The device crate (STM32F405) the firmware's RTIC app is built on.
 pub use stm32f4::stm32f405 as pac;
@@ -332,10 +331,10 @@ impl Plant {
 }
 
 /// The test harness half of the board: the reference response of the same structure (pure FE,
-/// Chang, as `rths::analysis::pure_response`), computed along the run, then the plant's advance.
+/// `rths_core::reference::Reference`, the one the host analysis uses), computed along the run, then the
+/// plant's advance.
 pub struct Harness {
-    reference: Chang<1>,
-    proto: Prototype,
+    reference: Reference,
     /// target(k) as the host's history row k holds it (produced at tick k−1).
     target_row_mm: f64,
 }
@@ -353,10 +352,9 @@ impl rths_app::board::Harness<Plant> for Harness {
         let mut row = None;
         if in_record {
             let reference_mm = if k == 0 {
-                self.proto.brace_disp_mm(0.0)
+                self.reference.brace_disp_mm()
             } else {
-                self.reference.advance(ag_mm_s2, &Vector::<1>::zeros());
-                self.proto.brace_disp_mm(self.reference.state().disp.x)
+                self.reference.advance(ag_mm_s2)
             };
             let e = self.target_row_mm - reference_mm;
             row = Some((e * e, libm::fabs(reference_mm)));
@@ -447,10 +445,9 @@ pub fn init(
     let mut timer = TickTimer::new(dp.TIM2, &dp.RCC);
     let calib = calibrate(&counter, &mut timer, 100_000);
     let rig = Plant::new(1, FaultPlan::none()).ok_or(BoardError::Plant)?;
-    let proto = Prototype::paper();
-    let reference = LinearStructure::prototype_pure(&proto)
-        .and_then(|s| Chang::new(s, DT_S))
-        .map_err(|_| BoardError::Reference)?;
+    // Reset with the record's first ü_g before the first tick (`Harness::reset`).
+    let reference =
+        Reference::new(&Prototype::paper(), DT_S, 0.0).map_err(|_| BoardError::Reference)?;
     Ok(rths_app::board::Parts {
         timer,
         link: LinkUart::new(dp.USART2, &dp.RCC),
@@ -459,7 +456,6 @@ pub fn init(
         estop: rths_app::board::NoEStop,
         harness: Harness {
             reference,
-            proto,
             target_row_mm: 0.0,
         },
         calibration: calib,
