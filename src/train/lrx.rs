@@ -2,7 +2,7 @@
 //! analytical substructure alone (frame, mass, damping), plus a learned lead filter that compensates
 //! the actuator's delay.
 //!
-//! Two least-squares fits (nalgebra SVD on column-normalized design matrices):
+//! Two least-squares fits ([`super::lstsq`], SVD of the column-normalized design matrices):
 //!
 //! 1. **Frame ARX** `d(i+1) = Σ_j a_j·d(i−j) + Σ_j b_j·ü_g(i−j) + Σ_j c_j·F(i−j)`, j = 0..3, on
 //!    runs of the frame (by default [`frame_run_exact`], the reference's discretization; or
@@ -32,6 +32,7 @@ use rths_core::params::{Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
 use rths_core::structure::{LinearStructure, Vector};
 use rths_hal_sim::{Preset, Specimen, VirtualRig};
 
+use super::lstsq;
 use super::TrainError;
 use crate::model_file::{LrxWeights, ModelFile};
 use crate::motion::GroundMotion;
@@ -117,68 +118,6 @@ pub struct LrxTraining {
     pub lead_condition: f64,
     /// `lrx-pure` NRMSE on each training motion (own force `k_b·d̂`, no actuator), %.
     pub pure_nrmse_pct: Vec<(String, f64)>,
-}
-
-/// Least squares by SVD of the column-normalized matrix, singular values below `rcond·σ_max`
-/// dropped. Returns (solution, condition number before the cut-off).
-pub fn lstsq(
-    x: &DMatrix<f64>,
-    y: &DVector<f64>,
-    rcond: f64,
-) -> Result<(Vec<f64>, f64), TrainError> {
-    if x.nrows() != y.len() || x.nrows() < x.ncols() {
-        return Err(TrainError::Setting(format!(
-            "design matrix {}×{} and target {} do not fit",
-            x.nrows(),
-            x.ncols(),
-            y.len()
-        )));
-    }
-    if x.iter().chain(y.iter()).any(|v| !v.is_finite()) {
-        return Err(TrainError::Diverged("non-finite training data".into()));
-    }
-    let scale: Vec<f64> = x
-        .column_iter()
-        .map(|c| {
-            let n = c.norm();
-            if n > 0.0 {
-                n
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    let mut xn = x.clone();
-    for (j, mut c) in xn.column_iter_mut().enumerate() {
-        c /= scale[j];
-    }
-    let svd = xn.svd(true, true);
-    let (Some(u), Some(v_t)) = (&svd.u, &svd.v_t) else {
-        return Err(TrainError::Diverged("SVD did not converge".into()));
-    };
-    let s_max = svd.singular_values.max();
-    let s_min = svd.singular_values.min();
-    if s_max <= 0.0 {
-        return Err(TrainError::Diverged("design matrix is zero".into()));
-    }
-    let uty = u.transpose() * y;
-    let mut theta = DVector::<f64>::zeros(x.ncols());
-    for k in 0..svd.singular_values.len() {
-        let s = svd.singular_values[k];
-        if s > rcond * s_max {
-            theta += v_t.row(k).transpose() * (uty[k] / s);
-        }
-    }
-    let out: Vec<f64> = theta.iter().zip(&scale).map(|(t, s)| t / s).collect();
-    if out.iter().any(|t| !t.is_finite()) {
-        return Err(TrainError::Diverged("non-finite coefficients".into()));
-    }
-    let cond = if s_min > 0.0 {
-        s_max / s_min
-    } else {
-        f64::INFINITY
-    };
-    Ok((out, cond))
 }
 
 /// One frame run: (brace deformation d(i), brace force F(i)) for i = 0..n, prototype units. The
@@ -385,7 +324,8 @@ pub fn train(cfg: &LrxConfig) -> Result<LrxTraining, TrainError> {
     }
     let x = DMatrix::from_fn(rows.len(), LRX_COEFFS, |i, j| rows[i][j]);
     let y = DVector::from_vec(ys);
-    let (theta, frame_condition) = lstsq(&x, &y, cfg.rcond)?;
+    let frame = lstsq::solve(&x, &y, cfg.rcond)?;
+    let (theta, frame_condition) = (frame.coeffs, frame.condition_number);
     let fitted = &x * DVector::from_column_slice(&theta);
     let frame_fit_nrmse_pct = metrics::nrmse_pct(fitted.as_slice(), y.as_slice())?;
     let mut coeffs = [0.0; LRX_COEFFS];
@@ -415,7 +355,8 @@ pub fn train(cfg: &LrxConfig) -> Result<LrxTraining, TrainError> {
     }
     let x = DMatrix::from_fn(rows.len(), LEAD_TAPS, |i, j| rows[i][j]);
     let y = DVector::from_vec(ys);
-    let (w, lead_condition) = lstsq(&x, &y, cfg.rcond)?;
+    let lead = lstsq::solve(&x, &y, cfg.rcond)?;
+    let (w, lead_condition) = (lead.coeffs, lead.condition_number);
     let fitted = &x * DVector::from_column_slice(&w);
     let lead_fit_nrmse_pct = metrics::nrmse_pct(fitted.as_slice(), y.as_slice())?;
     let mut lead_weights = [0.0; LEAD_TAPS];
