@@ -225,19 +225,23 @@ impl Rnn {
         &self.scaling
     }
 
-    /// One step in normalized units: `h_next = tanh(W_ih·input + W_hh·h + b_h)`, returns
-    /// `y = W_ho·h_next + b_o`. Operation order as documented on [`RnnWeights`].
-    pub fn step_normalized(&self, h: &[f64], input: [f64; N_IN], h_next: &mut [f64]) -> f64 {
-        let n = self.hidden;
+    /// The weights as the slices `rths-core`'s inference takes (the flat vector cut at its offsets).
+    pub fn core_weights(&self) -> rths_core::metamodel::RnnWeights<'_> {
         let p = &self.params;
-        let (hh, bh, ho, bo) = (self.off_hh(), self.off_bh(), self.off_ho(), self.off_bo());
-        for (j, out) in h_next.iter_mut().enumerate().take(n) {
-            let from_in: f64 = (0..N_IN).map(|k| p[N_IN * j + k] * input[k]).sum();
-            let from_h: f64 = (0..n).map(|k| p[hh + j * n + k] * h[k]).sum();
-            *out = libm::tanh(from_in + from_h + p[bh + j]);
+        rths_core::metamodel::RnnWeights {
+            w_ih: &p[..self.off_hh()],
+            w_hh: &p[self.off_hh()..self.off_bh()],
+            b_h: &p[self.off_bh()..self.off_ho()],
+            w_ho: &p[self.off_ho()..self.off_bo()],
+            b_o: p[self.off_bo()],
         }
-        let y: f64 = (0..n).map(|j| p[ho + j] * h_next[j]).sum();
-        y + p[bo]
+    }
+
+    /// One step in normalized units: `h_next = tanh(W_ih·input + W_hh·h + b_h)`, returns
+    /// `y = W_ho·h_next + b_o`. This is `rths-core`'s [`rths_core::metamodel::elman_step`], the
+    /// controller's own forward pass, so training optimizes exactly the function the firmware runs.
+    pub fn step_normalized(&self, h: &[f64], input: [f64; N_IN], h_next: &mut [f64]) -> f64 {
+        rths_core::metamodel::elman_step(&self.core_weights(), h, &input, h_next)
     }
 
     /// One step in physical units: `x̂(i+1)` (mm) from `ü_g(i)` (mm/s²) and `F_fb(i)` (kN); `h` is
