@@ -108,11 +108,13 @@ impl RnnParams {
     /// The weights as the H-sized slices they were given in.
     pub fn weights(&self) -> RnnWeights<'_> {
         let h = self.hidden;
+        // `h ≤ RNN_MAX_HIDDEN` (checked in `new`), so every `get` succeeds; `get` rather than
+        // indexing keeps a panic path out of the control step.
         RnnWeights {
-            w_ih: &self.w_ih[..RNN_INPUTS * h],
-            w_hh: &self.w_hh[..h * h],
-            b_h: &self.b_h[..h],
-            w_ho: &self.w_ho[..h],
+            w_ih: self.w_ih.get(..RNN_INPUTS * h).unwrap_or(&[]),
+            w_hh: self.w_hh.get(..h * h).unwrap_or(&[]),
+            b_h: self.b_h.get(..h).unwrap_or(&[]),
+            w_ho: self.w_ho.get(..h).unwrap_or(&[]),
             b_o: self.b_o,
         }
     }
