@@ -1,4 +1,6 @@
 use super::*;
+use rths_core::integrator::{Chang, ExplicitIntegrator};
+use rths_core::structure::{LinearStructure, Vector};
 
 fn trained() -> LrxTraining {
     train(&LrxConfig::new().unwrap()).unwrap()
