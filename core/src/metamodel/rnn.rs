@@ -123,7 +123,8 @@ impl RnnParams {
 /// One Elman step in normalized units, the single definition of the RNN's forward pass (this
 /// crate's [`Rnn::predict`] and the host trainer both call it):
 /// `h_next = tanh(W_ih·input + W_hh·h + b_h)`, returns `y = W_ho·h_next + b_o`. The hidden size H
-/// is `w.b_h.len()`; `h` and `h_next` hold H values.
+/// is `w.b_h.len()`; only the first H values of `h` and `h_next` are read and written (a
+/// fixed-capacity state may be passed whole).
 ///
 /// The operation order is part of the contract, so that every implementation gives the same bits
 /// (model files document it): pre-activation `(Σ_k w_ih[j][k]·input_k + Σ_k w_hh[j][k]·h_k) +
