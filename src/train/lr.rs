@@ -3,14 +3,15 @@
 //! squares through an SVD of the column-normalized design matrix.
 //!
 //! For a linear specimen `F_fb = k_b·x_fb` exactly, so the design matrix is rank-deficient: singular
-//! values below `rcond·σ_max` are dropped (minimum-norm solution), and the condition number before
-//! the cut-off and the rank kept are reported. The fit is then an ARX model of the whole structure
+//! values below `rcond·σ_max` are dropped (minimum-norm solution, [`super::lstsq`]), and the
+//! condition number before the cut-off and the rank kept are reported. The fit is then an ARX model of the whole structure
 //! (θ4 ≈ 2, θ5 ≈ −1).
 
 use nalgebra::{DMatrix, DVector};
 use rths_core::metrics::nrmse_pct;
 
 use super::data::{delayed, PureResponse};
+use super::lstsq;
 use super::TrainError;
 
 /// Number of LR coefficients.
@@ -103,10 +104,10 @@ pub fn design_matrix(
     Ok((x, y))
 }
 
-/// Minimum-norm least squares `x·θ ≈ y` through an SVD of the column-normalized `x`, dropping
-/// singular values below `rcond·σ_max`.
+/// Minimum-norm least squares `x·θ ≈ y` ([`super::lstsq::solve`]: SVD of the column-normalized
+/// `x`, singular values at or below `rcond·σ_max` dropped), for the [`N_THETA`] LR features.
 pub fn solve(x: &DMatrix<f64>, y: &DVector<f64>, rcond: f64) -> Result<LrSolution, TrainError> {
-    if x.ncols() != N_THETA || x.nrows() != y.len() {
+    if x.ncols() != N_THETA {
         return Err(TrainError::Setting(format!(
             "design matrix {}×{} and target {} do not fit",
             x.nrows(),
@@ -114,68 +115,14 @@ pub fn solve(x: &DMatrix<f64>, y: &DVector<f64>, rcond: f64) -> Result<LrSolutio
             y.len()
         )));
     }
-    if !(rcond.is_finite() && rcond > 0.0 && rcond < 1.0) {
-        return Err(TrainError::Setting(format!("rcond {rcond} not in (0, 1)")));
-    }
-    if x.iter().chain(y.iter()).any(|v| !v.is_finite()) {
-        return Err(TrainError::Diverged("non-finite training data".into()));
-    }
-    // Unit-norm columns, so the cut-off compares directions, not units (mm/s² vs kN vs mm).
-    let scale: Vec<f64> = x
-        .column_iter()
-        .map(|c| {
-            let n = c.norm();
-            if n > 0.0 {
-                n
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    let mut xn = x.clone();
-    for (j, mut c) in xn.column_iter_mut().enumerate() {
-        c /= scale[j];
-    }
-    let svd = xn.svd(true, true);
-    let (u, v_t) = match (&svd.u, &svd.v_t) {
-        (Some(u), Some(v_t)) => (u, v_t),
-        _ => return Err(TrainError::Diverged("SVD did not converge".into())),
-    };
-    let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();
-    order.sort_by(|&a, &b| svd.singular_values[b].total_cmp(&svd.singular_values[a]));
-    let sv: Vec<f64> = order.iter().map(|&k| svd.singular_values[k]).collect();
-    let s_max = sv.first().copied().unwrap_or(0.0);
-    let s_min = sv.last().copied().unwrap_or(0.0);
-    if s_max <= 0.0 {
-        return Err(TrainError::Diverged("design matrix is zero".into()));
-    }
-    let condition_number = if s_min > 0.0 {
-        s_max / s_min
-    } else {
-        f64::INFINITY
-    };
-    let uty = u.transpose() * y;
-    let mut theta_n = DVector::<f64>::zeros(N_THETA);
-    let mut rank = 0;
-    for k in 0..svd.singular_values.len() {
-        let s = svd.singular_values[k];
-        if s > rcond * s_max {
-            rank += 1;
-            theta_n += v_t.row(k).transpose() * (uty[k] / s);
-        }
-    }
+    let fit = lstsq::solve(x, y, rcond)?;
     let mut theta = [0.0; N_THETA];
-    for (j, t) in theta.iter_mut().enumerate() {
-        *t = theta_n[j] / scale[j];
-    }
-    if theta.iter().any(|t| !t.is_finite()) {
-        return Err(TrainError::Diverged("non-finite LR coefficients".into()));
-    }
+    theta.iter_mut().zip(&fit.coeffs).for_each(|(t, c)| *t = *c);
     Ok(LrSolution {
         theta,
-        singular_values: sv,
-        condition_number,
-        effective_rank: rank,
+        singular_values: fit.singular_values,
+        condition_number: fit.condition_number,
+        effective_rank: fit.effective_rank,
     })
 }
 

@@ -5,6 +5,7 @@
 pub mod data;
 pub mod lr;
 pub mod lrx;
+pub mod lstsq;
 pub mod rnn;
 
 use rths_core::metrics::MetricError;

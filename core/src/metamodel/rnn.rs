@@ -46,8 +46,10 @@ pub struct RnnScaling {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RnnParams {
     hidden: usize,
-    w_ih: [[f64; RNN_INPUTS]; RNN_MAX_HIDDEN],
-    w_hh: [[f64; RNN_MAX_HIDDEN]; RNN_MAX_HIDDEN],
+    // Row-major with row length H (not the capacity), so the first H·2 and H·H entries are exactly
+    // the slices [`elman_step`] takes.
+    w_ih: [f64; RNN_INPUTS * RNN_MAX_HIDDEN],
+    w_hh: [f64; RNN_MAX_HIDDEN * RNN_MAX_HIDDEN],
     b_h: [f64; RNN_MAX_HIDDEN],
     w_ho: [f64; RNN_MAX_HIDDEN],
     b_o: f64,
@@ -79,19 +81,15 @@ impl RnnParams {
 
         let mut p = Self {
             hidden: h,
-            w_ih: [[0.0; RNN_INPUTS]; RNN_MAX_HIDDEN],
-            w_hh: [[0.0; RNN_MAX_HIDDEN]; RNN_MAX_HIDDEN],
+            w_ih: [0.0; RNN_INPUTS * RNN_MAX_HIDDEN],
+            w_hh: [0.0; RNN_MAX_HIDDEN * RNN_MAX_HIDDEN],
             b_h: [0.0; RNN_MAX_HIDDEN],
             w_ho: [0.0; RNN_MAX_HIDDEN],
             b_o: w.b_o,
             scaling,
         };
-        for (row, src) in p.w_ih.iter_mut().zip(w.w_ih.chunks_exact(RNN_INPUTS)) {
-            row.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
-        }
-        for (row, src) in p.w_hh.iter_mut().zip(w.w_hh.chunks_exact(h)) {
-            row.iter_mut().zip(src).for_each(|(d, s)| *d = *s);
-        }
+        p.w_ih.iter_mut().zip(w.w_ih).for_each(|(d, s)| *d = *s);
+        p.w_hh.iter_mut().zip(w.w_hh).for_each(|(d, s)| *d = *s);
         p.b_h.iter_mut().zip(w.b_h).for_each(|(d, s)| *d = *s);
         p.w_ho.iter_mut().zip(w.w_ho).for_each(|(d, s)| *d = *s);
         Ok(p)
@@ -106,6 +104,56 @@ impl RnnParams {
     pub fn scaling(&self) -> &RnnScaling {
         &self.scaling
     }
+
+    /// The weights as the H-sized slices they were given in.
+    pub fn weights(&self) -> RnnWeights<'_> {
+        let h = self.hidden;
+        // `h ≤ RNN_MAX_HIDDEN` (checked in `new`), so every `get` succeeds; `get` rather than
+        // indexing keeps a panic path out of the control step.
+        RnnWeights {
+            w_ih: self.w_ih.get(..RNN_INPUTS * h).unwrap_or(&[]),
+            w_hh: self.w_hh.get(..h * h).unwrap_or(&[]),
+            b_h: self.b_h.get(..h).unwrap_or(&[]),
+            w_ho: self.w_ho.get(..h).unwrap_or(&[]),
+            b_o: self.b_o,
+        }
+    }
+}
+
+/// One Elman step in normalized units, the single definition of the RNN's forward pass (this
+/// crate's [`Rnn::predict`] and the host trainer both call it):
+/// `h_next = tanh(W_ih·input + W_hh·h + b_h)`, returns `y = W_ho·h_next + b_o`. The hidden size H
+/// is `w.b_h.len()`; only the first H values of `h` and `h_next` are read and written (a
+/// fixed-capacity state may be passed whole).
+///
+/// The operation order is part of the contract, so that every implementation gives the same bits
+/// (model files document it): pre-activation `(Σ_k w_ih[j][k]·input_k + Σ_k w_hh[j][k]·h_k) +
+/// b_h[j]`, each sum in index order, `tanh` is `libm::tanh`; output `(Σ_j w_ho[j]·h_next_j) + b_o`.
+///
+/// No checks (it is the inner loop of training): shapes are the caller's (validated by
+/// [`RnnParams::new`]; a short slice shortens the sums, it does not panic), and a non-finite input
+/// or weight propagates into the outputs.
+#[inline]
+pub fn elman_step(
+    w: &RnnWeights<'_>,
+    h: &[f64],
+    input: &[f64; RNN_INPUTS],
+    h_next: &mut [f64],
+) -> f64 {
+    let n = w.b_h.len();
+    // `max(1)`: `chunks_exact(0)` panics; with H = 0 there are no rows anyway.
+    let rows = w
+        .w_ih
+        .chunks_exact(RNN_INPUTS)
+        .zip(w.w_hh.chunks_exact(n.max(1)))
+        .zip(w.b_h);
+    for (hj, ((wi, wh), b)) in h_next.iter_mut().zip(rows) {
+        let from_in: f64 = wi.iter().zip(input).map(|(w, v)| w * v).sum();
+        let from_h: f64 = wh.iter().zip(h).map(|(w, v)| w * v).sum();
+        *hj = libm::tanh(from_in + from_h + b);
+    }
+    let y: f64 = w.w_ho.iter().zip(&*h_next).map(|(w, v)| w * v).sum();
+    y + w.b_o
 }
 
 /// The inputs of one RNN step (time i).
@@ -162,8 +210,9 @@ impl Rnn {
         self.state.reset();
     }
 
-    /// One step: `h = tanh(W_ih·in_n + W_hh·h + b_h)`, `y = (W_ho·h + b_o)·std + mean`, in mm.
-    /// Refuses non-finite inputs (or a non-finite hidden/output) and keeps the state.
+    /// One step: `h = tanh(W_ih·in_n + W_hh·h + b_h)`, `y = (W_ho·h + b_o)·std + mean`, in mm
+    /// ([`elman_step`] between the normalization and the de-normalization). Refuses non-finite
+    /// inputs (or a non-finite hidden/output) and keeps the state.
     pub fn predict(&mut self, inputs: RnnInputs) -> Result<f64, InputError> {
         let p = &self.params;
         let s = &p.scaling;
@@ -176,26 +225,13 @@ impl Rnn {
             *xn = finite((r - m) / sd, "normalized RNN input")?;
         }
         let mut h_new = [0.0; RNN_MAX_HIDDEN];
-        let hidden_rows = p.w_ih.iter().zip(&p.w_hh).zip(&p.b_h).take(p.hidden);
-        for (hj, ((wi, wh), b)) in h_new.iter_mut().zip(hidden_rows) {
-            let from_in: f64 = wi.iter().zip(&x).map(|(w, v)| w * v).sum();
-            let from_h: f64 = wh
-                .iter()
-                .zip(&self.state.hidden)
-                .take(p.hidden)
-                .map(|(w, v)| w * v)
-                .sum();
-            // tanh saturates at ±1, so only ∞ − ∞ (a NaN pre-activation) can make this non-finite.
-            *hj = finite(libm::tanh(from_in + from_h + b), "RNN hidden state")?;
+        // The step reads and writes only the first H entries.
+        let y_n = elman_step(&p.weights(), &self.state.hidden, &x, &mut h_new);
+        // tanh saturates at ±1, so only ∞ − ∞ (a NaN pre-activation) can make a hidden value
+        // non-finite.
+        for v in h_new.iter().take(p.hidden) {
+            finite(*v, "RNN hidden state")?;
         }
-        let y_n: f64 = p
-            .w_ho
-            .iter()
-            .zip(&h_new)
-            .take(p.hidden)
-            .map(|(w, v)| w * v)
-            .sum::<f64>()
-            + p.b_o;
         let y = finite(y_n * s.output_std + s.output_mean, "RNN prediction")?;
         self.state.hidden = h_new;
         Ok(y)

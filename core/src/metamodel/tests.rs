@@ -273,6 +273,69 @@ fn rnn_shape_and_value_validation() {
     assert!(r.params().is_err());
 }
 
+/// `RnnParams::weights` gives back exactly the slices it was built from, and `elman_step` on them
+/// is `Rnn::predict` between normalization and de-normalization, bit for bit, with the hidden
+/// state it leaves behind.
+#[test]
+fn elman_step_is_the_predict_step() {
+    for h in [1, 7, 32] {
+        let r = Ref::new(h);
+        let params = r.params().unwrap();
+        let w = params.weights();
+        assert_eq!(w.w_ih, &r.w_ih[..]);
+        assert_eq!(w.w_hh, &r.w_hh[..]);
+        assert_eq!(w.b_h, &r.b_h[..]);
+        assert_eq!(w.w_ho, &r.w_ho[..]);
+        assert_eq!(w.b_o.to_bits(), r.b_o.to_bits());
+        let mut rnn = Rnn::new(params);
+        let (mut hid, mut next) = (vec![0.0; h], vec![0.0; h]);
+        for i in 0..200 {
+            let u = [
+                2500.0 * libm::sin(0.05 * i as f64),
+                -700.0 * libm::cos(0.03 * i as f64),
+            ];
+            let got = rnn
+                .predict(RnnInputs {
+                    ground_accel_mm_s2: u[0],
+                    brace_force_fb_kn: u[1],
+                })
+                .unwrap();
+            let x = [
+                (u[0] - r.sc.input_mean[0]) / r.sc.input_std[0],
+                (u[1] - r.sc.input_mean[1]) / r.sc.input_std[1],
+            ];
+            let y = elman_step(&w, &hid, &x, &mut next);
+            hid.copy_from_slice(&next);
+            let want = y * r.sc.output_std + r.sc.output_mean;
+            assert_eq!(got.to_bits(), want.to_bits(), "H={h} step {i}");
+            assert_eq!(&rnn.state().hidden[..h], &hid[..]);
+        }
+    }
+}
+
+/// Unchecked shapes shorten the sums; they never panic (H = 0 included).
+#[test]
+fn elman_step_never_panics_on_odd_shapes() {
+    let empty = RnnWeights {
+        w_ih: &[],
+        w_hh: &[],
+        b_h: &[],
+        w_ho: &[],
+        b_o: 0.5,
+    };
+    assert_eq!(elman_step(&empty, &[], &[1.0, 2.0], &mut []), 0.5);
+    let short = RnnWeights {
+        w_ih: &[1.0, 1.0, 1.0],
+        w_hh: &[0.5; 3],
+        b_h: &[0.0, 0.0],
+        w_ho: &[1.0, 1.0],
+        b_o: 0.0,
+    };
+    let mut next = [0.0; 1];
+    let y = elman_step(&short, &[0.1], &[0.2, 0.3], &mut next);
+    assert!(y.is_finite() && next[0].is_finite());
+}
+
 #[test]
 fn rnn_refuses_non_finite_and_keeps_state() {
     let mut rnn = Rnn::new(Ref::new(10).params().unwrap());

@@ -1,4 +1,6 @@
 use super::*;
+use rths_core::integrator::{Chang, ExplicitIntegrator};
+use rths_core::structure::{LinearStructure, Vector};
 
 fn trained() -> LrxTraining {
     train(&LrxConfig::new().unwrap()).unwrap()
@@ -189,7 +191,9 @@ fn mdof_lrx_pure_nrmse<const N: usize>() -> f64 {
         }
     }
     let x = DMatrix::from_fn(rows.len(), LRX_COEFFS, |i, j| rows[i][j]);
-    let (theta, _) = lstsq(&x, &DVector::from_vec(ys), 1e-12).unwrap();
+    let theta = lstsq::solve(&x, &DVector::from_vec(ys), 1e-12)
+        .unwrap()
+        .coeffs;
     let mut c = [0.0; LRX_COEFFS];
     c.iter_mut().zip(&theta).for_each(|(d, s)| *d = *s);
     let params = LrxParams::new(c, 1224.1, 0.0).unwrap();

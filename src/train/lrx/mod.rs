@@ -2,7 +2,7 @@
 //! analytical substructure alone (frame, mass, damping), plus a learned lead filter that compensates
 //! the actuator's delay.
 //!
-//! Two least-squares fits (nalgebra SVD on column-normalized design matrices):
+//! Two least-squares fits ([`super::lstsq`], SVD of the column-normalized design matrices):
 //!
 //! 1. **Frame ARX** `d(i+1) = Σ_j a_j·d(i−j) + Σ_j b_j·ü_g(i−j) + Σ_j c_j·F(i−j)`, j = 0..3, on
 //!    runs of the frame (by default [`frame_run_exact`], the reference's discretization; or
@@ -17,24 +17,28 @@
 //!    brace response of the training motions, for specimens of several stiffness factors.
 //!
 //! The force-correction stiffness of the model is the paper's brace axial stiffness k_b (prototype).
+//!
+//! The runs that generate the identification data are in `runs.rs`; this file holds the settings,
+//! the two fits and the model file.
 
 use nalgebra::{DMatrix, DVector};
 use rand::rngs::StdRng;
 use rand::SeedableRng;
-use rand_distr::{Distribution, StandardNormal};
 use rths_core::compensator::{LEAD_MAX_STRIDE, LEAD_TAPS};
-use rths_core::filter::{Butterworth, ButterworthParams};
-use rths_core::hal::Actuator;
-use rths_core::integrator::{Chang, ExplicitIntegrator};
 use rths_core::metamodel::{Lrx, LrxInputs, LrxParams, LRX_COEFFS, LRX_ORDER};
 use rths_core::metrics;
 use rths_core::params::{Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
-use rths_core::structure::{LinearStructure, Vector};
-use rths_hal_sim::{Preset, Specimen, VirtualRig};
+use rths_hal_sim::{Preset, Specimen};
 
+use super::lstsq;
 use super::TrainError;
 use crate::model_file::{LrxWeights, ModelFile};
 use crate::motion::GroundMotion;
+
+mod runs;
+
+use runs::{band_limited_noise, rms_of};
+pub use runs::{frame_run, frame_run_exact, plant_run};
 
 /// Default training motions: `(embedded name, scale)`. Northridge at 0.5: at scale 1 its brace
 /// velocity (608 mm/s) exceeds the actuator's 338.84 mm/s (`rths analyze` says ≤ 0.557 fits).
@@ -119,155 +123,7 @@ pub struct LrxTraining {
     pub pure_nrmse_pct: Vec<(String, f64)>,
 }
 
-/// Least squares by SVD of the column-normalized matrix, singular values below `rcond·σ_max`
-/// dropped. Returns (solution, condition number before the cut-off).
-pub fn lstsq(
-    x: &DMatrix<f64>,
-    y: &DVector<f64>,
-    rcond: f64,
-) -> Result<(Vec<f64>, f64), TrainError> {
-    if x.nrows() != y.len() || x.nrows() < x.ncols() {
-        return Err(TrainError::Setting(format!(
-            "design matrix {}×{} and target {} do not fit",
-            x.nrows(),
-            x.ncols(),
-            y.len()
-        )));
-    }
-    if x.iter().chain(y.iter()).any(|v| !v.is_finite()) {
-        return Err(TrainError::Diverged("non-finite training data".into()));
-    }
-    let scale: Vec<f64> = x
-        .column_iter()
-        .map(|c| {
-            let n = c.norm();
-            if n > 0.0 {
-                n
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    let mut xn = x.clone();
-    for (j, mut c) in xn.column_iter_mut().enumerate() {
-        c /= scale[j];
-    }
-    let svd = xn.svd(true, true);
-    let (Some(u), Some(v_t)) = (&svd.u, &svd.v_t) else {
-        return Err(TrainError::Diverged("SVD did not converge".into()));
-    };
-    let s_max = svd.singular_values.max();
-    let s_min = svd.singular_values.min();
-    if s_max <= 0.0 {
-        return Err(TrainError::Diverged("design matrix is zero".into()));
-    }
-    let uty = u.transpose() * y;
-    let mut theta = DVector::<f64>::zeros(x.ncols());
-    for k in 0..svd.singular_values.len() {
-        let s = svd.singular_values[k];
-        if s > rcond * s_max {
-            theta += v_t.row(k).transpose() * (uty[k] / s);
-        }
-    }
-    let out: Vec<f64> = theta.iter().zip(&scale).map(|(t, s)| t / s).collect();
-    if out.iter().any(|t| !t.is_finite()) {
-        return Err(TrainError::Diverged("non-finite coefficients".into()));
-    }
-    let cond = if s_min > 0.0 {
-        s_max / s_min
-    } else {
-        f64::INFINITY
-    };
-    Ok((out, cond))
-}
-
-/// One frame run: (brace deformation d(i), brace force F(i)) for i = 0..n, prototype units. The
-/// brace force is `factor·k_b·d + p(i)` with `p` the given perturbation (p(0) is ignored: at rest).
-pub fn frame_run(
-    ag_mm_s2: &[f64],
-    factor: f64,
-    perturbation_kn: &[f64],
-) -> Result<(Vec<f64>, Vec<f64>), TrainError> {
-    let proto = Prototype::paper();
-    let k = factor * proto.brace_axial_stiffness_kn_per_mm();
-    let mut ch = Chang::new(LinearStructure::prototype_hybrid(&proto)?, DT_S)?;
-    let n = ag_mm_s2.len();
-    let (mut d, mut f) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    for (i, &ag) in ag_mm_s2.iter().enumerate() {
-        if i == 0 {
-            ch.reset(ag);
-            d.push(0.0);
-            f.push(0.0);
-            continue;
-        }
-        let di = proto.brace_disp_mm(ch.next_displacement()[0]);
-        let fi = k * di + perturbation_kn.get(i).copied().unwrap_or(0.0);
-        ch.advance(ag, &Vector::<1>::new(proto.story_force_kn(fi)));
-        d.push(di);
-        f.push(fi);
-    }
-    Ok((d, f))
-}
-
-/// Like [`frame_run`], but the reference discretization: the whole structure (frame and a linear
-/// brace of `factor`·k_b) by Newmark's average-acceleration method, with the perturbation as an
-/// external brace force (known at every step, so the implicit method applies); the frame's damping
-/// coefficient is the paper's ([`crate::scenario::specimen_prototype`]). This is the discretization
-/// the pure FE reference has (Chang's method equals it when its initial stiffness is the true one;
-/// the hybrid Chang, whose initial stiffness is the paper's brace, departs from it by 3e-3% NRMSE at
-/// F = 0.6 on El Centro, the ARX fitted on these runs by 6e-4%).
-pub fn frame_run_exact(
-    ag_mm_s2: &[f64],
-    factor: f64,
-    perturbation_kn: &[f64],
-) -> Result<(Vec<f64>, Vec<f64>), TrainError> {
-    let proto = crate::scenario::specimen_prototype(factor)?;
-    let (m, c, k) = (
-        proto.mass_kn_s2_per_mm(),
-        proto.damping_kn_s_per_mm(),
-        proto.total_stiffness_kn_per_mm(),
-    );
-    let dt = DT_S;
-    let p = |i: usize| perturbation_kn.get(i).copied().unwrap_or(0.0);
-    let load = |i: usize, ag: f64| -m * ag - proto.story_force_kn(if i == 0 { 0.0 } else { p(i) });
-    let n = ag_mm_s2.len();
-    let (mut d, mut f) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    let (mut x, mut v) = (0.0, 0.0);
-    let mut a = ag_mm_s2.first().map_or(0.0, |g| load(0, *g) / m);
-    let keff = k + 2.0 * c / dt + 4.0 * m / (dt * dt);
-    for (i, &ag) in ag_mm_s2.iter().enumerate() {
-        if i > 0 {
-            let rhs =
-                load(i, ag) + m * (4.0 * x / (dt * dt) + 4.0 * v / dt + a) + c * (2.0 * x / dt + v);
-            let xn = rhs / keff;
-            let vn = 2.0 * (xn - x) / dt - v;
-            a = 4.0 * (xn - x) / (dt * dt) - 4.0 * v / dt - a;
-            x = xn;
-            v = vn;
-        }
-        let di = proto.brace_disp_mm(x);
-        d.push(di);
-        f.push(proto.brace_force_kn(di) + if i == 0 { 0.0 } else { p(i) });
-    }
-    Ok((d, f))
-}
-
-fn band_limited_noise(n: usize, rms: f64, rng: &mut StdRng) -> Result<Vec<f64>, TrainError> {
-    let mut filt = Butterworth::new(ButterworthParams::new(6, 10.0, 1.0 / DT_S)?);
-    let raw: Vec<f64> = (0..n)
-        .map(|_| {
-            let w: f64 = StandardNormal.sample(rng);
-            filt.step(w).unwrap_or(0.0)
-        })
-        .collect();
-    let r = rms_of(&raw);
-    Ok(raw.iter().map(|v| v * rms / r.max(1e-300)).collect())
-}
-
-fn rms_of(x: &[f64]) -> f64 {
-    (x.iter().map(|v| v * v).sum::<f64>() / x.len().max(1) as f64).sqrt()
-}
-
+/// `x(i − j)`, zero before the start.
 fn lag(x: &[f64], i: usize, j: usize) -> f64 {
     if i >= j {
         x.get(i - j).copied().unwrap_or(0.0)
@@ -294,34 +150,6 @@ fn frame_rows(
         rows.push(r);
         ys.push(d[i + 1]);
     }
-}
-
-/// Open-loop plant run: command the pure brace response `cmd_mm` (specimen scale), return the
-/// command in force at each tick and the true actuator displacement then.
-pub fn plant_run(
-    preset: Preset,
-    specimen: Specimen,
-    factor: f64,
-    seed: u64,
-    cmd_mm: &[f64],
-) -> Result<(Vec<f64>, Vec<f64>), TrainError> {
-    let cfg = crate::scenario::rig_config(preset, specimen, factor, seed);
-    let params = cfg
-        .build()
-        .map_err(|e| TrainError::Setting(format!("plant: {e}")))?;
-    let mut rig = VirtualRig::new(params);
-    let n = cmd_mm.len();
-    let (mut u, mut x) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    let mut held = 0.0;
-    for k in 0..n {
-        u.push(held);
-        x.push(rig.true_disp_mm());
-        held = cmd_mm.get(k + 1).copied().unwrap_or(0.0);
-        // A clip is reported as an error but applied; the record shows what the plant did.
-        let _ = rig.command(held);
-        rig.advance_tick();
-    }
-    Ok((u, x))
 }
 
 /// `lrx-pure`: the model on its own force `k_b·d̂` (fed back as measured at d̂, so the correction
@@ -385,7 +213,8 @@ pub fn train(cfg: &LrxConfig) -> Result<LrxTraining, TrainError> {
     }
     let x = DMatrix::from_fn(rows.len(), LRX_COEFFS, |i, j| rows[i][j]);
     let y = DVector::from_vec(ys);
-    let (theta, frame_condition) = lstsq(&x, &y, cfg.rcond)?;
+    let frame = lstsq::solve(&x, &y, cfg.rcond)?;
+    let (theta, frame_condition) = (frame.coeffs, frame.condition_number);
     let fitted = &x * DVector::from_column_slice(&theta);
     let frame_fit_nrmse_pct = metrics::nrmse_pct(fitted.as_slice(), y.as_slice())?;
     let mut coeffs = [0.0; LRX_COEFFS];
@@ -415,7 +244,8 @@ pub fn train(cfg: &LrxConfig) -> Result<LrxTraining, TrainError> {
     }
     let x = DMatrix::from_fn(rows.len(), LEAD_TAPS, |i, j| rows[i][j]);
     let y = DVector::from_vec(ys);
-    let (w, lead_condition) = lstsq(&x, &y, cfg.rcond)?;
+    let lead = lstsq::solve(&x, &y, cfg.rcond)?;
+    let (w, lead_condition) = (lead.coeffs, lead.condition_number);
     let fitted = &x * DVector::from_column_slice(&w);
     let lead_fit_nrmse_pct = metrics::nrmse_pct(fitted.as_slice(), y.as_slice())?;
     let mut lead_weights = [0.0; LEAD_TAPS];
