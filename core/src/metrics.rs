@@ -78,56 +78,107 @@ pub fn nrmse_pct(x: &[f64], x_ref: &[f64]) -> Result<f64, MetricError> {
     Ok(100.0 * sqrt(sum / x.len() as f64) / peak)
 }
 
+/// Lags per interleaved block of [`lag_sums`].
+const LAG_BLOCK: usize = 8;
+
+/// `out[j] = Σ_{k < n − (lag0 + j)} a[k]·b[k + lag0 + j]` for `j < out.len() ≤ LAG_BLOCK`, where
+/// `n = a.len() = b.len()` and `lag0 + out.len() ≤ n`.
+///
+/// Each lag's sum is accumulated in ascending `k` from `-0.0` (as `Iterator::sum` of `f64` does), so
+/// every sum is bit-identical to the naive one-lag-at-a-time loop: only the *interleaving* of the
+/// lags changes, which turns one long chain of dependent additions (latency-bound) into
+/// `LAG_BLOCK` independent chains the CPU overlaps (and the compiler vectorizes across lags).
+fn lag_sums(a: &[f64], b: &[f64], lag0: usize, out: &mut [f64]) {
+    let count = out.len();
+    let mut acc = [-0.0_f64; LAG_BLOCK];
+    // The range every lag of the block shares: k < n − (lag0 + count − 1).
+    let common = a.len() + 1 - lag0 - count;
+    let b_block = &b[lag0..];
+    if count == LAG_BLOCK {
+        for (k, &x) in a[..common].iter().enumerate() {
+            let w = &b_block[k..k + LAG_BLOCK];
+            for j in 0..LAG_BLOCK {
+                acc[j] += x * w[j];
+            }
+        }
+    } else {
+        for (k, &x) in a[..common].iter().enumerate() {
+            for j in 0..count {
+                acc[j] += x * b_block[k + j];
+            }
+        }
+    }
+    // The tails: lag lag0 + j runs count − 1 − j samples further than the shared range.
+    for (j, s) in acc.iter_mut().enumerate().take(count) {
+        for k in common..a.len() - lag0 - j {
+            *s += a[k] * b_block[k + j];
+        }
+    }
+    out.copy_from_slice(&acc[..count]);
+}
+
 /// J1: the lag in samples, `0..=max_lag`, by which `measured` trails `target`, chosen to maximize
-/// their (unnormalized, overlap-averaged) cross-correlation.
+/// their (unnormalized, overlap-averaged) cross-correlation
+/// `c(lag) = Σ_{k < n−lag} target[k]·measured[k+lag] / (n − lag)` (the first lag on a tie).
 pub fn delay_steps(measured: &[f64], target: &[f64], max_lag: usize) -> Result<usize, MetricError> {
     check(measured, target)?;
-    if measured.len() <= max_lag {
+    let n = target.len();
+    if n <= max_lag {
         return Err(MetricError::Empty);
     }
     let mut best = (0usize, f64::NEG_INFINITY);
-    for lag in 0..=max_lag {
-        let n = target.len() - lag;
-        let c: f64 = target[..n]
-            .iter()
-            .zip(&measured[lag..])
-            .map(|(t, m)| t * m)
-            .sum::<f64>()
-            / n as f64;
-        if c > best.1 {
-            best = (lag, c);
+    let mut sums = [0.0_f64; LAG_BLOCK];
+    let mut lag0 = 0;
+    while lag0 <= max_lag {
+        let count = (max_lag + 1 - lag0).min(LAG_BLOCK);
+        lag_sums(target, measured, lag0, &mut sums[..count]);
+        for (j, s) in sums[..count].iter().enumerate() {
+            let lag = lag0 + j;
+            let c = s / (n - lag) as f64;
+            if c > best.1 {
+                best = (lag, c);
+            }
         }
+        lag0 += count;
     }
     Ok(best.0)
 }
 
 /// J1 with a sign: the lag in samples, `-max_lag..=max_lag`, that maximizes the overlap-averaged
 /// cross-correlation; positive when `measured` trails `target`, negative when it leads (an
-/// over-compensated actuator).
+/// over-compensated actuator). Lags are tried in the order 0, 1, −1, 2, −2, … and the first
+/// maximum wins.
 pub fn delay_steps_signed(
     measured: &[f64],
     target: &[f64],
     max_lag: usize,
 ) -> Result<isize, MetricError> {
     check(measured, target)?;
-    if measured.len() <= max_lag {
+    let n = target.len();
+    if n <= max_lag {
         return Err(MetricError::Empty);
     }
-    let corr = |a: &[f64], b: &[f64]| {
-        a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>() / a.len().min(b.len()) as f64
-    };
     let mut best = (0isize, f64::NEG_INFINITY);
-    for lag in 0..=max_lag {
-        let n = target.len() - lag;
-        // measured trails: measured[k + lag] ~ target[k]
-        let trail = corr(&target[..n], &measured[lag..]);
-        if trail > best.1 {
-            best = (lag as isize, trail);
+    let (mut trail, mut lead) = ([0.0_f64; LAG_BLOCK], [0.0_f64; LAG_BLOCK]);
+    let mut lag0 = 0;
+    while lag0 <= max_lag {
+        let count = (max_lag + 1 - lag0).min(LAG_BLOCK);
+        // measured trails: measured[k + lag] ~ target[k]; leads: target[k + lag] ~ measured[k].
+        lag_sums(target, measured, lag0, &mut trail[..count]);
+        lag_sums(measured, target, lag0, &mut lead[..count]);
+        for j in 0..count {
+            let lag = lag0 + j;
+            let len = (n - lag) as f64;
+            let c = trail[j] / len;
+            if c > best.1 {
+                best = (lag as isize, c);
+            }
+            let c = lead[j] / len;
+            if lag > 0 && c > best.1 {
+                best = (-(lag as isize), c);
+            }
         }
-        let lead = corr(&measured[..n], &target[lag..]);
-        if lag > 0 && lead > best.1 {
-            best = (-(lag as isize), lead);
-        }
+        lag0 += count;
     }
     Ok(best.0)
 }
