@@ -22,7 +22,7 @@ use crate::sweep::{self, SpecimenSweep, SweepModels};
 use crate::train::{data, lr, lrx, rnn};
 
 /// Maximum epochs of RNN fine-tuning after the ARX initialization in `rths reproduce`.
-pub const RNN_EPOCHS: usize = 100;
+pub const RNN_EPOCHS: usize = 50;
 
 /// What to run.
 #[derive(Debug, Clone)]
