@@ -169,3 +169,4 @@ proptest::proptest! {
         );
     }
 }
+
