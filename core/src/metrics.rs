@@ -195,22 +195,32 @@ impl<'a> LagSums<'a> {
         let (lo, hi) = (self.min_lag, self.max_lag);
         let mut ub = [f64::INFINITY; PRUNED_MAX_LAG + 1];
         let mut peak = 0.0_f64;
+        let lags = lo..=hi;
         let mut run = f64::INFINITY;
-        for lag in lo..=hi {
+        for ((u, &done), &sum) in ub[lags.clone()]
+            .iter_mut()
+            .zip(&self.done[lags.clone()])
+            .zip(&self.sum[lags.clone()])
+        {
             run += lip.slope;
-            if self.done[lag] {
-                run = run.min(self.sum[lag]);
-                peak = peak.max(self.sum[lag].abs());
+            if done {
+                run = run.min(sum);
+                peak = peak.max(sum.abs());
             }
-            ub[lag] = run;
+            *u = run;
         }
         run = f64::INFINITY;
-        for lag in (lo..=hi).rev() {
+        for ((u, &done), &sum) in ub[lags.clone()]
+            .iter_mut()
+            .zip(&self.done[lags.clone()])
+            .zip(&self.sum[lags])
+            .rev()
+        {
             run += lip.slope;
-            if self.done[lag] {
-                run = run.min(self.sum[lag]);
+            if done {
+                run = run.min(sum);
             }
-            ub[lag] = ub[lag].min(run);
+            *u = u.min(run);
         }
         // The rounding of the sweeps themselves (≤ 2·256 additions): far below this.
         let margin = lip.slack + 1e-9 * (peak + lip.slack + (hi + 1) as f64 * lip.slope);

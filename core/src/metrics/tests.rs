@@ -169,4 +169,3 @@ proptest::proptest! {
         );
     }
 }
-
