@@ -141,17 +141,23 @@ impl Lipschitz {
         if max_lag > PRUNED_MAX_LAG {
             return None;
         }
-        let norm = |x: &[f64]| sqrt(x.iter().map(|v| v * v).sum::<f64>());
-        let diff_norm = |x: &[f64]| {
-            sqrt(
-                x.windows(2)
-                    .map(|w| (w[1] - w[0]) * (w[1] - w[0]))
-                    .sum::<f64>(),
-            )
-        };
-        let (na, nb) = (norm(a), norm(b));
-        let edge = peak_abs(a) * peak_abs(b);
-        let slope = (na * diff_norm(b)).min(diff_norm(a) * nb) + edge;
+        // One pass for the six figures (independent accumulators: cheap next to one lag's sum).
+        let (mut aa, mut bb, mut da, mut db, mut pa, mut pb) =
+            (0.0, 0.0, 0.0, 0.0, 0.0_f64, 0.0_f64);
+        let (mut a_prev, mut b_prev) = (a.first().copied()?, b.first().copied()?);
+        for (&x, &y) in a.iter().zip(b) {
+            aa += x * x;
+            bb += y * y;
+            da += (x - a_prev) * (x - a_prev);
+            db += (y - b_prev) * (y - b_prev);
+            pa = pa.max(x.abs());
+            pb = pb.max(y.abs());
+            (a_prev, b_prev) = (x, y);
+        }
+        let (na, nb) = (sqrt(aa), sqrt(bb));
+        let (diff_a, diff_b) = (sqrt(da), sqrt(db));
+        let edge = pa * pb;
+        let slope = (na * diff_b).min(diff_a * nb) + edge;
         let slack = 8.0 * a.len() as f64 * f64::EPSILON * na * nb;
         let lip = Self {
             slope: slope * (1.0 + 1e-6),
