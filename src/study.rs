@@ -5,13 +5,14 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
+use rayon::prelude::*;
 use rths_core::compensator::LeadParams;
 use rths_core::metamodel::{LrParams, LrxParams, RnnParams};
 use rths_core::params::{Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{Preset, Specimen};
 use serde::Serialize;
 
-use crate::analysis::{pure_response, Method};
+use crate::analysis::AnalysisError;
 use crate::model_file::ModelFile;
 use crate::models;
 use crate::motion::GroundMotion;
@@ -19,6 +20,9 @@ use crate::plot::{self, Panel};
 use crate::scenario::{self, ScenarioId, ScenarioReport, ScenarioRun, ScenarioSetup};
 use crate::sweep::{self, SpecimenSweep, SweepModels};
 use crate::train::{data, lr, lrx, rnn};
+
+/// Maximum epochs of RNN fine-tuning after the ARX initialization in `rths reproduce`.
+pub const RNN_EPOCHS: usize = 50;
 
 /// What to run.
 #[derive(Debug, Clone)]
@@ -93,8 +97,29 @@ pub struct StudyResult {
 /// The reference brace deformation: pure FE of the paper's frame with the brace scaled by `factor`
 /// (the frame's damping coefficient unchanged: [`scenario::specimen_prototype`]).
 pub fn reference_mm(ag_mm_s2: &[f64], factor: f64) -> anyhow::Result<Vec<f64>> {
+    use rths_core::integrator::{Chang, ExplicitIntegrator};
+    use rths_core::structure::{LinearStructure, Vector};
     let proto = scenario::specimen_prototype(factor)?;
-    Ok(pure_response(&proto, ag_mm_s2, DT_S, Method::Chang)?.brace_disp_mm)
+    // The brace deformation of `pure_response(.., Method::Chang)`, with the same arithmetic step for
+    // step (and the same errors), without the five other histories nobody reads here.
+    let ag0 = *ag_mm_s2.first().ok_or(AnalysisError::EmptyMotion)?;
+    if let Some(index) = ag_mm_s2.iter().position(|a| !a.is_finite()) {
+        return Err(AnalysisError::NonFiniteMotion { index }.into());
+    }
+    let model = LinearStructure::prototype_pure(&proto).map_err(AnalysisError::from)?;
+    let mut ch = Chang::new(model, DT_S).map_err(AnalysisError::from)?;
+    ch.reset(ag0);
+    let zero = Vector::<1>::zeros();
+    let mut out = Vec::with_capacity(ag_mm_s2.len());
+    out.push(proto.brace_disp_mm(0.0));
+    for &ag in &ag_mm_s2[1..] {
+        ch.advance(ag, &zero);
+        out.push(proto.brace_disp_mm(ch.state().disp[0]));
+    }
+    match out.iter().position(|d| !d.is_finite()) {
+        Some(step) => Err(AnalysisError::Diverged { step }.into()),
+        None => Ok(out),
+    }
 }
 
 /// The reference brace deformation for a specimen model: linear → [`reference_mm`]; Bouc–Wen → the
@@ -254,6 +279,117 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
     v.map_or_else(|| "—".to_string(), |x| format!("{x:.digits$}"))
 }
 
+/// The RNN training configuration of the study: the defaults with the study's seed and the
+/// fine-tuning budget [`RNN_EPOCHS`], without their own progress bars (they train in parallel; the
+/// study shows one bar).
+pub fn rnn_config(cfg: &StudyConfig, hidden: usize) -> rnn::RnnConfig {
+    let mut rc = rnn::RnnConfig::new(hidden);
+    rc.seed = cfg.seed;
+    rc.max_epochs = RNN_EPOCHS;
+    rc.quiet = true;
+    rc
+}
+
+/// One progress bar for the whole study (hidden with `quiet` or when stderr is not a terminal):
+/// the runs are parallel, so per-run bars would overwrite each other.
+fn study_progress(cfg: &StudyConfig, units: u64) -> indicatif::ProgressBar {
+    use std::io::IsTerminal as _;
+    if cfg.quiet || !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(units);
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed}]")
+    {
+        bar.set_style(style);
+    }
+    bar
+}
+
+/// Train the study's RNNs (in parallel, returned in `cfg.rnn_hidden` order).
+fn train_rnns(
+    cfg: &StudyConfig,
+    train_resp: &data::PureResponse,
+    k_b: f64,
+    progress: &indicatif::ProgressBar,
+) -> anyhow::Result<Vec<(rnn::RnnConfig, rnn::RnnTraining)>> {
+    cfg.rnn_hidden
+        .par_iter()
+        .map(|&h| {
+            let rc = rnn_config(cfg, h);
+            let tr = rnn::train(train_resp, k_b, &rc)?;
+            progress.inc(1);
+            Ok((rc, tr))
+        })
+        .collect()
+}
+
+/// `lr-online` and `fe-online-ats` with a softer and a stiffer specimen (the models were trained at
+/// 1.0), in the order F = 0.8, 1.2.
+fn sensitivity_runs(
+    cfg: &StudyConfig,
+    ag: &[f64],
+    lr2: LrParams,
+    progress: &indicatif::ProgressBar,
+) -> anyhow::Result<Vec<Sensitivity>> {
+    let per_factor = [0.8, 1.2]
+        .par_iter()
+        .map(|&factor| {
+            let reference_f = reference_mm(ag, factor)?;
+            [ScenarioId::LrOnline, ScenarioId::FeOnlineAts]
+                .par_iter()
+                .map(|&id| {
+                    let run = scenario::run(&setup(
+                        id,
+                        ag,
+                        &reference_f,
+                        cfg,
+                        factor,
+                        Some(lr2),
+                        None,
+                        None,
+                    ))?;
+                    progress.inc(1);
+                    Ok(Sensitivity {
+                        stiffness_factor: factor,
+                        report: run.report,
+                    })
+                })
+                .collect::<anyhow::Result<Vec<_>>>()
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    Ok(per_factor.into_iter().flatten().collect())
+}
+
+/// The specimen sweep (issue 8) on the study's record, then every other shipped record.
+fn sweep_records(
+    cfg: &StudyConfig,
+    lrx_cfg: &lrx::LrxConfig,
+    models: SweepModels,
+    progress: &indicatif::ProgressBar,
+) -> anyhow::Result<Vec<sweep::RecordSweep>> {
+    let mut motions = vec![cfg.motion.clone()];
+    for name in GroundMotion::embedded_names() {
+        if let Some(m) = GroundMotion::embedded(name) {
+            if m.name != cfg.motion.name {
+                motions.push(m);
+            }
+        }
+    }
+    let runs_per_record = (sweep::cases().len() * sweep::SCENARIOS.len()) as u64;
+    motions
+        .par_iter()
+        .map(|m| {
+            let ag_m = m.resample_mm_s2(DT_S);
+            let scale = sweep::fitting_scale(&ag_m)?;
+            let trained = lrx_cfg.motions.iter().any(|(t, _)| t.name == m.name);
+            let r = sweep::run_record(m, scale, None, cfg.preset, cfg.seed, models, trained)?;
+            progress.inc(runs_per_record);
+            Ok(r)
+        })
+        .collect()
+}
+
 /// Run the whole study.
 pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
     std::fs::create_dir_all(&cfg.out_dir)
@@ -297,16 +433,45 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
     lr_file.save(&lr_path)?;
     files.push(lr_path);
     let lr2 = models::lr_params(&lr_file)?;
+    let progress = study_progress(
+        cfg,
+        (cfg.rnn_hidden.len() + 1 + ScenarioId::ALL.len() + 4) as u64
+            + (GroundMotion::embedded_names().len() * sweep::cases().len() * sweep::SCENARIOS.len())
+                as u64,
+    );
+    progress.set_message("training, scenarios, specimen sweep");
 
-    // RNNs.
+    // Two independent branches share the cores: the RNNs (the H = 20 training is the longest
+    // single job), and the LRX model followed by what needs only the LR and the LRX (stiffness
+    // sensitivity, specimen sweep). Everything is collected in order: the results do not depend on
+    // the scheduling.
+    let lrx_cfg = lrx::LrxConfig::new()?;
+    let k_b = proto.brace_axial_stiffness_kn_per_mm();
+    let (rnn_trained, lrx_branch) = rayon::join(
+        || train_rnns(cfg, &train_resp, k_b, &progress),
+        || -> anyhow::Result<_> {
+            let lrx_tr = lrx::train(&lrx_cfg)?;
+            progress.inc(1);
+            let lrx_params = models::lrx_params(&lrx_tr.file)?;
+            let sweep_models = SweepModels {
+                lr: lr2,
+                lrx: lrx_params,
+            };
+            let (sensitivity, records) = rayon::join(
+                || sensitivity_runs(cfg, &ag, lr2, &progress),
+                || sweep_records(cfg, &lrx_cfg, sweep_models, &progress),
+            );
+            Ok((lrx_tr, lrx_params, sensitivity?, records?))
+        },
+    );
+    let rnn_trained = rnn_trained?;
+    let (lrx_tr, lrx_params, sensitivity, records) = lrx_branch?;
+
     let mut rnn_models = Vec::new();
     let mut rnn_training = Vec::new();
-    for &h in &cfg.rnn_hidden {
-        let mut rc = rnn::RnnConfig::new(h);
-        rc.seed = cfg.seed;
-        rc.quiet = cfg.quiet;
-        let tr = rnn::train(&train_resp, proto.brace_axial_stiffness_kn_per_mm(), &rc)?;
-        let file = rnn::model_file(&tr, &rc, cfg.motion.name.clone(), ag.len());
+    for (rc, tr) in &rnn_trained {
+        let h = rc.hidden;
+        let file = rnn::model_file(tr, rc, cfg.motion.name.clone(), ag.len());
         let path = cfg.out_dir.join(format!("rnn-{h}.json"));
         file.save(&path)?;
         files.push(path);
@@ -322,88 +487,47 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
     let rnn_for = |h: usize| rnn_models.iter().find(|(k, _)| *k == h).map(|(_, p)| *p);
 
     // The specimen-faithful LRX metamodel (issue 8), trained on other records than El Centro.
-    let lrx_cfg = lrx::LrxConfig::new()?;
-    let lrx_tr = lrx::train(&lrx_cfg)?;
     let lrx_path = cfg.out_dir.join("lrx.json");
     lrx_tr.file.save(&lrx_path)?;
     files.push(lrx_path);
-    let lrx_params = models::lrx_params(&lrx_tr.file)?;
 
-    // Every scenario.
-    let mut reports = Vec::new();
-    for id in ScenarioId::ALL {
-        if let Some(h) = id.rnn_hidden() {
-            if rnn_for(h).is_none() {
-                continue;
-            }
-        }
-        let run = scenario::run(&setup(
-            id,
-            &ag,
-            &reference,
-            cfg,
-            1.0,
-            Some(lr2),
-            id.rnn_hidden().and_then(rnn_for),
-            Some(lrx_params),
-        ))?;
-        let csv = cfg.out_dir.join(format!("{id}.csv"));
-        run.history.write_csv(&csv)?;
-        files.push(csv);
-        let png = cfg.out_dir.join(format!("{id}.png"));
-        plot_run(
-            &run,
-            &png,
-            &format!("{id} ({}, {})", cfg.motion.name, cfg.preset.name()),
-        )?;
-        files.push(png);
-        reports.push(run.report);
-    }
-
-    // Specimen stiffness sensitivity (the models were trained at 1.0).
-    let mut sensitivity = Vec::new();
-    for factor in [0.8, 1.2] {
-        let reference_f = reference_mm(&ag, factor)?;
-        for id in [ScenarioId::LrOnline, ScenarioId::FeOnlineAts] {
+    // Every scenario (in parallel, collected in order).
+    let ids: Vec<ScenarioId> = ScenarioId::ALL
+        .into_iter()
+        .filter(|id| id.rnn_hidden().is_none_or(|h| rnn_for(h).is_some()))
+        .collect();
+    let runs = ids
+        .par_iter()
+        .map(|&id| {
             let run = scenario::run(&setup(
                 id,
                 &ag,
-                &reference_f,
+                &reference,
                 cfg,
-                factor,
+                1.0,
                 Some(lr2),
-                None,
-                None,
+                id.rnn_hidden().and_then(rnn_for),
+                Some(lrx_params),
             ))?;
-            sensitivity.push(Sensitivity {
-                stiffness_factor: factor,
-                report: run.report,
-            });
-        }
+            let csv = cfg.out_dir.join(format!("{id}.csv"));
+            run.history.write_csv(&csv)?;
+            let png = cfg.out_dir.join(format!("{id}.png"));
+            plot_run(
+                &run,
+                &png,
+                &format!("{id} ({}, {})", cfg.motion.name, cfg.preset.name()),
+            )?;
+            progress.inc(1);
+            Ok((run.report, csv, png))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut reports = Vec::new();
+    for (report, csv, png) in runs {
+        files.push(csv);
+        files.push(png);
+        reports.push(report);
     }
 
-    // Specimen sweep (issue 8): the LRX metamodel against the LR and FE + ATS on every shipped record.
-    let models = SweepModels {
-        lr: lr2,
-        lrx: lrx_params,
-    };
-    let mut records = Vec::new();
-    let mut motions = vec![cfg.motion.clone()];
-    for name in GroundMotion::embedded_names() {
-        if let Some(m) = GroundMotion::embedded(name) {
-            if m.name != cfg.motion.name {
-                motions.push(m);
-            }
-        }
-    }
-    for m in &motions {
-        let ag_m = m.resample_mm_s2(DT_S);
-        let scale = sweep::fitting_scale(&ag_m)?;
-        let trained = lrx_cfg.motions.iter().any(|(t, _)| t.name == m.name);
-        records.push(sweep::run_record(
-            m, scale, None, cfg.preset, cfg.seed, models, trained,
-        )?);
-    }
     let specimen_sweep = SpecimenSweep {
         lrx_training: lrx_tr.file.training.motion.clone(),
         records,
@@ -411,6 +535,7 @@ pub fn run(cfg: &StudyConfig) -> anyhow::Result<StudyResult> {
     let sweep_png = cfg.out_dir.join("specimen-sweep.png");
     sweep::plot(&specimen_sweep, &sweep_png)?;
     files.push(sweep_png);
+    progress.finish_and_clear();
 
     let json = StudyJson {
         scenarios: reports,
@@ -591,4 +716,28 @@ pub fn report_md(cfg: &StudyConfig, r: &StudyResult) -> String {
          `<scenario>.csv`; models: `lr.json`, `rnn-H.json`, `lrx.json`."
     );
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::{pure_response, Method};
+
+    #[test]
+    fn reference_is_the_brace_deformation_of_the_pure_response_bit_for_bit() {
+        let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
+        let ag = &ag[..20_000];
+        for factor in [0.6, 1.0, 1.4] {
+            let proto = scenario::specimen_prototype(factor).unwrap();
+            let full = pure_response(&proto, ag, DT_S, Method::Chang).unwrap();
+            let slim = reference_mm(ag, factor).unwrap();
+            assert_eq!(slim.len(), full.brace_disp_mm.len());
+            assert!(slim
+                .iter()
+                .zip(&full.brace_disp_mm)
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+        assert!(reference_mm(&[], 1.0).is_err());
+        assert!(reference_mm(&[0.0, f64::NAN], 1.0).is_err());
+    }
 }

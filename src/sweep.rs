@@ -12,6 +12,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use rayon::prelude::*;
 use rths_core::compensator::LeadParams;
 use rths_core::metamodel::{LrParams, LrxParams};
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
@@ -148,30 +149,35 @@ pub fn run_record(
     if let Some(s) = max_s {
         ag.truncate(((s / DT_S) as usize + 1).min(ag.len()));
     }
-    let mut out = Vec::new();
-    for (spec, f) in cases() {
-        let reference = reference_for(&ag, spec, f)?;
-        let mut runs = Vec::new();
-        for id in SCENARIOS {
-            let run = scenario::run(&ScenarioSetup {
-                id,
-                ground_accel_mm_s2: &ag,
-                reference_mm: &reference,
-                rig: scenario::rig_config(preset, spec, f, seed),
+    // The cases are independent closed loops: run them in parallel, collected in order.
+    let out = cases()
+        .into_par_iter()
+        .map(|(spec, f)| {
+            let reference = reference_for(&ag, spec, f)?;
+            let runs = SCENARIOS
+                .par_iter()
+                .map(|&id| {
+                    let run = scenario::run(&ScenarioSetup {
+                        id,
+                        ground_accel_mm_s2: &ag,
+                        reference_mm: &reference,
+                        rig: scenario::rig_config(preset, spec, f, seed),
+                        stiffness_factor: f,
+                        lr: Some(models.lr),
+                        rnn: None,
+                        delay_steps: PAPER_DELAY_STEPS,
+                        lrx: Some(models.lrx),
+                    })?;
+                    Ok(run.report)
+                })
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            Ok(SweepCase {
+                specimen: spec.name().to_string(),
                 stiffness_factor: f,
-                lr: Some(models.lr),
-                rnn: None,
-                delay_steps: PAPER_DELAY_STEPS,
-                lrx: Some(models.lrx),
-            })?;
-            runs.push(run.report);
-        }
-        out.push(SweepCase {
-            specimen: spec.name().to_string(),
-            stiffness_factor: f,
-            runs,
-        });
-    }
+                runs,
+            })
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
     Ok(RecordSweep {
         record: motion.name.clone(),
         scale,

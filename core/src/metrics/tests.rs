@@ -59,3 +59,113 @@ fn signed_delay_finds_lead_and_lag() {
     assert_eq!(delay_steps_signed(&t, &sine(2000, 5), 100), Ok(-5));
     assert_eq!(delay_steps_signed(&t, &t, 100), Ok(0));
 }
+
+/// The one-lag-at-a-time J1 search the blocked [`delay_steps`] must reproduce exactly.
+fn delay_steps_naive(measured: &[f64], target: &[f64], max_lag: usize) -> usize {
+    let mut best = (0usize, f64::NEG_INFINITY);
+    for lag in 0..=max_lag {
+        let n = target.len() - lag;
+        let c: f64 = target[..n]
+            .iter()
+            .zip(&measured[lag..])
+            .map(|(t, m)| t * m)
+            .sum::<f64>()
+            / n as f64;
+        if c > best.1 {
+            best = (lag, c);
+        }
+    }
+    best.0
+}
+
+/// The one-lag-at-a-time signed J1 search the blocked [`delay_steps_signed`] must reproduce exactly.
+fn delay_steps_signed_naive(measured: &[f64], target: &[f64], max_lag: usize) -> isize {
+    let corr = |a: &[f64], b: &[f64]| {
+        a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>() / a.len().min(b.len()) as f64
+    };
+    let mut best = (0isize, f64::NEG_INFINITY);
+    for lag in 0..=max_lag {
+        let n = target.len() - lag;
+        let trail = corr(&target[..n], &measured[lag..]);
+        if trail > best.1 {
+            best = (lag as isize, trail);
+        }
+        let lead = corr(&measured[..n], &target[lag..]);
+        if lag > 0 && lead > best.1 {
+            best = (-(lag as isize), lead);
+        }
+    }
+    best.0
+}
+
+/// A structure-like response: two decaying modes, a drift and seeded noise (as a measured signal).
+fn response_like(n: usize, shift: f64, noise: f64, seed: u64) -> std::vec::Vec<f64> {
+    let mut state = seed | 1;
+    (0..n)
+        .map(|i| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let u = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            let t = (i as f64 - shift) / 2048.0;
+            12.0 * libm::exp(-0.3 * t) * libm::sin(21.4 * t)
+                + 3.0 * libm::sin(5.1 * t + 0.4)
+                + 0.01 * t
+                + noise * u
+        })
+        .collect()
+}
+
+#[test]
+fn blocked_delay_equals_naive_on_response_like_signals() {
+    let target = response_like(20_000, 0.0, 0.0, 1);
+    for (shift, noise, max_lag) in [
+        (28.0, 0.01, 205),
+        (0.0, 0.0, 205),
+        (-7.0, 0.5, 100),
+        (3.5, 2.0, 17),
+    ] {
+        let measured = response_like(20_000, shift, noise, 7);
+        assert_eq!(
+            delay_steps(&measured, &target, max_lag),
+            Ok(delay_steps_naive(&measured, &target, max_lag))
+        );
+        assert_eq!(
+            delay_steps_signed(&measured, &target, max_lag),
+            Ok(delay_steps_signed_naive(&measured, &target, max_lag))
+        );
+    }
+}
+
+proptest::proptest! {
+    #[test]
+    fn blocked_delay_equals_naive_on_random_signals(
+        pairs in proptest::collection::vec((-1e3f64..1e3, -1e3f64..1e3), 1..300),
+        lag_frac in 0.0f64..1.0,
+    ) {
+        let (m, t): (std::vec::Vec<f64>, std::vec::Vec<f64>) = pairs.into_iter().unzip();
+        let max_lag = ((m.len() - 1) as f64 * lag_frac) as usize;
+        proptest::prop_assert_eq!(delay_steps(&m, &t, max_lag), Ok(delay_steps_naive(&m, &t, max_lag)));
+        proptest::prop_assert_eq!(
+            delay_steps_signed(&m, &t, max_lag),
+            Ok(delay_steps_signed_naive(&m, &t, max_lag))
+        );
+    }
+
+    #[test]
+    fn blocked_delay_equals_naive_on_lagged_noisy_signals(
+        len in 300usize..3000,
+        shift in -60.0f64..60.0,
+        noise in 0.0f64..5.0,
+        seed in 1u64..1000,
+        max_lag in 0usize..250,
+    ) {
+        let t = response_like(len, 0.0, 0.0, seed);
+        let m = response_like(len, shift, noise, seed + 1);
+        proptest::prop_assert_eq!(delay_steps(&m, &t, max_lag), Ok(delay_steps_naive(&m, &t, max_lag)));
+        proptest::prop_assert_eq!(
+            delay_steps_signed(&m, &t, max_lag),
+            Ok(delay_steps_signed_naive(&m, &t, max_lag))
+        );
+    }
+}
