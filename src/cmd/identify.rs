@@ -103,7 +103,7 @@ pub fn rig_file(args: &Args, cfg: &IdentifyConfig, o: &Outcome) -> RigFile {
         },
         actuator: ActuatorInfo {
             dt_s: x.dt_s,
-            delay_ms: id.model.delay_s() * 1e3,
+            delay_ms: id.delay_s * 1e3,
             dead_time_ms: id.model.dead_time_s * 1e3,
             lag_ms: id.model.lag_s * 1e3,
             gain: id.model.gain,
@@ -196,7 +196,7 @@ fn print_summary(r: &RigFile, out: &Path, plot: &Path) {
         r.excitation.peak_velocity_mm_s
     );
     println!(
-        "  actuator: delay {:.2} ms (dead time {:.2} ms + lag {:.2} ms), gain {:.4}; coherence min {:.4} mean {:.4}; model error {:.2}%",
+        "  actuator: delay {:.2} ms (model: dead time {:.2} ms, lag {:.2} ms), gain {:.4}; coherence min {:.4} mean {:.4}; model error {:.2}%",
         a.delay_ms, a.dead_time_ms, a.lag_ms, a.gain, q.min_coherence, q.mean_coherence, q.frf_fit_error_pct
     );
     for f in [1.0, 5.0, 10.0, 20.0] {

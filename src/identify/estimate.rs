@@ -88,6 +88,8 @@ pub struct SpecimenFit {
 pub struct Identification {
     /// Measured frequency response at the excited lines.
     pub frf: Vec<FrfLine>,
+    /// The actuator's delay: phase delay at low frequency ([`phase_delay_s`]), s.
+    pub delay_s: f64,
     /// The actuator's first-order-plus-dead-time model.
     pub model: Fopdt,
     /// Lead weights, newest tap first.
@@ -194,8 +196,7 @@ pub struct Fopdt {
 }
 
 impl Fopdt {
-    /// The equivalent delay τ + T, s: the model's phase slope at low frequency (what a pure-delay
-    /// view of the actuator, e.g. `rths plant`'s phase delay or J1, calls its delay).
+    /// The model's equivalent delay τ + T, s (its phase slope at zero frequency).
     pub fn delay_s(&self) -> f64 {
         self.dead_time_s + self.lag_s
     }
@@ -215,6 +216,27 @@ impl Fopdt {
 /// while the controller's signals live mostly at low frequency).
 fn weight(l: &FrfLine) -> f64 {
     l.coherence / l.freq_hz.max(1e-9)
+}
+
+/// Lines up to this frequency give the low-frequency phase delay, Hz.
+pub const DELAY_BAND_HZ: f64 = 1.0;
+
+/// The actuator's delay as a phase delay at low frequency (what `rths plant` reports, from the
+/// phase at 0.5 Hz): the least-squares slope through the origin of the measured phase against ω
+/// over the lines up to [`DELAY_BAND_HZ`], weighted by coherence, `τ = −Σ w·φ·ω / Σ w·ω²`, s.
+pub fn phase_delay_s(frf: &[FrfLine]) -> Result<f64, IdentifyError> {
+    let (mut num, mut den) = (0.0, 0.0);
+    for l in frf.iter().filter(|l| l.freq_hz <= DELAY_BAND_HZ) {
+        let omega = 2.0 * std::f64::consts::PI * l.freq_hz;
+        num += l.coherence * l.phase_deg.to_radians() * omega;
+        den += l.coherence * omega * omega;
+    }
+    if den.is_nan() || den <= 0.0 {
+        return Err(refuse(format!(
+            "no coherent line up to {DELAY_BAND_HZ} Hz to measure the delay"
+        )));
+    }
+    Ok(-num / den)
 }
 
 /// Fit [`Fopdt`] to the measured lines, both steps linear least squares weighted by [`weight`]:
@@ -461,7 +483,7 @@ pub fn identify(sig: Signals<'_>, design: &Design) -> Result<Identification, Ide
         )));
     }
     let model = fopdt(&frf)?;
-    let (gain, delay_s) = (model.gain, model.delay_s());
+    let (gain, delay_s) = (model.gain, phase_delay_s(&frf)?);
     if !(GAIN_RANGE.0..=GAIN_RANGE.1).contains(&gain) {
         return Err(refuse(format!(
             "actuator gain {gain:.3} outside the plausible {GAIN_RANGE:?}"
@@ -512,6 +534,7 @@ pub fn identify(sig: Signals<'_>, design: &Design) -> Result<Identification, Ide
     ];
     Ok(Identification {
         frf,
+        delay_s,
         model,
         lead_weights,
         lead_stride: design.lead_stride,

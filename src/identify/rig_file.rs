@@ -46,14 +46,13 @@ pub struct ExcitationInfo {
 pub struct ActuatorInfo {
     /// Controller tick, s.
     pub dt_s: f64,
-    /// Equivalent delay τ + T of the model `g·e^{−jωτ}/(1 + jωT)` (its low-frequency phase
-    /// slope), ms.
+    /// Phase delay at low frequency (phase slope, 0.1–1 Hz), ms.
     pub delay_ms: f64,
-    /// Dead time τ, ms.
+    /// Dead time τ of the model `g·e^{−jωτ}/(1 + jωT)`, ms.
     pub dead_time_ms: f64,
-    /// Lag time constant T, ms.
+    /// Lag time constant T of the model, ms.
     pub lag_ms: f64,
-    /// Low-frequency gain g.
+    /// Low-frequency gain g of the model.
     pub gain: f64,
     /// The measured frequency response at every excited line.
     pub frf: Vec<FrfLine>,
