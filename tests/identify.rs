@@ -318,3 +318,92 @@ fn the_rig_file_round_trips_and_is_checked() {
     short.compensation.lead_weights.pop();
     assert!(short.validate().is_err());
 }
+
+/// The measurement behind `docs/identify.md`'s LRX table (slow: run with `--ignored`): LRX on the
+/// benchmark plant with (a) the shipped model (lead fitted on the simulated `unr-compact` plant's
+/// true displacement), (b) the lead identified on the benchmark rig by `rths identify` (measured
+/// signals only), (c) the lead fitted on the benchmark plant's true displacement (the simulator
+/// oracle, not available on a real rig); and `fe-online-ats` — over the sweep's specimens, on El
+/// Centro and Kobe at the sweep's scales.
+#[test]
+#[ignore]
+fn lrx_with_the_identified_lead_on_the_benchmark_plant() {
+    use rths::model_file::ModelFile;
+    use rths::motion::GroundMotion;
+    use rths::scenario::{ScenarioId, ScenarioSetup};
+    use rths::train::lrx::{train, GivenLead, LrxConfig};
+    use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
+
+    let shipped = ModelFile::from_json(include_str!("../data/models/lrx.json")).unwrap();
+    let rig = rig_config(Preset::Benchmark, Specimen::Linear, 1.0, 1);
+    let o = identify_virtual(&rig, FaultPlan::none(), &IdentifyConfig::default()).unwrap();
+    let id = &o.identification;
+    let mut cfg = LrxConfig::new().unwrap();
+    cfg.given_lead = Some(GivenLead {
+        weights: id.lead_weights,
+        stride: id.lead_stride,
+        fit_nrmse_pct: id.lead_fit_nrmse_pct,
+    });
+    let identified = train(&cfg).unwrap().file;
+    let mut cfg = LrxConfig::new().unwrap();
+    cfg.preset = Preset::Benchmark;
+    let oracle = train(&cfg).unwrap().file;
+    let models = [
+        ("shipped", shipped),
+        ("identified", identified),
+        ("oracle", oracle),
+    ];
+    let mut all: Vec<(String, Vec<f64>)> = Vec::new();
+    for name in ["el-centro", "kobe"] {
+        let m = GroundMotion::embedded(name).unwrap();
+        let scale = rths::sweep::fitting_scale(&m.resample_mm_s2(DT_S)).unwrap();
+        let ag = m.scaled(scale).resample_mm_s2(DT_S);
+        for (spec, f) in rths::sweep::cases() {
+            let reference = rths::study::reference_for(&ag, spec, f).unwrap();
+            let mut row = Vec::new();
+            let mut setup = ScenarioSetup {
+                id: ScenarioId::FeOnlineAts,
+                ground_accel_mm_s2: &ag,
+                reference_mm: &reference,
+                rig: rig_config(Preset::Benchmark, spec, f, 1),
+                stiffness_factor: f,
+                lr: None,
+                rnn: None,
+                delay_steps: PAPER_DELAY_STEPS,
+                lrx: None,
+            };
+            for (_, file) in &models {
+                setup.id = ScenarioId::LrxOnline;
+                setup.lrx = Some(rths::models::lrx_params(file).unwrap());
+                let r = rths::scenario::run(&setup).unwrap().report;
+                row.push(r.nrmse_measured_pct.unwrap_or(f64::NAN));
+            }
+            setup.id = ScenarioId::FeOnlineAts;
+            let r = rths::scenario::run(&setup).unwrap().report;
+            row.push(r.nrmse_measured_pct.unwrap_or(f64::NAN));
+            let label = format!("{name}×{scale} {} F={f}", spec.name());
+            println!(
+                "{label:32} lrx shipped {:6.2}%  identified {:6.2}%  oracle {:6.2}%  fe-online-ats {:6.2}%",
+                row[0], row[1], row[2], row[3]
+            );
+            all.push((label, row));
+        }
+    }
+    for (j, name) in [
+        "lrx shipped",
+        "lrx identified",
+        "lrx oracle",
+        "fe-online-ats",
+    ]
+    .iter()
+    .enumerate()
+    {
+        let mut v: Vec<f64> = all.iter().map(|r| r.1[j]).collect();
+        v.sort_by(f64::total_cmp);
+        println!(
+            "{name:16} median {:.2}%  max {:.2}%",
+            v[v.len() / 2],
+            v[v.len() - 1]
+        );
+    }
+}
