@@ -407,3 +407,55 @@ fn lrx_with_the_identified_lead_on_the_benchmark_plant() {
         );
     }
 }
+
+#[test]
+fn train_lrx_takes_the_lead_from_the_rig_file_and_records_the_rig() {
+    use rths::model_file::ModelFile;
+    let dir = tempfile::tempdir().unwrap();
+    let a = args(dir.path(), PresetArg::Benchmark);
+    let rig = run_with_faults(&a, FaultPlan::none()).unwrap();
+    let model = dir.path().join("lrx.json");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_rths"))
+        .args(["train", "lrx", "--quiet", "--rig"])
+        .arg(&a.out)
+        .arg("--out")
+        .arg(&model)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let m = ModelFile::load(&model).unwrap();
+    let w = m.lrx.as_ref().unwrap();
+    assert_eq!(w.lead_weights, rig.compensation.lead_weights);
+    assert_eq!(w.lead_stride, rig.compensation.lead_stride);
+    let bytes = std::fs::read(&a.out).unwrap();
+    let id = m.training.rig.unwrap();
+    assert_eq!(
+        id,
+        format!(
+            "benchmark virtual {}",
+            rths::identify::rig_file::checksum_hex(&bytes)
+        )
+    );
+    // A rig file that fails validation is refused, and no model is written.
+    let bad = dir.path().join("bad.json");
+    let text = std::fs::read_to_string(&a.out).unwrap();
+    std::fs::write(
+        &bad,
+        text.replace("\"lead_stride\": 6", "\"lead_stride\": 9"),
+    )
+    .unwrap();
+    let model2 = dir.path().join("lrx2.json");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_rths"))
+        .args(["train", "lrx", "--quiet", "--rig"])
+        .arg(&bad)
+        .arg("--out")
+        .arg(&model2)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && stderr.contains("lead_stride"),
+        "{stderr}"
+    );
+    assert!(!model2.exists());
+}
