@@ -177,7 +177,7 @@ fn args(dir: &Path, preset: PresetArg) -> Args {
         specimen: SpecimenArg::Linear,
         specimen_stiffness_factor: 1.0,
         amplitude_mm: 2.0,
-        lead_stride: 6,
+        lead_stride: 8,
         out: dir.join("rig.json"),
         plot: None,
     }
@@ -320,7 +320,7 @@ fn the_rig_file_round_trips_and_is_checked() {
 }
 
 /// The measurement behind `docs/identify.md`'s LRX table (slow: run with `--ignored`): LRX on the
-/// benchmark plant with (a) the shipped model (lead fitted on the simulated `unr-compact` plant's
+/// benchmark plant (and [`lrx_table`] on any preset) with (a) the shipped model (lead fitted on the simulated `unr-compact` plant's
 /// true displacement), (b) the lead identified on the benchmark rig by `rths identify` (measured
 /// signals only), (c) the lead fitted on the benchmark plant's true displacement (the simulator
 /// oracle, not available on a real rig); and `fe-online-ats` — over the sweep's specimens, on El
@@ -328,6 +328,17 @@ fn the_rig_file_round_trips_and_is_checked() {
 #[test]
 #[ignore]
 fn lrx_with_the_identified_lead_on_the_benchmark_plant() {
+    lrx_table(Preset::Benchmark);
+}
+
+/// The same on `unr-compact`, the preset the shipped lead was fitted on (slow: `--ignored`).
+#[test]
+#[ignore]
+fn lrx_with_the_identified_lead_on_the_unr_compact_plant() {
+    lrx_table(Preset::UnrCompact);
+}
+
+fn lrx_table(preset: Preset) {
     use rths::model_file::ModelFile;
     use rths::motion::GroundMotion;
     use rths::scenario::{ScenarioId, ScenarioSetup};
@@ -335,7 +346,7 @@ fn lrx_with_the_identified_lead_on_the_benchmark_plant() {
     use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 
     let shipped = ModelFile::from_json(include_str!("../data/models/lrx.json")).unwrap();
-    let rig = rig_config(Preset::Benchmark, Specimen::Linear, 1.0, 1);
+    let rig = rig_config(preset, Specimen::Linear, 1.0, 1);
     let o = identify_virtual(&rig, FaultPlan::none(), &IdentifyConfig::default()).unwrap();
     let id = &o.identification;
     let mut cfg = LrxConfig::new().unwrap();
@@ -346,7 +357,7 @@ fn lrx_with_the_identified_lead_on_the_benchmark_plant() {
     });
     let identified = train(&cfg).unwrap().file;
     let mut cfg = LrxConfig::new().unwrap();
-    cfg.preset = Preset::Benchmark;
+    cfg.preset = preset;
     let oracle = train(&cfg).unwrap().file;
     let models = [
         ("shipped", shipped),
@@ -365,7 +376,7 @@ fn lrx_with_the_identified_lead_on_the_benchmark_plant() {
                 id: ScenarioId::FeOnlineAts,
                 ground_accel_mm_s2: &ag,
                 reference_mm: &reference,
-                rig: rig_config(Preset::Benchmark, spec, f, 1),
+                rig: rig_config(preset, spec, f, 1),
                 stiffness_factor: f,
                 lr: None,
                 rnn: None,
@@ -381,7 +392,7 @@ fn lrx_with_the_identified_lead_on_the_benchmark_plant() {
             setup.id = ScenarioId::FeOnlineAts;
             let r = rths::scenario::run(&setup).unwrap().report;
             row.push(r.nrmse_measured_pct.unwrap_or(f64::NAN));
-            let label = format!("{name}×{scale} {} F={f}", spec.name());
+            let label = format!("{} {name}×{scale} {} F={f}", preset.name(), spec.name());
             println!(
                 "{label:32} lrx shipped {:6.2}%  identified {:6.2}%  oracle {:6.2}%  fe-online-ats {:6.2}%",
                 row[0], row[1], row[2], row[3]
@@ -441,7 +452,7 @@ fn train_lrx_takes_the_lead_from_the_rig_file_and_records_the_rig() {
     let text = std::fs::read_to_string(&a.out).unwrap();
     std::fs::write(
         &bad,
-        text.replace("\"lead_stride\": 6", "\"lead_stride\": 9"),
+        text.replace("\"lead_stride\": 8", "\"lead_stride\": 9"),
     )
     .unwrap();
     let model2 = dir.path().join("lrx2.json");

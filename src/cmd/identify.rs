@@ -36,7 +36,7 @@ pub struct Args {
     #[arg(long, default_value_t = 2.0, value_name = "MM")]
     pub amplitude_mm: f64,
     /// Lead-filter tap spacing, ticks (1..=8).
-    #[arg(long, default_value_t = 6)]
+    #[arg(long, default_value_t = 8)]
     pub lead_stride: usize,
     /// The rig file to write (only if every check passed).
     #[arg(long, value_name = "RIG.json")]
