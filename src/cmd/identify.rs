@@ -171,7 +171,7 @@ pub fn run_with_faults(args: &Args, faults: FaultPlan) -> anyhow::Result<RigFile
         if args.uncertainty { ", uncertain" } else { "" }
     );
     write_atomically(&args.out, &(text + "\n"))?;
-    identify::figure::draw(&plot, &title, &id.frf, &id.model, &comp)
+    identify::figure::draw(&plot, &title, &id.frf, id.delay_s, &id.model, &comp)
         .with_context(|| format!("drawing {}", plot.display()))?;
     print_summary(&file, &args.out, &plot);
     Ok(file)

@@ -7,12 +7,13 @@ use plotters::prelude::*;
 
 use super::estimate::{Fopdt, FrfLine};
 
-/// Gain, phase and coherence of the measured lines, the identified model `g·e^{−jωτ}/(1 + jωT)`, and the
+/// Gain, phase and coherence of the measured lines, the identified delay and model `g·e^{−jωτ}/(1 + jωT)`, and the
 /// actuator with its identified lead (`W·H·e^{jωΔt}`, ideally 1 and 0°).
 pub fn draw(
     path: &Path,
     title: &str,
     frf: &[FrfLine],
+    delay_s: f64,
     model: &Fopdt,
     compensated: &[(f64, f64)],
 ) -> anyhow::Result<()> {
@@ -121,9 +122,9 @@ pub fn draw(
     ))
     .map_err(|e| err(&e))?
     .label(format!(
-        "identified dead time {:.2} ms (delay τ+T {:.2} ms)",
-        model.dead_time_s * 1e3,
-        model.delay_s() * 1e3
+        "identified: delay {:.2} ms (≤ 1 Hz); model dead time {:.2} ms",
+        delay_s * 1e3,
+        model.dead_time_s * 1e3
     ))
     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], orange.stroke_width(2)));
     ch.draw_series(LineSeries::new(
