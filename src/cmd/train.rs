@@ -93,6 +93,10 @@ pub struct Args {
     /// LRX band-limited force perturbation, RMS as a fraction of the RMS brace force.
     #[arg(long, default_value_t = 0.3)]
     pub perturbation: f64,
+    /// LRX: plant preset of the lead fit on the simulator (default unr-compact); with --rig, the
+    /// rig file must be of this preset (default: the rig file's).
+    #[arg(long, value_enum)]
+    pub preset: Option<crate::cmd::plant::PresetArg>,
     /// LRX: take the lead filter from this rig file (`rths identify`) instead of fitting it on the
     /// simulated plant; the model records the rig (preset, board, checksum).
     #[arg(long, value_name = "RIG.json")]
@@ -141,10 +145,20 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
     );
     cfg.rcond = args.lrx_rcond;
     cfg.seed = args.seed;
+    if let Some(p) = args.preset {
+        cfg.preset = match p {
+            crate::cmd::plant::PresetArg::Benchmark => rths_hal_sim::Preset::Benchmark,
+            crate::cmd::plant::PresetArg::UnrCompact => rths_hal_sim::Preset::UnrCompact,
+        };
+    }
     let mut rig_identity = None;
     if let Some(path) = &args.rig {
         let rig = crate::identify::RigFile::load(path)
             .with_context(|| format!("rig file {}", path.display()))?;
+        if args.preset.is_some() {
+            rig.check(cfg.preset.name(), &rig.board)
+                .with_context(|| format!("rig file {}", path.display()))?;
+        }
         let lead = rig.lead_params()?;
         cfg.given_lead = Some(crate::train::lrx::GivenLead {
             weights: *lead.weights(),
