@@ -547,3 +547,101 @@ pub fn identify(sig: Signals<'_>, design: &Design) -> Result<Identification, Ide
         good_line_fraction,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::identify::excitation::{generate, ExcitationConfig};
+    use rths_core::params::DT_S;
+
+    /// A pure delay of `d` ticks and gain `g` on the default excitation: x(k) = g·u(k − d).
+    fn delayed(g: f64, d: usize) -> (Vec<f64>, Vec<f64>, Design) {
+        let e = generate(&ExcitationConfig::new(DT_S)).unwrap();
+        let u = e.command_mm.clone();
+        let x: Vec<f64> = (0..u.len())
+            .map(|k| if k >= d { g * u[k - d] } else { 0.0 })
+            .collect();
+        let design = Design {
+            window_start: e.window_start,
+            period_ticks: e.period_ticks,
+            periods: e.config.periods,
+            lines: e.lines.clone(),
+            lead_stride: 8,
+            stiffness_cutoff_hz: 30.0,
+        };
+        (u, x, design)
+    }
+
+    #[test]
+    fn h1_of_a_pure_delay_is_exact() {
+        let (u, x, design) = delayed(0.9, 30);
+        let frf = frf(DT_S, &u, &x, &design).unwrap();
+        for l in &frf {
+            assert!((l.gain - 0.9).abs() < 1e-9, "{l:?}");
+            let want = -360.0 * l.freq_hz * 30.0 * DT_S;
+            assert!((l.phase_deg - want).abs() < 1e-6, "{l:?} {want}");
+            assert!((l.coherence - 1.0).abs() < 1e-9);
+        }
+        assert!((phase_delay_s(&frf).unwrap() - 30.0 * DT_S).abs() < 1e-12);
+        let m = fopdt(&frf).unwrap();
+        assert!((m.gain - 0.9).abs() < 1e-9 && m.lag_s.abs() < 1e-6, "{m:?}");
+        assert!((m.dead_time_s - 30.0 * DT_S).abs() < 1e-9 && m.fit_error_pct < 1e-6);
+    }
+
+    #[test]
+    fn fopdt_recovers_its_own_response() {
+        let truth = Fopdt {
+            gain: 1.02,
+            dead_time_s: 0.004,
+            lag_s: 0.011,
+            fit_error_pct: 0.0,
+        };
+        let frf: Vec<FrfLine> = (1..=200)
+            .map(|k| {
+                let f = 0.1 * k as f64;
+                let (gain, phase_deg) = truth.response(f);
+                FrfLine {
+                    freq_hz: f,
+                    gain,
+                    phase_deg,
+                    coherence: 1.0,
+                }
+            })
+            .collect();
+        let m = fopdt(&frf).unwrap();
+        assert!((m.gain - 1.02).abs() < 1e-9, "{m:?}");
+        assert!((m.lag_s - 0.011).abs() < 1e-9 && (m.dead_time_s - 0.004).abs() < 1e-9);
+    }
+
+    #[test]
+    fn the_lead_inverts_a_one_tick_delay() {
+        // One tick of delay, the least a sampled actuator has: u(k−1) = x(k)/g exactly.
+        let (u, x, design) = delayed(0.8, 1);
+        let (w, nrmse) = lead(&u, &x, 8, design.window_start, u.len()).unwrap();
+        assert!(
+            (w[0] - 1.25).abs() < 1e-9 && w[1..].iter().all(|v| v.abs() < 1e-9),
+            "{w:?}"
+        );
+        assert!(nrmse < 1e-9);
+        let frf = frf(DT_S, &u, &x, &design).unwrap();
+        assert!(lead_residual_pct(&frf, &w, 8, DT_S) < 1e-6);
+    }
+
+    #[test]
+    fn the_specimen_fit_recovers_stiffness_damping_and_mass() {
+        let (u, _, design) = delayed(1.0, 0);
+        let (k, c, m) = (1.2, 1e-4, 3e-5);
+        let x = u.clone();
+        let f: Vec<f64> = (0..x.len())
+            .map(|i| {
+                let xm = if i > 0 { x[i - 1] } else { 0.0 };
+                let xp = x.get(i + 1).copied().unwrap_or(x[i]);
+                k * x[i] + c * (xp - xm) / (2.0 * DT_S) + m * (xp - 2.0 * x[i] + xm) / (DT_S * DT_S)
+            })
+            .collect();
+        let end = design.window_start + design.periods * design.period_ticks;
+        let s = specimen(&x, &f, DT_S, 30.0, design.window_start, end).unwrap();
+        assert!((s.stiffness_kn_per_mm / k - 1.0).abs() < 1e-3, "{s:?}");
+        assert!(s.r2 > 0.9999, "{s:?}");
+    }
+}
