@@ -239,8 +239,8 @@ pub fn phase_delay_s(frf: &[FrfLine]) -> Result<f64, IdentifyError> {
     Ok(-num / den)
 }
 
-/// Fit [`Fopdt`] to the measured lines, both steps linear least squares weighted by [`weight`]:
-/// the gain from `1/|H|² = (1 + ω²T²)/g² = α + β·ω²` (g = 1/√α, T = √(β/α), T = 0 if β ≤ 0), then
+/// Fit [`Fopdt`] to the measured lines, both steps linear least squares, each line weighted by
+/// γ²/f (every octave counts alike): the gain from `1/|H|² = (1 + ω²T²)/g² = α + β·ω²` (g = 1/√α, T = √(β/α), T = 0 if β ≤ 0), then
 /// the dead time from the phase less the lag's, `φ + atan(ωT) = −ωτ`, a slope through the origin.
 pub fn fopdt(frf: &[FrfLine]) -> Result<Fopdt, IdentifyError> {
     let (mut s_w, mut s_x, mut s_xx, mut s_y, mut s_xy) = (0.0, 0.0, 0.0, 0.0, 0.0);
