@@ -1,4 +1,5 @@
-//! `rths identify`: characterize a rig from measured signals only and write its rig file and figure.
+//! `rths identify`: characterize a rig from measured signals only and write its rig file and
+//! figure.
 
 use std::path::{Path, PathBuf};
 

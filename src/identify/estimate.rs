@@ -1,10 +1,11 @@
 //! The estimators: actuator frequency response (H1 with coherence), its gain-and-delay model, the
 //! lead filter (plant inverse) and the specimen's stiffness. They take only arrays of measured
-//! signals ([`Signals`]) and the excitation's design ([`Design`]): nothing here can see a simulator.
+//! signals ([`Signals`]) and the excitation's design ([`Design`]): nothing here can see a
+//! simulator.
 //!
-//! Conventions: `command_mm[k]` is the command sent at tick k (held from k to k+1), `measured_mm[k]`
-//! and `force_kn[k]` are read at tick k before it. The frequency response is `H = X/U` between these
-//! two sequences: the plant behind the DAC's hold, as the controller sees it.
+//! Conventions: `command_mm[k]` is the command sent at tick k (held from k to k+1),
+//! `measured_mm[k]` and `force_kn[k]` are read at tick k before it. The frequency response is `H =
+//! X/U` between these two sequences: the plant behind the DAC's hold, as the controller sees it.
 
 use nalgebra::{DMatrix, DVector};
 use rths_core::compensator::{LEAD_MAX_STRIDE, LEAD_TAPS};
@@ -239,9 +240,10 @@ pub fn phase_delay_s(frf: &[FrfLine]) -> Result<f64, IdentifyError> {
     Ok(-num / den)
 }
 
-/// Fit [`Fopdt`] to the measured lines, both steps linear least squares, each line weighted by
-/// γ²/f (every octave counts alike): the gain from `1/|H|² = (1 + ω²T²)/g² = α + β·ω²` (g = 1/√α, T = √(β/α), T = 0 if β ≤ 0), then
-/// the dead time from the phase less the lag's, `φ + atan(ωT) = −ωτ`, a slope through the origin.
+/// Fit [`Fopdt`] to the measured lines, both steps linear least squares, each line weighted by γ²/f
+/// (every octave counts alike): the gain from `1/|H|² = (1 + ω²T²)/g² = α + β·ω²` (g = 1/√α, T =
+/// √(β/α), T = 0 if β ≤ 0), then the dead time from the phase less the lag's, `φ + atan(ωT) = −ωτ`,
+/// a slope through the origin.
 pub fn fopdt(frf: &[FrfLine]) -> Result<Fopdt, IdentifyError> {
     let (mut s_w, mut s_x, mut s_xx, mut s_y, mut s_xy) = (0.0, 0.0, 0.0, 0.0, 0.0);
     for l in frf {

@@ -1,11 +1,11 @@
-//! The identification excitation: a periodic multisine, band-limited to the test's band, with a
-//! low crest factor, ramped in and out, scaled to a small stroke and a safe velocity, and slew-rate
+//! The identification excitation: a periodic multisine, band-limited to the test's band, with a low
+//! crest factor, ramped in and out, scaled to a small stroke and a safe velocity, and slew-rate
 //! limited as a last guard. A pure function of its settings: no rig, no randomness.
 //!
-//! Why a periodic multisine rather than random noise: with whole periods in steady state, the DFT of
-//! each period sees only the excited lines, without leakage and without windowing, so the H1 estimate
-//! at each line is unbiased and its coherence over the periods measures only the noise (and any
-//! nonlinearity), not the estimator.
+//! Why a periodic multisine rather than random noise: with whole periods in steady state, the DFT
+//! of each period sees only the excited lines, without leakage and without windowing, so the H1
+//! estimate at each line is unbiased and its coherence over the periods measures only the noise
+//! (and any nonlinearity), not the estimator.
 
 use std::f64::consts::PI;
 

@@ -7,8 +7,8 @@ use plotters::prelude::*;
 
 use super::estimate::{Fopdt, FrfLine};
 
-/// Gain, phase and coherence of the measured lines, the identified delay and model `g·e^{−jωτ}/(1 + jωT)`, and the
-/// actuator with its identified lead (`W·H·e^{jωΔt}`, ideally 1 and 0°).
+/// Gain, phase and coherence of the measured lines, the identified delay and model `g·e^{−jωτ}/(1 +
+/// jωT)`, and the actuator with its identified lead (`W·H·e^{jωΔt}`, ideally 1 and 0°).
 pub fn draw(
     path: &Path,
     title: &str,

@@ -1,12 +1,12 @@
 //! `rths identify`: characterize a rig from its measured signals only.
 //!
-//! 1. [`excitation`]: a small (≤ 10% of the stroke), band-limited (0.1–20 Hz), rate-limited periodic
-//!    multisine, ramped in and out.
+//! 1. [`excitation`]: a small (≤ 10% of the stroke), band-limited (0.1–20 Hz), rate-limited
+//!    periodic multisine, ramped in and out.
 //! 2. [`runner`]: drive any `Daq + Actuator` with it through the core [`Supervisor`], tick by tick
 //!    as the control loop does, recording command, displacement and force as read.
 //! 3. [`estimate`]: from those arrays alone, the actuator's frequency response (H1, coherence), its
-//!    gain and delay, the lead filter and ATS initial values, and the specimen's stiffness; then the
-//!    checks that refuse a poor characterization.
+//!    gain and delay, the lead filter and ATS initial values, and the specimen's stiffness; then
+//!    the checks that refuse a poor characterization.
 //! 4. [`rig_file`]: the versioned, validated rig file; [`figure`]: its frequency-response figure.
 //!
 //! How no simulator value can leak in: [`estimate`] takes only `&[f64]` arrays of the record, and

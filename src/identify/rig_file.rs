@@ -1,8 +1,8 @@
 //! The rig file: what `rths identify` measured of a rig, versioned JSON, validated on load and
 //! before it is written.
 //!
-//! A rig file belongs to one preset (on real hardware: one actuator) and one board; [`RigFile::check`]
-//! refuses it for a run of another.
+//! A rig file belongs to one preset (on real hardware: one actuator) and one board;
+//! [`RigFile::check`] refuses it for a run of another.
 
 use std::path::{Path, PathBuf};
 

@@ -58,7 +58,8 @@ where
         actuator_errors: 0,
     };
     let mut sup = Supervisor::new(limits);
-    // Idle → Armed → Running cannot fail on a fresh supervisor; the states are checked below anyway.
+    // Idle → Armed → Running cannot fail on a fresh supervisor; the states are checked below
+    // anyway.
     let _ = sup.arm();
     let _ = sup.start();
     let mut tick = |rig: &mut R, sup: &mut Supervisor, requested: f64, rec: &mut Record| {
