@@ -171,9 +171,10 @@ pub fn run_with_faults(args: &Args, faults: FaultPlan) -> anyhow::Result<RigFile
         args.seed,
         if args.uncertainty { ", uncertain" } else { "" }
     );
-    write_atomically(&args.out, &(text + "\n"))?;
+    // The figure first: the rig file, written last and atomically, exists only if all went well.
     identify::figure::draw(&plot, &title, &id.frf, id.delay_s, &id.model, &comp)
         .with_context(|| format!("drawing {}", plot.display()))?;
+    write_atomically(&args.out, &(text + "\n"))?;
     print_summary(&file, &args.out, &plot);
     Ok(file)
 }
