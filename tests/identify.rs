@@ -397,6 +397,10 @@ fn lrx_table(preset: Preset) {
                 "{label:32} lrx shipped {:6.2}%  identified {:6.2}%  oracle {:6.2}%  fe-online-ats {:6.2}%",
                 row[0], row[1], row[2], row[3]
             );
+            assert!(
+                row.iter().all(|v| v.is_finite()),
+                "{label}: a run was stopped"
+            );
             all.push((label, row));
         }
     }
