@@ -8,10 +8,11 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use rths::motion::GroundMotion;
 use rths::scenario::{self, ScenarioId, ScenarioSetup};
 use rths::study;
-use rths_core::compensator::{Ats, AtsConfig, AtsParams, Compensator, Lead};
-use rths_core::control::{Analytical, ControlConfig, Controller, FeModel, FeedbackSource};
+use rths_core::compensator::Compensator;
+use rths_core::control::{Analytical, ControlConfig, Controller, FeedbackSource};
 use rths_core::hal::Sample;
-use rths_core::metamodel::{Lr, LrParams, Lrx, Rnn, RnnParams, RnnScaling, RnnWeights};
+use rths_core::metamodel::{LrParams, RnnParams, RnnScaling, RnnWeights};
+use rths_core::model::Model;
 use rths_core::params::{Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
 use rths_core::supervisor::{Limits, State};
 use rths_hal_sim::{Preset, Specimen};
@@ -62,32 +63,29 @@ fn rnn10() -> RnnParams {
 
 fn bench_steps(c: &mut Criterion) {
     let mut g = c.benchmark_group("control_tick");
-    let ats = Ats::new(
-        AtsParams::new(AtsConfig::paper(DT_S, PAPER_DELAY_STEPS as f64 * DT_S)).expect("ATS"),
-    );
     let lrx_file = rths::model_file::ModelFile::load(
         &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lrx.json"),
     )
     .expect("shipped LRX model");
     let (lrx, lead) = rths::models::lrx_params(&lrx_file).expect("valid LRX model");
+    // Assembled as the scenarios and the firmware assemble them.
     let cases = [
-        ("lr", Analytical::Lr(Lr::new(lr())), Compensator::None),
-        (
-            "lrx",
-            Analytical::Lrx(Lrx::new(lrx)),
-            Compensator::Lead(Lead::new(lead)),
-        ),
-        (
-            "rnn-10",
-            Analytical::Rnn(Rnn::new(rnn10())),
-            Compensator::None,
-        ),
+        ("lr", Model::Lr(lr())),
+        ("lrx", Model::Lrx(lrx, lead)),
+        ("rnn-10", Model::Rnn(rnn10())),
         (
             "fe-ats",
-            Analytical::Fe(FeModel::new(Prototype::paper(), DT_S).expect("FE")),
-            Compensator::Ats(ats),
+            Model::FeAts {
+                expected_delay_s: PAPER_DELAY_STEPS as f64 * DT_S,
+            },
         ),
-    ];
+    ]
+    .map(|(name, model)| {
+        let (analytical, comp) = model
+            .assemble(Prototype::paper(), DT_S)
+            .expect("valid model");
+        (name, analytical, comp)
+    });
     for (name, analytical, comp) in cases {
         let mut ctl = controller(analytical.clone(), comp.clone());
         let (mut k, mut restarts, mut ticks, mut cmd) = (0u64, 0u64, 0u64, 0.0f64);

@@ -9,9 +9,15 @@
 //! - The El Centro record `../data/ground_motions/IELC180.AT2` (values in g), embedded as f64 exactly
 //!   as the host parses it.
 //!
-//! A bad file fails the build with a message naming the file and the problem.
+//! The files are read by the host's own readers (`rths-files`): a model file is checked exactly as
+//! `rths check-model` checks it (feature names included), the record parsed as `rths analyze` parses
+//! it. A bad file fails the build with a message naming the file and the problem.
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+
+use rths_core::params::DT_S;
+use rths_files::model_file::{ModelFile, ModelKind};
+use rths_files::motion::parse_at2;
 
 fn fail(msg: String) -> ! {
     eprintln!("error: {msg}");
@@ -22,22 +28,6 @@ fn read(path: &Path) -> String {
     println!("cargo:rerun-if-changed={}", path.display());
     std::fs::read_to_string(path)
         .unwrap_or_else(|e| fail(format!("cannot read {}: {e}", path.display())))
-}
-
-fn floats(v: &serde_json::Value, what: &str, file: &Path) -> Vec<f64> {
-    let arr = v
-        .as_array()
-        .unwrap_or_else(|| fail(format!("{}: `{what}` is not an array", file.display())));
-    arr.iter()
-        .enumerate()
-        .map(|(i, x)| match x.as_f64() {
-            Some(f) if f.is_finite() => f,
-            _ => fail(format!(
-                "{}: `{what}[{i}]` is not a finite number",
-                file.display()
-            )),
-        })
-        .collect()
 }
 
 fn lit(x: f64) -> String {
@@ -59,28 +49,23 @@ fn array(xs: &[f64]) -> String {
     s
 }
 
+/// A model file of `kind`, read and checked by the host's loader (format, version, feature names,
+/// shapes, finite weights).
+fn load_model(path: &Path, kind: ModelKind) -> ModelFile {
+    println!("cargo:rerun-if-changed={}", path.display());
+    ModelFile::load_kind(path, kind).unwrap_or_else(|e| fail(format!("{}: {e}", path.display())))
+}
+
 fn lr(out: &mut String, root: &Path) {
     println!("cargo:rerun-if-env-changed=RTHS_MODEL");
     let path = std::env::var_os("RTHS_MODEL")
         .map(PathBuf::from)
         .unwrap_or_else(|| root.join("data/models/lr.json"));
-    let text = read(&path);
-    let v: serde_json::Value = serde_json::from_str(&text)
-        .unwrap_or_else(|e| fail(format!("{}: not JSON: {e}", path.display())));
-    if v["format"] != "rths-model" || v["kind"] != "lr" {
-        fail(format!(
-            "{}: expected an rths-model file of kind \"lr\"",
-            path.display()
-        ));
-    }
-    let theta = floats(&v["lr"]["theta"], "lr.theta", &path);
-    if theta.len() != 6 {
-        fail(format!(
-            "{}: lr.theta has {} coefficients, the LR model needs 6",
-            path.display(),
-            theta.len()
-        ));
-    }
+    let m = load_model(&path, ModelKind::Lr);
+    // load_kind checked the section's shape: 6 finite coefficients.
+    let theta =
+        m.lr.unwrap_or_else(|| fail(format!("{}: no lr section", path.display())))
+            .theta;
     let _ = writeln!(out, "/// LR coefficients θ0..θ5 from `{}`.", path.display());
     let _ = writeln!(out, "pub const LR_THETA: [f64; 6] = {};", array(&theta));
     let _ = writeln!(out, "/// The model file compiled in.");
@@ -96,30 +81,12 @@ fn lrx(out: &mut String, root: &Path) {
     let path = std::env::var_os("RTHS_LRX_MODEL")
         .map(PathBuf::from)
         .unwrap_or_else(|| root.join("data/models/lrx.json"));
-    let text = read(&path);
-    let v: serde_json::Value = serde_json::from_str(&text)
-        .unwrap_or_else(|e| fail(format!("{}: not JSON: {e}", path.display())));
-    if v["format"] != "rths-model" || v["kind"] != "lrx" {
-        fail(format!(
-            "{}: expected an rths-model file of kind \"lrx\"",
-            path.display()
-        ));
-    }
-    let x = &v["lrx"];
-    let coeffs = floats(&x["coeffs"], "lrx.coeffs", &path);
-    let lead = floats(&x["lead_weights"], "lrx.lead_weights", &path);
-    let scalars = floats(
-        &serde_json::json!([x["k_corr_kn_per_mm"], x["k_adapt_ticks"]]),
-        "lrx.k_corr_kn_per_mm / lrx.k_adapt_ticks",
-        &path,
-    );
-    let stride = x["lead_stride"].as_u64().unwrap_or(0);
-    if coeffs.len() != 9 || lead.len() != 8 || !(1..=8).contains(&stride) {
-        fail(format!(
-            "{}: lrx needs 9 coeffs, 8 lead_weights and a lead_stride in 1..=8",
-            path.display()
-        ));
-    }
+    let m = load_model(&path, ModelKind::Lrx);
+    let x = m
+        .lrx
+        .unwrap_or_else(|| fail(format!("{}: no lrx section", path.display())));
+    let (coeffs, lead, stride) = (x.coeffs, x.lead_weights, x.lead_stride);
+    let scalars = [x.k_corr_kn_per_mm, x.k_adapt_ticks];
     let _ = writeln!(out, "/// LRX frame coefficients from `{}`.", path.display());
     let _ = writeln!(out, "pub const LRX_COEFFS: [f64; 9] = {};", array(&coeffs));
     let _ = writeln!(out, "/// LRX nominal force-correction stiffness, kN/mm.");
@@ -154,75 +121,20 @@ fn rnn(out: &mut String, root: &Path) {
     println!("cargo:rerun-if-changed={}", path.display());
     let (h, w_ih, w_hh, b_h, w_ho, b_o, in_mean, in_std, out_mean, out_std, dummy);
     if path.exists() {
-        let text = read(&path);
-        let v: serde_json::Value = serde_json::from_str(&text)
-            .unwrap_or_else(|e| fail(format!("{}: not JSON: {e}", path.display())));
-        if v["format"] != "rths-model" || v["kind"] != "rnn" {
-            fail(format!(
-                "{}: expected an rths-model file of kind \"rnn\"",
-                path.display()
-            ));
-        }
-        let r = &v["rnn"];
-        h = r["hidden"].as_u64().unwrap_or(0) as usize;
-        if !(1..=32).contains(&h) {
-            fail(format!("{}: rnn.hidden must be in 1..=32", path.display()));
-        }
-        let rows = |key: &str, cols: usize| -> Vec<f64> {
-            let a = r[key]
-                .as_array()
-                .unwrap_or_else(|| fail(format!("{}: rnn.{key} missing", path.display())));
-            if a.len() != h {
-                fail(format!("{}: rnn.{key} must have {h} rows", path.display()));
-            }
-            a.iter()
-                .enumerate()
-                .flat_map(|(j, row)| {
-                    let f = floats(row, &format!("rnn.{key}[{j}]"), &path);
-                    if f.len() != cols {
-                        fail(format!(
-                            "{}: rnn.{key}[{j}] must have {cols} values",
-                            path.display()
-                        ));
-                    }
-                    f
-                })
-                .collect()
-        };
-        w_ih = rows("w_ih", 2);
-        w_hh = rows("w_hh", h);
-        let vec = |key: &str, n: usize| -> Vec<f64> {
-            let f = floats(&r[key], &format!("rnn.{key}"), &path);
-            if f.len() != n {
-                fail(format!(
-                    "{}: rnn.{key} must have {n} values",
-                    path.display()
-                ));
-            }
-            f
-        };
-        b_h = vec("b_h", h);
-        w_ho = vec("w_ho", h);
-        in_mean = vec("input_mean", 2);
-        in_std = vec("input_std", 2);
-        let scalar = |key: &str| -> f64 {
-            match r[key].as_f64() {
-                Some(f) if f.is_finite() => f,
-                _ => fail(format!(
-                    "{}: rnn.{key} is not a finite number",
-                    path.display()
-                )),
-            }
-        };
-        b_o = scalar("b_o");
-        out_mean = scalar("output_mean");
-        out_std = scalar("output_std");
-        if in_std.iter().chain([&out_std]).any(|s| *s <= 0.0) {
-            fail(format!(
-                "{}: RNN standard deviations must be > 0",
-                path.display()
-            ));
-        }
+        let m = load_model(&path, ModelKind::Rnn);
+        let r = m
+            .rnn
+            .unwrap_or_else(|| fail(format!("{}: no rnn section", path.display())));
+        h = r.hidden;
+        w_ih = r.w_ih.concat();
+        w_hh = r.w_hh.concat();
+        b_h = r.b_h;
+        w_ho = r.w_ho;
+        b_o = r.b_o;
+        in_mean = r.input_mean;
+        in_std = r.input_std;
+        out_mean = r.output_mean;
+        out_std = r.output_std;
         dummy = false;
     } else {
         // Budget only: weights small enough that tanh stays in its ordinary range.
@@ -297,57 +209,19 @@ fn rnn(out: &mut String, root: &Path) {
     let _ = writeln!(out, "pub const MODEL_SOURCE: &str = {src:?};");
 }
 
-/// The AT2 record as the host reads it (`rths::motion::parse_at2`): 4 header lines, NPTS and DT on
-/// the 4th, then the values in g.
+/// The El Centro record, read by the host's AT2 reader (`rths_files::motion::parse_at2`), and its
+/// length in controller ticks by the host's rule (`rths_core::motion::Record::ticks`).
 fn motion(out: &mut String, root: &Path) {
     let path = root.join("data/ground_motions/IELC180.AT2");
     let text = read(&path);
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.by_ref().take(4).collect();
-    let h4 = header
-        .get(3)
-        .unwrap_or_else(|| fail(format!("{}: short AT2 header", path.display())))
-        .to_ascii_uppercase();
-    let field = |key: &str| -> String {
-        let rest = h4
-            .split_once(key)
-            .map(|(_, r)| r)
-            .unwrap_or_else(|| fail(format!("{}: no {key} in the AT2 header", path.display())));
-        rest.trim_start_matches(|c: char| c == '=' || c == ':' || c.is_whitespace())
-            .chars()
-            .take_while(|c| c.is_ascii_digit() || *c == '.' || *c == 'E' || *c == '-')
-            .collect()
-    };
-    let npts: usize = field("NPTS")
-        .parse()
-        .unwrap_or_else(|_| fail(format!("{}: bad NPTS", path.display())));
-    let dt_s: f64 = field("DT")
-        .parse()
-        .unwrap_or_else(|_| fail(format!("{}: bad DT", path.display())));
-    let values: Vec<f64> = lines
-        .flat_map(|l| l.split_whitespace())
-        .map(|t| {
-            t.replace('D', "E")
-                .parse::<f64>()
-                .unwrap_or_else(|_| fail(format!("{}: bad value `{t}`", path.display())))
-        })
-        .collect();
-    if values.len() != npts
-        || npts < 2
-        || !dt_s.is_finite()
-        || dt_s <= 0.0
-        || values.iter().any(|v| !v.is_finite())
-    {
-        fail(format!(
-            "{}: expected {npts} finite values at DT > 0, found {}",
-            path.display(),
-            values.len()
-        ));
-    }
-    // Controller ticks, exactly as `GroundMotion::resample_mm_s2(DT_S)` counts them.
-    let dt_tick = 1.0 / 2048.0;
-    let duration = (npts - 1) as f64 * dt_s;
-    let last = (duration / dt_tick * (1.0 + 1e-12)).floor() as usize;
+    let record =
+        parse_at2(&text, "IELC180").unwrap_or_else(|e| fail(format!("{}: {e}", path.display())));
+    let ticks = record.record().ticks(DT_S);
+    let ticks = u32::try_from(ticks)
+        .ok()
+        .filter(|t| *t > 0)
+        .unwrap_or_else(|| fail(format!("{}: {ticks} controller ticks", path.display())));
+    let (npts, dt_s, values) = (record.accel_g.len(), record.dt_s, record.accel_g);
     let _ = writeln!(out, "/// El Centro 1940 NS (IELC180), g.");
     let _ = writeln!(
         out,
@@ -360,7 +234,7 @@ fn motion(out: &mut String, root: &Path) {
         out,
         "/// Controller ticks in the record (resampled at 2048 Hz)."
     );
-    let _ = writeln!(out, "pub const RECORD_TICKS: u32 = {};", last + 1);
+    let _ = writeln!(out, "pub const RECORD_TICKS: u32 = {ticks};");
 }
 
 /// The compile-time fault plan of a `fault-inject` build: `RTHS_FAULT=KIND@SECONDS[+TICKS]` (default

@@ -15,6 +15,7 @@ use rths_link::{
 };
 
 use crate::model_file::{ModelFile, ModelKind};
+use rths_core::supervisor::FaultReason;
 
 /// A failure of the host side of the link.
 #[derive(Debug, thiserror::Error)]
@@ -441,28 +442,15 @@ pub fn state_name(s: RunState) -> String {
     }
 }
 
-/// The name of a fault code (the firmware's `link::fault_code` order).
+/// The name of a fault code (`rths_core::supervisor::FaultReason`'s table); "Unknown" for a code
+/// this host does not know (a newer firmware's).
 pub fn fault_name(code: u8) -> &'static str {
-    const NAMES: [&str; 12] = [
-        "MeasuredStroke",
-        "CommandStroke",
-        "CommandVelocity",
-        "Force",
-        "NonFiniteCommand",
-        "NonFiniteSample",
-        "SensorTimeout",
-        "Overrun",
-        "EmergencyStop",
-        "FollowingError",
-        "ImplausibleMotion",
-        "FrozenSensor",
-    ];
-    NAMES.get(code as usize).copied().unwrap_or("Unknown")
+    FaultReason::from_code(code).map_or("Unknown", FaultReason::name)
 }
 
-/// The QEMU command line of the emulated board with its serial port connected, as a client, to
-/// `127.0.0.1:port` (the runner of `firmware/.cargo/config.toml` with `-serial tcp:` instead of
-/// `-serial null`).
+/// The QEMU command line of the emulated board with its link port (USART2, QEMU's second serial
+/// port) connected, as a client, to `127.0.0.1:port` (the runner of `firmware/.cargo/config.toml`
+/// with `-serial tcp:` after its `-serial null`).
 pub fn qemu_args(elf: &Path, port: u16) -> Vec<String> {
     let serial = format!("tcp:127.0.0.1:{port}");
     [
@@ -473,6 +461,8 @@ pub fn qemu_args(elf: &Path, port: u16) -> Vec<String> {
         "-nographic",
         "-monitor",
         "none",
+        "-serial",
+        "null",
         "-serial",
         &serial,
         "-semihosting-config",

@@ -1,7 +1,9 @@
-//! From a validated model file to the `no_std` inference parameters the controller runs.
+//! From a validated model file to the `no_std` inference parameters the controller runs (through
+//! `rths_core::model::ModelSpec`, the firmware's path too).
 
-use rths_core::compensator::{LeadParams, LEAD_TAPS};
+use rths_core::compensator::LeadParams;
 use rths_core::metamodel::{LrParams, LrxParams, ModelError, RnnParams, RnnScaling, RnnWeights};
+use rths_core::model::{Model, ModelSpec};
 
 use crate::model_file::{ModelFile, ModelFileError, ModelKind};
 
@@ -16,68 +18,84 @@ pub enum ToParamsError {
     Core(ModelError),
 }
 
+/// The validated controller model of a model file of any kind: the file's weights as a
+/// `rths_core::model::ModelSpec`, checked by the same `ModelSpec::validate` the firmware runs.
+pub fn model(m: &ModelFile) -> Result<Model, ToParamsError> {
+    m.validate()?;
+    let missing = || ModelFileError::MissingSection { kind: m.kind };
+    let spec_result = match m.kind {
+        ModelKind::Lr => {
+            let w = m.lr.as_ref().ok_or_else(missing)?;
+            ModelSpec::Lr { theta: &w.theta }.validate()
+        }
+        ModelKind::Lrx => {
+            let w = m.lrx.as_ref().ok_or_else(missing)?;
+            ModelSpec::Lrx {
+                coeffs: &w.coeffs,
+                k_corr_kn_per_mm: w.k_corr_kn_per_mm,
+                k_adapt_ticks: w.k_adapt_ticks,
+                lead_weights: &w.lead_weights,
+                lead_stride: w.lead_stride,
+            }
+            .validate()
+        }
+        ModelKind::Rnn => {
+            let w = m.rnn.as_ref().ok_or_else(missing)?;
+            let w_ih: Vec<f64> = w.w_ih.iter().flatten().copied().collect();
+            let w_hh: Vec<f64> = w.w_hh.iter().flatten().copied().collect();
+            // validate() checked the two-element shapes.
+            let pair = |v: &[f64]| {
+                [
+                    v.first().copied().unwrap_or(0.0),
+                    v.get(1).copied().unwrap_or(0.0),
+                ]
+            };
+            ModelSpec::Rnn {
+                weights: RnnWeights {
+                    w_ih: &w_ih,
+                    w_hh: &w_hh,
+                    b_h: &w.b_h,
+                    w_ho: &w.w_ho,
+                    b_o: w.b_o,
+                },
+                scaling: RnnScaling {
+                    input_mean: pair(&w.input_mean),
+                    input_std: pair(&w.input_std),
+                    output_mean: w.output_mean,
+                    output_std: w.output_std,
+                },
+            }
+            .validate()
+        }
+    };
+    spec_result.map_err(ToParamsError::Core)
+}
+
 /// The frame model and the lead filter of an LRX model file.
 pub fn lrx_params(m: &ModelFile) -> Result<(LrxParams, LeadParams), ToParamsError> {
     m.expect_kind(ModelKind::Lrx)?;
-    m.validate()?;
-    let w = m
-        .lrx
-        .as_ref()
-        .ok_or(ModelFileError::MissingSection { kind: m.kind })?;
-    let frame = LrxParams::from_slice(&w.coeffs, w.k_corr_kn_per_mm, w.k_adapt_ticks)
-        .map_err(ToParamsError::Core)?;
-    let mut lead = [0.0; LEAD_TAPS];
-    lead.iter_mut()
-        .zip(&w.lead_weights)
-        .for_each(|(d, s)| *d = *s);
-    let lead = LeadParams::new(lead, w.lead_stride)
-        .map_err(|e| ToParamsError::Core(ModelError::Param(e)))?;
-    Ok((frame, lead))
+    match model(m)? {
+        Model::Lrx(frame, lead) => Ok((frame, lead)),
+        _ => Err(ModelFileError::MissingSection { kind: m.kind }.into()),
+    }
 }
 
 /// The LR coefficients of an LR model file.
 pub fn lr_params(m: &ModelFile) -> Result<LrParams, ToParamsError> {
     m.expect_kind(ModelKind::Lr)?;
-    m.validate()?;
-    let w =
-        m.lr.as_ref()
-            .ok_or(ModelFileError::MissingSection { kind: m.kind })?;
-    LrParams::from_slice(&w.theta).map_err(ToParamsError::Core)
+    match model(m)? {
+        Model::Lr(p) => Ok(p),
+        _ => Err(ModelFileError::MissingSection { kind: m.kind }.into()),
+    }
 }
 
 /// The RNN parameters of an RNN model file.
 pub fn rnn_params(m: &ModelFile) -> Result<RnnParams, ToParamsError> {
     m.expect_kind(ModelKind::Rnn)?;
-    m.validate()?;
-    let w = m
-        .rnn
-        .as_ref()
-        .ok_or(ModelFileError::MissingSection { kind: m.kind })?;
-    let w_ih: Vec<f64> = w.w_ih.iter().flatten().copied().collect();
-    let w_hh: Vec<f64> = w.w_hh.iter().flatten().copied().collect();
-    // validate() checked the two-element shapes.
-    let pair = |v: &[f64]| {
-        [
-            v.first().copied().unwrap_or(0.0),
-            v.get(1).copied().unwrap_or(0.0),
-        ]
-    };
-    RnnParams::new(
-        RnnWeights {
-            w_ih: &w_ih,
-            w_hh: &w_hh,
-            b_h: &w.b_h,
-            w_ho: &w.w_ho,
-            b_o: w.b_o,
-        },
-        RnnScaling {
-            input_mean: pair(&w.input_mean),
-            input_std: pair(&w.input_std),
-            output_mean: w.output_mean,
-            output_std: w.output_std,
-        },
-    )
-    .map_err(ToParamsError::Core)
+    match model(m)? {
+        Model::Rnn(p) => Ok(p),
+        _ => Err(ModelFileError::MissingSection { kind: m.kind }.into()),
+    }
 }
 
 #[cfg(test)]

@@ -9,11 +9,12 @@
 use std::fmt;
 use std::str::FromStr;
 
-use rths_core::compensator::{Ats, AtsConfig, AtsParams, Compensator, Lead, LeadParams};
-use rths_core::control::{Analytical, ControlConfig, Controller, FeModel, FeedbackSource};
+use rths_core::compensator::LeadParams;
+use rths_core::control::{ControlConfig, Controller, FeedbackSource};
 use rths_core::hal::{Actuator, Daq, Error as _, Sample};
-use rths_core::metamodel::{Lr, LrParams, Lrx, LrxParams, Rnn, RnnParams};
+use rths_core::metamodel::{LrParams, LrxParams, ModelError, RnnParams};
 use rths_core::metrics;
+use rths_core::model::Model;
 use rths_core::params::{ParamError, Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
 use rths_core::supervisor::{Limits, State};
 use rths_hal_sim::{FaultPlan, Preset, RigConfig, Specimen, VirtualRig};
@@ -163,6 +164,9 @@ pub enum ScenarioError {
     /// A parameter was invalid.
     #[error("invalid parameter: {0}")]
     Param(#[from] ParamError),
+    /// The model's weights were refused by the controller.
+    #[error("model rejected by the controller: {0}")]
+    Model(ModelError),
     /// The plant configuration was invalid.
     #[error("invalid plant configuration: {0}")]
     Plant(#[from] rths_hal_sim::ConfigError),
@@ -322,29 +326,33 @@ pub struct ScenarioRun {
 /// Largest lag searched for J1, ticks (0.1 s: far beyond any plant here).
 const J1_MAX_LAG: usize = 205;
 
-fn analytical(setup: &ScenarioSetup<'_>, proto: Prototype) -> Result<Analytical, ScenarioError> {
+/// The model a scenario runs (its analytical part and compensator), from the setup's validated
+/// parameters; [`Model::assemble`] builds it the way the firmware does.
+fn model(setup: &ScenarioSetup<'_>) -> Result<Model, ScenarioError> {
     let id = setup.id;
     Ok(if id == ScenarioId::LrxOnline {
-        Analytical::Lrx(Lrx::new(
-            setup
-                .lrx
-                .ok_or(ScenarioError::MissingModel(id, "an LRX model"))?
-                .0,
-        ))
+        let (frame, lead) = setup
+            .lrx
+            .ok_or(ScenarioError::MissingModel(id, "an LRX model"))?;
+        Model::Lrx(frame, lead)
     } else if id.uses_lr() {
-        Analytical::Lr(Lr::new(
+        Model::Lr(
             setup
                 .lr
                 .ok_or(ScenarioError::MissingModel(id, "an LR model"))?,
-        ))
+        )
     } else if id.rnn_hidden().is_some() {
-        Analytical::Rnn(Rnn::new(
+        Model::Rnn(
             setup
                 .rnn
                 .ok_or(ScenarioError::MissingModel(id, "an RNN model"))?,
-        ))
+        )
+    } else if id == ScenarioId::FeOnlineAts {
+        Model::FeAts {
+            expected_delay_s: PAPER_DELAY_STEPS as f64 * DT_S,
+        }
     } else {
-        Analytical::Fe(FeModel::new(proto, DT_S)?)
+        Model::Fe
     })
 }
 
@@ -452,14 +460,6 @@ pub fn simulate_observed(
         | ScenarioId::RnnOnline(_)
         | ScenarioId::LrxOnline => FeedbackSource::Measured,
     };
-    let compensator = if id == ScenarioId::FeOnlineAts {
-        let delay_s = PAPER_DELAY_STEPS as f64 * DT_S;
-        Compensator::Ats(Ats::new(AtsParams::new(AtsConfig::paper(DT_S, delay_s))?))
-    } else if let (ScenarioId::LrxOnline, Some((_, lead))) = (id, setup.lrx) {
-        Compensator::Lead(Lead::new(lead))
-    } else {
-        Compensator::None
-    };
     let config = ControlConfig::new(
         proto,
         SpecimenScale::default(),
@@ -471,7 +471,12 @@ pub fn simulate_observed(
             Limits::unbounded()
         },
     )?;
-    let mut ctl = Controller::new(config, analytical(setup, proto)?, compensator);
+    let (analytical, compensator) = model(setup)?.assemble(proto, DT_S).map_err(|e| match e {
+        ModelError::Param(e) => ScenarioError::Param(e),
+        // The setup's parameters are validated already; only the FE build or ATS can fail.
+        other => ScenarioError::Model(other),
+    })?;
+    let mut ctl = Controller::new(config, analytical, compensator);
     let mut rig = if id.uses_rig() {
         Some(VirtualRig::with_faults(
             setup.rig.build()?,

@@ -188,3 +188,33 @@ fn analyze_warns_when_a_record_exceeds_the_actuator() {
     let out = rths(&["analyze"]);
     assert!(!String::from_utf8_lossy(&out.stdout).contains("note:"));
 }
+
+/// One reference response: the analysis (Chang), the trainer's target and a per-tick
+/// `rths_core::reference::Reference` (what the firmware harness steps) agree bit for bit, on the
+/// record as `rths_core::motion::Record` interpolates it tick by tick.
+#[test]
+fn one_reference_response_for_analysis_trainer_and_firmware() {
+    use rths_core::motion::Record;
+    use rths_core::reference::Reference;
+    let motion = GroundMotion::try_el_centro().unwrap();
+    let ag = motion.resample_mm_s2(DT_S);
+    let record = Record::new(&motion.accel_g, motion.dt_s);
+    assert_eq!(record.ticks(DT_S), ag.len());
+    for (k, a) in ag.iter().enumerate() {
+        assert_eq!(
+            a.to_bits(),
+            record.accel_mm_s2(k, DT_S).to_bits(),
+            "tick {k}"
+        );
+    }
+    let p = Prototype::paper();
+    let analysis = pure_response(&p, &ag, DT_S, Method::Chang).unwrap();
+    let trainer = rths::train::data::pure_response(&p, &ag, DT_S).unwrap();
+    let mut reference = Reference::new(&p, DT_S, ag[0]).unwrap();
+    let per_tick: Vec<f64> = std::iter::once(reference.brace_disp_mm())
+        .chain(ag[1..].iter().map(|&a| reference.advance(a)))
+        .collect();
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&analysis.brace_disp_mm), bits(&per_tick));
+    assert_eq!(bits(&trainer.brace_disp_mm), bits(&per_tick));
+}

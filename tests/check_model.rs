@@ -111,6 +111,17 @@ fn bad_files_are_rejected_with_the_reason() {
             vec![],
             "section is missing",
         ),
+        // The feature names are rths-core's; a file with the old LR names is refused, naming both.
+        (
+            edited(|v| v["features"][2] = "disp_fb_mm".into()),
+            vec![],
+            "feature names of a lr model: expected [\"bias\", \"ground_accel_mm_s2\", \"brace_disp_fb_mm\"",
+        ),
+        (
+            edited(|v| v["features"][3] = "force_fb_kn".into()),
+            vec![],
+            "found [\"bias\", \"ground_accel_mm_s2\", \"brace_disp_fb_mm\", \"force_fb_kn\"",
+        ),
     ];
     for (text, extra, why) in cases {
         let (ok, out, err) = check(&text, &extra);
@@ -128,4 +139,23 @@ fn a_missing_file_is_rejected() {
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("cannot access model file"));
+}
+
+/// Every shipped model carries rths-core's feature names, in order, so every loader accepts it.
+#[test]
+fn shipped_models_name_cores_features() {
+    use rths::model_file::ModelFile;
+    use rths_core::metamodel::{LRX_FEATURE_NAMES, LR_FEATURE_NAMES, RNN_INPUT_NAMES};
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models");
+    for (file, names) in [
+        ("lr.json", &LR_FEATURE_NAMES[..]),
+        ("lrx.json", &LRX_FEATURE_NAMES[..]),
+        ("rnn-5.json", &RNN_INPUT_NAMES[..]),
+        ("rnn-10.json", &RNN_INPUT_NAMES[..]),
+        ("rnn-20.json", &RNN_INPUT_NAMES[..]),
+    ] {
+        let m = ModelFile::load(&dir.join(file)).unwrap();
+        assert_eq!(m.features, names, "{file}");
+        assert_eq!(rths::model_file::feature_names(m.kind), names, "{file}");
+    }
 }

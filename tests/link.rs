@@ -1,5 +1,5 @@
 //! The command link end to end: the firmware built with `--features link` runs in QEMU with its
-//! USART1 on a loopback socket; the host (`rths::link_host`) uploads a freshly trained LR model,
+//! USART2 (QEMU's second serial port) on a loopback socket; the host (`rths::link_host`) uploads a freshly trained LR model,
 //! runs El Centro, records the telemetry to CSV and checks it against the host simulation of the
 //! same scenario, model and seed. Corrupted and invalid uploads are refused and the old model stays.
 //!
@@ -448,7 +448,8 @@ fn the_cli_talks_through_its_own_qemu_and_through_a_pty() {
     // QEMU on a pty: it prints the pty's path first.
     let dir = tempfile::tempdir().unwrap();
     let mut args = rths::link_host::qemu_args(&elf, 0);
-    let i = args.iter().position(|a| a == "-serial").unwrap();
+    // The link port is the last `-serial` (USART2).
+    let i = args.iter().rposition(|a| a == "-serial").unwrap();
     args[i + 1] = "pty".into();
     let log = dir.path().join("qemu.txt");
     let mut child = Command::new("qemu-system-arm")

@@ -12,8 +12,12 @@ use libm::sqrt;
 /// Standard gravity in mm/s² (CGPM 1901), to convert ground motions recorded in g.
 pub const G_MM_S2: f64 = 9806.65;
 
-/// Controller (and hybrid simulation) rate in Hz: the paper's 2048 Hz real-time controller.
-pub const CONTROLLER_RATE_HZ: f64 = 2048.0;
+/// Controller (and hybrid simulation) rate in Hz: the paper's 2048 Hz real-time controller. Every
+/// other rate constant derives from it (Δt, the boards' tick timers, the firmware's 1 s counts).
+pub const CONTROL_RATE_HZ: u32 = 2048;
+
+/// [`CONTROL_RATE_HZ`] as a float.
+pub const CONTROLLER_RATE_HZ: f64 = CONTROL_RATE_HZ as f64;
 
 /// Controller step in s (1/2048 s ≈ 488 µs).
 pub const DT_S: f64 = 1.0 / CONTROLLER_RATE_HZ;

@@ -216,6 +216,10 @@ impl Limits {
     pub fn fault_ramp_rate_mm_s(&self) -> f64 {
         self.fault_ramp_rate_mm_s
     }
+    /// End-of-test ramp rate, mm/s.
+    pub fn end_ramp_rate_mm_s(&self) -> f64 {
+        self.end_ramp_rate_mm_s
+    }
 }
 
 /// Why the supervisor tripped.
@@ -246,6 +250,66 @@ pub enum FaultReason {
     Overrun,
     /// An external emergency stop.
     EmergencyStop,
+}
+
+impl FaultReason {
+    /// Every reason with its code and name: the one table the firmware's report, the command link
+    /// (`RunState::Fault(code)` on the wire) and the host's display use. The codes are a wire format:
+    /// they never change, and a new reason takes the next free code (they do not follow the
+    /// declaration order above).
+    pub const ALL: [(FaultReason, u8, &'static str); 12] = [
+        (FaultReason::MeasuredStroke, 0, "MeasuredStroke"),
+        (FaultReason::CommandStroke, 1, "CommandStroke"),
+        (FaultReason::CommandVelocity, 2, "CommandVelocity"),
+        (FaultReason::Force, 3, "Force"),
+        (FaultReason::NonFiniteCommand, 4, "NonFiniteCommand"),
+        (FaultReason::NonFiniteSample, 5, "NonFiniteSample"),
+        (FaultReason::SensorTimeout, 6, "SensorTimeout"),
+        (FaultReason::Overrun, 7, "Overrun"),
+        (FaultReason::EmergencyStop, 8, "EmergencyStop"),
+        (FaultReason::FollowingError, 9, "FollowingError"),
+        (FaultReason::ImplausibleMotion, 10, "ImplausibleMotion"),
+        (FaultReason::FrozenSensor, 11, "FrozenSensor"),
+    ];
+
+    /// The reason's code on the wire (see [`Self::ALL`]).
+    pub fn code(self) -> u8 {
+        self.entry().1
+    }
+
+    /// The reason's name (the variant's), as reports and the host print it.
+    pub fn name(self) -> &'static str {
+        self.entry().2
+    }
+
+    /// The reason of a wire code; `None` for an unknown code (a newer firmware's).
+    pub fn from_code(code: u8) -> Option<Self> {
+        Self::ALL
+            .iter()
+            .find(|(_, c, _)| *c == code)
+            .map(|(r, _, _)| *r)
+    }
+
+    fn entry(self) -> (FaultReason, u8, &'static str) {
+        // A `match` rather than a search: exhaustive, so a new variant without a row does not
+        // compile, and no fallback value is needed.
+        use FaultReason as F;
+        let i = match self {
+            F::MeasuredStroke => 0,
+            F::CommandStroke => 1,
+            F::CommandVelocity => 2,
+            F::Force => 3,
+            F::NonFiniteCommand => 4,
+            F::NonFiniteSample => 5,
+            F::SensorTimeout => 6,
+            F::Overrun => 7,
+            F::EmergencyStop => 8,
+            F::FollowingError => 9,
+            F::ImplausibleMotion => 10,
+            F::FrozenSensor => 11,
+        };
+        Self::ALL[i]
+    }
 }
 
 /// The supervisor's state.

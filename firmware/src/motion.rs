@@ -1,10 +1,14 @@
-//! The ground motion at controller ticks, computed exactly as the host's
-//! `GroundMotion::resample_mm_s2(DT_S)` does (same operations in the same order, IEEE f64), so the
-//! firmware and the host simulation see the same ü_g bit for bit.
+//! The ground motion at controller ticks: `rths_core::motion::Record`, the interpolation the host's
+//! `GroundMotion::resample_mm_s2(DT_S)` runs, so the firmware and the host simulation see the same
+//! ü_g bit for bit.
 
-use rths_core::params::{DT_S, G_MM_S2};
+use rths_core::motion::Record;
+use rths_core::params::DT_S;
 
 use crate::gen::{MOTION_DT_S, MOTION_G, RECORD_TICKS};
+
+/// The compiled-in record (values in g at its own step).
+static RECORD: Record<'static> = Record::new(&MOTION_G, MOTION_DT_S);
 
 /// Ground acceleration at tick `k` (time `k·Δt`), mm/s²; 0 after the record.
 #[inline]
@@ -12,13 +16,5 @@ pub fn ground_accel_mm_s2(k: u32) -> f64 {
     if k >= RECORD_TICKS {
         return 0.0;
     }
-    let pos = k as f64 * DT_S / MOTION_DT_S;
-    let i = libm::floor(pos) as usize;
-    let frac = pos - i as f64;
-    let a = match (MOTION_G.get(i).copied(), MOTION_G.get(i + 1).copied()) {
-        (Some(a0), Some(a1)) => a0 + frac * (a1 - a0),
-        (Some(a0), None) => a0,
-        _ => MOTION_G.last().copied().unwrap_or(0.0),
-    };
-    a * G_MM_S2
+    RECORD.accel_mm_s2(k as usize, DT_S)
 }

@@ -5,7 +5,7 @@ use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let text = String::from_utf8_lossy(data);
-    if let Ok(m) = rths::motion::parse_at2(&text, "fuzz") {
+    if let Ok(m) = rths_files::motion::parse_at2(&text, "fuzz") {
         assert!(m.validate().is_ok(), "parse_at2 accepted an invalid motion");
     }
 });

@@ -146,7 +146,7 @@ pub enum RunState {
     RampDown,
     /// Done.
     Done,
-    /// Faulted (the reason as `rths_core::supervisor::FaultReason`'s name index, see the firmware).
+    /// Faulted (the reason's wire code: `rths_core::supervisor::FaultReason::code`).
     Fault(u8),
 }
 

@@ -21,7 +21,8 @@ pub struct Args {
     /// Baud rate of --port.
     #[arg(long, default_value_t = 2_000_000)]
     pub baud: u32,
-    /// A TCP address of QEMU's serial port (`-serial tcp:127.0.0.1:PORT,server=on,wait=off`); loopback.
+    /// A TCP address of QEMU's link port (its second serial port: `-serial null -serial
+    /// tcp:127.0.0.1:PORT,server=on,wait=off`); loopback.
     #[arg(long, value_name = "HOST:PORT")]
     pub tcp: Option<String>,
     /// Start QEMU here on this firmware ELF (built with `--features link`) for this one command.

@@ -1,14 +1,13 @@
 //! Training data, phase 1: the pure finite-element response of the prototype with synthetic
 //! delayed feedback.
 //!
-//! The prototype (frame + brace, [`LinearStructure::prototype_pure`]) is integrated with Chang's
-//! method at the controller step. The brace deformation `d = x·cosθ` and force `N = k_b·d` are the
+//! The prototype (frame + brace) is integrated with Chang's method at the controller step: the
+//! reference response [`Reference`] of `rths_core`, the same the analysis and the firmware use. The brace deformation `d = x·cosθ` and force `N = k_b·d` are the
 //! signals the metamodels predict and feed back; the feedback is the signal `delay_steps` earlier
 //! (zero before the start, where the structure is at rest).
 
-use rths_core::integrator::{Chang, ExplicitIntegrator};
 use rths_core::params::Prototype;
-use rths_core::structure::{LinearStructure, Vector};
+use rths_core::reference::Reference;
 
 use super::TrainError;
 
@@ -50,15 +49,14 @@ pub fn pure_response(
         found: 0,
         needed: 1,
     })?;
-    let mut chang = Chang::new(LinearStructure::prototype_pure(prototype)?, dt_s)?;
-    chang.reset(first);
-    let zero = Vector::<1>::zeros();
+    let mut reference = Reference::new(prototype, dt_s, first)?;
     let mut disp = Vec::with_capacity(ground_accel_mm_s2.len());
-    disp.push(prototype.brace_disp_mm(chang.state().disp[0]));
-    for &ag in &ground_accel_mm_s2[1..] {
-        chang.advance(ag, &zero);
-        disp.push(prototype.brace_disp_mm(chang.state().disp[0]));
-    }
+    disp.push(reference.brace_disp_mm());
+    disp.extend(
+        ground_accel_mm_s2[1..]
+            .iter()
+            .map(|&ag| reference.advance(ag)),
+    );
     let force = disp.iter().map(|&d| prototype.brace_force_kn(d)).collect();
     Ok(PureResponse {
         ground_accel_mm_s2: ground_accel_mm_s2.to_vec(),

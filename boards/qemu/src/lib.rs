@@ -11,15 +11,25 @@
 //!   counter reads 0 in QEMU. [`calibrate`] checks the conversion against a loop of known length.
 //! - The plant is `rths-hal-sim`'s [`VirtualRig`], advanced by the firmware once per tick outside the
 //!   measured section.
-//! - The run ends with a semihosting exit carrying the status code.
+//! - The run ends with a semihosting exit carrying the status code; text lines (`RESULT`) go to the
+//!   host's stdout and defmt frames to the host file `defmt.bin` ([`logger`]), both by semihosting.
+//! - The link is USART2, QEMU's second `-serial` (the real board's link UART too, so that the
+//!   firmware binds the same interrupt on both).
 #![no_std]
 #![deny(missing_docs)]
 
+pub mod logger;
+
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
+use rths_app::board::TickTimer as _;
 use rths_core::hal::{Actuator, Daq, Sample};
+use rths_core::integrator::{Chang, ExplicitIntegrator};
+use rths_core::params::{Prototype, DT_S};
+use rths_core::structure::{LinearStructure, Vector};
 use rths_hal_sim::{FaultPlan, Preset, RigConfig, SimError, Specimen, VirtualRig};
-use stm32f4::stm32f405 as pac;
+/// The device crate (STM32F405) the firmware's RTIC app is built on.
+pub use stm32f4::stm32f405 as pac;
 
 /// Core clock QEMU's netduinoplus2 machine gives the Cortex-M4 (and SysTick with CLKSOURCE = core), Hz.
 pub const SYSCLK_HZ: u32 = 168_000_000;
@@ -28,8 +38,8 @@ pub const SYSCLK_HZ: u32 = 168_000_000;
 /// virtual time, whatever the RCC says).
 pub const TIM_CLOCK_HZ: u32 = 1_000_000_000;
 
-/// The controller rate the tick aims at, Hz (DESIGN §2: Δt = 1/2048 s).
-pub const TARGET_TICK_HZ: u32 = 2048;
+/// The controller rate the tick aims at, Hz (`rths_core::params::CONTROL_RATE_HZ`).
+pub const TARGET_TICK_HZ: u32 = rths_core::params::CONTROL_RATE_HZ;
 
 /// Timer counts per tick: `round(TIM_CLOCK_HZ / 2048)` = 488 281 (the exact value is 488 281.25).
 pub const TICK_PERIOD_COUNTS: u32 = (TIM_CLOCK_HZ + TARGET_TICK_HZ / 2) / TARGET_TICK_HZ;
@@ -59,28 +69,6 @@ impl TickTimer {
         tim.sr.write(|w| w.uif().clear_bit());
         tim.dier.write(|w| w.uie().set_bit());
         Self { tim }
-    }
-
-    /// Start counting: the first tick fires one period from now.
-    pub fn start(&mut self) {
-        self.tim.cnt.reset();
-        self.tim.cr1.modify(|_, w| w.cen().set_bit());
-    }
-
-    /// Stop counting and clear a pending update.
-    pub fn stop(&mut self) {
-        self.tim.cr1.modify(|_, w| w.cen().clear_bit());
-        self.clear();
-    }
-
-    /// Acknowledge the update interrupt.
-    pub fn clear(&mut self) {
-        self.tim.sr.write(|w| w.uif().clear_bit());
-    }
-
-    /// The next update already happened (the tick in progress ran past its deadline).
-    pub fn pending(&self) -> bool {
-        self.tim.sr.read().uif().bit_is_set()
     }
 
     /// The counter, timer counts since the last update.
@@ -256,19 +244,19 @@ pub fn exit(success: bool) -> ! {
     }
 }
 
-/// USART1, the link port: QEMU maps the machine's first `-serial` to it (`-serial tcp:...` for the
-/// host's `rths link`). QEMU's USART model ignores the baud rate, sends a written byte at once (TXE
-/// stays set) and holds one received byte in DR (RXNE) until it is read.
+/// USART2, the link port: QEMU maps the machine's second `-serial` to it (`-serial null -serial
+/// tcp:...` for the host's `rths link`). QEMU's USART model ignores the baud rate, sends a written
+/// byte at once (TXE stays set) and holds one received byte in DR (RXNE) until it is read.
 pub struct LinkUart {
-    usart: pac::USART1,
+    usart: pac::USART2,
 }
 
 impl LinkUart {
-    /// Enable USART1: 8N1, transmitter and receiver on, the RXNE interrupt on. BRR is set for
-    /// 115 200 Bd at an 84 MHz APB2 (what the silicon would need; QEMU ignores it).
-    pub fn new(usart: pac::USART1, rcc: &pac::RCC) -> Self {
-        rcc.apb2enr.modify(|_, w| w.usart1en().set_bit());
-        usart.brr.write(|w| brr_div(w, 84_000_000 / 115_200));
+    /// Enable USART2: 8N1, transmitter and receiver on, the RXNE interrupt on. BRR is set for
+    /// 115 200 Bd at a 42 MHz APB1 (what the silicon would need; QEMU ignores it).
+    pub fn new(usart: pac::USART2, rcc: &pac::RCC) -> Self {
+        rcc.apb1enr.modify(|_, w| w.usart2en().set_bit());
+        usart.brr.write(|w| brr_div(w, 42_000_000 / 115_200));
         usart.cr1.write(|w| {
             w.ue()
                 .set_bit()
@@ -281,24 +269,6 @@ impl LinkUart {
         });
         Self { usart }
     }
-
-    /// A received byte, if one is waiting.
-    pub fn read_byte(&mut self) -> Option<u8> {
-        let sr = self.usart.sr.read();
-        if sr.rxne().bit_is_set() {
-            Some(self.usart.dr.read().dr().bits() as u8)
-        } else {
-            None
-        }
-    }
-
-    /// Send `bytes`, polling TXE.
-    pub fn write_all(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            while self.usart.sr.read().txe().bit_is_clear() {}
-            self.usart.dr.write(|w| w.dr().bits(u16::from(b)));
-        }
-    }
 }
 
 fn brr_div(w: &mut pac::usart1::brr::W, div: u32) -> &mut pac::usart1::brr::W {
@@ -306,4 +276,198 @@ fn brr_div(w: &mut pac::usart1::brr::W, div: u32) -> &mut pac::usart1::brr::W {
         .bits((div >> 4) as u16)
         .div_fraction()
         .bits((div & 0xF) as u8)
+}
+
+impl rths_app::board::TickTimer for TickTimer {
+    fn start(&mut self) {
+        self.tim.cnt.reset();
+        self.tim.cr1.modify(|_, w| w.cen().set_bit());
+    }
+    fn stop(&mut self) {
+        self.tim.cr1.modify(|_, w| w.cen().clear_bit());
+        self.clear();
+    }
+    fn clear(&mut self) {
+        self.tim.sr.write(|w| w.uif().clear_bit());
+    }
+    fn pending(&self) -> bool {
+        self.tim.sr.read().uif().bit_is_set()
+    }
+}
+
+impl rths_app::board::InstrCounter for InstrCounter {
+    #[inline(always)]
+    fn now(&self) -> u32 {
+        InstrCounter::now(self)
+    }
+    #[inline(always)]
+    fn instructions(&self, start: u32, end: u32) -> u32 {
+        InstrCounter::ticks_to_instructions(InstrCounter::elapsed_ticks(start, end))
+    }
+}
+
+impl rths_app::board::LinkPort for LinkUart {
+    fn read_byte(&mut self) -> Option<u8> {
+        let sr = self.usart.sr.read();
+        if sr.rxne().bit_is_set() {
+            Some(self.usart.dr.read().dr().bits() as u8)
+        } else {
+            None
+        }
+    }
+    /// Polls TXE.
+    fn write_all(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            while self.usart.sr.read().txe().bit_is_clear() {}
+            self.usart.dr.write(|w| w.dr().bits(u16::from(b)));
+        }
+    }
+}
+
+impl Plant {
+    /// Replace the fault plan (at boot, before the first tick: the plant starts over at rest).
+    pub fn inject(&mut self, faults: FaultPlan) {
+        self.rig = VirtualRig::with_faults(*self.rig.params(), faults);
+    }
+}
+
+/// The test harness half of the board: the reference response of the same structure (pure FE,
+/// Chang, as `rths::analysis::pure_response`), computed along the run, then the plant's advance.
+pub struct Harness {
+    reference: Chang<1>,
+    proto: Prototype,
+    /// target(k) as the host's history row k holds it (produced at tick k−1).
+    target_row_mm: f64,
+}
+
+impl rths_app::board::Harness<Plant> for Harness {
+    fn after_tick(
+        &mut self,
+        rig: &mut Plant,
+        k: u32,
+        in_record: bool,
+        ag_mm_s2: f64,
+        target_mm: f64,
+    ) -> Option<(f64, f64)> {
+        // The host history's row k: the reference and the target produced at tick k−1.
+        let mut row = None;
+        if in_record {
+            let reference_mm = if k == 0 {
+                self.proto.brace_disp_mm(0.0)
+            } else {
+                self.reference.advance(ag_mm_s2, &Vector::<1>::zeros());
+                self.proto.brace_disp_mm(self.reference.state().disp.x)
+            };
+            let e = self.target_row_mm - reference_mm;
+            row = Some((e * e, libm::fabs(reference_mm)));
+        }
+        if target_mm.is_finite() {
+            self.target_row_mm = target_mm;
+        }
+        // The plant converts the command and moves to the next tick (on a real rig: the DAC and the
+        // physical world). A clip cannot happen: the supervisor keeps the command within the stroke.
+        let _ = rig.advance();
+        row
+    }
+
+    fn reset(&mut self, ag0_mm_s2: f64) {
+        self.reference.reset(ag0_mm_s2);
+        self.target_row_mm = 0.0;
+    }
+}
+
+impl rths_app::board::Calibration for Calibration {
+    fn write_line<W: core::fmt::Write>(&self, w: &mut W) -> core::fmt::Result {
+        w.write_fmt(format_args!(
+            "CALIB {{\"loop_instr\":{},\"systick_instr\":{},\"tim2_counts\":{},\"read_overhead_instr\":{},\"tick_hz\":{:?}}}",
+            self.loop_instructions,
+            self.measured_instructions,
+            self.timer_counts,
+            self.overhead_instructions,
+            tick_rate_hz()
+        ))
+    }
+
+    fn counter_overhead_instr(&self) -> u32 {
+        self.overhead_instructions
+    }
+}
+
+/// The emulated board.
+#[derive(Debug, Clone, Copy)]
+pub struct Qemu;
+
+/// The board this crate is (the firmware's `board::ThisBoard`).
+pub type ThisBoard = Qemu;
+
+impl rths_app::board::Board for Qemu {
+    type Timer = TickTimer;
+    type Link = LinkUart;
+    type RigError = SimError;
+    type Rig = Plant;
+    type Counter = InstrCounter;
+    type EStop = rths_app::board::NoEStop;
+    type Harness = Harness;
+    type Calibration = Calibration;
+    const EMULATED_PLANT: bool = true;
+
+    fn tick_rate_hz() -> f64 {
+        tick_rate_hz()
+    }
+
+    fn host_line(line: &str) {
+        logger::host_line(line);
+    }
+
+    fn exit(success: bool) -> ! {
+        exit(success)
+    }
+
+    fn log_frames_cut() -> u32 {
+        logger::truncated_frames()
+    }
+}
+
+/// What can fail while bringing the board up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BoardError {
+    /// The plant's configuration.
+    Plant,
+    /// The reference structure.
+    Reference,
+}
+
+/// Bring the board up: SysTick as the instruction counter (calibrated against TIM2), TIM2 stopped,
+/// the plant at rest with no faults, USART2, and the harness (reset it before the first tick).
+pub fn init(
+    dp: pac::Peripherals,
+    core: cortex_m::Peripherals,
+) -> Result<rths_app::board::Parts<Qemu>, BoardError> {
+    let counter = InstrCounter::new(core.SYST);
+    let mut timer = TickTimer::new(dp.TIM2, &dp.RCC);
+    let calib = calibrate(&counter, &mut timer, 100_000);
+    let rig = Plant::new(1, FaultPlan::none()).ok_or(BoardError::Plant)?;
+    let proto = Prototype::paper();
+    let reference = LinearStructure::prototype_pure(&proto)
+        .and_then(|s| Chang::new(s, DT_S))
+        .map_err(|_| BoardError::Reference)?;
+    Ok(rths_app::board::Parts {
+        timer,
+        link: LinkUart::new(dp.USART2, &dp.RCC),
+        rig,
+        counter,
+        estop: rths_app::board::NoEStop,
+        harness: Harness {
+            reference,
+            proto,
+            target_row_mm: 0.0,
+        },
+        calibration: calib,
+    })
+}
+
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    logger::host_line("PANIC");
+    exit(false)
 }

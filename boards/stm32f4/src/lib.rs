@@ -15,11 +15,12 @@
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
+use defmt_rtt as _;
 use embedded_hal::delay::DelayNs;
 use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
 use rths_board_drivers::ad5754::{Ad5754, Ad5754Error};
 use rths_board_drivers::ad7606::{Ad7606, Ad7606Config, Ad7606Error};
-use rths_board_drivers::{ActiveLevel, Calibration, EStop, Rig};
+use rths_board_drivers::{ActiveLevel, Calibration, CalibrationConfig, EStop, Rig};
 use stm32f4xx_hal::gpio::{Input, Output, PushPull, PB0, PB1, PB12, PC4, PC5, PD0, PD1};
 pub use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
@@ -34,7 +35,7 @@ pub const SYSCLK_HZ: u32 = 168_000_000;
 /// TIM2's counting clock (APB1 = 42 MHz, doubled for the timers since its prescaler is not 1), Hz.
 pub const TIM2_CLOCK_HZ: u32 = 84_000_000;
 /// The controller rate the tick aims at, Hz.
-pub const TARGET_TICK_HZ: u32 = 2048;
+pub const TARGET_TICK_HZ: u32 = rths_core::params::CONTROL_RATE_HZ;
 /// Timer counts per tick: round(84 MHz / 2048) = 41 016.
 pub const TICK_PERIOD_COUNTS: u32 = (TIM2_CLOCK_HZ + TARGET_TICK_HZ / 2) / TARGET_TICK_HZ;
 /// The link's baud rate.
@@ -97,6 +98,8 @@ pub enum BoardError {
     Dac(Ad5754Error),
     /// The link UART configuration.
     Serial,
+    /// The rig's calibration.
+    Calibration,
 }
 
 /// The tick timer (TIM2).
@@ -117,51 +120,12 @@ impl TickTimer {
         tim.dier().write(|w| w.uie().set_bit());
         Self { tim }
     }
-
-    /// Start counting.
-    pub fn start(&mut self) {
-        self.tim.cnt().reset();
-        self.tim.cr1().modify(|_, w| w.cen().set_bit());
-    }
-
-    /// Stop counting and clear a pending update.
-    pub fn stop(&mut self) {
-        self.tim.cr1().modify(|_, w| w.cen().clear_bit());
-        self.clear();
-    }
-
-    /// Acknowledge the update interrupt.
-    pub fn clear(&mut self) {
-        self.tim.sr().write(|w| w.uif().clear_bit());
-    }
-
-    /// The next update already happened (the tick in progress overran).
-    pub fn pending(&self) -> bool {
-        self.tim.sr().read().uif().bit_is_set()
-    }
 }
 
 /// The link port: USART2, receive interrupt on.
 pub struct LinkSerial {
     tx: Tx<pac::USART2>,
     rx: Rx<pac::USART2>,
-}
-
-impl LinkSerial {
-    /// A received byte, if one is waiting (an overrun or framing error drops the byte; the frame's
-    /// CRC then rejects the frame).
-    pub fn read_byte(&mut self) -> Option<u8> {
-        use embedded_hal_nb::serial::Read;
-        self.rx.read().ok()
-    }
-
-    /// Send `bytes` (blocking on TXE; 5 µs a byte at 2 Mbaud).
-    pub fn write_all(&mut self, bytes: &[u8]) {
-        use embedded_hal_nb::serial::Write;
-        for &b in bytes {
-            let _ = nb::block!(self.tx.write(b));
-        }
-    }
 }
 
 /// The board, brought up.
@@ -264,5 +228,130 @@ impl Board {
             estop,
             link: LinkSerial { tx, rx },
         })
+    }
+}
+
+impl rths_app::board::TickTimer for TickTimer {
+    fn start(&mut self) {
+        self.tim.cnt().reset();
+        self.tim.cr1().modify(|_, w| w.cen().set_bit());
+    }
+    fn stop(&mut self) {
+        self.tim.cr1().modify(|_, w| w.cen().clear_bit());
+        self.clear();
+    }
+    fn clear(&mut self) {
+        self.tim.sr().write(|w| w.uif().clear_bit());
+    }
+    fn pending(&self) -> bool {
+        self.tim.sr().read().uif().bit_is_set()
+    }
+}
+
+impl rths_app::board::LinkPort for LinkSerial {
+    /// An overrun or framing error drops the byte; the frame's CRC then rejects the frame.
+    fn read_byte(&mut self) -> Option<u8> {
+        use embedded_hal_nb::serial::Read;
+        self.rx.read().ok()
+    }
+    /// Blocks on TXE; 5 µs a byte at 2 Mbaud.
+    fn write_all(&mut self, bytes: &[u8]) {
+        use embedded_hal_nb::serial::Write;
+        for &b in bytes {
+            let _ = nb::block!(self.tx.write(b));
+        }
+    }
+}
+
+/// The E-stop input as the firmware sees it.
+pub struct EStopInput(pub BoardEStop);
+
+impl rths_app::board::EStop for EStopInput {
+    fn asserted(&mut self) -> bool {
+        self.0.is_active()
+    }
+}
+
+/// The DWT cycle counter: on silicon the work is counted in core cycles (an upper bound of the
+/// instructions).
+pub struct CycleCounter;
+
+impl rths_app::board::InstrCounter for CycleCounter {
+    #[inline(always)]
+    fn now(&self) -> u32 {
+        cortex_m::peripheral::DWT::cycle_count()
+    }
+    #[inline(always)]
+    fn instructions(&self, start: u32, end: u32) -> u32 {
+        end.wrapping_sub(start)
+    }
+}
+
+/// The real board.
+#[derive(Debug, Clone, Copy)]
+pub struct Stm32f4;
+
+/// The board this crate is (the firmware's `board::ThisBoard`).
+pub type ThisBoard = Stm32f4;
+
+impl rths_app::board::Board for Stm32f4 {
+    type Timer = TickTimer;
+    type Link = LinkSerial;
+    type RigError = rths_board_drivers::RigError;
+    type Rig = BoardRig;
+    type Counter = CycleCounter;
+    type EStop = EStopInput;
+    type Harness = rths_app::board::NoHarness;
+    type Calibration = rths_app::board::NoCalibration;
+    const EMULATED_PLANT: bool = false;
+
+    fn tick_rate_hz() -> f64 {
+        tick_rate_hz()
+    }
+
+    fn host_line(line: &str) {
+        defmt::info!("{=str}", line);
+    }
+
+    fn exit(_success: bool) -> ! {
+        loop {
+            cortex_m::asm::wfi();
+        }
+    }
+
+    fn log_frames_cut() -> u32 {
+        0
+    }
+}
+
+/// Bring the board up with the paper actuator's calibration (the lab's goes here): clocks, pins,
+/// converters, E-stop, link UART, the DWT cycle counter, and the tick timer (stopped).
+pub fn init(
+    dp: pac::Peripherals,
+    mut core: cortex_m::Peripherals,
+) -> Result<rths_app::board::Parts<Stm32f4>, BoardError> {
+    let cal = Calibration::new(CalibrationConfig::paper_actuator())
+        .map_err(|_| BoardError::Calibration)?;
+    let b = Board::init(dp, cal)?;
+    core.DCB.enable_trace();
+    core.DWT.enable_cycle_counter();
+    Ok(rths_app::board::Parts {
+        timer: b.timer,
+        link: b.link,
+        rig: b.rig,
+        counter: CycleCounter,
+        estop: EStopInput(b.estop),
+        harness: rths_app::board::NoHarness,
+        calibration: rths_app::board::NoCalibration,
+    })
+}
+
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    // The DAC holds its last output; the servo-controller's own limits and its E-stop chain are the
+    // protection from here on.
+    defmt::error!("PANIC");
+    loop {
+        cortex_m::asm::wfi();
     }
 }

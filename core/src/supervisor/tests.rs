@@ -331,3 +331,29 @@ fn an_unchanged_reading_with_a_still_command_is_not_frozen() {
         assert_eq!(d.state, State::Running);
     }
 }
+
+#[test]
+fn fault_reason_table_round_trips_with_unique_codes_and_names() {
+    for (reason, code, name) in FaultReason::ALL {
+        assert_eq!(reason.code(), code);
+        assert_eq!(reason.name(), name);
+        assert_eq!(FaultReason::from_code(code), Some(reason));
+    }
+    for (i, (a, ca, na)) in FaultReason::ALL.iter().enumerate() {
+        for (b, cb, nb) in &FaultReason::ALL[i + 1..] {
+            assert_ne!(a, b);
+            assert_ne!(ca, cb);
+            assert_ne!(na, nb);
+        }
+    }
+    // The wire codes of the link's first release (never renumbered).
+    assert_eq!(FaultReason::MeasuredStroke.code(), 0);
+    assert_eq!(FaultReason::EmergencyStop.code(), 8);
+    assert_eq!(FaultReason::FrozenSensor.code(), 11);
+    assert_eq!(FaultReason::from_code(12), None);
+}
+
+#[test]
+fn paper_actuator_end_ramp_rate() {
+    assert_eq!(Limits::paper_actuator().end_ramp_rate_mm_s(), 10.0);
+}

@@ -36,7 +36,8 @@ static STATE: Mutex<RefCell<State>> = Mutex::new(RefCell::new(State {
 
 /// Frames cut to [`FRAME_BYTES`] so far.
 pub fn truncated_frames() -> u32 {
-    // try_borrow: no panic path (`panic-check.sh UART4`); it cannot fail inside the section.
+    // try_borrow: no panic path (`panic-check.sh` on the supervisor task); it cannot fail inside the
+    // section.
     interrupt::free(|cs| STATE.borrow(cs).try_borrow().map_or(0, |s| s.truncated))
 }
 

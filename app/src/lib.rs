@@ -1,0 +1,27 @@
+//! The firmware's application logic, independent of any board and of RTIC, so that it is unit-tested
+//! on the host (`cargo test -p rths-app`) and runs unchanged on every board.
+//!
+//! - [`board`]: the traits a board implements (tick timer, link port, instruction counter, E-stop,
+//!   and the [`board::Board`] that names them); `boards/qemu` and `boards/stm32f4` implement them.
+//! - [`control`]: the controller's work in one tick (the measured section) and its [`Record`].
+//! - [`run`]: the run's statistics, updated once per tick.
+//! - [`report`]: the `CALIB` and `RESULT` lines of the emulated board.
+//! - [`link`]: the command link's request handling and telemetry stream.
+//!
+//! The firmware binary (`firmware/src/main.rs`) is the RTIC shell around these.
+#![no_std]
+#![deny(missing_docs)]
+#![forbid(unsafe_code)]
+
+pub mod board;
+pub mod control;
+pub mod link;
+pub mod report;
+pub mod run;
+
+pub use control::{control_step, Record};
+pub use run::Run;
+
+/// Ticks in one second of test time (the controller rate): the fault hold that ends a faulted run,
+/// and the defmt log's decimation.
+pub const ONE_SECOND_TICKS: u32 = rths_core::params::CONTROL_RATE_HZ;

@@ -1,0 +1,283 @@
+//! The command link on the firmware side: the host's requests and the telemetry stream, over any
+//! board's [`LinkPort`](crate::board::LinkPort). The protocol and framing are `rths-link`'s.
+
+use rths_core::control::{Analytical, Controller};
+use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
+use rths_core::supervisor::{Limits, State, Supervisor};
+use rths_link::{DeviceMsg, HostMsg, NackReason, RunState, Status, Telemetry, LR_COEFFS};
+
+use crate::board::LinkPort;
+use crate::{Record, Run};
+
+/// The wire state of a supervisor state.
+pub fn run_state(s: State) -> RunState {
+    match s {
+        State::Idle => RunState::Idle,
+        State::Armed => RunState::Armed,
+        State::Running => RunState::Running,
+        State::RampDown => RunState::RampDown,
+        State::Done => RunState::Done,
+        State::Fault(r) => RunState::Fault(r.code()),
+    }
+}
+
+/// The checksum of the compiled-in LR model.
+pub fn compiled_model_checksum(theta: &[f64; LR_COEFFS]) -> u32 {
+    rths_link::model_checksum(theta, PAPER_DELAY_STEPS as u16)
+}
+
+/// Validate an uploaded LR model and swap it in whole; the old one stays on any refusal.
+/// Returns the new model's checksum.
+pub fn upload_lr(
+    ctl: &mut Controller,
+    features: u8,
+    theta: &[f64; LR_COEFFS],
+    delay_steps: u16,
+    checksum: u32,
+) -> Result<u32, NackReason> {
+    use rths_core::metamodel::{Lr, LrParams};
+    if features as usize != LR_COEFFS {
+        return Err(NackReason::Shape);
+    }
+    if theta.iter().any(|t| !t.is_finite()) {
+        return Err(NackReason::NotFinite);
+    }
+    if rths_link::model_checksum(theta, delay_steps) != checksum {
+        return Err(NackReason::Checksum);
+    }
+    if !ctl.supervisor().at_rest() {
+        return Err(NackReason::Busy);
+    }
+    let params = LrParams::new(*theta).map_err(|_| NackReason::NotFinite)?;
+    ctl.set_analytical(Analytical::Lr(Lr::new(params)))
+        .map_err(|_| NackReason::Busy)?;
+    Ok(checksum)
+}
+
+/// New stroke, velocity and force limits (the other settings stay those in force). Only at rest
+/// with the command at 0 mm: a new supervisor starts idle at 0 mm, so anything else would move the
+/// actuator.
+pub fn set_limits(
+    ctl: &mut Controller,
+    stroke_mm: f64,
+    velocity_mm_s: f64,
+    force_kn: f64,
+) -> Result<(), NackReason> {
+    if ![stroke_mm, velocity_mm_s, force_kn]
+        .iter()
+        .all(|v| v.is_finite())
+    {
+        return Err(NackReason::NotFinite);
+    }
+    let d = Limits::paper_actuator();
+    let limits = Limits::new(
+        stroke_mm,
+        velocity_mm_s,
+        force_kn,
+        8,
+        4,
+        d.fault_ramp_rate_mm_s(),
+        d.end_ramp_rate_mm_s(),
+        DT_S,
+    )
+    .map_err(|_| NackReason::OutOfRange)?;
+    let s = ctl.supervisor_mut();
+    if !s.at_rest() || s.output_mm() != 0.0 {
+        return Err(NackReason::Busy);
+    }
+    *s = Supervisor::new(limits);
+    Ok(())
+}
+
+/// How the board's rig is armed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Rearm {
+    /// The emulated plant: it starts exactly at rest at 0 mm, as the host simulation's does, so arm
+    /// there; the plant and the record play once per power-up, so a second `Arm` is refused.
+    OncePerPowerUp,
+    /// A real rig: after a finished run back to idle first (refused unless at rest), then arm at the
+    /// measured position so that the first command does not step.
+    AtMeasured,
+}
+
+/// The link's side of a session: the telemetry stream's numbering and the model in force.
+#[derive(Debug, Clone, Copy)]
+pub struct Session {
+    /// Telemetry decimation (≥ 1): every `every`-th record is sent.
+    pub every: u32,
+    /// Next telemetry sequence number (= records sent in this run).
+    pub seq: u32,
+    /// Frames that failed COBS, CRC or decoding.
+    pub bad_frames: u32,
+    /// The active model's checksum.
+    pub model_checksum: u32,
+    /// The build's analytical part takes an uploaded LR model.
+    pub upload_lr: bool,
+    /// How `Arm` arms.
+    pub rearm: Rearm,
+}
+
+impl Session {
+    /// A session with the compiled-in model of `model_checksum`.
+    pub fn new(model_checksum: u32, upload_lr: bool, rearm: Rearm) -> Self {
+        Self {
+            every: 1,
+            seq: 0,
+            bad_frames: 0,
+            model_checksum,
+            upload_lr,
+            rearm,
+        }
+    }
+
+    /// The telemetry message of `r`, numbered, or `None` if decimation skips it.
+    pub fn telemetry(&mut self, r: &Record) -> Option<DeviceMsg> {
+        // checked_rem: `every` ≥ 1 (`Arm` refuses 0), and no panic path in the telemetry task.
+        if r.tick.checked_rem(self.every) != Some(0) {
+            return None;
+        }
+        let seq = self.seq;
+        self.seq = self.seq.wrapping_add(1);
+        Some(DeviceMsg::Telemetry(Telemetry {
+            seq,
+            tick: r.tick,
+            state: run_state(r.state),
+            command_mm: r.command_mm,
+            target_mm: r.target_mm,
+            measured_mm: r.measured_mm,
+            force_kn: r.force_kn,
+        }))
+    }
+
+    /// The message that closes a run's stream.
+    pub fn run_ended(&self, run: &Run) -> DeviceMsg {
+        DeviceMsg::RunEnded {
+            state: run_state(run.state),
+            ticks: run.ticks,
+            records_sent: self.seq,
+            records_dropped: run.telemetry_dropped,
+        }
+    }
+}
+
+/// What a handled request asks of the firmware besides its answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Effect {
+    /// Nothing.
+    None,
+    /// The run started: play the record from tick 0.
+    Started,
+}
+
+/// Handle one request: its answer (always exactly one) and its effect. `finished`: the emulated
+/// plant's run is over. Runs at the link's priority with the controller and the run locked: it
+/// does no I/O (the caller sends the answer after unlocking).
+pub fn handle(
+    msg: HostMsg,
+    ctl: &mut Controller,
+    run: &mut Run,
+    s: &mut Session,
+    finished: bool,
+) -> (DeviceMsg, Effect) {
+    let req = msg.request();
+    let result: Result<Effect, NackReason> = match msg {
+        HostMsg::Status => return (DeviceMsg::Status(status(ctl, s, run)), Effect::None),
+        HostMsg::UploadLr {
+            features,
+            theta,
+            delay_steps,
+            checksum,
+        } => {
+            if s.upload_lr {
+                upload_lr(ctl, features, &theta, delay_steps, checksum).map(|crc| {
+                    s.model_checksum = crc;
+                    Effect::None
+                })
+            } else {
+                Err(NackReason::Unsupported)
+            }
+        }
+        HostMsg::SetLimits {
+            stroke_mm,
+            velocity_mm_s,
+            force_kn,
+        } => set_limits(ctl, stroke_mm, velocity_mm_s, force_kn).map(|()| Effect::None),
+        HostMsg::Arm { telemetry_every } => {
+            if telemetry_every == 0 {
+                Err(NackReason::OutOfRange)
+            } else {
+                arm(ctl, run, s.rearm, finished).map(|()| {
+                    s.every = u32::from(telemetry_every);
+                    s.seq = 0;
+                    run.restart();
+                    Effect::None
+                })
+            }
+        }
+        HostMsg::Start => ctl
+            .supervisor_mut()
+            .start()
+            .map(|()| Effect::Started)
+            .map_err(|_| NackReason::InvalidState),
+        HostMsg::Abort => {
+            ctl.supervisor_mut().abort();
+            Ok(Effect::None)
+        }
+    };
+    match result {
+        Ok(e) => (DeviceMsg::Ack(req), e),
+        Err(n) => (DeviceMsg::Nack(req, n), Effect::None),
+    }
+}
+
+fn arm(ctl: &mut Controller, run: &Run, rearm: Rearm, finished: bool) -> Result<(), NackReason> {
+    match rearm {
+        Rearm::OncePerPowerUp => {
+            if finished {
+                return Err(NackReason::Unsupported);
+            }
+            ctl.supervisor_mut()
+                .arm()
+                .map_err(|_| NackReason::InvalidState)
+        }
+        Rearm::AtMeasured => {
+            if matches!(ctl.supervisor().state(), State::Done | State::Fault(_)) {
+                ctl.reset().map_err(|_| NackReason::Busy)?;
+            }
+            ctl.supervisor_mut()
+                .arm_at(run.last_disp_mm)
+                .map_err(|_| NackReason::InvalidState)
+        }
+    }
+}
+
+/// The status answer.
+pub fn status(ctl: &Controller, s: &Session, run: &Run) -> Status {
+    let sup = ctl.supervisor();
+    let l = sup.limits();
+    Status {
+        state: run_state(sup.state()),
+        model_checksum: s.model_checksum,
+        tick: run.ticks,
+        records_sent: s.seq,
+        records_dropped: run.telemetry_dropped,
+        stroke_mm: l.stroke_mm(),
+        velocity_mm_s: l.velocity_mm_s(),
+        force_kn: l.force_kn(),
+        bad_frames: s.bad_frames,
+    }
+}
+
+/// Encode `msg` as a frame and send it (a message too long for a frame, impossible with
+/// `rths-link`'s types, is dropped).
+pub fn send<P: LinkPort>(port: &mut P, msg: &DeviceMsg) {
+    let mut buf = [0u8; rths_link::MAX_FRAME + 1];
+    if let Ok(n) = rths_link::encode(msg, &mut buf) {
+        if let Some(frame) = buf.get(..n) {
+            port.write_all(frame);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

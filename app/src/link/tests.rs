@@ -1,0 +1,247 @@
+//! Tests of [`crate::link`]: request handling against a controller, telemetry numbering.
+
+use super::*;
+use rths_core::compensator::Compensator;
+use rths_core::control::{ControlConfig, FeedbackSource};
+use rths_core::metamodel::{Lr, LrParams};
+use rths_core::params::{Prototype, SpecimenScale};
+use rths_core::supervisor::FaultReason;
+use rths_link::Request;
+
+const THETA: [f64; LR_COEFFS] = [0.0, 0.5, 0.1, 0.0, 0.0, 0.0];
+
+fn controller() -> Controller {
+    let cfg = ControlConfig::new(
+        Prototype::paper(),
+        SpecimenScale::default(),
+        FeedbackSource::Measured,
+        Limits::paper_actuator(),
+    )
+    .unwrap();
+    let lr = LrParams::new(THETA).unwrap();
+    Controller::new(cfg, Analytical::Lr(Lr::new(lr)), Compensator::None)
+}
+
+fn session(upload_lr: bool, rearm: Rearm) -> Session {
+    Session::new(compiled_model_checksum(&THETA), upload_lr, rearm)
+}
+
+fn ack(r: Request) -> (DeviceMsg, Effect) {
+    (DeviceMsg::Ack(r), Effect::None)
+}
+
+#[test]
+fn arm_start_abort_and_refusals() {
+    let mut ctl = controller();
+    let mut run = Run::new();
+    let mut s = session(true, Rearm::OncePerPowerUp);
+    let (m, _) = handle(HostMsg::Start, &mut ctl, &mut run, &mut s, false);
+    assert_eq!(
+        m,
+        DeviceMsg::Nack(Request::Start, NackReason::InvalidState),
+        "start before arm"
+    );
+    let (m, _) = handle(
+        HostMsg::Arm { telemetry_every: 0 },
+        &mut ctl,
+        &mut run,
+        &mut s,
+        false,
+    );
+    assert_eq!(m, DeviceMsg::Nack(Request::Arm, NackReason::OutOfRange));
+    assert_eq!(
+        handle(
+            HostMsg::Arm { telemetry_every: 4 },
+            &mut ctl,
+            &mut run,
+            &mut s,
+            false
+        ),
+        ack(Request::Arm)
+    );
+    assert_eq!(s.every, 4);
+    assert_eq!(
+        handle(HostMsg::Start, &mut ctl, &mut run, &mut s, false),
+        (DeviceMsg::Ack(Request::Start), Effect::Started)
+    );
+    assert_eq!(ctl.supervisor().state(), State::Running);
+    assert_eq!(
+        handle(HostMsg::Abort, &mut ctl, &mut run, &mut s, false),
+        ack(Request::Abort)
+    );
+    assert_eq!(ctl.supervisor().state(), State::RampDown);
+    // The emulated plant plays once per power-up.
+    let (m, _) = handle(
+        HostMsg::Arm { telemetry_every: 1 },
+        &mut ctl,
+        &mut run,
+        &mut s,
+        true,
+    );
+    assert_eq!(m, DeviceMsg::Nack(Request::Arm, NackReason::Unsupported));
+}
+
+#[test]
+fn a_real_rig_rearms_after_a_run_at_the_measured_position() {
+    let mut ctl = controller();
+    let mut run = Run::new();
+    let mut s = session(true, Rearm::AtMeasured);
+    handle(
+        HostMsg::Arm { telemetry_every: 1 },
+        &mut ctl,
+        &mut run,
+        &mut s,
+        false,
+    );
+    handle(HostMsg::Abort, &mut ctl, &mut run, &mut s, false);
+    // Ramp the aborted run down to Done (it was armed at 0 mm and never moved).
+    for _ in 0..10 {
+        ctl.tick(0.0, Ok(rths_core::hal::Sample::default()), false);
+    }
+    assert_eq!(ctl.supervisor().state(), State::Done);
+    run.telemetry_dropped = 5;
+    assert_eq!(
+        handle(
+            HostMsg::Arm { telemetry_every: 2 },
+            &mut ctl,
+            &mut run,
+            &mut s,
+            true
+        ),
+        ack(Request::Arm)
+    );
+    assert_eq!(ctl.supervisor().state(), State::Armed);
+    assert_eq!(run.telemetry_dropped, 0, "a new run's counts");
+}
+
+#[test]
+fn upload_lr_refusals_and_swap() {
+    let mut ctl = controller();
+    let mut run = Run::new();
+    let theta = [0.0, 0.4, 0.1, 0.0, 0.0, 0.0];
+    let crc = rths_link::model_checksum(&theta, 28);
+    let up = |features, theta: [f64; LR_COEFFS], checksum| HostMsg::UploadLr {
+        features,
+        theta,
+        delay_steps: 28,
+        checksum,
+    };
+    let mut off = session(false, Rearm::OncePerPowerUp);
+    let (m, _) = handle(up(6, theta, crc), &mut ctl, &mut run, &mut off, false);
+    assert_eq!(
+        m,
+        DeviceMsg::Nack(Request::UploadLr, NackReason::Unsupported)
+    );
+    let mut s = session(true, Rearm::OncePerPowerUp);
+    let nack = |n| DeviceMsg::Nack(Request::UploadLr, n);
+    assert_eq!(
+        handle(up(5, theta, crc), &mut ctl, &mut run, &mut s, false).0,
+        nack(NackReason::Shape)
+    );
+    let mut bad = theta;
+    bad[1] = f64::NAN;
+    assert_eq!(
+        handle(up(6, bad, crc), &mut ctl, &mut run, &mut s, false).0,
+        nack(NackReason::NotFinite)
+    );
+    assert_eq!(
+        handle(up(6, theta, crc ^ 1), &mut ctl, &mut run, &mut s, false).0,
+        nack(NackReason::Checksum)
+    );
+    assert_eq!(
+        handle(up(6, theta, crc), &mut ctl, &mut run, &mut s, false),
+        ack(Request::UploadLr)
+    );
+    assert_eq!(s.model_checksum, crc);
+    let (st, _) = handle(HostMsg::Status, &mut ctl, &mut run, &mut s, false);
+    match st {
+        DeviceMsg::Status(st) => {
+            assert_eq!(st.model_checksum, crc);
+            assert_eq!(st.state, RunState::Idle);
+        }
+        other => panic!("{other:?}"),
+    }
+    // Busy while running.
+    handle(
+        HostMsg::Arm { telemetry_every: 1 },
+        &mut ctl,
+        &mut run,
+        &mut s,
+        false,
+    );
+    handle(HostMsg::Start, &mut ctl, &mut run, &mut s, false);
+    assert_eq!(
+        handle(up(6, theta, crc), &mut ctl, &mut run, &mut s, false).0,
+        nack(NackReason::Busy)
+    );
+    let (m, _) = handle(
+        HostMsg::SetLimits {
+            stroke_mm: 10.0,
+            velocity_mm_s: 100.0,
+            force_kn: 5.0,
+        },
+        &mut ctl,
+        &mut run,
+        &mut s,
+        false,
+    );
+    assert_eq!(m, DeviceMsg::Nack(Request::SetLimits, NackReason::Busy));
+}
+
+#[test]
+fn telemetry_decimation_and_sequence_numbers() {
+    let mut s = session(true, Rearm::OncePerPowerUp);
+    s.every = 3;
+    let rec = |tick| Record {
+        tick,
+        command_mm: 1.0,
+        target_mm: 2.0,
+        measured_mm: 3.0,
+        force_kn: 4.0,
+        state: State::Fault(FaultReason::FrozenSensor),
+    };
+    let sent: heapless::Vec<(u32, u32), 8> = (0..10)
+        .filter_map(|k| match s.telemetry(&rec(k)) {
+            Some(DeviceMsg::Telemetry(t)) => {
+                assert_eq!(t.state, RunState::Fault(11));
+                Some((t.seq, t.tick))
+            }
+            _ => None,
+        })
+        .collect();
+    assert_eq!(sent.as_slice(), &[(0, 0), (1, 3), (2, 6), (3, 9)]);
+    let mut run = Run::new();
+    run.ticks = 10;
+    run.telemetry_dropped = 1;
+    assert_eq!(
+        s.run_ended(&run),
+        DeviceMsg::RunEnded {
+            state: RunState::Idle,
+            ticks: 10,
+            records_sent: 4,
+            records_dropped: 1
+        }
+    );
+}
+
+#[test]
+fn send_writes_one_frame() {
+    struct Port(heapless::Vec<u8, 512>);
+    impl LinkPort for Port {
+        fn read_byte(&mut self) -> Option<u8> {
+            None
+        }
+        fn write_all(&mut self, bytes: &[u8]) {
+            self.0.extend_from_slice(bytes).unwrap();
+        }
+    }
+    let mut p = Port(heapless::Vec::new());
+    send(&mut p, &DeviceMsg::Ack(Request::Abort));
+    let mut r = rths_link::FrameReader::<{ rths_link::MAX_FRAME }>::new();
+    let got: heapless::Vec<DeviceMsg, 2> =
+        p.0.iter()
+            .filter_map(|&b| r.push::<DeviceMsg>(b))
+            .map(|m| m.unwrap())
+            .collect();
+    assert_eq!(got.as_slice(), &[DeviceMsg::Ack(Request::Abort)]);
+}

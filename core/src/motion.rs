@@ -1,0 +1,96 @@
+//! A ground-motion record at controller ticks: ü_g at tick k by linear interpolation between the
+//! record's samples (in g, at the record's own step), and the number of ticks the record lasts.
+//!
+//! The host's resampling, the firmware's per-tick motion and the firmware build script's tick count
+//! all call these, so the host simulation and the MCU see the same ü_g bit for bit.
+
+use crate::params::G_MM_S2;
+
+/// A record borrowed as read: `accel_g[i]` is the acceleration in g at `t = i·dt_s`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Record<'a> {
+    accel_g: &'a [f64],
+    dt_s: f64,
+}
+
+impl<'a> Record<'a> {
+    /// A record of samples in g every `dt_s` seconds. `const` so that firmware can keep one in a
+    /// `static`; a bad step or an empty record simply lasts zero ticks.
+    pub const fn new(accel_g: &'a [f64], dt_s: f64) -> Self {
+        Self { accel_g, dt_s }
+    }
+
+    /// Duration `(n − 1)·dt_s`, s (0 for fewer than two samples).
+    pub fn duration_s(&self) -> f64 {
+        self.accel_g.len().saturating_sub(1) as f64 * self.dt_s
+    }
+
+    /// Ticks of `tick_dt_s` the record covers: `k = 0..=floor(duration / tick_dt_s)`. Zero if the
+    /// record is empty or either step is not finite and positive.
+    pub fn ticks(&self, tick_dt_s: f64) -> usize {
+        if self.accel_g.is_empty() || !positive(tick_dt_s) || !positive(self.dt_s) {
+            return 0;
+        }
+        // A hair of slack so that e.g. 39.99 s / (1/2048 s) landing a rounding error below an
+        // integer still counts the last step.
+        let last = libm::floor(self.duration_s() / tick_dt_s * (1.0 + 1e-12)) as usize;
+        last + 1
+    }
+
+    /// Ground acceleration at tick `k` of `tick_dt_s` (time `k·tick_dt_s`), mm/s², interpolated
+    /// linearly between the samples; past the last sample (reachable only through the slack in
+    /// [`Self::ticks`]) the last sample is held; 0 for an empty record.
+    #[inline]
+    pub fn accel_mm_s2(&self, k: usize, tick_dt_s: f64) -> f64 {
+        let pos = k as f64 * tick_dt_s / self.dt_s;
+        let i = libm::floor(pos) as usize;
+        let frac = pos - i as f64;
+        let a = match (
+            self.accel_g.get(i).copied(),
+            self.accel_g.get(i + 1).copied(),
+        ) {
+            (Some(a0), Some(a1)) => a0 + frac * (a1 - a0),
+            (Some(a0), None) => a0,
+            _ => self.accel_g.last().copied().unwrap_or(0.0),
+        };
+        a * G_MM_S2
+    }
+}
+
+fn positive(x: f64) -> bool {
+    x.is_finite() && x > 0.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::DT_S;
+
+    #[test]
+    fn interpolates_and_counts_ticks() {
+        let g = [0.0, 1.0, -1.0];
+        let r = Record::new(&g, 0.01);
+        // 0.02 s at 2048 Hz: 40.96 → ticks 0..=40.
+        assert_eq!(r.ticks(DT_S), 41);
+        assert_eq!(r.accel_mm_s2(0, DT_S), 0.0);
+        let pos = 10.0 * DT_S / 0.01;
+        assert_eq!(r.accel_mm_s2(10, DT_S), pos * G_MM_S2);
+        assert_eq!(r.accel_mm_s2(1000, DT_S), -G_MM_S2);
+    }
+
+    #[test]
+    fn degenerate_records_last_zero_ticks() {
+        assert_eq!(Record::new(&[], 0.01).ticks(DT_S), 0);
+        assert_eq!(Record::new(&[1.0], 0.0).ticks(DT_S), 0);
+        assert_eq!(Record::new(&[1.0], 0.01).ticks(f64::NAN), 0);
+        assert_eq!(Record::new(&[1.0], 0.01).ticks(DT_S), 1);
+        assert_eq!(Record::new(&[], 0.01).accel_mm_s2(3, DT_S), 0.0);
+    }
+
+    #[test]
+    fn the_slack_counts_a_last_tick_a_rounding_error_short() {
+        // 3999 steps of 0.01 s = 39.99 s; 39.99·2048 = 81899.52 → 81 900 ticks (the El Centro count).
+        let g = [0.0; 4000];
+        assert_eq!(Record::new(&g, 0.01).ticks(DT_S), 81_900);
+    }
+}

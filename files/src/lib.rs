@@ -1,0 +1,11 @@
+//! `rths-files`: the files an RTHS run reads, with one reader each, shared by the host CLI and the
+//! firmware build script (which compiles a model and a record into the image).
+//!
+//! - [`motion`]: ground-motion records (PEER AT2 and two-column CSV), the four shipped records.
+//! - [`model_file`]: the trained-model file schema, its reader and validator. The feature names it
+//!   checks are `rths_core`'s, the order the `no_std` inference takes its coefficients in.
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+pub mod model_file;
+pub mod motion;
