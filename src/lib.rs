@@ -6,6 +6,7 @@
 pub mod analysis;
 pub mod cmd;
 pub mod faults;
+pub mod identify;
 pub mod link_host;
 pub mod model_file;
 pub mod models;

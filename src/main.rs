@@ -29,6 +29,8 @@ enum Command {
     Faults(cmd::faults::Args),
     /// Validate a model file: exit 0 with a summary, or 1 with the reason it is rejected.
     CheckModel(cmd::check_model::Args),
+    /// Characterize a rig from its measured signals: delay, gain/phase, lead filter, stiffness.
+    Identify(cmd::identify::Args),
     /// Drive and record a test on a board over the command link (serial port, QEMU socket).
     Link(cmd::link::Args),
 }
@@ -44,6 +46,7 @@ fn main() -> std::process::ExitCode {
         Command::Faults(a) => cmd::faults::run(a),
         Command::CheckModel(a) => cmd::check_model::run(a),
         Command::Link(a) => cmd::link::run(a),
+        Command::Identify(a) => cmd::identify::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -193,6 +193,10 @@ pub struct Training {
     /// Relative singular-value cut-off of the LR least squares.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub svd_rcond: Option<f64>,
+    /// The rig file the LRX lead filter was taken from (`rths identify`): preset, board and a
+    /// checksum of the file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rig: Option<String>,
 }
 
 /// Fit quality. `null` where not applicable or not finite (JSON has no infinity).

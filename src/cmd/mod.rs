@@ -3,6 +3,7 @@
 pub mod analyze;
 pub mod check_model;
 pub mod faults;
+pub mod identify;
 pub mod link;
 pub mod plant;
 pub mod reproduce;

@@ -93,6 +93,14 @@ pub struct Args {
     /// LRX band-limited force perturbation, RMS as a fraction of the RMS brace force.
     #[arg(long, default_value_t = 0.3)]
     pub perturbation: f64,
+    /// LRX: plant preset of the lead fit on the simulator (default unr-compact); with --rig, the
+    /// rig file must be of this preset (default: the rig file's).
+    #[arg(long, value_enum)]
+    pub preset: Option<crate::cmd::plant::PresetArg>,
+    /// LRX: take the lead filter from this rig file (`rths identify`) instead of fitting it on the
+    /// simulated plant; the model records the rig (preset, board, checksum).
+    #[arg(long, value_name = "RIG.json")]
+    pub rig: Option<PathBuf>,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -137,7 +145,43 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
     );
     cfg.rcond = args.lrx_rcond;
     cfg.seed = args.seed;
-    let t = crate::train::lrx::train(&cfg)?;
+    if let Some(p) = args.preset {
+        cfg.preset = match p {
+            crate::cmd::plant::PresetArg::Benchmark => rths_hal_sim::Preset::Benchmark,
+            crate::cmd::plant::PresetArg::UnrCompact => rths_hal_sim::Preset::UnrCompact,
+        };
+    }
+    let mut rig_identity = None;
+    if let Some(path) = &args.rig {
+        let rig = crate::identify::RigFile::load(path)
+            .with_context(|| format!("rig file {}", path.display()))?;
+        if args.preset.is_some() {
+            rig.check(cfg.preset.name(), &rig.board)
+                .with_context(|| format!("rig file {}", path.display()))?;
+        }
+        let lead = rig.lead_params()?;
+        cfg.given_lead = Some(crate::train::lrx::GivenLead {
+            weights: *lead.weights(),
+            stride: lead.stride(),
+            fit_nrmse_pct: rig.quality.lead_fit_nrmse_pct,
+        });
+        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        rig_identity = Some(format!(
+            "{} {} {}",
+            rig.preset,
+            rig.board,
+            crate::identify::rig_file::checksum_hex(&bytes)
+        ));
+        println!(
+            "lead filter from rig file {} ({} on {}, stride {})",
+            path.display(),
+            rig.preset,
+            rig.board,
+            lead.stride()
+        );
+    }
+    let mut t = crate::train::lrx::train(&cfg)?;
+    t.file.training.rig = rig_identity;
     println!("LRX fit on {} (seed {})", t.file.training.motion, cfg.seed);
     for (name, c) in crate::model_file::LRX_FEATURES.iter().zip(&t.coeffs) {
         println!("  {name:<24} {c:+.10e}");
@@ -148,7 +192,8 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
     );
     println!(
         "  lead filter (stride {}): {:?}",
-        cfg.lead_stride, t.lead_weights
+        cfg.given_lead.map_or(cfg.lead_stride, |g| g.stride),
+        t.lead_weights
     );
     println!(
         "  lead fit: NRMSE {:.3}%, condition number {:.3e}",

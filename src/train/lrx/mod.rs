@@ -72,6 +72,20 @@ pub struct LrxConfig {
     pub preset: Preset,
     /// Seed of the perturbations and the plant.
     pub seed: u64,
+    /// A lead filter given instead of fitted (e.g. identified on the rig by `rths identify`):
+    /// step 2 is skipped.
+    pub given_lead: Option<GivenLead>,
+}
+
+/// A lead filter fitted elsewhere.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GivenLead {
+    /// Weights, newest tap first.
+    pub weights: [f64; LEAD_TAPS],
+    /// Tap spacing, ticks.
+    pub stride: usize,
+    /// NRMSE of its fit, % (reported as the lead fit's).
+    pub fit_nrmse_pct: f64,
 }
 
 impl LrxConfig {
@@ -98,6 +112,7 @@ impl LrxConfig {
             rcond: 1e-9,
             preset: Preset::UnrCompact,
             seed: 1,
+            given_lead: None,
         })
     }
 }
@@ -220,36 +235,11 @@ pub fn train(cfg: &LrxConfig) -> Result<LrxTraining, TrainError> {
     let mut coeffs = [0.0; LRX_COEFFS];
     coeffs.iter_mut().zip(&theta).for_each(|(c, t)| *c = *t);
 
-    // 2. Lead filter (plant inverse).
-    let s = cfg.lead_stride;
-    let (mut rows, mut ys) = (Vec::<[f64; LEAD_TAPS]>::new(), Vec::new());
-    for ag in &ags {
-        for &factor in &cfg.lead_factors {
-            let p = crate::scenario::specimen_prototype(factor)?;
-            let cmd: Vec<f64> = super::data::pure_response(&p, ag, DT_S)?
-                .brace_disp_mm
-                .iter()
-                .map(|d| scale.specimen_disp_mm(*d))
-                .collect();
-            let (u, xm) = plant_run(cfg.preset, Specimen::Linear, factor, cfg.seed, &cmd)?;
-            for (k, uk) in u.iter().enumerate() {
-                let mut r = [0.0; LEAD_TAPS];
-                for (i, v) in r.iter_mut().enumerate() {
-                    *v = lag(&xm, k, i * s);
-                }
-                rows.push(r);
-                ys.push(*uk);
-            }
-        }
-    }
-    let x = DMatrix::from_fn(rows.len(), LEAD_TAPS, |i, j| rows[i][j]);
-    let y = DVector::from_vec(ys);
-    let lead = lstsq::solve(&x, &y, cfg.rcond)?;
-    let (w, lead_condition) = (lead.coeffs, lead.condition_number);
-    let fitted = &x * DVector::from_column_slice(&w);
-    let lead_fit_nrmse_pct = metrics::nrmse_pct(fitted.as_slice(), y.as_slice())?;
-    let mut lead_weights = [0.0; LEAD_TAPS];
-    lead_weights.iter_mut().zip(&w).for_each(|(c, t)| *c = *t);
+    // 2. Lead filter (plant inverse), unless given.
+    let (lead_weights, s, lead_fit_nrmse_pct, lead_condition) = match cfg.given_lead {
+        Some(g) => (g.weights, g.stride, g.fit_nrmse_pct, f64::NAN),
+        None => fit_lead(cfg, &ags, &scale)?,
+    };
 
     let k_corr = proto.brace_axial_stiffness_kn_per_mm();
     let params = LrxParams::new(coeffs, k_corr, cfg.k_adapt_ticks)
@@ -295,6 +285,45 @@ pub fn train(cfg: &LrxConfig) -> Result<LrxTraining, TrainError> {
         lead_condition,
         pure_nrmse_pct: pure,
     })
+}
+
+/// Step 2 of [`train`]: the lead filter fitted on open-loop runs of the virtual plant. Returns
+/// (weights, stride, fit NRMSE %, condition number).
+fn fit_lead(
+    cfg: &LrxConfig,
+    ags: &[Vec<f64>],
+    scale: &SpecimenScale,
+) -> Result<([f64; LEAD_TAPS], usize, f64, f64), TrainError> {
+    let s = cfg.lead_stride;
+    let (mut rows, mut ys) = (Vec::<[f64; LEAD_TAPS]>::new(), Vec::new());
+    for ag in ags {
+        for &factor in &cfg.lead_factors {
+            let p = crate::scenario::specimen_prototype(factor)?;
+            let cmd: Vec<f64> = super::data::pure_response(&p, ag, DT_S)?
+                .brace_disp_mm
+                .iter()
+                .map(|d| scale.specimen_disp_mm(*d))
+                .collect();
+            let (u, xm) = plant_run(cfg.preset, Specimen::Linear, factor, cfg.seed, &cmd)?;
+            for (k, uk) in u.iter().enumerate() {
+                let mut r = [0.0; LEAD_TAPS];
+                for (i, v) in r.iter_mut().enumerate() {
+                    *v = lag(&xm, k, i * s);
+                }
+                rows.push(r);
+                ys.push(*uk);
+            }
+        }
+    }
+    let x = DMatrix::from_fn(rows.len(), LEAD_TAPS, |i, j| rows[i][j]);
+    let y = DVector::from_vec(ys);
+    let lead = lstsq::solve(&x, &y, cfg.rcond)?;
+    let (w, lead_condition) = (lead.coeffs, lead.condition_number);
+    let fitted = &x * DVector::from_column_slice(&w);
+    let lead_fit_nrmse_pct = metrics::nrmse_pct(fitted.as_slice(), y.as_slice())?;
+    let mut lead_weights = [0.0; LEAD_TAPS];
+    lead_weights.iter_mut().zip(&w).for_each(|(c, t)| *c = *t);
+    Ok((lead_weights, s, lead_fit_nrmse_pct, lead_condition))
 }
 
 #[cfg(test)]
