@@ -330,7 +330,7 @@ mod tests {
                 worst < bound,
                 "{method}: worst relative error {worst} (bound {bound})"
             );
-            // Brace kinematics follow DESIGN §2.
+            // Brace kinematics follow docs/design.md §2.
             let d = r.brace_disp_mm[n / 2];
             assert!((d - r.story_disp_mm[n / 2] * p.cos_theta()).abs() < 1e-12);
             assert!((r.brace_force_kn[n / 2] - d * 1224.1).abs() < 1e-9);

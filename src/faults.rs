@@ -7,7 +7,7 @@
 //! the servo-controller), and whether the command stayed within the stroke and velocity envelope.
 //!
 //! Which conditions are *unsafe* (must trip) and which are not (must not trip) is decided per case
-//! ([`Expect`]) and explained in its `why`; see `notes/reliability.md`.
+//! ([`Expect`]) and explained in its `why`; see `docs/reliability.md`.
 
 use rths_core::params::DT_S;
 use rths_core::supervisor::{FaultReason, Limits, State};

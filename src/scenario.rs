@@ -1,4 +1,4 @@
-//! The hybrid-simulation scenarios of the study (DESIGN §7), run in closed loop against the virtual
+//! The hybrid-simulation scenarios of the study (docs/design.md §7), run in closed loop against the virtual
 //! plant with the same [`Controller`] the firmware runs.
 //!
 //! Per tick `k` (time `k·Δt`): the rig's sample (taken at `k·Δt`) → `Controller::tick(ü_g(k), ...)`
@@ -20,7 +20,7 @@ use rths_core::supervisor::{Limits, State};
 use rths_hal_sim::{FaultPlan, Preset, RigConfig, Specimen, VirtualRig};
 use serde::Serialize;
 
-/// The scenarios of DESIGN §7 (plus `fe-online` and `rnn-online-H`).
+/// The scenarios of docs/design.md §7 (plus `fe-online` and `rnn-online-H`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum ScenarioId {
     /// Pure FE: the reference (no actuator).
@@ -276,7 +276,7 @@ impl History {
     }
 }
 
-/// The figures of one run (DESIGN §7). `None` figures: the run was stopped, or had no actuator.
+/// The figures of one run (docs/design.md §7). `None` figures: the run was stopped, or had no actuator.
 #[derive(Debug, Clone, Serialize)]
 pub struct ScenarioReport {
     /// Scenario id.
@@ -543,7 +543,7 @@ pub fn simulate_observed(
     Ok(stop)
 }
 
-/// The figures of a finished run (DESIGN §7).
+/// The figures of a finished run (docs/design.md §7).
 pub fn figures(id: ScenarioId, h: &History, stop: Stop) -> ScenarioReport {
     let mut r = ScenarioReport {
         id: id.to_string(),

@@ -1,4 +1,4 @@
-//! `rths reproduce`: the whole study end to end (DESIGN §5-7): train the metamodels, run every
+//! `rths reproduce`: the whole study end to end (docs/design.md §5-7): train the metamodels, run every
 //! scenario in closed loop against the virtual plant, write the figures, the CSVs and `report.md`.
 
 use std::fmt::Write as _;
@@ -41,7 +41,7 @@ pub struct StudyConfig {
     pub quiet: bool,
 }
 
-/// The single JSON object of `--json` (DESIGN §7 field names).
+/// The single JSON object of `--json` (docs/design.md §7 field names).
 #[derive(Debug, Clone, Serialize)]
 pub struct StudyJson {
     /// Every scenario's figures.
@@ -658,7 +658,7 @@ pub fn report_md(cfg: &StudyConfig, r: &StudyResult) -> String {
     let _ = writeln!(
         s,
         "\nCondition number of the normalized design matrix (phase 2): {}. Phase-1 `lr-pure` NRMSE: {:.4}%.\n\
-         As DESIGN §5 expects, the fit is an ARX model of the whole structure (θ4 ≈ 2, θ5 ≈ −1) whose \
+         As docs/design.md §5 expects, the fit is an ARX model of the whole structure (θ4 ≈ 2, θ5 ≈ −1) whose \
          feedback weights are tiny: the metamodel barely listens to the specimen (see the sensitivity \
          table).\n",
         fmt_opt(r.json.lr_condition_number, 3).replace("—", "infinite"),

@@ -32,7 +32,7 @@ fn el_centro_peaks_match_design() {
     assert_eq!(r.len(), 81_900); // floor(39.99 s · 2048) + 1
     let s = Summary::new(&p, &r, DT_S);
     eprintln!("{s}");
-    // DESIGN §2: x ≈ 17.76 mm, d ≈ 12.67 mm, brace velocity ≈ 266 mm/s.
+    // docs/design.md §2: x ≈ 17.76 mm, d ≈ 12.67 mm, brace velocity ≈ 266 mm/s.
     assert!((s.peak_story_disp_mm - 17.76).abs() < 0.05, "{s}");
     assert!((s.peak_brace_disp_mm - 12.67).abs() < 0.05, "{s}");
     assert!((s.peak_brace_vel_mm_s - 266.0).abs() < 2.0, "{s}");

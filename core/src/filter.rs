@@ -1,4 +1,4 @@
-//! Butterworth low-pass filter of even order, as cascaded biquads (used by the ATS compensator, DESIGN §6).
+//! Butterworth low-pass filter of even order, as cascaded biquads (used by the ATS compensator, docs/design.md §6).
 //!
 //! Designed once at construction by the bilinear transform with frequency prewarping, so the digital
 //! response at the cutoff is exactly the analog prototype's −3.01 dB:

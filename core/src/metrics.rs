@@ -1,4 +1,4 @@
-//! Accuracy and tracking metrics of an RTHS run (DESIGN §7).
+//! Accuracy and tracking metrics of an RTHS run (docs/design.md §7).
 //!
 //! - NRMSE = RMS(x − x_ref) / max|x_ref| × 100 (the study's figure).
 //! - RTHS benchmark criteria (Silva et al. 2020): J1 = delay (lag, in samples, that maximizes the

@@ -5,7 +5,7 @@
 //!
 //! Sources: Bas, Moustafa, Feil-Seifer, Blankenburg, "Using a Machine Learning Approach for
 //! Computational Substructure in Real-Time Hybrid Simulation" (UNR) for the prototype, the actuator and
-//! the controller rate; `shared/DESIGN.md` §2 and §4 for the derivations noted below.
+//! the controller rate; `docs/design.md` §2 and §4 for the derivations noted below.
 
 use libm::sqrt;
 
@@ -39,7 +39,7 @@ pub const BRACE_COS2_THETA: f64 = 0.50857;
 pub const DAMPING_RATIO: f64 = 0.02;
 
 /// Force scale between prototype and specimen: prototype force = `FORCE_SCALE` × load-cell force.
-/// The specimen is a small-scale brace of stiffness `k_b / 1000 = 1.2241 kN/mm` (DESIGN §4).
+/// The specimen is a small-scale brace of stiffness `k_b / 1000 = 1.2241 kN/mm` (docs/design.md §4).
 pub const FORCE_SCALE: f64 = 1000.0;
 
 /// Displacement scale between prototype brace deformation and actuator stroke (1: full scale).
@@ -109,7 +109,7 @@ pub struct Prototype {
 }
 
 impl Prototype {
-    /// The paper's frame (DESIGN §2).
+    /// The paper's frame (docs/design.md §2).
     pub fn paper() -> Self {
         Self {
             mass: MASS_KN_S2_PER_MM,
@@ -215,7 +215,7 @@ impl Prototype {
     }
 }
 
-/// Scale between the prototype brace and the small-scale specimen (DESIGN §4): displacement scale 1,
+/// Scale between the prototype brace and the small-scale specimen (docs/design.md §4): displacement scale 1,
 /// force scale 1000. The single place where specimen and prototype quantities are converted.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SpecimenScale {

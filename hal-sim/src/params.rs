@@ -5,7 +5,7 @@
 //! parameters; every interface (HAL, accessors) is in mm and kN (specimen scale).
 //!
 //! Source of the servo-hydraulic model and its nominal values and uncertainty: Silva, Gomez, Dyke et
-//! al., "Benchmark control problem for real-time hybrid simulation", MSSP 2020 (DESIGN §4).
+//! al., "Benchmark control problem for real-time hybrid simulation", MSSP 2020 (docs/design.md §4).
 
 use crate::plant::Zoh;
 use libm::sqrt;
@@ -51,7 +51,7 @@ pub const UNCERTAINTY_TRUNCATION_SIGMA: f64 = 2.5;
 
 /// Time scale of the `unr-compact` preset: every derivative of the benchmark plant is multiplied by
 /// this (`s → s/r`). Calibrated so that the measured J1 delay on El Centro is 28 steps (the paper's
-/// 13.7 ms at 2048 Hz): see `notes/plant.md` and the root test `tests/plant.rs`.
+/// 13.7 ms at 2048 Hz): see `docs/plant.md` and the root test `tests/plant.rs`.
 pub const UNR_COMPACT_TIME_SCALE: f64 = 1.85;
 
 /// Default displacement-sensor (LVDT) noise σ, mm: 0.002 mm ≈ 0.008% of the 25.4 mm full scale,
@@ -321,7 +321,7 @@ impl RigConfig {
             k_n_m += SIGMA_SPECIMEN_STIFFNESS_N_PER_M * truncated_normal(&mut rng);
         }
         let r = positive(self.time_scale, "time scale")?;
-        // s → s/r is the same as these physical parameters (derivation in notes/plant.md): the
+        // s → s/r is the same as these physical parameters (derivation in docs/plant.md): the
         // valve and leakage poles move r times faster, the specimen keeps its stiffness and damping
         // ratio with mass m/r², and a2 is unchanged.
         let mass = NOMINAL_SPECIMEN_MASS_KG / (r * r);
@@ -493,7 +493,7 @@ impl PlantParams {
         (self.a2 + self.stiffness_n_per_m) * self.velocity_m_s
     }
 
-    /// The continuous transfer function `x/u = gain·Gs·G0/(1 + Gs·G0)` (DESIGN §4) at `f_hz`, with the
+    /// The continuous transfer function `x/u = gain·Gs·G0/(1 + Gs·G0)` (docs/design.md §4) at `f_hz`, with the
     /// specimen's initial stiffness (linearized Bouc–Wen), no saturation.
     pub fn transfer_function(&self, f_hz: f64) -> num_complex::Complex64 {
         use num_complex::Complex64 as C;

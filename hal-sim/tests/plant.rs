@@ -78,7 +78,7 @@ fn discrete_plant_matches_continuous_transfer_function() {
 #[test]
 fn published_benchmark_figures() {
     let p = RigConfig::new(Preset::Benchmark).build().unwrap();
-    // DESIGN §4: gain ≈ 0.85 at 5 Hz, delay about 25 ms.
+    // docs/design.md §4: gain ≈ 0.85 at 5 Hz, delay about 25 ms.
     let r5 = p.frequency_response(5.0);
     assert!((r5.gain - 0.85).abs() < 0.05, "{r5:?}");
     let delay_ms = 1e3 * p.phase_delay_s(1.0);

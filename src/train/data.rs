@@ -93,7 +93,7 @@ mod tests {
         assert_eq!(ag.len(), 81_900);
         let r = pure_response(&Prototype::paper(), &ag, DT_S).unwrap();
         let peak = rths_core::metrics::peak_abs(&r.brace_disp_mm);
-        // DESIGN §2: Newmark reference peak brace deformation ≈ 12.67 mm.
+        // docs/design.md §2: Newmark reference peak brace deformation ≈ 12.67 mm.
         assert!((peak - 12.67).abs() < 0.05, "peak d = {peak}");
         let k_b = Prototype::paper().brace_axial_stiffness_kn_per_mm();
         assert!((r.brace_force_kn[5000] - k_b * r.brace_disp_mm[5000]).abs() < 1e-9);

@@ -1,4 +1,4 @@
-//! Offline training of the metamodels (DESIGN §5): training data from the pure finite-element response
+//! Offline training of the metamodels (docs/design.md §5): training data from the pure finite-element response
 //! ([`data`]), the linear regression fitted by SVD least squares ([`lr`]) and the Elman RNN trained by
 //! truncated BPTT with Adam ([`rnn`]). The results are written as [`crate::model_file::ModelFile`]s.
 

@@ -107,7 +107,7 @@ pub struct CalibrationConfig {
 
 impl CalibrationConfig {
     /// The paper's actuator as its servo-controller conditions it, **a default to be replaced by the
-    /// lab's own measurement** (see `notes/hardware.md`): displacement ±25.4 mm ↔ ±10 V (0.3937 V/mm)
+    /// lab's own measurement** (see `docs/hardware.md`): displacement ±25.4 mm ↔ ±10 V (0.3937 V/mm)
     /// on V1, force ±31.14 kN ↔ ±10 V (0.3211 V/kN) on V2, command ±25.4 mm ↔ ±10 V, no offsets.
     /// Source of the full scales: the paper's actuator (±25.4 mm stroke, 31.14 kN;
     /// `rths_core::params`), each mapped to the ±10 V of the converters.

@@ -7,7 +7,7 @@
 //!   TIM2 is set (harmless in QEMU, needed on silicon) and the core is assumed to run at
 //!   [`SYSCLK_HZ`].
 //! - Instructions are counted with SysTick on the core clock: under `-icount shift=0` one instruction
-//!   takes 1 ns of virtual time, so `instructions = ticks / (f_systick · 1 ns)` (DESIGN §8). DWT's cycle
+//!   takes 1 ns of virtual time, so `instructions = ticks / (f_systick · 1 ns)` (docs/design.md §8). DWT's cycle
 //!   counter reads 0 in QEMU. [`calibrate`] checks the conversion against a loop of known length.
 //! - The plant is `rths-hal-sim`'s [`VirtualRig`], advanced by the firmware once per tick outside the
 //!   measured section.

@@ -1,6 +1,6 @@
 //! The real board: an STM32F407 (e.g. STM32F407VGT6) wired to the servo-controller through an
 //! AD7606 ADC and an AD5754R DAC (`rths-board-drivers`), with a hardware E-stop input and the command
-//! link on USART2. Pins and wiring: `notes/hardware.md`.
+//! link on USART2. Pins and wiring: `docs/hardware.md`.
 //!
 //! - **Clocks**: HSE 8 MHz crystal → PLL (M = 8, N = 336, P = 2, Q = 7) → SYSCLK 168 MHz; AHB 168 MHz,
 //!   APB1 42 MHz (its timers 84 MHz), APB2 84 MHz; flash 5 wait states (the HAL sets them).

@@ -75,7 +75,7 @@ impl<const N: usize> Ring<N> {
     }
 }
 
-/// Raw ATS settings, validated into [`AtsParams`]. [`AtsConfig::paper`] gives DESIGN §6's values.
+/// Raw ATS settings, validated into [`AtsParams`]. [`AtsConfig::paper`] gives docs/design.md §6's values.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AtsConfig {
     /// Controller step, s.
@@ -107,7 +107,7 @@ pub struct AtsConfig {
 }
 
 impl AtsConfig {
-    /// DESIGN §6 / Chae et al. 2013: 1 s window, update every 16th sample, 6th-order 20 Hz Butterworth,
+    /// docs/design.md §6 / Chae et al. 2013: 1 s window, update every 16th sample, 6th-order 20 Hz Butterworth,
     /// start at 0.25 mm, |Δa| ≤ [2, 0.05, 0.001]/10, a0 ∈ [0.7, 1.3], a1 ∈ [0, 0.08] s,
     /// a2 ∈ [0, 0.0032] s². The window is `round(1 s / dt_s)` capped at [`ATS_MAX_WINDOW`]
     /// (2048 at 2048 Hz). `max_condition` = 1e8 and `min_velocity_rms_mm_s` = 0.5 mm/s are our choices

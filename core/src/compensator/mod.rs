@@ -1,4 +1,4 @@
-//! Actuator delay compensators of the classic FE path (DESIGN §6): adaptive time series (ATS), Horiuchi
+//! Actuator delay compensators of the classic FE path (docs/design.md §6): adaptive time series (ATS), Horiuchi
 //! polynomial extrapolation, and none. `no_std`, allocation-free, panic-free.
 //!
 //! All compensators map a target displacement x_t (mm, the integrator's command) and the measured

@@ -1,4 +1,4 @@
-//! Metamodel inference (DESIGN §5): the linear-regression (LR) model of the paper's Eq. 6 with a bias,
+//! Metamodel inference (docs/design.md §5): the linear-regression (LR) model of the paper's Eq. 6 with a bias,
 //! a basic Elman RNN, and the specimen-faithful LRX, one file each (`lr.rs`, `rnn.rs`, `lrx.rs`). Training
 //! lives on the host; this is the `no_std`, allocation-free inference the firmware runs at 2048 Hz.
 //!

@@ -45,7 +45,7 @@ fn lr_recurrence_matches_hand_computation() {
 #[test]
 fn lr_arx_oscillator_is_undamped_sine() {
     // θ4 = 2cos(ωΔt), θ5 = −1 is an exact discrete oscillator: from x̂(0)=0, x̂(1)=sin(ωΔt) it
-    // must reproduce sin(ωΔt·k) (DESIGN §5 expects the fit to be ARX of this kind).
+    // must reproduce sin(ωΔt·k) (docs/design.md §5 expects the fit to be ARX of this kind).
     let w = 0.01;
     let mut lr = Lr::new(LrParams::new([0.0, 0.0, 0.0, 0.0, 2.0 * libm::cos(w), -1.0]).unwrap());
     lr.state = LrState {

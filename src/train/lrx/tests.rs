@@ -232,7 +232,7 @@ fn mdof_frames_need_more_than_a_third_order_model() {
     let e5 = mdof_lrx_pure_nrmse::<5>();
     println!("lrx-pure (order 3) on an N-story frame, El Centro: N=1 {e1:.4}%, N=2 {e2:.3}%, N=3 {e3:.3}%, N=5 {e5:.3}%");
     assert!(e1 < 0.01, "{e1}");
-    // The documented limitation (notes/lrx.md): a third-order model is not a reduced model of a
+    // The documented limitation (docs/lrx.md): a third-order model is not a reduced model of a
     // multi-story frame. If this fails, the model got better: update the notes.
     assert!(e2 > 5.0 && e5 > 5.0, "{e2} {e5}");
 }

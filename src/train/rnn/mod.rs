@@ -5,7 +5,7 @@
 //! identified by least squares (the LR metamodel's fit, [`super::lr::fit_pure`]) and realized as the
 //! RNN in tanh's near-linear range ([`Rnn::from_arx`]). Training from random weights
 //! ([`InitMethod::Random`]) learns the one-step map but not the lightly damped 3.4 Hz dynamics at
-//! 2048 Hz, and its `rnn-pure` error is ~64 % (`notes/train.md`).
+//! 2048 Hz, and its `rnn-pure` error is ~64 % (`docs/training.md`).
 //!
 //! Training (offline, phase 1, fine-tuning after the ARX initialization): teacher forcing with the
 //! true delayed brace force `F_fb(i) = N(i − delay)` (or, after `teacher_epochs`, the model's own

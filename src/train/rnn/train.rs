@@ -143,7 +143,7 @@ pub struct RnnConfig {
 }
 
 impl RnnConfig {
-    /// Defaults for hidden size `hidden` with the ARX initialization (see `notes/train.md` for how
+    /// Defaults for hidden size `hidden` with the ARX initialization (see `docs/training.md` for how
     /// they were chosen): windows of 8192 steps (4 s, longer than the ≈ 2.3 s the structure takes
     /// to forget at 2 % damping, so the truncated gradient sees the slow modes), relative Adam
     /// steps of 1e-9 (the recurrent weights fix the 3.4 Hz pole in their fifth digit), 100 epochs.
@@ -167,7 +167,7 @@ impl RnnConfig {
         }
     }
 
-    /// Defaults with seeded random initial weights (training from scratch; see `notes/train.md`:
+    /// Defaults with seeded random initial weights (training from scratch; see `docs/training.md`:
     /// it does not reach the paper's accuracy in closed loop).
     pub fn random_init(hidden: usize) -> Self {
         Self {
