@@ -23,7 +23,7 @@ enum Command {
     Simulate(cmd::simulate::Args),
     /// The whole study end to end: train, run every scenario, write figures and report.md.
     Reproduce(cmd::reproduce::Args),
-    /// Train a metamodel (LR or RNN) on the pure response and write its model file.
+    /// Train a metamodel (LR, RNN or LRX) and write its model file.
     Train(cmd::train::Args),
     /// Run the fault-injection matrix against the closed loop and print its table.
     Faults(cmd::faults::Args),

@@ -7,7 +7,7 @@
 //! 1. feedback: the brace deformation and brace force the analytical part sees at `k`: measured
 //!    (mapped to the prototype by [`SpecimenScale`]), or the model's own target `delay_steps` ago with
 //!    the linear brace force `k_b·x` (the paper's "pure" runs, no actuator in the loop);
-//! 2. the analytical part ([`Analytical`]: finite elements, LR or RNN metamodel) gives the target
+//! 2. the analytical part ([`Analytical`]: finite elements, or the LR, RNN or LRX metamodel) gives the target
 //!    brace deformation for `k+1`;
 //! 3. an optional delay [`Compensator`] turns the target into the command;
 //! 4. the [`Supervisor`] checks everything and rate-limits the command.
