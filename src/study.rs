@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use rths_core::compensator::LeadParams;
 use rths_core::metamodel::{LrParams, LrxParams, RnnParams};
 use rths_core::params::{Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
-use rths_hal_sim::{Preset, Specimen};
+use rths_hal_sim::{Preset, RigConfig, Specimen};
 use serde::Serialize;
 
 use crate::analysis::AnalysisError;
@@ -177,6 +177,66 @@ pub fn reference_for(
         out.push(d);
     }
     Ok(out)
+}
+
+/// What the plant of a run really has (drawn with `uncertainty`, else nominal): the report's `plant`
+/// object. Known to the evaluation (the fair reference), never to the controller.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PlantDraw {
+    /// The parameters were drawn from the benchmark's uncertainty.
+    pub uncertainty: bool,
+    /// The seed of the draw (and of the sensor noise).
+    pub seed: u64,
+    /// Servo-valve damping term β1 at the benchmark's time scale (the plant's is × r), 1/s.
+    pub beta1: f64,
+    /// Servo-valve stiffness term β2 at the benchmark's time scale (the plant's is × r²), 1/s².
+    pub beta2: f64,
+    /// Actuator leakage pole a3 at the benchmark's time scale (the plant's is × r), 1/s.
+    pub a3: f64,
+    /// The specimen's (initial) stiffness, N/m.
+    pub specimen_stiffness_n_per_m: f64,
+    /// The effective specimen stiffness factor: the configured F × drawn k / configured k; the
+    /// reference is the structure with this brace.
+    pub specimen_stiffness_factor: f64,
+}
+
+impl PlantDraw {
+    /// Build the plant of `rig` (configured with stiffness factor `factor`) and read what it has.
+    pub fn of(rig: &RigConfig, factor: f64) -> anyhow::Result<Self> {
+        // The same draw (same seed, same order) at time scale 1 gives the drawn values exactly, at
+        // the benchmark's scale where its σ are published (dividing the plant's by r would round).
+        let mut unscaled = *rig;
+        unscaled.time_scale = 1.0;
+        let p = unscaled
+            .build()
+            .map_err(|e| anyhow::anyhow!("invalid plant configuration: {e}"))?;
+        // Without a draw the ratio is exactly 1 (same product), so nominal runs keep F bit for bit.
+        let k_ratio = p.specimen_stiffness_n_per_m() / (rig.specimen_stiffness_kn_per_mm * 1.0e6);
+        Ok(Self {
+            uncertainty: rig.uncertainty,
+            seed: rig.seed,
+            beta1: p.beta1(),
+            beta2: p.beta2(),
+            a3: p.a3(),
+            specimen_stiffness_n_per_m: p.specimen_stiffness_n_per_m(),
+            specimen_stiffness_factor: factor * k_ratio,
+        })
+    }
+}
+
+/// The fair reference of a run on the plant `rig` (configured with specimen stiffness factor
+/// `factor`): the structure with the specimen the plant really has, i.e. [`reference_for`] at the
+/// effective factor of [`PlantDraw::of`] (the Bouc–Wen shape is not drawn). Every run whose plant may
+/// be drawn takes its reference here, so a drawn specimen is never judged against the nominal one.
+/// Returns the reference and the draw (for the report).
+pub fn reference_for_rig(
+    ag_mm_s2: &[f64],
+    rig: &RigConfig,
+    factor: f64,
+) -> anyhow::Result<(Vec<f64>, PlantDraw)> {
+    let draw = PlantDraw::of(rig, factor)?;
+    let reference = reference_for(ag_mm_s2, rig.specimen, draw.specimen_stiffness_factor)?;
+    Ok((reference, draw))
 }
 
 /// Phase 2 of the paper's LR training: refit on the feedback the actuator actually delivered when

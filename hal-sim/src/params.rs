@@ -467,6 +467,11 @@ impl PlantParams {
     pub fn specimen_damping_n_s_per_m(&self) -> f64 {
         self.damping_n_s_per_m
     }
+    /// Initial specimen stiffness as built (drawn, with `uncertainty`), N/m: exact, for ratios
+    /// against the configured value (the kN/mm accessor rounds).
+    pub fn specimen_stiffness_n_per_m(&self) -> f64 {
+        self.stiffness_n_per_m
+    }
     /// Initial specimen stiffness, kN/mm.
     pub fn specimen_stiffness_kn_per_mm(&self) -> f64 {
         self.stiffness_n_per_m * 1e-6

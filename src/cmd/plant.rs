@@ -73,8 +73,8 @@ pub struct Args {
     pub bode: Option<PathBuf>,
 }
 
-/// The validated plant of the arguments.
-pub fn params(args: &Args) -> anyhow::Result<PlantParams> {
+/// The plant configuration of the arguments.
+pub fn config(args: &Args) -> RigConfig {
     let mut c = RigConfig::new(match args.preset {
         PresetArg::Benchmark => Preset::Benchmark,
         PresetArg::UnrCompact => Preset::UnrCompact,
@@ -87,7 +87,13 @@ pub fn params(args: &Args) -> anyhow::Result<PlantParams> {
         c.seed = seed;
         c.uncertainty = true;
     }
-    c.build()
+    c
+}
+
+/// The validated plant of the arguments.
+pub fn params(args: &Args) -> anyhow::Result<PlantParams> {
+    config(args)
+        .build()
         .map_err(|e| anyhow::anyhow!("invalid plant configuration: {e}"))
 }
 
@@ -114,9 +120,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!("  b2                {:.5e} 1/s^2", p.beta2());
     println!("  a3                {:.4} 1/s", p.a3());
     println!("  specimen mass     {:.3} kg", p.specimen_mass_kg());
+    // What a run's fair reference would use: the structure with this brace.
+    let draw = crate::study::PlantDraw::of(&config(&args), 1.0)?;
     println!(
-        "  specimen k        {:.4} kN/mm",
-        p.specimen_stiffness_kn_per_mm()
+        "  specimen k        {:.4} kN/mm ({:.1} N/m, F = {:.4} of the paper's brace)",
+        p.specimen_stiffness_kn_per_mm(),
+        draw.specimen_stiffness_n_per_m,
+        draw.specimen_stiffness_factor
     );
     println!(
         "  specimen c        {:.1} N*s/m",

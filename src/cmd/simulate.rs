@@ -11,7 +11,10 @@ use crate::cmd::plant::{PresetArg, SpecimenArg};
 use crate::model_file::{ModelFile, ModelKind};
 use crate::models;
 use crate::scenario::{self, ScenarioId, ScenarioSetup};
-use crate::study::{self, StudyJson};
+use crate::study::{self, PlantDraw, StudyJson};
+
+/// The board of every `rths simulate` run: the plant is simulated on the host.
+const BOARD: &str = "virtual";
 
 /// The LR model `rths reproduce` trained on El Centro (phase 2), shipped as the default.
 const DEFAULT_LR: &str = include_str!("../../data/models/lr.json");
@@ -50,21 +53,69 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "linear")]
     pub specimen: SpecimenArg,
     /// Scales the physical specimen's stiffness only; the reference is then the pure FE response of
-    /// the structure with that specimen.
+    /// the structure with that specimen (with --uncertainty, the specimen as drawn).
     #[arg(long, default_value_t = 1.0, value_name = "F")]
     pub specimen_stiffness_factor: f64,
     /// Seed of the sensor noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Also draw the plant parameters from the benchmark's uncertainty with the seed.
+    /// Also draw the plant parameters (β1, β2, a3, specimen stiffness) from the benchmark's
+    /// uncertainty with the seed. The reference is the structure with the specimen drawn; the
+    /// controller still knows only the nominal one.
     #[arg(long)]
     pub uncertainty: bool,
+    /// Rig file (`rths identify`) to check against the preset and board before running: refused if
+    /// it is of another, or if the model names another rig file.
+    #[arg(long, value_name = "RIG.json")]
+    pub rig: Option<PathBuf>,
     /// Output directory for `history.csv` and the figure.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Print one JSON object on stdout and nothing else.
     #[arg(long)]
     pub json: bool,
+}
+
+/// The JSON of `rths simulate`: the study's object and the plant the run really had.
+#[derive(Debug, serde::Serialize)]
+struct SimulateJson {
+    #[serde(flatten)]
+    study: StudyJson,
+    /// What the plant had (drawn or nominal); `null` for a pure run (no plant in the loop).
+    plant: Option<PlantDraw>,
+}
+
+/// Refuse a model trained on another rig than the run's: its compensation (the LRX lead filter
+/// taken from a rig file) was fitted to that rig's actuator. `training.rig` is `"PRESET BOARD
+/// CHECKSUM"` (`rths train lrx --rig`); `rig_checksum` is that of the `--rig` file, if given.
+fn check_model_rig(
+    file: &ModelFile,
+    preset: Preset,
+    rig_checksum: Option<&str>,
+) -> anyhow::Result<()> {
+    let Some(named) = &file.training.rig else {
+        return Ok(());
+    };
+    let mut it = named.split_whitespace();
+    let (m_preset, m_board, m_sum) = (it.next(), it.next(), it.next());
+    if m_preset != Some(preset.name()) || m_board != Some(BOARD) {
+        anyhow::bail!(
+            "the model was trained for the rig `{named}` (preset, board, checksum), this run is \
+             preset {} on board {BOARD}: its compensation does not fit this plant; train one for \
+             it (`rths train lrx --preset {}`)",
+            preset.name(),
+            preset.name()
+        );
+    }
+    if let (Some(run), Some(model)) = (rig_checksum, m_sum) {
+        if run != model {
+            anyhow::bail!(
+                "the model was trained with the rig file of checksum {model}, --rig has {run}: \
+                 another identification of the rig"
+            );
+        }
+    }
+    Ok(())
 }
 
 fn load_model(args: &Args, kind: ModelKind) -> anyhow::Result<ModelFile> {
@@ -117,23 +168,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         SpecimenArg::Linear => Specimen::Linear,
         SpecimenArg::BoucWen => Specimen::BoucWen(BoucWen::default()),
     };
-    let reference = study::reference_for(&ag, specimen, f)?;
     let id = args.scenario;
+    let mut rig_checksum = None;
+    if let Some(path) = &args.rig {
+        let file = crate::identify::RigFile::load(path)
+            .with_context(|| format!("rig file {}", path.display()))?;
+        file.check(preset.name(), BOARD)
+            .with_context(|| format!("rig file {} refused", path.display()))?;
+        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        rig_checksum = Some(crate::identify::rig_file::checksum_hex(&bytes));
+    }
+    let load = |kind: ModelKind| -> anyhow::Result<ModelFile> {
+        let m = load_model(&args, kind)?;
+        check_model_rig(&m, preset, rig_checksum.as_deref())?;
+        Ok(m)
+    };
     let (mut lr, mut rnn, mut delay, mut coeffs, mut cond) = (None, None, 28, Vec::new(), None);
     let mut lrx = None;
     if id == ScenarioId::LrxOnline {
-        let m = load_model(&args, ModelKind::Lrx)?;
+        let m = load(ModelKind::Lrx)?;
         lrx = Some(models::lrx_params(&m)?);
         delay = m.delay_steps;
     } else if id.uses_lr() {
-        let m = load_model(&args, ModelKind::Lr)?;
+        let m = load(ModelKind::Lr)?;
         let p = models::lr_params(&m)?;
         coeffs = p.theta().to_vec();
         cond = m.scores.lr_condition_number;
         delay = m.delay_steps;
         lr = Some(p);
     } else if let Some(h) = id.rnn_hidden() {
-        let m = load_model(&args, ModelKind::Rnn)?;
+        let m = load(ModelKind::Rnn)?;
         let p = models::rnn_params(&m)?;
         if p.hidden() != h {
             anyhow::bail!(
@@ -146,6 +210,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut rig = scenario::rig_config(preset, specimen, f, args.seed);
     rig.uncertainty = args.uncertainty;
+    // The evaluation knows the specimen the plant really has; a pure run has no plant, so its
+    // reference stays the configured structure. The analytical parts keep F (`fe-pure` and
+    // `fe-offline` are analyses of the structure as configured: nobody knows the draw before the test).
+    let (reference, plant) = if id.uses_rig() {
+        let (r, d) = study::reference_for_rig(&ag, &rig, f)?;
+        (r, Some(d))
+    } else {
+        (study::reference_for(&ag, specimen, f)?, None)
+    };
     let run = scenario::run(&ScenarioSetup {
         id,
         ground_accel_mm_s2: &ag,
@@ -171,11 +244,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ),
         )?;
     }
-    let json = StudyJson {
-        scenarios: vec![run.report.clone()],
-        lr_coefficients: coeffs,
-        lr_condition_number: cond,
-        specimen_sweep: None,
+    let json = SimulateJson {
+        study: StudyJson {
+            scenarios: vec![run.report.clone()],
+            lr_coefficients: coeffs,
+            lr_condition_number: cond,
+            specimen_sweep: None,
+        },
+        plant,
     };
     if args.json {
         println!("{}", serde_json::to_string(&json)?);
@@ -190,6 +266,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         specimen.name(),
         args.seed
     );
+    match &plant {
+        Some(d) => println!(
+            "plant               {}: beta1 {:.3} 1/s, beta2 {:.5e} 1/s^2, a3 {:.4} 1/s, specimen k {:.1} N/m (effective F = {:.4})",
+            if d.uncertainty {
+                format!("drawn with seed {}", d.seed)
+            } else {
+                "nominal".to_string()
+            },
+            d.beta1,
+            d.beta2,
+            d.a3,
+            d.specimen_stiffness_n_per_m,
+            d.specimen_stiffness_factor
+        ),
+        None => println!("plant               none in the loop (pure run)"),
+    }
     match (&r.stop_reason, r.stop_time_s) {
         (Some(why), Some(t)) => {
             println!("stable              no: the supervisor stopped it ({why} at {t:.3} s)")
