@@ -21,9 +21,6 @@ use crate::scenario::{self, ScenarioId, ScenarioReport, ScenarioRun, ScenarioSet
 use crate::sweep::{self, SpecimenSweep, SweepModels};
 use crate::train::{data, lr, lrx, rnn};
 
-/// Maximum epochs of RNN fine-tuning after the ARX initialization in `rths reproduce`.
-pub const RNN_EPOCHS: usize = 50;
-
 /// What to run.
 #[derive(Debug, Clone)]
 pub struct StudyConfig {
@@ -340,12 +337,11 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
 }
 
 /// The RNN training configuration of the study: the defaults with the study's seed and the
-/// fine-tuning budget [`RNN_EPOCHS`], without their own progress bars (they train in parallel; the
+/// trainer's fine-tuning budget ([`rnn::ARX_FINE_TUNE_EPOCHS`]), without their own progress bars (they train in parallel; the
 /// study shows one bar).
 pub fn rnn_config(cfg: &StudyConfig, hidden: usize) -> rnn::RnnConfig {
     let mut rc = rnn::RnnConfig::new(hidden);
     rc.seed = cfg.seed;
-    rc.max_epochs = RNN_EPOCHS;
     rc.quiet = true;
     rc
 }

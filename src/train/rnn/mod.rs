@@ -31,7 +31,7 @@ mod train;
 
 pub use eval::{rnn_pure_nrmse_pct, run_pure_loop};
 pub use model::{Rnn, RnnInit, Scaling, DEFAULT_ARX_STATE_SCALE, N_IN};
-pub use train::{model_file, train, InitMethod, RnnConfig, RnnTraining};
+pub use train::{model_file, train, InitMethod, RnnConfig, RnnTraining, ARX_FINE_TUNE_EPOCHS};
 
 #[cfg(test)]
 mod tests;
