@@ -165,9 +165,9 @@ fn fe_parts(
 
 /// Validate `spec` and build its analytical part and compensator (as [`Model::assemble`] does).
 ///
-/// One kind at a time, without a whole [`Model`] in between: a `Model` is as large as its largest
-/// variant (an RNN at [`crate::metamodel::RNN_MAX_HIDDEN`], ~9 kB), stack the firmware's start-up
-/// cannot spare beside the ~44 kB FE+ATS parts.
+/// The FE and RNN kinds are built without a whole [`Model`] in between: a `Model` is as large as its
+/// largest variant (an RNN at [`crate::metamodel::RNN_MAX_HIDDEN`], ~9 kB), stack the firmware's
+/// start-up cannot spare beside the ~44 kB FE+ATS parts (it overflowed in QEMU).
 pub fn assemble(
     spec: &ModelSpec<'_>,
     proto: Prototype,
@@ -176,22 +176,8 @@ pub fn assemble(
     match *spec {
         ModelSpec::Lr { theta } => Ok(lr_parts(LrParams::from_slice(theta)?)),
         ModelSpec::Rnn { weights, scaling } => Ok(rnn_parts(RnnParams::new(weights, scaling)?)),
-        ModelSpec::Lrx {
-            coeffs,
-            k_corr_kn_per_mm,
-            k_adapt_ticks,
-            lead_weights,
-            lead_stride,
-        } => {
-            let (p, lead) = lrx_params(
-                coeffs,
-                k_corr_kn_per_mm,
-                k_adapt_ticks,
-                lead_weights,
-                lead_stride,
-            )?;
-            Ok(lrx_parts(p, lead))
-        }
+        // Its parameters are small: through `Model`, as the host validates it.
+        ModelSpec::Lrx { .. } => spec.validate()?.assemble(proto, dt_s),
         ModelSpec::Fe => fe_parts(proto, dt_s, None),
         ModelSpec::FeAts { expected_delay_s } => fe_parts(proto, dt_s, Some(expected_delay_s)),
     }
