@@ -611,20 +611,36 @@ fn figures_of(id: ScenarioId, h: &Series<'_>, stop: Stop) -> ScenarioReport {
     r.peak_disp_mm = Some(metrics::peak_abs(h.command_mm));
     if id.uses_rig() {
         r.nrmse_measured_pct = metrics::nrmse_pct(h.measured_mm, h.reference_mm).ok();
-        if let Ok(t) = metrics::tracking(h.measured_mm, h.command_mm, h.reference_mm, J1_MAX_LAG) {
-            r.j1_ms = Some(t.j1_steps as f64 * DT_S * 1e3);
-            r.j2_pct = Some(t.j2_pct);
-            r.j3_pct = Some(t.j3_pct);
-            r.j4_pct = Some(t.j4_pct);
-            r.j5_pct = Some(t.j5_pct);
+        let (m, c, t) = (h.measured_mm, h.command_mm, h.target_mm);
+        // Without a compensator the command is the target: the figures against the target are
+        // those against the command, and one search gives both delays.
+        let same = c.len() == t.len() && c.iter().zip(t).all(|(a, b)| a.to_bits() == b.to_bits());
+        let (tracking, j1_target) = if same {
+            let delays = metrics::delay_steps_both(m, c, J1_MAX_LAG);
+            let tracking =
+                delays.and_then(|(j1, _)| metrics::tracking_with_delay(j1, m, c, h.reference_mm));
+            (tracking, delays.map(|(_, signed)| signed))
+        } else {
+            (
+                metrics::tracking(m, c, h.reference_mm, J1_MAX_LAG),
+                metrics::delay_steps_signed(m, t, J1_MAX_LAG),
+            )
+        };
+        if let Ok(tr) = tracking {
+            r.j1_ms = Some(tr.j1_steps as f64 * DT_S * 1e3);
+            r.j2_pct = Some(tr.j2_pct);
+            r.j3_pct = Some(tr.j3_pct);
+            r.j4_pct = Some(tr.j4_pct);
+            r.j5_pct = Some(tr.j5_pct);
         }
-        let m = h.measured_mm;
-        let t = h.target_mm;
-        r.j1_target_ms = metrics::delay_steps_signed(m, t, J1_MAX_LAG)
-            .ok()
-            .map(|k| k as f64 * DT_S * 1e3);
-        r.j2_target_pct = metrics::normalized_std_error_pct(m, t).ok();
-        r.j3_target_pct = metrics::normalized_peak_error_pct(m, t).ok();
+        r.j1_target_ms = j1_target.ok().map(|k| k as f64 * DT_S * 1e3);
+        (r.j2_target_pct, r.j3_target_pct) = match tracking {
+            Ok(tr) if same => (Some(tr.j2_pct), Some(tr.j3_pct)),
+            _ => (
+                metrics::normalized_std_error_pct(m, t).ok(),
+                metrics::normalized_peak_error_pct(m, t).ok(),
+            ),
+        };
     }
     r
 }

@@ -312,15 +312,20 @@ pub fn delay_steps(measured: &[f64], target: &[f64], max_lag: usize) -> Result<u
     };
     let mut trail = LagSums::new(target, measured, max_lag, 0);
     search(&mut [&mut trail], &lip);
+    Ok(best_trailing(&trail))
+}
+
+/// The first lag of the highest summed correlation of the trailing sums.
+fn best_trailing(trail: &LagSums<'_>) -> usize {
     let mut best = (0usize, f64::NEG_INFINITY);
-    for lag in 0..=max_lag {
+    for lag in 0..=trail.max_lag {
         if let Some(c) = trail.corr(lag) {
             if c > best.1 {
                 best = (lag, c);
             }
         }
     }
-    Ok(best.0)
+    best.0
 }
 
 /// [`delay_steps`] summing every lag (inputs checked, `max_lag < n`).
@@ -365,8 +370,13 @@ pub fn delay_steps_signed(
     let mut trail = LagSums::new(target, measured, max_lag, 0);
     let mut lead = LagSums::new(measured, target, max_lag, 1);
     search(&mut [&mut trail, &mut lead], &lip);
+    Ok(best_signed(&trail, &lead))
+}
+
+/// The first lag, in the order 0, 1, −1, 2, −2, …, of the highest summed correlation.
+fn best_signed(trail: &LagSums<'_>, lead: &LagSums<'_>) -> isize {
     let mut best = (0isize, f64::NEG_INFINITY);
-    for lag in 0..=max_lag {
+    for lag in 0..=trail.max_lag {
         if let Some(c) = trail.corr(lag) {
             if c > best.1 {
                 best = (lag as isize, c);
@@ -378,7 +388,34 @@ pub fn delay_steps_signed(
             }
         }
     }
-    Ok(best.0)
+    best.0
+}
+
+/// [`delay_steps`] and [`delay_steps_signed`] of the same pair at once: the signed search starts
+/// from the trailing lags the unsigned one summed (each search is exact from any set of summed
+/// lags, so both results are those of the two functions).
+pub fn delay_steps_both(
+    measured: &[f64],
+    target: &[f64],
+    max_lag: usize,
+) -> Result<(usize, isize), MetricError> {
+    check(measured, target)?;
+    let n = target.len();
+    if n <= max_lag {
+        return Err(MetricError::Empty);
+    }
+    let Some(lip) = Lipschitz::new(measured, target, max_lag) else {
+        return Ok((
+            delay_steps_all(measured, target, max_lag),
+            delay_steps_signed_all(measured, target, max_lag),
+        ));
+    };
+    let mut trail = LagSums::new(target, measured, max_lag, 0);
+    search(&mut [&mut trail], &lip);
+    let unsigned = best_trailing(&trail);
+    let mut lead = LagSums::new(measured, target, max_lag, 1);
+    search(&mut [&mut trail, &mut lead], &lip);
+    Ok((unsigned, best_signed(&trail, &lead)))
 }
 
 /// [`delay_steps_signed`] summing every lag (inputs checked, `max_lag < n`).
@@ -458,8 +495,23 @@ pub fn tracking(
     reference: &[f64],
     max_lag: usize,
 ) -> Result<Tracking, MetricError> {
+    tracking_with_delay(
+        delay_steps(measured, target, max_lag)?,
+        measured,
+        target,
+        reference,
+    )
+}
+
+/// [`tracking`] with J1 given (e.g. from [`delay_steps_both`]).
+pub fn tracking_with_delay(
+    j1_steps: usize,
+    measured: &[f64],
+    target: &[f64],
+    reference: &[f64],
+) -> Result<Tracking, MetricError> {
     Ok(Tracking {
-        j1_steps: delay_steps(measured, target, max_lag)?,
+        j1_steps,
         j2_pct: normalized_std_error_pct(measured, target)?,
         j3_pct: normalized_peak_error_pct(measured, target)?,
         j4_pct: normalized_std_error_pct(measured, reference)?,

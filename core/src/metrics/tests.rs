@@ -134,6 +134,13 @@ fn blocked_delay_equals_naive_on_response_like_signals() {
             delay_steps_signed(&measured, &target, max_lag),
             Ok(delay_steps_signed_naive(&measured, &target, max_lag))
         );
+        assert_eq!(
+            delay_steps_both(&measured, &target, max_lag),
+            Ok((
+                delay_steps_naive(&measured, &target, max_lag),
+                delay_steps_signed_naive(&measured, &target, max_lag)
+            ))
+        );
     }
 }
 
@@ -149,6 +156,10 @@ proptest::proptest! {
         proptest::prop_assert_eq!(
             delay_steps_signed(&m, &t, max_lag),
             Ok(delay_steps_signed_naive(&m, &t, max_lag))
+        );
+        proptest::prop_assert_eq!(
+            delay_steps_both(&m, &t, max_lag),
+            Ok((delay_steps_naive(&m, &t, max_lag), delay_steps_signed_naive(&m, &t, max_lag)))
         );
     }
 
@@ -166,6 +177,10 @@ proptest::proptest! {
         proptest::prop_assert_eq!(
             delay_steps_signed(&m, &t, max_lag),
             Ok(delay_steps_signed_naive(&m, &t, max_lag))
+        );
+        proptest::prop_assert_eq!(
+            delay_steps_both(&m, &t, max_lag),
+            Ok((delay_steps_naive(&m, &t, max_lag), delay_steps_signed_naive(&m, &t, max_lag)))
         );
     }
 }
