@@ -58,27 +58,8 @@ extern crate std;
 /// Round `value` to a 16-bit bipolar converter of full scale `±full_scale` (value units ↔ ±10 V).
 pub fn quantize(value: f64, full_scale: f64) -> f64 {
     let half = f64::from(1u32 << (CONVERTER_BITS - 1));
-    let code = round(value / full_scale * half).clamp(-half, half - 1.0);
+    let code = libm::round(value / full_scale * half).clamp(-half, half - 1.0);
     code * full_scale / half
-}
-
-/// `libm::round` (half away from zero), bit for bit, by the integer conversion the CPU does in one
-/// instruction: three conversions per tick made the software rounding a tenth of the plant's cost.
-fn round(x: f64) -> f64 {
-    // Below 2⁵² the truncation fits an i64 and `x − t` (the fraction) is exact; beyond, every
-    // float is an integer already (and NaN, ±∞ go to libm).
-    if libm::fabs(x) < 4_503_599_627_370_496.0 {
-        let t = (x as i64) as f64;
-        let frac = x - t;
-        // Without branches: the fraction of a noisy signal is as good as random, and mispredicted
-        // jumps would cost more than the rounding itself.
-        let r = t + f64::from(u8::from(frac >= 0.5)) - f64::from(u8::from(frac <= -0.5));
-        // The sign of a zero result is the sign of `x` (−0.3 rounds to −0.0).
-        const SIGN: u64 = 1 << 63;
-        f64::from_bits((r.to_bits() & !SIGN) | (x.to_bits() & SIGN))
-    } else {
-        libm::round(x)
-    }
 }
 
 /// The simulated test rig.
@@ -347,57 +328,6 @@ impl Actuator for VirtualRig {
             Ok(())
         } else {
             Err(SimError::OutOfRange)
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::round;
-    use rand_core::{RngCore, SeedableRng};
-    use rand_xoshiro::Xoshiro256PlusPlus;
-
-    #[test]
-    fn round_is_libm_round_bit_for_bit() {
-        let same = |x: f64| {
-            assert_eq!(round(x).to_bits(), libm::round(x).to_bits(), "round({x:e})");
-        };
-        let edges = [
-            0.0,
-            0.5,
-            1.5,
-            2.5,
-            0.49999999999999994,
-            0.5000000000000001,
-            4_503_599_627_370_495.5,
-            4_503_599_627_370_496.0,
-            9.007_199_254_740_993e15,
-            1e300,
-            f64::MIN_POSITIVE,
-            5e-324,
-            f64::MAX,
-            f64::INFINITY,
-            32767.5,
-            32768.49999999999,
-        ];
-        for x in edges {
-            same(x);
-            same(-x);
-            same(libm::nextafter(x, f64::INFINITY));
-            same(libm::nextafter(x, f64::NEG_INFINITY));
-        }
-        assert!(round(f64::NAN).is_nan());
-        let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
-        for _ in 0..200_000 {
-            // Random bit patterns (every magnitude), and values near the converter's codes.
-            let bits = f64::from_bits(rng.next_u64());
-            if !bits.is_nan() {
-                same(bits);
-            }
-            let u = (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
-            let near = (u * 2.0 - 1.0) * 40_000.0;
-            same(near);
-            same(libm::floor(near) + 0.5);
         }
     }
 }
