@@ -363,6 +363,29 @@ pub fn run(setup: &ScenarioSetup<'_>) -> Result<ScenarioRun, ScenarioError> {
     Ok(ScenarioRun { report, history })
 }
 
+/// The figures of [`run`] without its history: the loop keeps only the series the figures read
+/// (target, command, measured), a third of the memory the whole history would touch.
+pub fn report(setup: &ScenarioSetup<'_>) -> Result<ScenarioReport, ScenarioError> {
+    let n = setup.ground_accel_mm_s2.len();
+    let (mut target, mut command) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    // Runs without the actuator measure nothing; their figures never read it.
+    let mut measured = Vec::with_capacity(if setup.id.uses_rig() { n } else { 0 });
+    let stop = simulate_observed(setup, &Injection::default(), |r| {
+        target.push(r.target_mm);
+        command.push(r.command_mm);
+        if setup.id.uses_rig() {
+            measured.push(r.measured_mm);
+        }
+    })?;
+    let series = Series {
+        target_mm: &target,
+        command_mm: &command,
+        measured_mm: &measured,
+        reference_mm: setup.reference_mm,
+    };
+    Ok(figures_of(setup.id, &series, stop))
+}
+
 /// Why and when the supervisor stopped a run.
 pub type Stop = Option<(String, f64)>;
 
@@ -545,6 +568,25 @@ pub fn simulate_observed(
 
 /// The figures of a finished run (docs/design.md §7).
 pub fn figures(id: ScenarioId, h: &History, stop: Stop) -> ScenarioReport {
+    let series = Series {
+        target_mm: &h.target_mm,
+        command_mm: &h.command_mm,
+        measured_mm: &h.measured_mm,
+        reference_mm: &h.reference_mm,
+    };
+    figures_of(id, &series, stop)
+}
+
+/// The per-tick series the figures read (`measured_mm` may be empty in runs without the actuator).
+struct Series<'a> {
+    target_mm: &'a [f64],
+    command_mm: &'a [f64],
+    measured_mm: &'a [f64],
+    reference_mm: &'a [f64],
+}
+
+/// [`figures`] of the series alone.
+fn figures_of(id: ScenarioId, h: &Series<'_>, stop: Stop) -> ScenarioReport {
     let mut r = ScenarioReport {
         id: id.to_string(),
         stable: stop.is_none(),
@@ -565,25 +607,40 @@ pub fn figures(id: ScenarioId, h: &History, stop: Stop) -> ScenarioReport {
     if stop.is_some() {
         return r;
     }
-    r.nrmse_pct = metrics::nrmse_pct(&h.target_mm, &h.reference_mm).ok();
-    r.peak_disp_mm = Some(metrics::peak_abs(&h.command_mm));
+    r.nrmse_pct = metrics::nrmse_pct(h.target_mm, h.reference_mm).ok();
+    r.peak_disp_mm = Some(metrics::peak_abs(h.command_mm));
     if id.uses_rig() {
-        r.nrmse_measured_pct = metrics::nrmse_pct(&h.measured_mm, &h.reference_mm).ok();
-        if let Ok(t) = metrics::tracking(&h.measured_mm, &h.command_mm, &h.reference_mm, J1_MAX_LAG)
-        {
-            r.j1_ms = Some(t.j1_steps as f64 * DT_S * 1e3);
-            r.j2_pct = Some(t.j2_pct);
-            r.j3_pct = Some(t.j3_pct);
-            r.j4_pct = Some(t.j4_pct);
-            r.j5_pct = Some(t.j5_pct);
+        r.nrmse_measured_pct = metrics::nrmse_pct(h.measured_mm, h.reference_mm).ok();
+        let (m, c, t) = (h.measured_mm, h.command_mm, h.target_mm);
+        // Without a compensator the command is the target: the figures against the target are
+        // those against the command, and one search gives both delays.
+        let same = c.len() == t.len() && c.iter().zip(t).all(|(a, b)| a.to_bits() == b.to_bits());
+        let (tracking, j1_target) = if same {
+            let delays = metrics::delay_steps_both(m, c, J1_MAX_LAG);
+            let tracking =
+                delays.and_then(|(j1, _)| metrics::tracking_with_delay(j1, m, c, h.reference_mm));
+            (tracking, delays.map(|(_, signed)| signed))
+        } else {
+            (
+                metrics::tracking(m, c, h.reference_mm, J1_MAX_LAG),
+                metrics::delay_steps_signed(m, t, J1_MAX_LAG),
+            )
+        };
+        if let Ok(tr) = tracking {
+            r.j1_ms = Some(tr.j1_steps as f64 * DT_S * 1e3);
+            r.j2_pct = Some(tr.j2_pct);
+            r.j3_pct = Some(tr.j3_pct);
+            r.j4_pct = Some(tr.j4_pct);
+            r.j5_pct = Some(tr.j5_pct);
         }
-        let m = &h.measured_mm;
-        let t = &h.target_mm;
-        r.j1_target_ms = metrics::delay_steps_signed(m, t, J1_MAX_LAG)
-            .ok()
-            .map(|k| k as f64 * DT_S * 1e3);
-        r.j2_target_pct = metrics::normalized_std_error_pct(m, t).ok();
-        r.j3_target_pct = metrics::normalized_peak_error_pct(m, t).ok();
+        r.j1_target_ms = j1_target.ok().map(|k| k as f64 * DT_S * 1e3);
+        (r.j2_target_pct, r.j3_target_pct) = match tracking {
+            Ok(tr) if same => (Some(tr.j2_pct), Some(tr.j3_pct)),
+            _ => (
+                metrics::normalized_std_error_pct(m, t).ok(),
+                metrics::normalized_peak_error_pct(m, t).ok(),
+            ),
+        };
     }
     r
 }

@@ -43,10 +43,17 @@ fn check(a: &[f64], b: &[f64]) -> Result<(), MetricError> {
     if a.is_empty() {
         return Err(MetricError::Empty);
     }
-    if a.iter().chain(b).any(|v| !v.is_finite()) {
+    if !(all_finite(a) && all_finite(b)) {
         return Err(MetricError::NotFinite);
     }
     Ok(())
+}
+
+/// No NaN or infinity in `x`. Chunks without an early exit inside: the compiler vectorizes them
+/// (a per-value early exit scanned a value at a time, a pass as slow as a sum's).
+fn all_finite(x: &[f64]) -> bool {
+    x.chunks(64)
+        .all(|c| c.iter().fold(true, |ok, v| ok & v.is_finite()))
 }
 
 /// Largest absolute value of a series (0 for an empty one).
@@ -60,11 +67,6 @@ pub fn rms(x: &[f64]) -> f64 {
         return 0.0;
     }
     sqrt(x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64)
-}
-
-fn std_dev(x: impl Iterator<Item = f64> + Clone, n: usize) -> f64 {
-    let mean = x.clone().sum::<f64>() / n as f64;
-    sqrt(x.map(|v| (v - mean) * (v - mean)).sum::<f64>() / n as f64)
 }
 
 /// NRMSE in percent: `RMS(x − x_ref) / max|x_ref| × 100`.
@@ -312,15 +314,20 @@ pub fn delay_steps(measured: &[f64], target: &[f64], max_lag: usize) -> Result<u
     };
     let mut trail = LagSums::new(target, measured, max_lag, 0);
     search(&mut [&mut trail], &lip);
+    Ok(best_trailing(&trail))
+}
+
+/// The first lag of the highest summed correlation of the trailing sums.
+fn best_trailing(trail: &LagSums<'_>) -> usize {
     let mut best = (0usize, f64::NEG_INFINITY);
-    for lag in 0..=max_lag {
+    for lag in 0..=trail.max_lag {
         if let Some(c) = trail.corr(lag) {
             if c > best.1 {
                 best = (lag, c);
             }
         }
     }
-    Ok(best.0)
+    best.0
 }
 
 /// [`delay_steps`] summing every lag (inputs checked, `max_lag < n`).
@@ -365,8 +372,13 @@ pub fn delay_steps_signed(
     let mut trail = LagSums::new(target, measured, max_lag, 0);
     let mut lead = LagSums::new(measured, target, max_lag, 1);
     search(&mut [&mut trail, &mut lead], &lip);
+    Ok(best_signed(&trail, &lead))
+}
+
+/// The first lag, in the order 0, 1, −1, 2, −2, …, of the highest summed correlation.
+fn best_signed(trail: &LagSums<'_>, lead: &LagSums<'_>) -> isize {
     let mut best = (0isize, f64::NEG_INFINITY);
-    for lag in 0..=max_lag {
+    for lag in 0..=trail.max_lag {
         if let Some(c) = trail.corr(lag) {
             if c > best.1 {
                 best = (lag as isize, c);
@@ -378,7 +390,34 @@ pub fn delay_steps_signed(
             }
         }
     }
-    Ok(best.0)
+    best.0
+}
+
+/// [`delay_steps`] and [`delay_steps_signed`] of the same pair at once: the signed search starts
+/// from the trailing lags the unsigned one summed (each search is exact from any set of summed
+/// lags, so both results are those of the two functions).
+pub fn delay_steps_both(
+    measured: &[f64],
+    target: &[f64],
+    max_lag: usize,
+) -> Result<(usize, isize), MetricError> {
+    check(measured, target)?;
+    let n = target.len();
+    if n <= max_lag {
+        return Err(MetricError::Empty);
+    }
+    let Some(lip) = Lipschitz::new(measured, target, max_lag) else {
+        return Ok((
+            delay_steps_all(measured, target, max_lag),
+            delay_steps_signed_all(measured, target, max_lag),
+        ));
+    };
+    let mut trail = LagSums::new(target, measured, max_lag, 0);
+    search(&mut [&mut trail], &lip);
+    let unsigned = best_trailing(&trail);
+    let mut lead = LagSums::new(measured, target, max_lag, 1);
+    search(&mut [&mut trail, &mut lead], &lip);
+    Ok((unsigned, best_signed(&trail, &lead)))
 }
 
 /// [`delay_steps_signed`] summing every lag (inputs checked, `max_lag < n`).
@@ -412,13 +451,32 @@ fn delay_steps_signed_all(measured: &[f64], target: &[f64], max_lag: usize) -> i
 /// J2 (or J4 against the reference): `100·std(x − x_t)/std(x_t)`, percent.
 pub fn normalized_std_error_pct(x: &[f64], x_t: &[f64]) -> Result<f64, MetricError> {
     check(x, x_t)?;
-    let n = x.len();
-    let s_t = std_dev(x_t.iter().copied(), n);
+    let (s_t, s_diff) = std_devs(x, x_t);
     if s_t == 0.0 {
         return Err(MetricError::ZeroReference);
     }
-    let diff = x.iter().zip(x_t).map(|(a, b)| a - b);
-    Ok(100.0 * std_dev(diff, n) / s_t)
+    Ok(100.0 * s_diff / s_t)
+}
+
+/// `(std(x_t), std(x − x_t))` (same non-empty length), each exactly as the two-pass mean and
+/// deviation sum of `Iterator::sum` compute it:
+/// the two means, then the two deviation sums, share a pass, each sum still in ascending order
+/// from `-0.0` (as `Iterator::sum`), so two independent chains of additions overlap in the CPU.
+fn std_devs(x: &[f64], x_t: &[f64]) -> (f64, f64) {
+    let n = x.len() as f64;
+    let (mut sum_t, mut sum_d) = (-0.0_f64, -0.0_f64);
+    for (a, b) in x.iter().zip(x_t) {
+        sum_t += b;
+        sum_d += a - b;
+    }
+    let (mean_t, mean_d) = (sum_t / n, sum_d / n);
+    let (mut var_t, mut var_d) = (-0.0_f64, -0.0_f64);
+    for (a, b) in x.iter().zip(x_t) {
+        let d = a - b;
+        var_t += (b - mean_t) * (b - mean_t);
+        var_d += (d - mean_d) * (d - mean_d);
+    }
+    (sqrt(var_t / n), sqrt(var_d / n))
 }
 
 /// J3 (or J5 against the reference): `100·max|x − x_t|/max|x_t|`, percent.
@@ -458,8 +516,23 @@ pub fn tracking(
     reference: &[f64],
     max_lag: usize,
 ) -> Result<Tracking, MetricError> {
+    tracking_with_delay(
+        delay_steps(measured, target, max_lag)?,
+        measured,
+        target,
+        reference,
+    )
+}
+
+/// [`tracking`] with J1 given (e.g. from [`delay_steps_both`]).
+pub fn tracking_with_delay(
+    j1_steps: usize,
+    measured: &[f64],
+    target: &[f64],
+    reference: &[f64],
+) -> Result<Tracking, MetricError> {
     Ok(Tracking {
-        j1_steps: delay_steps(measured, target, max_lag)?,
+        j1_steps,
         j2_pct: normalized_std_error_pct(measured, target)?,
         j3_pct: normalized_peak_error_pct(measured, target)?,
         j4_pct: normalized_std_error_pct(measured, reference)?,

@@ -219,7 +219,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         (study::reference_for(&ag, specimen, f)?, None)
     };
-    let run = scenario::run(&ScenarioSetup {
+    let setup = ScenarioSetup {
         id,
         ground_accel_mm_s2: &ag,
         reference_mm: &reference,
@@ -229,12 +229,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         rnn,
         delay_steps: delay,
         lrx,
-    })?;
-    if let Some(dir) = &args.out {
+    };
+    // Only `--out` writes the history; the figures alone need a third of it.
+    let run = match &args.out {
+        Some(_) => Some(scenario::run(&setup)?),
+        None => None,
+    };
+    let report = match &run {
+        Some(run) => run.report.clone(),
+        None => scenario::report(&setup)?,
+    };
+    if let (Some(dir), Some(run)) = (&args.out, &run) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         run.history.write_csv(&dir.join("history.csv"))?;
         study::plot_run(
-            &run,
+            run,
             &dir.join(format!("{id}.png")),
             &format!(
                 "{id} ({}, {}, {}, F = {f})",
@@ -246,7 +255,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let json = SimulateJson {
         study: StudyJson {
-            scenarios: vec![run.report.clone()],
+            scenarios: vec![report.clone()],
             lr_coefficients: coeffs,
             lr_condition_number: cond,
             specimen_sweep: None,
@@ -257,7 +266,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string(&json)?);
         return Ok(());
     }
-    let r = &run.report;
+    let r = &report;
     let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
     println!(
         "scenario            {id} ({}, {}, {}, F = {f}, seed {})",

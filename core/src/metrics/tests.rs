@@ -134,6 +134,13 @@ fn blocked_delay_equals_naive_on_response_like_signals() {
             delay_steps_signed(&measured, &target, max_lag),
             Ok(delay_steps_signed_naive(&measured, &target, max_lag))
         );
+        assert_eq!(
+            delay_steps_both(&measured, &target, max_lag),
+            Ok((
+                delay_steps_naive(&measured, &target, max_lag),
+                delay_steps_signed_naive(&measured, &target, max_lag)
+            ))
+        );
     }
 }
 
@@ -149,6 +156,10 @@ proptest::proptest! {
         proptest::prop_assert_eq!(
             delay_steps_signed(&m, &t, max_lag),
             Ok(delay_steps_signed_naive(&m, &t, max_lag))
+        );
+        proptest::prop_assert_eq!(
+            delay_steps_both(&m, &t, max_lag),
+            Ok((delay_steps_naive(&m, &t, max_lag), delay_steps_signed_naive(&m, &t, max_lag)))
         );
     }
 
@@ -167,5 +178,54 @@ proptest::proptest! {
             delay_steps_signed(&m, &t, max_lag),
             Ok(delay_steps_signed_naive(&m, &t, max_lag))
         );
+        proptest::prop_assert_eq!(
+            delay_steps_both(&m, &t, max_lag),
+            Ok((delay_steps_naive(&m, &t, max_lag), delay_steps_signed_naive(&m, &t, max_lag)))
+        );
     }
+}
+
+/// The two-pass standard deviation by `Iterator::sum`, as the metrics computed it before their
+/// passes were fused.
+fn std_dev_naive(x: impl Iterator<Item = f64> + Clone, n: usize) -> f64 {
+    let mean = x.clone().sum::<f64>() / n as f64;
+    sqrt(x.map(|v| (v - mean) * (v - mean)).sum::<f64>() / n as f64)
+}
+
+proptest::proptest! {
+    #[test]
+    fn fused_passes_equal_the_separate_ones_bit_for_bit(
+        pairs in proptest::collection::vec((-1e3f64..1e3, -1e3f64..1e3), 1..500),
+    ) {
+        let (x, t): (std::vec::Vec<f64>, std::vec::Vec<f64>) = pairs.into_iter().unzip();
+        let n = x.len();
+        let s_t = std_dev_naive(t.iter().copied(), n);
+        let j2 = normalized_std_error_pct(&x, &t);
+        if s_t == 0.0 {
+            proptest::prop_assert_eq!(j2, Err(MetricError::ZeroReference));
+        } else {
+            let s_d = std_dev_naive(x.iter().zip(&t).map(|(a, b)| a - b), n);
+            proptest::prop_assert_eq!(j2.map(f64::to_bits), Ok((100.0 * s_d / s_t).to_bits()));
+        }
+        let peak = peak_abs(&t);
+        let sum: f64 = x.iter().zip(&t).map(|(a, b)| (a - b) * (a - b)).sum();
+        let nrmse = 100.0 * sqrt(sum / n as f64) / peak;
+        proptest::prop_assert_eq!(nrmse_pct(&x, &t).map(f64::to_bits), Ok(nrmse.to_bits()));
+    }
+}
+
+#[test]
+fn fused_passes_equal_the_separate_ones_on_response_like_signals() {
+    let t = response_like(30_000, 0.0, 0.0, 3);
+    let x = response_like(30_000, 28.0, 0.3, 5);
+    let n = x.len();
+    let s_t = std_dev_naive(t.iter().copied(), n);
+    let s_d = std_dev_naive(x.iter().zip(&t).map(|(a, b)| a - b), n);
+    assert_eq!(
+        normalized_std_error_pct(&x, &t).map(f64::to_bits),
+        Ok((100.0 * s_d / s_t).to_bits())
+    );
+    let sum: f64 = x.iter().zip(&t).map(|(a, b)| (a - b) * (a - b)).sum();
+    let nrmse = 100.0 * sqrt(sum / n as f64) / peak_abs(&t);
+    assert_eq!(nrmse_pct(&x, &t).map(f64::to_bits), Ok(nrmse.to_bits()));
 }
