@@ -708,7 +708,7 @@ mod extractor {
     fn the_old_citations_are_refused() {
         let (_d, repo) = repo();
         let brief = concat!("DESIGN", " §4");
-        let shared = concat!("../", "shared/DESIGN.md");
+        let shared = concat!("../", "shared", "/DESIGN.md");
         let notes = concat!("notes", "/link.md");
         let brief_file = concat!("`shared", "/DESIGN.md` §2");
         for text in [brief, shared, notes, brief_file] {

@@ -193,9 +193,9 @@ mod tests {
     const LR: ModelSpec<'static> = ModelSpec::Lr { theta: &THETA };
 
     #[test]
-    fn each_spec_assembles_its_parts() {
+    fn each_spec_assembles_its_parts() -> Result<(), ModelError> {
         let p = Prototype::paper();
-        let (a, c) = assemble(&LR, p, DT_S).unwrap();
+        let (a, c) = assemble(&LR, p, DT_S)?;
         assert!(matches!((a, c), (Analytical::Lr(_), Compensator::None)));
         let lead = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
         let coeffs = [0.0; 9];
@@ -206,14 +206,14 @@ mod tests {
             lead_weights: &lead,
             lead_stride: 2,
         };
-        let (a, c) = assemble(&lrx, p, DT_S).unwrap();
+        let (a, c) = assemble(&lrx, p, DT_S)?;
         assert!(matches!((a, c), (Analytical::Lrx(_), Compensator::Lead(_))));
-        let (a, c) = assemble(&ModelSpec::Fe, p, DT_S).unwrap();
+        let (a, c) = assemble(&ModelSpec::Fe, p, DT_S)?;
         assert!(matches!((a, c), (Analytical::Fe(_), Compensator::None)));
         let ats = ModelSpec::FeAts {
             expected_delay_s: 28.0 * DT_S,
         };
-        let (a, c) = assemble(&ats, p, DT_S).unwrap();
+        let (a, c) = assemble(&ats, p, DT_S)?;
         assert!(matches!((a, c), (Analytical::Fe(_), Compensator::Ats(_))));
         let h = 2;
         let w = [0.1; 4];
@@ -232,8 +232,9 @@ mod tests {
                 output_std: 1.0,
             },
         };
-        let (a, c) = assemble(&rnn, p, DT_S).unwrap();
+        let (a, c) = assemble(&rnn, p, DT_S)?;
         assert!(matches!((a, c), (Analytical::Rnn(_), Compensator::None)));
+        Ok(())
     }
 
     #[test]

@@ -65,11 +65,11 @@ mod tests {
     /// The struct is exactly the Chang integrator on the pure model (the bit-identity the host,
     /// trainer and firmware rely on).
     #[test]
-    fn matches_a_bare_chang_integrator_bit_for_bit() {
+    fn matches_a_bare_chang_integrator_bit_for_bit() -> Result<(), ParamError> {
         let p = Prototype::paper();
         let ag = |k: usize| 2500.0 * libm::sin(k as f64 * 0.031) + 40.0 * k as f64 % 7.0;
-        let mut r = Reference::new(&p, DT_S, ag(0)).unwrap();
-        let mut c = Chang::new(LinearStructure::prototype_pure(&p).unwrap(), DT_S).unwrap();
+        let mut r = Reference::new(&p, DT_S, ag(0))?;
+        let mut c = Chang::new(LinearStructure::prototype_pure(&p)?, DT_S)?;
         c.reset(ag(0));
         assert_eq!(r.brace_disp_mm(), 0.0);
         for k in 1..3000 {
@@ -78,6 +78,7 @@ mod tests {
             assert_eq!(d.to_bits(), p.brace_disp_mm(c.state().disp[0]).to_bits());
             assert_eq!(r.state(), c.state());
         }
+        Ok(())
     }
 
     #[test]
