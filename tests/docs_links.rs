@@ -1,7 +1,7 @@
 //! Documentation that exists: every reference in the README, in `docs/` and in code comments must
 //! resolve to something in the repository.
 //!
-//! Checked, in `README.md` and `docs/**/*.md` (whole text) and in the comments of `**/*.rs`,
+//! Checked, in every `README.md` and in `docs/**/*.md` (whole text) and in the comments of `**/*.rs`,
 //! `**/*.sh`, `**/*.toml` and `.ci/run` (`target/` and `.git` skipped):
 //! - (a) relative Markdown links (a bracketed text, then the path and an optional `#anchor` in
 //!   parentheses): the path exists, and an anchor into a Markdown file names one of its headings
@@ -501,7 +501,7 @@ fn section_citations(line: &str) -> Vec<(String, String)> {
     out
 }
 
-/// The files to scan: `README.md`, `docs/**/*.md`, and code, scripts and manifests.
+/// The files to scan: every `README.md`, `docs/**/*.md`, and code, scripts and manifests.
 fn files(root: &Path) -> Vec<(PathBuf, Kind)> {
     let mut out = vec![(PathBuf::from("README.md"), Kind::Markdown)];
     if root.join(".ci/run").is_file() {
@@ -525,7 +525,12 @@ fn files(root: &Path) -> Vec<(PathBuf, Kind)> {
             let kind = match rel.extension().and_then(|e| e.to_str()) {
                 Some("rs") => Kind::Rust,
                 Some("sh") | Some("toml") => Kind::Hash,
-                Some("md") if rel.starts_with("docs") => Kind::Markdown,
+                // The root README is first above; every other README (firmware, boards, data) too.
+                Some("md")
+                    if rel.starts_with("docs") || (name == "README.md" && dir != Path::new("")) =>
+                {
+                    Kind::Markdown
+                }
                 _ => continue,
             };
             out.push((rel, kind));
