@@ -86,7 +86,11 @@ fn lrx(out: &mut String, root: &Path) {
         .lrx
         .unwrap_or_else(|| fail(format!("{}: no lrx section", path.display())));
     let (coeffs, lead, stride) = (x.coeffs, x.lead_weights, x.lead_stride);
-    let scalars = [x.k_corr_kn_per_mm, x.k_adapt_ticks];
+    let scalars = [
+        x.k_corr_kn_per_mm,
+        x.k_adapt_ticks,
+        x.lead_adapt_ticks.unwrap_or(0.0),
+    ];
     let _ = writeln!(out, "/// LRX frame coefficients from `{}`.", path.display());
     let _ = writeln!(out, "pub const LRX_COEFFS: [f64; 9] = {};", array(&coeffs));
     let _ = writeln!(out, "/// LRX nominal force-correction stiffness, kN/mm.");
@@ -97,6 +101,11 @@ fn lrx(out: &mut String, root: &Path) {
     let _ = writeln!(out, "pub const LRX_LEAD: [f64; 8] = {};", array(&lead));
     let _ = writeln!(out, "/// LRX lead-filter stride, ticks.");
     let _ = writeln!(out, "pub const LRX_LEAD_STRIDE: usize = {stride};");
+    let _ = writeln!(
+        out,
+        "/// LRX lead-adaptation time constant, ticks (0: fixed lead)."
+    );
+    let _ = writeln!(out, "pub const LRX_LEAD_ADAPT: f64 = {};", lit(scalars[2]));
     let _ = writeln!(out, "/// The model file compiled in.");
     let _ = writeln!(
         out,

@@ -36,6 +36,7 @@ pub fn model(m: &ModelFile) -> Result<Model, ToParamsError> {
                 k_adapt_ticks: w.k_adapt_ticks,
                 lead_weights: &w.lead_weights,
                 lead_stride: w.lead_stride,
+                lead_adapt_ticks: w.lead_adapt_ticks.unwrap_or(0.0),
             }
             .validate()
         }

@@ -5,7 +5,9 @@
 //! `const` over its generated `&'static` arrays); [`ModelSpec::validate`] turns it into a [`Model`]
 //! of validated parameters, and [`Model::assemble`] builds the parts.
 
-use crate::compensator::{Ats, AtsConfig, AtsParams, Compensator, Lead, LeadParams, LEAD_TAPS};
+use crate::compensator::{
+    Ats, AtsConfig, AtsParams, Compensator, Lead, LeadAdaptParams, LeadParams, LEAD_TAPS,
+};
 use crate::control::{Analytical, FeModel};
 use crate::metamodel::{
     Lr, LrParams, Lrx, LrxParams, ModelError, Rnn, RnnParams, RnnScaling, RnnWeights,
@@ -40,6 +42,9 @@ pub enum ModelSpec<'a> {
         lead_weights: &'a [f64],
         /// Lead-filter tap spacing, ticks.
         lead_stride: usize,
+        /// Time constant of the lead's online gain-and-delay correction, ticks (0: the lead is
+        /// fixed).
+        lead_adapt_ticks: f64,
     },
     /// Finite elements (Chang) of the hybrid model, no compensator (`fe-pure`, `fe-online`, ...).
     Fe,
@@ -82,6 +87,7 @@ impl ModelSpec<'_> {
                 k_adapt_ticks,
                 lead_weights,
                 lead_stride,
+                lead_adapt_ticks,
             } => {
                 let (frame, lead) = lrx_params(
                     coeffs,
@@ -89,6 +95,7 @@ impl ModelSpec<'_> {
                     k_adapt_ticks,
                     lead_weights,
                     lead_stride,
+                    lead_adapt_ticks,
                 )?;
                 Model::Lrx(frame, lead)
             }
@@ -123,6 +130,7 @@ fn lrx_params(
     k_adapt_ticks: f64,
     lead_weights: &[f64],
     lead_stride: usize,
+    lead_adapt_ticks: f64,
 ) -> Result<(LrxParams, LeadParams), ModelError> {
     let frame = LrxParams::from_slice(coeffs, k_corr_kn_per_mm, k_adapt_ticks)?;
     let weights: [f64; LEAD_TAPS] = lead_weights.try_into().map_err(|_| ModelError::Shape {
@@ -130,7 +138,16 @@ fn lrx_params(
         expected: LEAD_TAPS,
         got: lead_weights.len(),
     })?;
-    Ok((frame, LeadParams::new(weights, lead_stride)?))
+    // 0 (or an old file's missing field) keeps the lead fixed, exactly as before the adaptation.
+    let adapt = if lead_adapt_ticks == 0.0 {
+        None
+    } else {
+        Some(LeadAdaptParams::new(lead_adapt_ticks)?)
+    };
+    Ok((
+        frame,
+        LeadParams::new(weights, lead_stride)?.with_adaptation(adapt),
+    ))
 }
 
 fn lr_parts(p: LrParams) -> (Analytical, Compensator) {
@@ -205,6 +222,7 @@ mod tests {
             k_adapt_ticks: 0.0,
             lead_weights: &lead,
             lead_stride: 2,
+            lead_adapt_ticks: 0.0,
         };
         let (a, c) = assemble(&lrx, p, DT_S)?;
         assert!(matches!((a, c), (Analytical::Lrx(_), Compensator::Lead(_))));
@@ -250,6 +268,7 @@ mod tests {
             k_adapt_ticks: 0.0,
             lead_weights: &[1.0; 7],
             lead_stride: 1,
+            lead_adapt_ticks: 0.0,
         };
         assert!(matches!(
             lrx.validate(),

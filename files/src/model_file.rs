@@ -7,7 +7,7 @@
 //!  "rnn": {"hidden": H, "w_ih": [[2]; H], "w_hh": [[H]; H], "b_h": [H], "w_ho": [H], "b_o": x,
 //!          "input_mean": [2], "input_std": [2], "output_mean": x, "output_std": x}   (kind "rnn")
 //!  "lrx": {"coeffs": [9], "k_corr_kn_per_mm": x, "k_adapt_ticks": x, "lead_weights": [8],
-//!          "lead_stride": s}                                                        (kind "lrx")
+//!          "lead_stride": s, ["lead_adapt_ticks": x]}                                (kind "lrx")
 //!  "training": {...provenance...}, "scores": {...}}
 //! ```
 //!
@@ -130,6 +130,11 @@ pub struct LrxWeights {
     pub lead_weights: Vec<f64>,
     /// Lead-filter tap spacing, ticks (1..=8).
     pub lead_stride: usize,
+    /// Time constant of the lead's online gain-and-delay correction, ticks (0 or absent: the lead is
+    /// fixed, as in files written before the adaptation; else 32..=1e7). Absent fields are not
+    /// written, so a model trained without adaptation keeps its old file byte for byte.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lead_adapt_ticks: Option<f64>,
 }
 
 impl LrxWeights {
@@ -159,6 +164,15 @@ impl LrxWeights {
                 expected: LRX_MAX_STRIDE,
                 found: self.lead_stride,
             });
+        }
+        if let Some(t) = self.lead_adapt_ticks {
+            finite("lrx.lead_adapt_ticks", &[t])?;
+            if t != 0.0 && !(32.0..=1.0e7).contains(&t) {
+                return Err(ModelFileError::NonPositive {
+                    field: "lrx.lead_adapt_ticks (0 or 32..=1e7)".into(),
+                    value: t,
+                });
+            }
         }
         Ok(())
     }

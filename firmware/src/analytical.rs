@@ -90,6 +90,7 @@ const SPEC: ModelSpec<'static> = ModelSpec::Lrx {
     k_adapt_ticks: crate::gen::LRX_K_ADAPT,
     lead_weights: &crate::gen::LRX_LEAD,
     lead_stride: crate::gen::LRX_LEAD_STRIDE,
+    lead_adapt_ticks: crate::gen::LRX_LEAD_ADAPT,
 };
 
 /// The link checksum of the compiled-in model: an LR model's, else 0.

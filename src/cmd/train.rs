@@ -86,6 +86,10 @@ pub struct Args {
     /// paper's brace).
     #[arg(long, default_value_t = 2048.0)]
     pub k_adapt_ticks: f64,
+    /// LRX time constant of the lead's online gain-and-delay correction, ticks (0: fixed lead;
+    /// else 32..=1e7). docs/lrx.md, "Online adaptation of the lead".
+    #[arg(long, default_value_t = 0.0)]
+    pub lead_adapt_ticks: f64,
     /// LRX relative singular-value cut-off of both least-squares fits (it drops the frame fit's
     /// least-determined direction, which the closed recursion does not tolerate well).
     #[arg(long, default_value_t = 1e-9)]
@@ -138,6 +142,7 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
     }
     cfg.lead_stride = args.lead_stride;
     cfg.k_adapt_ticks = args.k_adapt_ticks;
+    cfg.lead_adapt_ticks = args.lead_adapt_ticks;
     cfg.perturbation = args.perturbation;
     anyhow::ensure!(
         args.lrx_rcond.is_finite() && args.lrx_rcond > 0.0 && args.lrx_rcond < 1.0,

@@ -1,6 +1,7 @@
 //! The learned (fixed) lead filter of the LRX path: an FIR predictor of the target.
 
 use super::input;
+use super::lead_adapt::{LeadAdaptParams, LeadAdaptState};
 use crate::filter::{finite, InputError};
 use crate::params::ParamError;
 
@@ -17,11 +18,13 @@ const LEAD_RING: usize = ((LEAD_TAPS - 1) * LEAD_MAX_STRIDE + 1).next_power_of_t
 ///
 /// A fixed linear inverse of the plant (delay and gain), identified offline by least squares from
 /// plant runs (`rths train lrx`): the same form as the ATS law (a0·x + a1·ẋ + a2·ẍ is a 3-tap filter
-/// at stride 1) with more taps and no online adaptation, at a fraction of its cost.
+/// at stride 1) with more taps, at a fraction of its cost. Optionally with an online, bounded
+/// gain-and-delay correction in front of it ([`LeadParams::with_adaptation`], `lead_adapt.rs`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LeadParams {
     weights: [f64; LEAD_TAPS],
     stride: usize,
+    adapt: Option<LeadAdaptParams>,
 }
 
 impl LeadParams {
@@ -33,7 +36,22 @@ impl LeadParams {
         if !(1..=LEAD_MAX_STRIDE).contains(&stride) {
             return Err(ParamError::OutOfRange("lead filter stride"));
         }
-        Ok(Self { weights, stride })
+        Ok(Self {
+            weights,
+            stride,
+            adapt: None,
+        })
+    }
+
+    /// The same filter with the online correction stage in front of it (`None`: fixed, as before).
+    pub fn with_adaptation(mut self, adapt: Option<LeadAdaptParams>) -> Self {
+        self.adapt = adapt;
+        self
+    }
+
+    /// The online correction's settings, if it adapts.
+    pub fn adaptation(&self) -> Option<&LeadAdaptParams> {
+        self.adapt.as_ref()
     }
 
     /// The weights, newest tap first.
@@ -58,6 +76,7 @@ pub struct Lead {
     weights: [f32; LEAD_TAPS],
     ring: [f32; LEAD_RING],
     newest: usize,
+    adapt: LeadAdaptState,
 }
 
 impl Lead {
@@ -73,6 +92,7 @@ impl Lead {
             weights,
             ring: [0.0; LEAD_RING],
             newest: 0,
+            adapt: LeadAdaptState::default(),
         }
     }
 
@@ -85,6 +105,30 @@ impl Lead {
     pub fn reset(&mut self) {
         self.ring = [0.0; LEAD_RING];
         self.newest = 0;
+        self.adapt = LeadAdaptState::default();
+    }
+
+    /// The online correction's state (gain 1, delay 0 while it does not adapt).
+    pub fn adaptation_state(&self) -> &LeadAdaptState {
+        &self.adapt
+    }
+
+    /// One tick of the compensator: the command (mm) for the target, the correction stage fed
+    /// with the measured displacement first if the filter adapts (else the measured value is only
+    /// checked). Refuses a bad target or measurement and keeps all state.
+    pub fn step(&mut self, target_mm: f64, measured_mm: f64) -> Result<f64, InputError> {
+        match self.params.adapt {
+            None => {
+                input(measured_mm, "measured_mm")?;
+                self.compensate(target_mm)
+            }
+            Some(p) => {
+                let (v, next) = self.adapt.correct(&p, target_mm, measured_mm)?;
+                let u = self.compensate(v)?;
+                self.adapt = next;
+                Ok(u)
+            }
+        }
     }
 
     /// Push the new target and return the command, mm. Refuses a bad target and keeps the history.

@@ -7,17 +7,19 @@
 //! and leave the state untouched.
 //!
 //! One file per method: `ats.rs` (adaptive time series), `horiuchi.rs` (polynomial extrapolation),
-//! `lead.rs` (learned lead filter); this file holds the shared input guard and the [`Compensator`] enum.
+//! `lead.rs` (learned lead filter), `lead_adapt.rs` (its online correction); this file holds the shared input guard and the [`Compensator`] enum.
 
 use crate::filter::{finite, InputError};
 
 mod ats;
 mod horiuchi;
 mod lead;
+mod lead_adapt;
 
 pub use ats::*;
 pub use horiuchi::*;
 pub use lead::*;
+pub use lead_adapt::*;
 
 // The tests check the ATS's internal sums against an exact re-sum.
 #[cfg(test)]
@@ -68,10 +70,7 @@ impl Compensator {
                 h.compensate(target_mm)
             }
             Compensator::Ats(a) => a.compensate(target_mm, measured_mm),
-            Compensator::Lead(l) => {
-                input(measured_mm, "measured_mm")?;
-                l.compensate(target_mm)
-            }
+            Compensator::Lead(l) => l.step(target_mm, measured_mm),
         }
     }
 

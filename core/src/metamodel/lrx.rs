@@ -52,6 +52,10 @@ pub struct LrxParams {
     min_sxx: f32,
     k_lo: f32,
     k_hi: f32,
+    // The specimen's own inertia and damping (prototype scale), removed from the measured force.
+    mass_kn_s2_per_mm: f64,
+    damping_kn_s_per_mm: f64,
+    inv_dt_s: f64,
 }
 
 /// Weighted RMS brace deformation (mm) above which the stiffness estimate is used.
@@ -98,7 +102,42 @@ impl LrxParams {
             min_sxx,
             k_lo: (lo * k_corr_kn_per_mm) as f32,
             k_hi: (hi * k_corr_kn_per_mm) as f32,
+            mass_kn_s2_per_mm: 0.0,
+            damping_kn_s_per_mm: 0.0,
+            inv_dt_s: 0.0,
         })
+    }
+
+    /// The same model with the specimen's own moving mass and damping (prototype brace scale,
+    /// kN·s²/mm and kN·s/mm, both ≥ 0, e.g. `rths identify`'s specimen fit) removed from the
+    /// measured force: `F_fb − m·ẍ − c·ẋ` is the force of the specimen's spring alone, the part the
+    /// computed structure stands for. The derivatives are those of the model's own displacement
+    /// (noise-free; the compensated actuator follows it), backward differences at step `dt_s`.
+    /// Both 0: the force is used as measured (as before this option existed).
+    pub fn with_specimen_dynamics(
+        mut self,
+        mass_kn_s2_per_mm: f64,
+        damping_kn_s_per_mm: f64,
+        dt_s: f64,
+    ) -> Result<Self, ModelError> {
+        all_finite(
+            &[mass_kn_s2_per_mm, damping_kn_s_per_mm, dt_s],
+            "LRX specimen dynamics",
+        )?;
+        if mass_kn_s2_per_mm < 0.0 || damping_kn_s_per_mm < 0.0 || dt_s <= 0.0 {
+            return Err(ModelError::Param(ParamError::OutOfRange(
+                "LRX specimen mass, damping (>= 0) or dt_s (> 0)",
+            )));
+        }
+        self.mass_kn_s2_per_mm = mass_kn_s2_per_mm;
+        self.damping_kn_s_per_mm = damping_kn_s_per_mm;
+        self.inv_dt_s = 1.0 / dt_s;
+        Ok(self)
+    }
+
+    /// The specimen's moving mass and damping removed from the measured force (prototype scale).
+    pub fn specimen_dynamics(&self) -> (f64, f64) {
+        (self.mass_kn_s2_per_mm, self.damping_kn_s_per_mm)
     }
 
     /// From a slice (as read from a model file); exactly [`LRX_COEFFS`] values.
@@ -200,10 +239,19 @@ impl Lrx {
     pub fn predict(&mut self, inp: LrxInputs) -> Result<f64, InputError> {
         let ag = finite(inp.ground_accel_mm_s2, "ground_accel_mm_s2")?;
         let x_fb = finite(inp.brace_disp_fb_mm, "brace_disp_fb_mm")?;
-        let f_fb = finite(inp.brace_force_fb_kn, "brace_force_fb_kn")?;
         let s = &self.state;
         let p = &self.params;
         let [d0, d1, d2] = s.pred_mm;
+        let mut f_fb = finite(inp.brace_force_fb_kn, "brace_force_fb_kn")?;
+        if p.mass_kn_s2_per_mm != 0.0 || p.damping_kn_s_per_mm != 0.0 {
+            // Velocity and acceleration of the model's displacement one tick back (central).
+            let v = 0.5 * (d0 - d2) * p.inv_dt_s;
+            let a = (d0 - 2.0 * d1 + d2) * p.inv_dt_s * p.inv_dt_s;
+            f_fb = finite(
+                f_fb - p.mass_kn_s2_per_mm * a - p.damping_kn_s_per_mm * v,
+                "LRX spring force",
+            )?;
+        }
         let [g1, g2] = s.ground_accel_mm_s2;
         let [f1, f2] = s.force_kn;
         // The last estimate holds while the motion is too small to estimate (0 at rest: nominal).

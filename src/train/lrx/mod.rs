@@ -75,6 +75,9 @@ pub struct LrxConfig {
     /// A lead filter given instead of fitted (e.g. identified on the rig by `rths identify`):
     /// step 2 is skipped.
     pub given_lead: Option<GivenLead>,
+    /// Time constant of the lead's online gain-and-delay correction, ticks (0: fixed lead; the
+    /// model file then has no `lead_adapt_ticks` field, as before the adaptation existed).
+    pub lead_adapt_ticks: f64,
 }
 
 /// A lead filter fitted elsewhere.
@@ -113,6 +116,7 @@ impl LrxConfig {
             preset: Preset::UnrCompact,
             seed: 1,
             given_lead: None,
+            lead_adapt_ticks: 0.0,
         })
     }
 }
@@ -256,6 +260,7 @@ pub fn train(cfg: &LrxConfig) -> Result<LrxTraining, TrainError> {
             k_adapt_ticks: cfg.k_adapt_ticks,
             lead_weights: lead_weights.to_vec(),
             lead_stride: s,
+            lead_adapt_ticks: (cfg.lead_adapt_ticks != 0.0).then_some(cfg.lead_adapt_ticks),
         },
         PAPER_DELAY_STEPS,
         DT_S,
