@@ -90,6 +90,8 @@ fn lrx(out: &mut String, root: &Path) {
         x.k_corr_kn_per_mm,
         x.k_adapt_ticks,
         x.lead_adapt_ticks.unwrap_or(0.0),
+        x.specimen_mass_kn_s2_per_mm.unwrap_or(0.0),
+        x.specimen_damping_kn_s_per_mm.unwrap_or(0.0),
     ];
     let _ = writeln!(out, "/// LRX frame coefficients from `{}`.", path.display());
     let _ = writeln!(out, "pub const LRX_COEFFS: [f64; 9] = {};", array(&coeffs));
@@ -106,6 +108,15 @@ fn lrx(out: &mut String, root: &Path) {
         "/// LRX lead-adaptation time constant, ticks (0: fixed lead)."
     );
     let _ = writeln!(out, "pub const LRX_LEAD_ADAPT: f64 = {};", lit(scalars[2]));
+    let _ = writeln!(
+        out,
+        "/// LRX specimen mass and damping removed from the force (prototype scale)."
+    );
+    let _ = writeln!(
+        out,
+        "pub const LRX_SPECIMEN_DYNAMICS: [f64; 2] = {};",
+        array(&scalars[3..5])
+    );
     let _ = writeln!(out, "/// The model file compiled in.");
     let _ = writeln!(
         out,

@@ -37,6 +37,10 @@ pub fn model(m: &ModelFile) -> Result<Model, ToParamsError> {
                 lead_weights: &w.lead_weights,
                 lead_stride: w.lead_stride,
                 lead_adapt_ticks: w.lead_adapt_ticks.unwrap_or(0.0),
+                specimen_dynamics: [
+                    w.specimen_mass_kn_s2_per_mm.unwrap_or(0.0),
+                    w.specimen_damping_kn_s_per_mm.unwrap_or(0.0),
+                ],
             }
             .validate()
         }

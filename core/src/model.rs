@@ -12,7 +12,7 @@ use crate::control::{Analytical, FeModel};
 use crate::metamodel::{
     Lr, LrParams, Lrx, LrxParams, ModelError, Rnn, RnnParams, RnnScaling, RnnWeights,
 };
-use crate::params::Prototype;
+use crate::params::{Prototype, DT_S};
 
 /// The analytical part of a run (and its compensator), with raw weights borrowed as a model file
 /// stores them.
@@ -45,6 +45,9 @@ pub enum ModelSpec<'a> {
         /// Time constant of the lead's online gain-and-delay correction, ticks (0: the lead is
         /// fixed).
         lead_adapt_ticks: f64,
+        /// The specimen's own moving mass and damping removed from the measured force, prototype
+        /// scale, kN·s²/mm and kN·s/mm (0, 0: the force is used as measured).
+        specimen_dynamics: [f64; 2],
     },
     /// Finite elements (Chang) of the hybrid model, no compensator (`fe-pure`, `fe-online`, ...).
     Fe,
@@ -88,14 +91,15 @@ impl ModelSpec<'_> {
                 lead_weights,
                 lead_stride,
                 lead_adapt_ticks,
+                specimen_dynamics,
             } => {
                 let (frame, lead) = lrx_params(
                     coeffs,
-                    k_corr_kn_per_mm,
-                    k_adapt_ticks,
+                    [k_corr_kn_per_mm, k_adapt_ticks],
                     lead_weights,
                     lead_stride,
                     lead_adapt_ticks,
+                    specimen_dynamics,
                 )?;
                 Model::Lrx(frame, lead)
             }
@@ -124,15 +128,20 @@ impl Model {
 }
 
 /// The LRX frame model and its lead filter, validated.
+/// `[k_corr, k_adapt_ticks]` as [`ModelSpec::Lrx`] names them.
 fn lrx_params(
     coeffs: &[f64],
-    k_corr_kn_per_mm: f64,
-    k_adapt_ticks: f64,
+    [k_corr_kn_per_mm, k_adapt_ticks]: [f64; 2],
     lead_weights: &[f64],
     lead_stride: usize,
     lead_adapt_ticks: f64,
+    [mass, damping]: [f64; 2],
 ) -> Result<(LrxParams, LeadParams), ModelError> {
-    let frame = LrxParams::from_slice(coeffs, k_corr_kn_per_mm, k_adapt_ticks)?;
+    let mut frame = LrxParams::from_slice(coeffs, k_corr_kn_per_mm, k_adapt_ticks)?;
+    // The frame ARX is identified at the controller's tick: its own derivatives use that step.
+    if mass != 0.0 || damping != 0.0 {
+        frame = frame.with_specimen_dynamics(mass, damping, DT_S)?;
+    }
     let weights: [f64; LEAD_TAPS] = lead_weights.try_into().map_err(|_| ModelError::Shape {
         what: "LRX lead weights",
         expected: LEAD_TAPS,
@@ -203,7 +212,6 @@ pub fn assemble(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::params::DT_S;
 
     const THETA: [f64; 6] = [0.0, 1e-7, 0.0, 0.0, 1.99, -0.99];
     /// Firmware keeps its spec in a `const` over `&'static` arrays.
@@ -223,6 +231,7 @@ mod tests {
             lead_weights: &lead,
             lead_stride: 2,
             lead_adapt_ticks: 0.0,
+            specimen_dynamics: [0.0; 2],
         };
         let (a, c) = assemble(&lrx, p, DT_S)?;
         assert!(matches!((a, c), (Analytical::Lrx(_), Compensator::Lead(_))));
@@ -269,6 +278,7 @@ mod tests {
             lead_weights: &[1.0; 7],
             lead_stride: 1,
             lead_adapt_ticks: 0.0,
+            specimen_dynamics: [0.0; 2],
         };
         assert!(matches!(
             lrx.validate(),

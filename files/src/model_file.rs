@@ -7,7 +7,8 @@
 //!  "rnn": {"hidden": H, "w_ih": [[2]; H], "w_hh": [[H]; H], "b_h": [H], "w_ho": [H], "b_o": x,
 //!          "input_mean": [2], "input_std": [2], "output_mean": x, "output_std": x}   (kind "rnn")
 //!  "lrx": {"coeffs": [9], "k_corr_kn_per_mm": x, "k_adapt_ticks": x, "lead_weights": [8],
-//!          "lead_stride": s, ["lead_adapt_ticks": x]}                                (kind "lrx")
+//!          "lead_stride": s, ["lead_adapt_ticks": x, "specimen_mass_kn_s2_per_mm": x,
+//!          "specimen_damping_kn_s_per_mm": x]}                                         (kind "lrx")
 //!  "training": {...provenance...}, "scores": {...}}
 //! ```
 //!
@@ -135,6 +136,13 @@ pub struct LrxWeights {
     /// written, so a model trained without adaptation keeps its old file byte for byte.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lead_adapt_ticks: Option<f64>,
+    /// The specimen's own moving mass removed from the measured force, prototype scale, kN·s²/mm
+    /// (≥ 0; absent: 0, the force as measured). From `rths identify`'s specimen fit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub specimen_mass_kn_s2_per_mm: Option<f64>,
+    /// The specimen's own damping removed from the measured force, prototype scale, kN·s/mm (≥ 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub specimen_damping_kn_s_per_mm: Option<f64>,
 }
 
 impl LrxWeights {
@@ -164,6 +172,26 @@ impl LrxWeights {
                 expected: LRX_MAX_STRIDE,
                 found: self.lead_stride,
             });
+        }
+        for (field, v) in [
+            (
+                "lrx.specimen_mass_kn_s2_per_mm",
+                self.specimen_mass_kn_s2_per_mm,
+            ),
+            (
+                "lrx.specimen_damping_kn_s_per_mm",
+                self.specimen_damping_kn_s_per_mm,
+            ),
+        ] {
+            if let Some(v) = v {
+                finite(field, &[v])?;
+                if v < 0.0 {
+                    return Err(ModelFileError::NonPositive {
+                        field: format!("{field} (>= 0)"),
+                        value: v,
+                    });
+                }
+            }
         }
         if let Some(t) = self.lead_adapt_ticks {
             finite("lrx.lead_adapt_ticks", &[t])?;

@@ -91,6 +91,7 @@ const SPEC: ModelSpec<'static> = ModelSpec::Lrx {
     lead_weights: &crate::gen::LRX_LEAD,
     lead_stride: crate::gen::LRX_LEAD_STRIDE,
     lead_adapt_ticks: crate::gen::LRX_LEAD_ADAPT,
+    specimen_dynamics: crate::gen::LRX_SPECIMEN_DYNAMICS,
 };
 
 /// The link checksum of the compiled-in model: an LR model's, else 0.

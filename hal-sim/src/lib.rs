@@ -26,6 +26,7 @@ pub mod rig;
 
 pub use fault::{Channel, Fault, FaultKind, FaultPlan};
 pub use params::{
-    BoucWen, ConfigError, Integration, PlantParams, Preset, Response, RigConfig, Sensors, Specimen,
+    BoucWen, ConfigError, Drift, Integration, PlantParams, Preset, Response, RigConfig, Sensors,
+    Specimen,
 };
 pub use rig::{SimError, VirtualRig};

@@ -265,6 +265,53 @@ pub struct RigConfig {
     pub integration: Integration,
     /// Controller step, s.
     pub dt_s: f64,
+    /// A slow drift of the actuator's dynamics during a run (default: none).
+    pub drift: Drift,
+}
+
+/// A bounded, slow drift of the actuator during a run: its servo-valve and actuator dynamics slow
+/// down by `fraction` (the time scale of β1, β2, a1β0 and a3 goes from 1 to `1 − fraction`,
+/// linearly over `ramp_ticks`, then holds). The DC gain is unchanged and the delay grows by
+/// about `1/(1 − fraction)`: an actuator warming up or a valve wearing, within one test. The
+/// specimen does not drift. Default: none.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Drift {
+    /// Fraction by which the actuator's speed drops (0: no drift; < 0.9).
+    pub fraction: f64,
+    /// Ticks over which it ramps (≥ 1 when `fraction` > 0).
+    pub ramp_ticks: u64,
+}
+
+impl Drift {
+    /// No drift.
+    pub const fn none() -> Self {
+        Self {
+            fraction: 0.0,
+            ramp_ticks: 0,
+        }
+    }
+
+    /// `fraction` over `ramp_ticks`.
+    pub const fn over(fraction: f64, ramp_ticks: u64) -> Self {
+        Self {
+            fraction,
+            ramp_ticks,
+        }
+    }
+
+    /// Drifting at all.
+    pub fn is_active(&self) -> bool {
+        self.fraction != 0.0
+    }
+
+    /// The actuator's speed factor at tick `tick` (1 at the start).
+    pub fn speed_at(&self, tick: u64) -> f64 {
+        if !self.is_active() {
+            return 1.0;
+        }
+        let progress = (tick as f64 / self.ramp_ticks.max(1) as f64).min(1.0);
+        1.0 - self.fraction * progress
+    }
 }
 
 impl RigConfig {
@@ -283,6 +330,7 @@ impl RigConfig {
             substeps: DEFAULT_SUBSTEPS,
             integration: Integration::ExactLinear,
             dt_s: rths_core::params::DT_S,
+            drift: Drift::none(),
         }
     }
 
@@ -308,6 +356,15 @@ impl RigConfig {
             if !(0.0..1.0).contains(&bw.post_yield_ratio) {
                 return Err(ConfigError::OutOfRange("Bouc-Wen post-yield ratio"));
             }
+        }
+        let d = self.drift;
+        if !d.fraction.is_finite() {
+            return Err(ConfigError::NotFinite("drift fraction"));
+        }
+        if !(0.0..0.9).contains(&d.fraction) || (d.is_active() && d.ramp_ticks == 0) {
+            return Err(ConfigError::OutOfRange(
+                "drift (fraction 0..0.9, ramp >= 1 tick)",
+            ));
         }
         let mut beta1 = NOMINAL_BETA1;
         let mut beta2 = NOMINAL_BETA2;
@@ -347,8 +404,12 @@ impl RigConfig {
             capacity_n: ACTUATOR_CAPACITY_KN * 1e3,
             integration: self.integration,
             zoh: None,
+            drift: d,
         };
-        if self.integration == Integration::ExactLinear && matches!(self.specimen, Specimen::Linear)
+        // A drifting plant changes every tick: RK4 (the exact map is for fixed parameters).
+        if self.integration == Integration::ExactLinear
+            && matches!(self.specimen, Specimen::Linear)
+            && !d.is_active()
         {
             params.zoh = Some(Zoh::new(&params, 1.0));
         }
@@ -389,8 +450,10 @@ pub struct PlantParams {
     pub(crate) velocity_m_s: f64,
     pub(crate) capacity_n: f64,
     pub(crate) integration: Integration,
-    /// The exact tick of the healthy linear plant (`None`: Bouc–Wen or [`Integration::Rk4`]).
+    /// The exact tick of the healthy linear plant (`None`: Bouc–Wen, [`Integration::Rk4`] or a
+    /// drift).
     pub(crate) zoh: Option<Zoh>,
+    pub(crate) drift: Drift,
 }
 
 /// Gain and phase of a frequency response.
@@ -403,6 +466,24 @@ pub struct Response {
 }
 
 impl PlantParams {
+    /// The drift of the run.
+    pub fn drift(&self) -> Drift {
+        self.drift
+    }
+
+    /// The plant as it is once its actuator runs at `speed` × its initial speed ([`Drift`]): β1,
+    /// a3 × speed, β2 × speed², a1β0 × speed³ (the actuator's time scale), no exact map. Used per
+    /// tick by a drifting plant, and by tests to read the drifted actuator's response.
+    pub fn with_actuator_speed(&self, speed: f64) -> Self {
+        let mut p = *self;
+        p.beta1 *= speed;
+        p.a3 *= speed;
+        p.beta2 *= speed * speed;
+        p.a1_beta0 *= speed * speed * speed;
+        p.zoh = None;
+        p
+    }
+
     /// The preset.
     pub fn preset(&self) -> Preset {
         self.preset

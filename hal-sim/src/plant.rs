@@ -29,11 +29,14 @@ const N: usize = 6;
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub(crate) struct PlantState {
     pub(crate) y: [f64; N],
+    /// Ticks advanced since rest (the clock of a [`crate::params::Drift`]).
+    pub(crate) ticks: u64,
 }
 
 impl PlantState {
     pub(crate) fn reset(&mut self) {
         self.y = [0.0; N];
+        self.ticks = 0;
     }
     pub(crate) fn disp_m(&self) -> f64 {
         self.y[3]
@@ -132,6 +135,14 @@ pub(crate) fn advance(
     m: Modifiers,
     zoh: Option<&Zoh>,
 ) -> bool {
+    let drifted;
+    let p = if p.drift.is_active() {
+        drifted = p.with_actuator_speed(p.drift.speed_at(s.ticks));
+        &drifted
+    } else {
+        p
+    };
+    s.ticks = s.ticks.saturating_add(1);
     let c = Ctx {
         p,
         r_m: p.gain * u_m,

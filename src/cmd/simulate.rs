@@ -64,6 +64,10 @@ pub struct Args {
     /// controller still knows only the nominal one.
     #[arg(long)]
     pub uncertainty: bool,
+    /// Slow the actuator's dynamics down by this fraction (0..0.9), linearly over the record: a
+    /// drifting actuator (`rths_hal_sim::Drift`; its delay grows by about 1/(1 − F)). Default 0.
+    #[arg(long, default_value_t = 0.0, value_name = "F")]
+    pub drift: f64,
     /// Rig file (`rths identify`) to check against the preset and board before running: refused if
     /// it is of another, or if the model names another rig file.
     #[arg(long, value_name = "RIG.json")]
@@ -210,6 +214,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut rig = scenario::rig_config(preset, specimen, f, args.seed);
     rig.uncertainty = args.uncertainty;
+    rig.drift = rths_hal_sim::Drift::over(args.drift, ag.len() as u64);
     // The evaluation knows the specimen the plant really has; a pure run has no plant, so its
     // reference stays the configured structure. The analytical parts keep F (`fe-pure` and
     // `fe-offline` are analyses of the structure as configured: nobody knows the draw before the test).

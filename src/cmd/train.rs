@@ -87,9 +87,10 @@ pub struct Args {
     #[arg(long, default_value_t = 2048.0)]
     pub k_adapt_ticks: f64,
     /// LRX time constant of the lead's online gain-and-delay correction, ticks (0: fixed lead;
-    /// else 32..=1e7). docs/lrx.md, "Online adaptation of the lead".
-    #[arg(long, default_value_t = 0.0)]
-    pub lead_adapt_ticks: f64,
+    /// else 32..=1e7). Default: 4096 (2 s) with --rig, else 0 (the shipped model's fixed lead).
+    /// docs/lrx.md, "Online adaptation of the lead".
+    #[arg(long)]
+    pub lead_adapt_ticks: Option<f64>,
     /// LRX relative singular-value cut-off of both least-squares fits (it drops the frame fit's
     /// least-determined direction, which the closed recursion does not tolerate well).
     #[arg(long, default_value_t = 1e-9)]
@@ -142,7 +143,11 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
     }
     cfg.lead_stride = args.lead_stride;
     cfg.k_adapt_ticks = args.k_adapt_ticks;
-    cfg.lead_adapt_ticks = args.lead_adapt_ticks;
+    cfg.lead_adapt_ticks = args.lead_adapt_ticks.unwrap_or(if args.rig.is_some() {
+        crate::train::lrx::RIG_LEAD_ADAPT_TICKS
+    } else {
+        0.0
+    });
     cfg.perturbation = args.perturbation;
     anyhow::ensure!(
         args.lrx_rcond.is_finite() && args.lrx_rcond > 0.0 && args.lrx_rcond < 1.0,
@@ -170,6 +175,7 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
             stride: lead.stride(),
             fit_nrmse_pct: rig.quality.lead_fit_nrmse_pct,
         });
+        cfg.specimen_dynamics = Some(crate::train::lrx::prototype_dynamics(&rig.specimen_fit));
         let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
         rig_identity = Some(format!(
             "{} {} {}",

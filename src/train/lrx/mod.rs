@@ -48,6 +48,21 @@ pub const DEFAULT_TRAIN_MOTIONS: [(&str, f64); 2] = [("northridge", 0.5), ("loma
 /// 1, 398 mm/s, exceeds the actuator's; ≤ 0.851 fits).
 pub const DEFAULT_TEST_MOTIONS: [(&str, f64); 2] = [("el-centro", 1.0), ("kobe", 0.75)];
 
+/// Time constant of the lead's online correction in a model trained on a rig file (`rths train lrx
+/// --rig`), ticks: 2 s at 2048 Hz, a few periods of the structure's response, short against a
+/// drift (docs/lrx.md, "Online adaptation of the lead", has the comparison).
+pub const RIG_LEAD_ADAPT_TICKS: f64 = 4096.0;
+
+/// The identified specimen's moving mass and damping (specimen scale) at prototype brace scale,
+/// [kN·s²/mm, kN·s/mm]: a force `m·ẍ` on the load cell is `force_scale·m·ẍ` in the prototype, with
+/// `ẍ` scaled as the displacement. A negative estimate (noise around a negligible value) is 0.
+pub fn prototype_dynamics(fit: &crate::identify::estimate::SpecimenFit) -> [f64; 2] {
+    let s = SpecimenScale::default();
+    let per_mm = s.specimen_disp_mm(1.0);
+    [fit.mass_kn_s2_per_mm, fit.damping_kn_s_per_mm]
+        .map(|v| s.prototype_force_kn(v.max(0.0) * per_mm))
+}
+
 /// Settings of an LRX training run.
 #[derive(Debug, Clone)]
 pub struct LrxConfig {
@@ -78,6 +93,10 @@ pub struct LrxConfig {
     /// Time constant of the lead's online gain-and-delay correction, ticks (0: fixed lead; the
     /// model file then has no `lead_adapt_ticks` field, as before the adaptation existed).
     pub lead_adapt_ticks: f64,
+    /// The specimen's own moving mass and damping to remove from the measured force, prototype
+    /// scale (kN·s²/mm, kN·s/mm), e.g. identified on the rig; `None`: the force as measured (the
+    /// model file then has no such fields).
+    pub specimen_dynamics: Option<[f64; 2]>,
 }
 
 /// A lead filter fitted elsewhere.
@@ -117,6 +136,7 @@ impl LrxConfig {
             seed: 1,
             given_lead: None,
             lead_adapt_ticks: 0.0,
+            specimen_dynamics: None,
         })
     }
 }
@@ -261,6 +281,8 @@ pub fn train(cfg: &LrxConfig) -> Result<LrxTraining, TrainError> {
             lead_weights: lead_weights.to_vec(),
             lead_stride: s,
             lead_adapt_ticks: (cfg.lead_adapt_ticks != 0.0).then_some(cfg.lead_adapt_ticks),
+            specimen_mass_kn_s2_per_mm: cfg.specimen_dynamics.map(|d| d[0]),
+            specimen_damping_kn_s_per_mm: cfg.specimen_dynamics.map(|d| d[1]),
         },
         PAPER_DELAY_STEPS,
         DT_S,
