@@ -7,6 +7,12 @@
 //! the truth: the fair reference of the drawn specimen (`study::reference_for_rig`).
 #![cfg(feature = "sim")]
 
+mod common;
+use common::*;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
 use rayon::prelude::*;
 use rths::identify::{identify_virtual, IdentifyConfig};
 use rths::model_file::ModelFile;
@@ -309,4 +315,253 @@ fn adaptation_table_benchmark() {
 #[ignore]
 fn adaptation_table_unr_compact() {
     table(Preset::UnrCompact, draws(), adapt_ticks(), drift());
+}
+
+/// `rths identify` then `rths train lrx --rig` on a preset's nominal rig (seed 1), in `dir`:
+/// the model file, as a lab would make it.
+fn rig_model(dir: &Path, preset: &str) -> ModelFile {
+    let rig = dir.join("rig.json");
+    let model = dir.join("lrx.json");
+    let o = Command::new(env!("CARGO_BIN_EXE_rths"))
+        .args(["identify", "--preset", preset, "--out"])
+        .arg(&rig)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = Command::new(env!("CARGO_BIN_EXE_rths"))
+        .args(["train", "lrx", "--quiet", "--rig"])
+        .arg(&rig)
+        .arg("--out")
+        .arg(&model)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    ModelFile::load(&model).unwrap()
+}
+
+/// El Centro's first `seconds` at `scale`.
+fn el_centro(scale: f64, seconds: f64) -> Vec<f64> {
+    let mut ag = GroundMotion::el_centro().scaled(scale).resample_mm_s2(DT_S);
+    ag.truncate((seconds / DT_S) as usize);
+    ag
+}
+
+/// A rig model adapts on a plant it was not identified on, through a drift: identified on the
+/// nominal `benchmark` rig, run on a drawn rig (seed 7) whose actuator slows by 30% over the run.
+/// The fixed lead's tracking degrades with the drift; the adapted one holds the goal.
+#[test]
+fn adaptation_holds_the_goal_on_another_plant_through_a_drift() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = rig_model(dir.path(), "benchmark");
+    let w = file.lrx.as_ref().unwrap();
+    assert_eq!(
+        w.lead_adapt_ticks,
+        Some(rths::train::lrx::RIG_LEAD_ADAPT_TICKS)
+    );
+    assert!(w.specimen_mass_kn_s2_per_mm.unwrap() > 0.0);
+    let (frame, lead) = rths::models::lrx_params(&file).unwrap();
+    assert!(lead.adaptation().is_some());
+    let ag = el_centro(0.8, 30.0);
+    let mut rig = rig_config(Preset::Benchmark, Specimen::Linear, 1.0, 7);
+    rig.uncertainty = true;
+    rig.drift = Drift::over(0.3, ag.len() as u64);
+    let (reference, _) = rths::study::reference_for_rig(&ag, &rig, 1.0).unwrap();
+    let fixed_lead = LeadParams::new(*lead.weights(), lead.stride()).unwrap();
+    let fixed = run(
+        ScenarioId::LrxOnline,
+        &ag,
+        &reference,
+        rig,
+        1.0,
+        Some((frame, fixed_lead)),
+    );
+    let adaptive = run(
+        ScenarioId::LrxOnline,
+        &ag,
+        &reference,
+        rig,
+        1.0,
+        Some((frame, lead)),
+    );
+    let meas = |r: &ScenarioReport| r.nrmse_measured_pct.unwrap();
+    println!(
+        "drift 0.3, draw 7: measured NRMSE fixed {:.3}% adaptive {:.3}%; tracking J2 {:.3}% vs {:.3}%",
+        meas(&fixed),
+        meas(&adaptive),
+        fixed.j2_target_pct.unwrap(),
+        adaptive.j2_target_pct.unwrap()
+    );
+    assert!(meas(&adaptive) < 1.0, "{adaptive:?}");
+    assert!(meas(&adaptive) < 0.6 * meas(&fixed));
+    assert!(adaptive.j2_target_pct.unwrap() < 0.5 * fixed.j2_target_pct.unwrap());
+}
+
+/// The drift slows the actuator as documented (delay × ~1/(1 − F) at the end, DC gain kept), and
+/// no drift is the plant as before, bit for bit.
+#[test]
+fn the_drift_slows_the_actuator_and_is_off_by_default() {
+    let rig = rig_config(Preset::Benchmark, Specimen::Linear, 1.0, 1);
+    assert_eq!(rig.drift, Drift::none());
+    let p = rig.build().unwrap();
+    let delay_ms =
+        |q: &rths_hal_sim::PlantParams| -q.frequency_response(0.5).phase_deg / (360.0 * 0.5) * 1e3;
+    let slowed = p.with_actuator_speed(0.7);
+    let (d0, d1) = (delay_ms(&p), delay_ms(&slowed));
+    println!("benchmark delay {d0:.2} ms, after a 30% drift {d1:.2} ms");
+    assert!(d1 > 1.25 * d0 && d1 < 1.5 * d0, "{d0} -> {d1}");
+    let g = |q: &rths_hal_sim::PlantParams| q.frequency_response(0.01).gain;
+    assert!((g(&slowed) / g(&p) - 1.0).abs() < 1e-3);
+    // Default runs are unchanged: same samples as a rig built without touching the drift field.
+    let mut a = rths_hal_sim::VirtualRig::new(p);
+    let mut drifting = rig;
+    drifting.drift = Drift::over(0.3, 1000);
+    assert!(drifting.build().unwrap().drift().is_active());
+    let mut b = rths_hal_sim::VirtualRig::new(drifting.build().unwrap());
+    use rths_core::hal::{Actuator, Daq};
+    let mut differ = false;
+    for k in 0..2000 {
+        let u = (k as f64 * 0.01).sin();
+        a.command(u).unwrap();
+        b.command(u).unwrap();
+        a.advance_tick();
+        b.advance_tick();
+        differ |= a.read().unwrap() != b.read().unwrap();
+    }
+    assert!(differ, "a 30% drift changed nothing");
+    let mut bad = rig;
+    bad.drift = Drift::over(0.95, 10);
+    assert!(bad.build().is_err());
+    bad.drift = Drift::over(0.2, 0);
+    assert!(bad.build().is_err());
+}
+
+/// A model file written before the adaptation (the shipped one) loads to a fixed lead and the
+/// force as measured, and is written back without the new fields; bad new fields are refused by
+/// name.
+#[test]
+fn an_old_model_file_behaves_as_before_and_bad_fields_are_refused() {
+    let text = include_str!("../data/models/lrx.json");
+    let m = ModelFile::from_json(text).unwrap();
+    let (frame, lead) = rths::models::lrx_params(&m).unwrap();
+    assert!(lead.adaptation().is_none());
+    assert_eq!(frame.specimen_dynamics(), (0.0, 0.0));
+    let again = m.to_json().unwrap();
+    assert!(!again.contains("lead_adapt_ticks") && !again.contains("specimen_mass"));
+    for (field, value, named) in [
+        ("lead_adapt_ticks", "5.0", "lrx.lead_adapt_ticks"),
+        (
+            "specimen_mass_kn_s2_per_mm",
+            "-1.0",
+            "lrx.specimen_mass_kn_s2_per_mm",
+        ),
+        (
+            "specimen_damping_kn_s_per_mm",
+            "-0.5",
+            "lrx.specimen_damping_kn_s_per_mm",
+        ),
+    ] {
+        let bad = text.replacen(
+            "\"lead_stride\": 6",
+            &format!("\"lead_stride\": 6, \"{field}\": {value}"),
+            1,
+        );
+        assert_ne!(bad, text);
+        let e = ModelFile::from_json(&bad)
+            .and_then(|f| f.validate().map(|_| f))
+            .unwrap_err();
+        assert!(e.to_string().contains(named), "{e}");
+    }
+}
+
+/// The adaptive LRX (a `rths train lrx --rig` model) in the firmware: the same command as the host,
+/// within the timing budget, 0 overruns and faults. Needs QEMU (skipped loudly without it).
+#[test]
+fn adaptive_lrx_firmware_matches_the_host_and_fits_the_budget() {
+    if qemu_missing("adaptive LRX firmware test") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let file = rig_model(dir.path(), "unr-compact");
+    let status = Command::new(env!("CARGO"))
+        .current_dir(firmware_dir())
+        .args([
+            "build",
+            "--release",
+            "--no-default-features",
+            "--features",
+            "board-qemu,model-lrx",
+        ])
+        .env_remove("CARGO_TARGET_DIR")
+        .env("RTHS_LRX_MODEL", dir.path().join("lrx.json"))
+        .status()
+        .unwrap();
+    assert!(
+        status.success(),
+        "firmware build (adaptive model-lrx) failed"
+    );
+    let elf = dir.path().join("rths-firmware-lrx-adaptive.elf");
+    std::fs::copy(
+        firmware_dir().join("target/thumbv7em-none-eabihf/release/rths-firmware"),
+        &elf,
+    )
+    .unwrap();
+    let cfg = std::fs::read_to_string(firmware_dir().join(".cargo/config.toml")).unwrap();
+    let line = cfg
+        .lines()
+        .find(|l| l.trim_start().starts_with("runner"))
+        .unwrap();
+    let argv: Vec<&str> = line.split('"').nth(1).unwrap().split_whitespace().collect();
+    let run_dir = tempfile::tempdir().unwrap();
+    let mut child = Command::new(argv[0])
+        .args(&argv[1..])
+        .arg(&elf)
+        .current_dir(run_dir.path())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    let exit = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if start.elapsed() > Duration::from_secs(300) {
+            let _ = child.kill();
+            panic!("QEMU did not finish within 300 s");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut out = String::new();
+    std::io::Read::read_to_string(&mut child.stdout.take().unwrap(), &mut out).unwrap();
+    let result = out
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("RESULT "))
+        .unwrap_or_else(|| panic!("no RESULT line in:\n{out}"));
+    let r: serde_json::Value = serde_json::from_str(result).unwrap();
+    println!("{r}");
+    assert!(exit.success(), "{r}");
+    assert_eq!(r["ticks"], 81_900);
+    assert_eq!(r["overruns"], 0);
+    assert_eq!(r["faults"], 0);
+    let max = r["instr_per_tick"]["max"].as_f64().unwrap();
+    let share = max * CYCLES_PER_INSTR / CPU_HZ * 2048.0;
+    println!(
+        "adaptive lrx firmware: max {max} instructions per tick = {:.2}% of the tick",
+        share * 100.0
+    );
+    assert!(share <= MAX_TICK_SHARE, "{max} instructions");
+    let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let reference = rths::study::reference_for(&ag, Specimen::Linear, 1.0).unwrap();
+    let host = run(
+        ScenarioId::LrxOnline,
+        &ag,
+        &reference,
+        rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        1.0,
+        Some(rths::models::lrx_params(&file).unwrap()),
+    );
+    let (h, f) = (host.nrmse_pct.unwrap(), r["nrmse_pct"].as_f64().unwrap());
+    println!("NRMSE host {h} % vs firmware {f} %");
+    assert!((h - f).abs() < 1e-9, "host {h} vs firmware {f}");
 }

@@ -123,9 +123,9 @@ impl Lead {
                 self.compensate(target_mm)
             }
             Some(p) => {
-                let (v, next) = self.adapt.correct(&p, target_mm, measured_mm)?;
+                let (v, step) = self.adapt.correct(&p, target_mm, measured_mm)?;
                 let u = self.compensate(v)?;
-                self.adapt = next;
+                self.adapt.commit(step);
                 Ok(u)
             }
         }

@@ -48,8 +48,9 @@ pub const LEAD_ADAPT_MIN_VEL_MM_PER_TICK: f32 = 1.0 / 2048.0;
 /// Largest |correlation| of the two regressors at which the fit is used.
 pub const LEAD_ADAPT_MAX_CORRELATION: f32 = 0.99;
 
-/// Ring of the measured displacement and of the lead input (power of two > 2·span + 1).
-const RING: usize = (2 * LEAD_ADAPT_SPAN + 2).next_power_of_two();
+/// Ring of the measured displacement and of the lead input: the last 2·span of each (a power of
+/// two, so the index wraps by a mask).
+const RING: usize = (2 * LEAD_ADAPT_SPAN).next_power_of_two();
 
 /// Validated settings of the adaptation: its time constant.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -132,6 +133,19 @@ fn approach(v: f32, goal: f32, step: f32, [lo, hi]: [f32; 2]) -> f32 {
     next.max(lo).min(hi)
 }
 
+/// What one accepted tick changes in a [`LeadAdaptState`] (small: the rings are written in place by
+/// [`LeadAdaptState::commit`], never copied, which costs the MCU more than the arithmetic).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct LeadAdaptStep {
+    gain: f32,
+    delay_ticks: f32,
+    sums: [f32; 5],
+    updated: bool,
+    measured: f32,
+    input: f32,
+    target: f32,
+}
+
 impl LeadAdaptState {
     fn at(ring: &[f32; RING], newest: usize, back: usize) -> f32 {
         ring.get(newest.wrapping_sub(back) & (RING - 1))
@@ -140,29 +154,24 @@ impl LeadAdaptState {
     }
 
     /// The lead input for this tick from the target and the measured displacement (mm), and the
-    /// next state (committed by [`Self::commit`] only once the lead accepted the input, so a refused
-    /// tick leaves everything as it was). Refuses non-finite or out-of-range inputs.
+    /// change to the state, applied by [`Self::commit`] only once the lead accepted the input (so a
+    /// refused tick leaves everything as it was). Refuses non-finite or out-of-range inputs.
     pub(super) fn correct(
         &self,
         p: &LeadAdaptParams,
         target_mm: f64,
         measured_mm: f64,
-    ) -> Result<(f64, Self), InputError> {
+    ) -> Result<(f64, LeadAdaptStep), InputError> {
         let xt = input(target_mm, "target_mm")? as f32;
         let xm = input(measured_mm, "measured_mm")? as f32;
-        let mut s = *self;
-        s.newest = (self.newest + 1) & (RING - 1);
-        if let Some(slot) = s.x_ring.get_mut(s.newest) {
-            *slot = xm;
-        }
-        // Regression sample at j = k − m: v(j − 1) against x_m(j) and its centered velocity.
+        // Regression sample at j = k − m: v(j − 1) against x_m(j) and its centered velocity. The
+        // rings' newest entries are x_m(k − 1) and v(k − 1) (this tick's go in at commit).
         let m = LEAD_ADAPT_SPAN;
-        let x = Self::at(&s.x_ring, s.newest, m);
-        let xd = (xm - Self::at(&s.x_ring, s.newest, 2 * m)) / (2 * m) as f32;
-        // v_ring's newest entry is v(k − 1) (this tick's v is stored below).
-        let y = Self::at(&s.v_ring, self.newest, m);
+        let x = Self::at(&self.x_ring, self.newest, m - 1);
+        let xd = (xm - Self::at(&self.x_ring, self.newest, 2 * m - 1)) * (0.5 / m as f32);
+        let y = Self::at(&self.v_ring, self.newest, m);
         let l = p.forgetting;
-        let [sxx, sxd, sdd, svx, svd] = s.sums;
+        let [sxx, sxd, sdd, svx, svd] = self.sums;
         let sums = [
             l * sxx + x * x,
             l * sxd + x * xd,
@@ -173,30 +182,55 @@ impl LeadAdaptState {
         if !sums.iter().all(|v| v.is_finite()) {
             return Err(InputError::NotFinite("lead adaptation sum"));
         }
-        s.sums = sums;
         let [sxx, sxd, sdd, svx, svd] = sums;
         let det = sxx * sdd - sxd * sxd;
         let excited = sxx > p.min_sxx && sdd > p.min_sdd;
         let separable =
             det > (1.0 - LEAD_ADAPT_MAX_CORRELATION * LEAD_ADAPT_MAX_CORRELATION) * sxx * sdd;
+        let (mut gain, mut delay_ticks, mut updated) = (self.gain, self.delay_ticks, false);
         if excited && separable {
             let g = (svx * sdd - svd * sxd) / det;
             let d = (svd * sxx - svx * sxd) / det;
             if g.is_finite() && d.is_finite() {
                 let [sg, sd] = LEAD_ADAPT_MAX_STEP;
-                s.gain = approach(s.gain, g, sg, LEAD_ADAPT_GAIN_BOUNDS);
-                s.delay_ticks = approach(s.delay_ticks, d, sd, LEAD_ADAPT_DELAY_BOUNDS_TICKS);
-                s.updates = s.updates.saturating_add(1);
+                gain = approach(gain, g, sg, LEAD_ADAPT_GAIN_BOUNDS);
+                delay_ticks = approach(delay_ticks, d, sd, LEAD_ADAPT_DELAY_BOUNDS_TICKS);
+                updated = true;
             }
         }
-        let v = s.gain * xt + s.delay_ticks * (xt - self.last_target);
+        let v = gain * xt + delay_ticks * (xt - self.last_target);
         if !v.is_finite() {
             return Err(InputError::NotFinite("lead adaptation output"));
         }
-        if let Some(slot) = s.v_ring.get_mut(s.newest) {
-            *slot = v;
+        Ok((
+            f64::from(v),
+            LeadAdaptStep {
+                gain,
+                delay_ticks,
+                sums,
+                updated,
+                measured: xm,
+                input: v,
+                target: xt,
+            },
+        ))
+    }
+
+    /// Apply an accepted tick.
+    pub(super) fn commit(&mut self, step: LeadAdaptStep) {
+        self.newest = (self.newest + 1) & (RING - 1);
+        if let Some(slot) = self.x_ring.get_mut(self.newest) {
+            *slot = step.measured;
         }
-        s.last_target = xt;
-        Ok((f64::from(v), s))
+        if let Some(slot) = self.v_ring.get_mut(self.newest) {
+            *slot = step.input;
+        }
+        self.gain = step.gain;
+        self.delay_ticks = step.delay_ticks;
+        self.sums = step.sums;
+        if step.updated {
+            self.updates = self.updates.saturating_add(1);
+        }
+        self.last_target = step.target;
     }
 }

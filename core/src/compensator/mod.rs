@@ -86,4 +86,6 @@ impl Compensator {
 }
 
 #[cfg(test)]
+mod lead_adapt_tests;
+#[cfg(test)]
 mod tests;

@@ -192,8 +192,12 @@ fn frame_rows(
 }
 
 /// `lrx-pure`: the model on its own force `k_b·d̂` (fed back as measured at d̂, so the correction
-/// vanishes), no actuator; NRMSE vs the pure FE brace deformation, %.
+/// vanishes), no actuator; NRMSE vs the pure FE brace deformation, %. The frame model alone: a
+/// specimen mass and damping removal, if the model has one, is off (that force has none).
 pub fn pure_nrmse_pct(params: LrxParams, ag_mm_s2: &[f64]) -> Result<f64, TrainError> {
+    let params = params
+        .with_specimen_dynamics(0.0, 0.0, DT_S)
+        .map_err(|e| TrainError::Setting(format!("LRX parameters: {e}")))?;
     let proto = Prototype::paper();
     let reference = super::data::pure_response(&proto, ag_mm_s2, DT_S)?.brace_disp_mm;
     let mut m = Lrx::new(params);
