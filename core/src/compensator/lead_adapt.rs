@@ -18,9 +18,10 @@
 //! the two regressors are nearly collinear ([`LEAD_ADAPT_MAX_CORRELATION`]). The controller only
 //! runs the compensator while the supervisor is `Running`, so it is frozen outside a test too.
 //!
-//! Single precision (the MCU's FPU): 7 sums, a 2×2 solve and 12 multiply-adds per tick. The sums
-//! are of order `N·x²` and `N·ẋ²` and the two regressors are nearly orthogonal for an oscillation,
-//! so the solve loses no accuracy that matters (b's rounding ≲ 1e-5).
+//! Single precision (the MCU's FPU): 5 running sums and a 2×2 solve per tick. The two regressors
+//! are nearly orthogonal for an oscillation, so the solve does not amplify the sums' rounding
+//! (it would for the 8 lead weights, whose normal matrix f32 cannot hold: docs/design.md §6). On the
+//! firmware this stage and the specimen-dynamics removal cost ~700 instructions per tick.
 
 use super::input;
 use crate::filter::InputError;
