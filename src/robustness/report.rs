@@ -136,7 +136,10 @@ pub struct JobJson<'a> {
     pub identification_refused: Option<&'a str>,
 }
 
-/// Median of a non-empty slice (sorted in place).
+/// Unstable runs listed one by one in `report.md` (all are in `runs.csv`).
+const MAX_LISTED: usize = 40;
+
+/// Median (`None` if empty); sorts the slice in place.
 fn median(v: &mut [f64]) -> Option<f64> {
     v.sort_by(f64::total_cmp);
     let n = v.len();
@@ -409,6 +412,47 @@ pub fn markdown(r: &Robustness, j: &RobustnessJson<'_>) -> String {
             opt(x.j4_max_pct, 2)
         );
     }
+    let _ = writeln!(s, "\n### Per record\n");
+    let _ = writeln!(
+        s,
+        "Measured NRMSE median / max %, over every specimen and draw (stable runs; runs stable).\n"
+    );
+    let _ = writeln!(
+        s,
+        "| preset | record | {} |",
+        CONTROLLERS.map(|c| c.to_string()).join(" | ")
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|");
+    for preset in &r.presets {
+        for rec in &r.records {
+            let cells: Vec<String> = CONTROLLERS
+                .iter()
+                .map(|id| {
+                    let name = id.to_string();
+                    let runs: Vec<&RunResult> = r
+                        .jobs
+                        .iter()
+                        .filter(|x| &x.preset == preset)
+                        .flat_map(|x| x.runs.iter())
+                        .filter(|x| x.record == rec.name && x.controller == name)
+                        .collect();
+                    let mut v: Vec<f64> = runs
+                        .iter()
+                        .filter(|x| x.stable)
+                        .filter_map(|x| x.nrmse_measured_pct)
+                        .collect();
+                    let stable = runs.iter().filter(|x| x.stable).count();
+                    format!(
+                        "{} / {} ({stable} of {})",
+                        opt(median(&mut v), 2),
+                        opt(v.last().copied(), 2),
+                        runs.len()
+                    )
+                })
+                .collect();
+            let _ = writeln!(s, "| {preset} | {} | {} |", rec.name, cells.join(" | "));
+        }
+    }
     let _ = writeln!(s, "\n## Goals of the identified metamodel (`lrx-online`)\n");
     let _ = writeln!(
         s,
@@ -465,6 +509,37 @@ pub fn markdown(r: &Robustness, j: &RobustnessJson<'_>) -> String {
             spread_cell(d.specimen_stiffness_ratio, 4),
             spread_cell(d.identified_delay_ms, 2),
             spread_cell(d.ats_a1_s, 5)
+        );
+    }
+    let unstable: Vec<String> = r
+        .jobs
+        .iter()
+        .flat_map(|x| {
+            x.runs.iter().filter(|run| !run.stable).map(move |run| {
+                format!(
+                    "- `{}` on `{}`, seed {}, {}, {}: {}",
+                    run.controller,
+                    x.preset,
+                    x.seed,
+                    x.case,
+                    run.record,
+                    run.stop_reason.as_deref().unwrap_or("stopped")
+                )
+            })
+        })
+        .collect();
+    let _ = writeln!(s, "\n## Unstable runs\n");
+    if unstable.is_empty() {
+        let _ = writeln!(s, "None.");
+    }
+    for line in unstable.iter().take(MAX_LISTED) {
+        let _ = writeln!(s, "{line}");
+    }
+    if unstable.len() > MAX_LISTED {
+        let _ = writeln!(
+            s,
+            "- … and {} more (`runs.csv`)",
+            unstable.len() - MAX_LISTED
         );
     }
     let refused = r
