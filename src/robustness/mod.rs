@@ -50,12 +50,9 @@ const MORGAN_HILL_CSV: &str = include_str!("../../data/vrths_benchmark/morgan.cs
 /// The specimen stiffness factors of the linear cases.
 pub const FACTORS: [f64; 3] = [0.7, 1.0, 1.3];
 
-/// The controllers compared, in report order.
-pub const CONTROLLERS: [ScenarioId; 3] = [
-    ScenarioId::LrOnline,
-    ScenarioId::FeOnlineAts,
-    ScenarioId::LrxOnline,
-];
+/// The controllers compared, in report order: the specimen sweep's `lr-online`, `fe-online-ats`,
+/// `lrx-online`.
+pub const CONTROLLERS: [ScenarioId; 3] = sweep::SCENARIOS;
 
 /// Draws of `--quick` (a smoke run for the tests).
 pub const QUICK_DRAWS: usize = 2;

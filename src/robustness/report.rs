@@ -415,7 +415,8 @@ pub fn markdown(r: &Robustness, j: &RobustnessJson<'_>) -> String {
     let _ = writeln!(s, "\n### Per record\n");
     let _ = writeln!(
         s,
-        "Measured NRMSE median / max %, over every specimen and draw (stable runs; runs stable).\n"
+        "Measured NRMSE median / max %, over every specimen and draw (over the stable runs; in \
+         brackets: stable runs of all).\n"
     );
     let _ = writeln!(
         s,
