@@ -12,6 +12,7 @@ pub mod model_file;
 pub mod models;
 pub mod motion;
 pub mod plot;
+pub mod robustness;
 pub mod scenario;
 pub mod soak;
 pub mod study;

@@ -31,6 +31,8 @@ enum Command {
     CheckModel(cmd::check_model::Args),
     /// Characterize a rig from its measured signals: delay, gain/phase, lead filter, stiffness.
     Identify(cmd::identify::Args),
+    /// Robustness study: Monte-Carlo over the plant's uncertainty, identified rig per draw.
+    Robustness(cmd::robustness::Args),
     /// Drive and record a test on a board over the command link (serial port, QEMU socket).
     Link(cmd::link::Args),
 }
@@ -47,6 +49,7 @@ fn main() -> std::process::ExitCode {
         Command::CheckModel(a) => cmd::check_model::run(a),
         Command::Link(a) => cmd::link::run(a),
         Command::Identify(a) => cmd::identify::run(a),
+        Command::Robustness(a) => cmd::robustness::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -9,7 +9,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-use rths_core::compensator::LeadParams;
+use rths_core::compensator::{Ats, Compensator, LeadParams};
 use rths_core::control::{ControlConfig, Controller, FeedbackSource};
 use rths_core::hal::{Actuator, Daq, Error as _, Sample};
 use rths_core::metamodel::{LrParams, LrxParams, ModelError, RnnParams};
@@ -241,6 +241,16 @@ impl History {
         }
     }
 
+    fn push(&mut self, r: &TickRow) {
+        self.time_s.push(r.time_s);
+        self.ground_accel_mm_s2.push(r.ground_accel_mm_s2);
+        self.reference_mm.push(r.reference_mm);
+        self.target_mm.push(r.target_mm);
+        self.command_mm.push(r.command_mm);
+        self.measured_mm.push(r.measured_mm);
+        self.measured_force_kn.push(r.measured_force_kn);
+    }
+
     /// Number of rows.
     pub fn len(&self) -> usize {
         self.time_s.len()
@@ -358,19 +368,38 @@ fn model(setup: &ScenarioSetup<'_>) -> Result<Model, ScenarioError> {
 
 /// Run one scenario to the end of the record and compute its figures.
 pub fn run(setup: &ScenarioSetup<'_>) -> Result<ScenarioRun, ScenarioError> {
-    let (history, stop) = simulate(setup)?;
-    let report = figures(setup.id, &history, stop);
-    Ok(ScenarioRun { report, history })
+    run_with_ats_start(setup, None)
+}
+
+/// [`run`], the ATS of `fe-online-ats` starting from `ats_initial` = [a0, a1 (s), a2 (s²)] if
+/// given (a rig file's identified values, `rths identify`) instead of the paper's
+/// [1, 28 ticks, …]. The other scenarios have no ATS and ignore it.
+pub fn run_with_ats_start(
+    setup: &ScenarioSetup<'_>,
+    ats_initial: Option<[f64; 3]>,
+) -> Result<ScenarioRun, ScenarioError> {
+    let mut h = History::with_capacity(setup.ground_accel_mm_s2.len());
+    let stop = closed_loop(setup, &Injection::default(), ats_initial, |r| h.push(r))?;
+    let report = figures(setup.id, &h, stop);
+    Ok(ScenarioRun { report, history: h })
 }
 
 /// The figures of [`run`] without its history: the loop keeps only the series the figures read
 /// (target, command, measured), a third of the memory the whole history would touch.
 pub fn report(setup: &ScenarioSetup<'_>) -> Result<ScenarioReport, ScenarioError> {
+    report_with_ats_start(setup, None)
+}
+
+/// [`report`] with the ATS start of [`run_with_ats_start`].
+pub fn report_with_ats_start(
+    setup: &ScenarioSetup<'_>,
+    ats_initial: Option<[f64; 3]>,
+) -> Result<ScenarioReport, ScenarioError> {
     let n = setup.ground_accel_mm_s2.len();
     let (mut target, mut command) = (Vec::with_capacity(n), Vec::with_capacity(n));
     // Runs without the actuator measure nothing; their figures never read it.
     let mut measured = Vec::with_capacity(if setup.id.uses_rig() { n } else { 0 });
-    let stop = simulate_observed(setup, &Injection::default(), |r| {
+    let stop = closed_loop(setup, &Injection::default(), ats_initial, |r| {
         target.push(r.target_mm);
         command.push(r.command_mm);
         if setup.id.uses_rig() {
@@ -436,15 +465,7 @@ pub struct TickRow {
 /// supervisor's stop (reason, time), if any.
 pub fn simulate(setup: &ScenarioSetup<'_>) -> Result<(History, Stop), ScenarioError> {
     let mut h = History::with_capacity(setup.ground_accel_mm_s2.len());
-    let stop = simulate_observed(setup, &Injection::default(), |r| {
-        h.time_s.push(r.time_s);
-        h.ground_accel_mm_s2.push(r.ground_accel_mm_s2);
-        h.reference_mm.push(r.reference_mm);
-        h.target_mm.push(r.target_mm);
-        h.command_mm.push(r.command_mm);
-        h.measured_mm.push(r.measured_mm);
-        h.measured_force_kn.push(r.measured_force_kn);
-    })?;
+    let stop = simulate_observed(setup, &Injection::default(), |r| h.push(r))?;
     Ok((h, stop))
 }
 
@@ -453,6 +474,16 @@ pub fn simulate(setup: &ScenarioSetup<'_>) -> Result<(History, Stop), ScenarioEr
 pub fn simulate_observed(
     setup: &ScenarioSetup<'_>,
     injection: &Injection,
+    observe: impl FnMut(&TickRow),
+) -> Result<Stop, ScenarioError> {
+    closed_loop(setup, injection, None, observe)
+}
+
+/// [`simulate_observed`] with the ATS start of [`run_with_ats_start`].
+fn closed_loop(
+    setup: &ScenarioSetup<'_>,
+    injection: &Injection,
+    ats_initial: Option<[f64; 3]>,
     mut observe: impl FnMut(&TickRow),
 ) -> Result<Stop, ScenarioError> {
     let n = setup.ground_accel_mm_s2.len();
@@ -494,11 +525,16 @@ pub fn simulate_observed(
             Limits::unbounded()
         },
     )?;
-    let (analytical, compensator) = model(setup)?.assemble(proto, DT_S).map_err(|e| match e {
-        ModelError::Param(e) => ScenarioError::Param(e),
-        // The setup's parameters are validated already; only the FE build or ATS can fail.
-        other => ScenarioError::Model(other),
-    })?;
+    let (analytical, mut compensator) =
+        model(setup)?.assemble(proto, DT_S).map_err(|e| match e {
+            ModelError::Param(e) => ScenarioError::Param(e),
+            // The setup's parameters are validated already; only the FE build or ATS can fail.
+            other => ScenarioError::Model(other),
+        })?;
+    if let (Some(initial), Compensator::Ats(ats)) = (ats_initial, &compensator) {
+        // The model's ATS (its bounds, window, filter), only starting elsewhere.
+        compensator = Compensator::Ats(Ats::new(ats.params().with_initial(initial)?));
+    }
     let mut ctl = Controller::new(config, analytical, compensator);
     let mut rig = if id.uses_rig() {
         Some(VirtualRig::with_faults(

@@ -7,5 +7,6 @@ pub mod identify;
 pub mod link;
 pub mod plant;
 pub mod reproduce;
+pub mod robustness;
 pub mod simulate;
 pub mod train;

@@ -4,10 +4,11 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use rths_core::params::DT_S;
-use rths_hal_sim::{BoucWen, Preset, Specimen};
+use rths_hal_sim::{BoucWen, Preset, RigConfig, Specimen};
 
 use crate::cmd::analyze::load_motion;
 use crate::cmd::plant::{PresetArg, SpecimenArg};
+use crate::identify::RigFile;
 use crate::model_file::{ModelFile, ModelKind};
 use crate::models;
 use crate::scenario::{self, ScenarioId, ScenarioSetup};
@@ -68,8 +69,9 @@ pub struct Args {
     /// drifting actuator (`rths_hal_sim::Drift`; its delay grows by about 1/(1 − F)). Default 0.
     #[arg(long, default_value_t = 0.0, value_name = "F")]
     pub drift: f64,
-    /// Rig file (`rths identify`) to check against the preset and board before running: refused if
-    /// it is of another, or if the model names another rig file.
+    /// Rig file (`rths identify`) of this run's rig: refused if it was identified on another preset,
+    /// board, specimen or uncertainty draw, or if the model names another rig file. With
+    /// fe-online-ats, the ATS starts from the rig file's identified initial values.
     #[arg(long, value_name = "RIG.json")]
     pub rig: Option<PathBuf>,
     /// Output directory for `history.csv` and the figure.
@@ -87,6 +89,45 @@ struct SimulateJson {
     study: StudyJson,
     /// What the plant had (drawn or nominal); `null` for a pure run (no plant in the loop).
     plant: Option<PlantDraw>,
+    /// The ATS's initial [a0, a1 (s), a2 (s²)] taken from `--rig` (fe-online-ats only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ats_initial: Option<[f64; 3]>,
+}
+
+/// Refuse a rig file identified on another plant than the run's `rig` (configured with specimen
+/// stiffness factor `factor`): another specimen model or factor, or another draw of the uncertain
+/// parameters (`--uncertainty`, and its seed). Without a draw the seed sets the sensor noise alone:
+/// the plant is the same one and its rig file fits. Preset and board: [`RigFile::check`].
+pub fn check_rig_plant(file: &RigFile, rig: &RigConfig, factor: f64) -> anyhow::Result<()> {
+    let run_specimen = rig.specimen.name();
+    if file.specimen != run_specimen {
+        anyhow::bail!(
+            "the rig was identified with the {} specimen, this run has the {run_specimen} one",
+            file.specimen
+        );
+    }
+    let f_file = file.specimen_stiffness_factor;
+    // Both come from the same kind of argument; a relative 1e-9 only absorbs printing round-off.
+    if (f_file - factor).abs() > 1e-9 * factor.abs().max(1.0) {
+        anyhow::bail!(
+            "the rig was identified with specimen stiffness factor {f_file}, this run has {factor}"
+        );
+    }
+    let draw = |u: bool, seed: u64| {
+        if u {
+            format!("the uncertainty draw of seed {seed}")
+        } else {
+            "the nominal plant (no --uncertainty)".to_string()
+        }
+    };
+    if file.uncertainty != rig.uncertainty || (rig.uncertainty && file.seed != rig.seed) {
+        anyhow::bail!(
+            "the rig was identified on {}, this run is on {}: another plant",
+            draw(file.uncertainty, file.seed),
+            draw(rig.uncertainty, rig.seed)
+        );
+    }
+    Ok(())
 }
 
 /// Refuse a model trained on another rig than the run's: its compensation (the LRX lead filter
@@ -173,14 +214,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         SpecimenArg::BoucWen => Specimen::BoucWen(BoucWen::default()),
     };
     let id = args.scenario;
+    let mut rig = scenario::rig_config(preset, specimen, f, args.seed);
+    rig.uncertainty = args.uncertainty;
+    rig.drift = rths_hal_sim::Drift::over(args.drift, ag.len() as u64);
     let mut rig_checksum = None;
+    let mut ats_initial = None;
     if let Some(path) = &args.rig {
-        let file = crate::identify::RigFile::load(path)
-            .with_context(|| format!("rig file {}", path.display()))?;
+        let file = RigFile::load(path).with_context(|| format!("rig file {}", path.display()))?;
         file.check(preset.name(), BOARD)
+            .with_context(|| format!("rig file {} refused", path.display()))?;
+        check_rig_plant(&file, &rig, f)
             .with_context(|| format!("rig file {} refused", path.display()))?;
         let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
         rig_checksum = Some(crate::identify::rig_file::checksum_hex(&bytes));
+        if id == ScenarioId::FeOnlineAts {
+            ats_initial = Some(file.compensation.ats_initial);
+        }
     }
     let load = |kind: ModelKind| -> anyhow::Result<ModelFile> {
         let m = load_model(&args, kind)?;
@@ -212,9 +261,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         delay = m.delay_steps;
         rnn = Some(p);
     }
-    let mut rig = scenario::rig_config(preset, specimen, f, args.seed);
-    rig.uncertainty = args.uncertainty;
-    rig.drift = rths_hal_sim::Drift::over(args.drift, ag.len() as u64);
     // The evaluation knows the specimen the plant really has; a pure run has no plant, so its
     // reference stays the configured structure. The analytical parts keep F (`fe-pure` and
     // `fe-offline` are analyses of the structure as configured: nobody knows the draw before the test).
@@ -237,12 +283,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     // Only `--out` writes the history; the figures alone need a third of it.
     let run = match &args.out {
-        Some(_) => Some(scenario::run(&setup)?),
+        Some(_) => Some(scenario::run_with_ats_start(&setup, ats_initial)?),
         None => None,
     };
     let report = match &run {
         Some(run) => run.report.clone(),
-        None => scenario::report(&setup)?,
+        None => scenario::report_with_ats_start(&setup, ats_initial)?,
     };
     if let (Some(dir), Some(run)) = (&args.out, &run) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -266,6 +312,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             specimen_sweep: None,
         },
         plant,
+        ats_initial,
     };
     if args.json {
         println!("{}", serde_json::to_string(&json)?);
@@ -295,6 +342,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             d.specimen_stiffness_factor
         ),
         None => println!("plant               none in the loop (pure run)"),
+    }
+    if let Some([a0, a1, a2]) = ats_initial {
+        println!(
+            "ATS start           from the rig file: a0 {a0:.4}, a1 {a1:.5} s, a2 {a2:.3e} s^2"
+        );
     }
     match (&r.stop_reason, r.stop_time_s) {
         (Some(why), Some(t)) => {

@@ -220,9 +220,29 @@ impl AtsParams {
         &self.config
     }
 
-    /// Initial coefficients [1, delay, delay²/2].
+    /// Initial coefficients: [1, delay, delay²/2], or those of [`AtsParams::with_initial`].
     pub fn initial(&self) -> [f64; 3] {
         self.initial
+    }
+
+    /// The same parameters starting from `initial` = [a0, a1 (s), a2 (s²)] instead of
+    /// [1, delay, delay²/2]: e.g. the values identified on the rig (`(1/g)·[1, τ+T, τ²/2 + τT]`
+    /// of the measured actuator), which a lab would start from. Refused if not finite or outside
+    /// the bounds, as [`AtsParams::new`] refuses its own.
+    pub fn with_initial(self, initial: [f64; 3]) -> Result<Self, ParamError> {
+        if initial.iter().any(|a| !a.is_finite()) {
+            return Err(ParamError::NotFinite("ATS initial coefficients"));
+        }
+        let inside = initial
+            .iter()
+            .zip(self.config.lower.iter().zip(&self.config.upper))
+            .all(|(a, (lo, hi))| a >= lo && a <= hi);
+        if !inside {
+            return Err(ParamError::OutOfRange(
+                "ATS initial coefficients (outside bounds)",
+            ));
+        }
+        Ok(Self { initial, ..self })
     }
 }
 

@@ -285,6 +285,28 @@ fn ats_initial_command_and_reset() {
 }
 
 #[test]
+fn ats_starts_from_given_initial_values_within_bounds() -> Result<(), crate::params::ParamError> {
+    let params = AtsParams::new(AtsConfig::paper(DT, 0.0137))?;
+    let given = [1.01, 0.0237, 1.06e-4];
+    let mut ats = Ats::new(params.with_initial(given)?);
+    assert_eq!(ats.coefficients(), given);
+    for k in 0..5000 {
+        let _ = ats.compensate(target(k), 0.9 * target(k));
+    }
+    ats.reset();
+    assert_eq!(ats.coefficients(), given);
+    for bad in [
+        [f64::NAN, 0.01, 0.0],
+        [1.5, 0.01, 0.0],
+        [1.0, -0.001, 0.0],
+        [1.0, 0.01, 0.01],
+    ] {
+        assert!(params.with_initial(bad).is_err(), "{bad:?}");
+    }
+    Ok(())
+}
+
+#[test]
 fn ats_param_validation() {
     let ok = AtsConfig::paper(DT, 0.0137);
     assert_eq!(ok.window, 2048);
