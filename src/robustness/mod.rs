@@ -229,6 +229,12 @@ fn identified(
         .ok_or_else(|| "the LRX training gave no LRX section".to_string())?;
     w.lead_weights = id.lead_weights.to_vec();
     w.lead_stride = cfg.lead_stride;
+    // As `train lrx --rig` writes them: the lead's online gain-and-delay adaptation and the
+    // specimen's identified mass and damping, removed from the measured force.
+    w.lead_adapt_ticks = Some(lrx::RIG_LEAD_ADAPT_TICKS);
+    let [mass, damping] = lrx::prototype_dynamics(&id.specimen);
+    w.specimen_mass_kn_s2_per_mm = Some(mass);
+    w.specimen_damping_kn_s_per_mm = Some(damping);
     Ok((
         RigSummary {
             delay_ms: id.delay_s * 1e3,
