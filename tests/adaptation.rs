@@ -396,8 +396,9 @@ fn adaptation_holds_the_goal_on_another_plant_through_a_drift() {
     assert!(adaptive.j2_target_pct.unwrap() < 0.5 * fixed.j2_target_pct.unwrap());
 }
 
-/// The drift slows the actuator as documented (delay × ~1/(1 − F) at the end, DC gain kept), and
-/// no drift is the plant as before, bit for bit.
+/// The drift slows the actuator as documented (delay × ~1/(1 − F) at the end, DC gain kept), it
+/// is off by default (the undrifted plant keeps its exact ticks: every existing plant figure and
+/// the firmware's bit-identity tests are unchanged), and a bad drift is refused.
 #[test]
 fn the_drift_slows_the_actuator_and_is_off_by_default() {
     let rig = rig_config(Preset::Benchmark, Specimen::Linear, 1.0, 1);
@@ -411,7 +412,7 @@ fn the_drift_slows_the_actuator_and_is_off_by_default() {
     assert!(d1 > 1.25 * d0 && d1 < 1.5 * d0, "{d0} -> {d1}");
     let g = |q: &rths_hal_sim::PlantParams| q.frequency_response(0.01).gain;
     assert!((g(&slowed) / g(&p) - 1.0).abs() < 1e-3);
-    // Default runs are unchanged: same samples as a rig built without touching the drift field.
+    // A drifting rig departs from the still one under the same commands.
     let mut a = rths_hal_sim::VirtualRig::new(p);
     let mut drifting = rig;
     drifting.drift = Drift::over(0.3, 1000);

@@ -21,7 +21,7 @@
 //! Single precision (the MCU's FPU): 5 running sums and a 2×2 solve per tick. The two regressors
 //! are nearly orthogonal for an oscillation, so the solve does not amplify the sums' rounding
 //! (it would for the 8 lead weights, whose normal matrix f32 cannot hold: docs/design.md §6). On the
-//! firmware this stage and the specimen-dynamics removal cost ~700 instructions per tick.
+//! firmware this stage and the specimen-dynamics removal cost ~660 instructions per tick.
 
 use super::input;
 use crate::filter::InputError;
