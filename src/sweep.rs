@@ -134,6 +134,28 @@ pub fn fitting_scale(ag_mm_s2: &[f64]) -> anyhow::Result<f64> {
     Ok(((need * 20.0).floor() / 20.0).max(0.05))
 }
 
+/// [`fitting_scale`], lowered in steps of 0.05 until the following error that an actuator delay of
+/// `delay_s` causes at the reference's peak velocity is also within [`MARGIN`] of the interlock, for
+/// every specimen of [`cases`]. A compensated command leads the measured displacement by the whole
+/// delay, so a faithful test on a slow actuator (the benchmark plant's 25 ms) needs a smaller record
+/// than the velocity and stroke alone allow. `delay_s` is the rig's *identified* delay (a lab plans
+/// its test from what it measured), or the delay a drifting test will reach.
+pub fn fitting_scale_for_delay(ag_mm_s2: &[f64], delay_s: f64) -> anyhow::Result<f64> {
+    let mut scale = fitting_scale(ag_mm_s2)?;
+    if !(delay_s.is_finite() && delay_s >= 0.0) {
+        anyhow::bail!("actuator delay {delay_s} s: must be finite and ≥ 0");
+    }
+    let limit = Limits::paper_actuator().following_error_mm();
+    for (spec, f) in cases() {
+        let v = peak_velocity_mm_s(&reference_for(ag_mm_s2, spec, f)?);
+        if v * delay_s > 0.0 {
+            let fit = MARGIN * limit / (v * delay_s);
+            scale = scale.min(((fit * 20.0).floor() / 20.0).max(0.05));
+        }
+    }
+    Ok(scale)
+}
+
 /// Run the sweep on one record at `scale`, optionally only its first `max_s` seconds.
 #[allow(clippy::too_many_arguments)]
 pub fn run_record(

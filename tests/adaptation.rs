@@ -68,18 +68,7 @@ fn record(name: &str, delay_s: f64) -> (String, Vec<f64>) {
         .unwrap(),
         n => GroundMotion::embedded(n).unwrap(),
     };
-    let ag1 = m.resample_mm_s2(DT_S);
-    let mut scale = rths::sweep::fitting_scale(&ag1).unwrap();
-    let limit = rths_core::supervisor::Limits::paper_actuator().following_error_mm();
-    for (spec, f) in rths::sweep::cases() {
-        let r = rths::study::reference_for(&ag1, spec, f).unwrap();
-        let v = r
-            .windows(2)
-            .map(|w| ((w[1] - w[0]) / DT_S).abs())
-            .fold(0.0, f64::max);
-        let fit = rths::sweep::MARGIN * limit / (v * delay_s);
-        scale = scale.min((fit * 20.0).floor() / 20.0);
-    }
+    let scale = rths::sweep::fitting_scale_for_delay(&m.resample_mm_s2(DT_S), delay_s).unwrap();
     (
         format!("{name}×{scale}"),
         m.scaled(scale).resample_mm_s2(DT_S),

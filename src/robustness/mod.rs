@@ -104,7 +104,9 @@ pub struct HeldOutRecord {
     pub name: String,
     /// Where it comes from.
     pub source: String,
-    /// Scale applied ([`sweep::fitting_scale`]: the reference of every specimen fits the actuator).
+    /// Scale applied ([`sweep::fitting_scale_for_delay`]: the reference of every specimen fits the
+    /// actuator's velocity, stroke and following-error interlocks at the slowest nominal rig's
+    /// identified delay).
     pub scale: f64,
     /// Duration, s.
     pub duration_s: f64,
@@ -114,8 +116,8 @@ pub struct HeldOutRecord {
 }
 
 /// The held-out records: El Centro and Kobe (embedded) and Morgan Hill (vRTHS benchmark), each at
-/// the largest scale that fits the actuator.
-pub fn held_out_records() -> anyhow::Result<Vec<HeldOutRecord>> {
+/// the largest scale that fits the actuator with a delay of `delay_s`.
+pub fn held_out_records(delay_s: f64) -> anyhow::Result<Vec<HeldOutRecord>> {
     let morgan = parse_csv(MORGAN_HILL_CSV, "morgan-hill")
         .context("the embedded data/vrths_benchmark/morgan.csv")?;
     let mut out = Vec::new();
@@ -130,7 +132,7 @@ pub fn held_out_records() -> anyhow::Result<Vec<HeldOutRecord>> {
         ),
         (morgan, "data/vrths_benchmark/morgan.csv"),
     ] {
-        let scale = sweep::fitting_scale(&motion.resample_mm_s2(DT_S))?;
+        let scale = sweep::fitting_scale_for_delay(&motion.resample_mm_s2(DT_S), delay_s)?;
         let ag = motion.scaled(scale).resample_mm_s2(DT_S);
         out.push(HeldOutRecord {
             name: motion.name.clone(),
@@ -206,6 +208,9 @@ pub struct Robustness {
     pub first_seed: u64,
     /// Presets, in order.
     pub presets: Vec<String>,
+    /// The delay the records are scaled for: the largest identified delay of the presets' nominal
+    /// rigs, s.
+    pub planning_delay_s: f64,
     /// The held-out records.
     pub records: Vec<HeldOutRecord>,
     /// The training motions of the identified LRX's frame fit.
@@ -363,7 +368,17 @@ pub fn run(cfg: &RobustnessConfig) -> anyhow::Result<Robustness> {
             cfg.draws
         );
     }
-    let records = held_out_records()?;
+    // The test is planned as a lab plans it: identify each preset's nominal rig and scale the
+    // records so a compensated command fits the slowest one's following error. One scale per
+    // record for every preset and draw keeps the rows comparable.
+    let mut planning_delay_s: f64 = 0.0;
+    for &p in &cfg.presets {
+        let rig = scenario::rig_config(p, Specimen::Linear, 1.0, cfg.first_seed);
+        let o = identify::identify_virtual(&rig, FaultPlan::none(), &IdentifyConfig::default())
+            .map_err(|e| anyhow::anyhow!("identifying the nominal {} rig: {e}", p.name()))?;
+        planning_delay_s = planning_delay_s.max(o.identification.delay_s);
+    }
+    let records = held_out_records(planning_delay_s)?;
     let lr = models::lr_params(
         &ModelFile::from_json(SHIPPED_LR).context("the shipped data/models/lr.json")?,
     )?;
@@ -398,6 +413,7 @@ pub fn run(cfg: &RobustnessConfig) -> anyhow::Result<Robustness> {
         draws: cfg.draws,
         first_seed: cfg.first_seed,
         presets: cfg.presets.iter().map(|p| p.name().to_string()).collect(),
+        planning_delay_s,
         records,
         lrx_training: frame.training.motion.clone(),
         jobs: done,

@@ -387,9 +387,11 @@ pub fn markdown(r: &Robustness, j: &RobustnessJson<'_>) -> String {
          rig's values. The one exception is `lr-online`'s shipped LR, the paper's model, trained on \
          El Centro: its El Centro runs are not held out. Each record is scaled so the reference of \
          every specimen of the sweep (F = 0.6–1.4, Bouc–Wen) stays within 90% of the actuator's \
-         velocity and stroke interlocks (`sweep::fitting_scale`), which covers the drawn stiffness \
-         (±2.5σ = ±10%).\n",
-        r.lrx_training
+         velocity, stroke and following-error interlocks, the last at the slowest nominal rig's \
+         identified delay, {:.2} ms (`sweep::fitting_scale_for_delay`: a compensated command leads the \
+         measurement by the whole delay). That covers the drawn stiffness (±2.5σ = ±10%).\n",
+        r.lrx_training,
+        r.planning_delay_s * 1e3
     );
     let _ = writeln!(s, "## Results\n");
     let _ = writeln!(
