@@ -103,8 +103,7 @@ pub fn draw(r: &Robustness, path: &Path) -> anyhow::Result<()> {
                         _ => unstable_pts.push((x, UNSTABLE_AT_PCT)),
                     }
                 }
-                ys.sort_by(f64::total_cmp);
-                if let Some(m) = ys.get(ys.len() / 2) {
+                if let Some(m) = super::report::median(&mut ys) {
                     medians.push((x0, m.clamp(Y_MIN_PCT, Y_MAX_PCT)));
                 }
             }

@@ -361,6 +361,12 @@ pub fn run(cfg: &RobustnessConfig) -> anyhow::Result<Robustness> {
     if cfg.presets.is_empty() {
         anyhow::bail!("no preset to run");
     }
+    for (i, p) in cfg.presets.iter().enumerate() {
+        // The rows group runs by preset: a preset twice would count its runs twice.
+        if cfg.presets.iter().take(i).any(|q| q == p) {
+            anyhow::bail!("preset `{}` is listed twice", p.name());
+        }
+    }
     if cfg.first_seed.checked_add(cfg.draws as u64).is_none() {
         anyhow::bail!(
             "--seed {} + --draws {} overflows",

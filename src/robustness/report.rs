@@ -140,7 +140,7 @@ pub struct JobJson<'a> {
 const MAX_LISTED: usize = 40;
 
 /// Median (`None` if empty); sorts the slice in place.
-fn median(v: &mut [f64]) -> Option<f64> {
+pub(super) fn median(v: &mut [f64]) -> Option<f64> {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     match n {
