@@ -7,8 +7,10 @@ use plotters::prelude::*;
 
 use super::{case_label, cases, goals, Robustness, CONTROLLERS};
 
-/// Y range of the panels, % (log scale); runs outside are drawn at the edge.
+/// Y range of the panels, % (log scale); the bottom goes a decade lower when a run needs it (an
+/// adaptive metamodel reaches 0.05 %); runs outside are drawn at the edge.
 const Y_MIN_PCT: f64 = 0.05;
+const Y_FLOOR_PCT: f64 = 0.001;
 const Y_MAX_PCT: f64 = 100.0;
 /// Where an unstable run is drawn (a cross near the top).
 const UNSTABLE_AT_PCT: f64 = 70.0;
@@ -24,6 +26,18 @@ pub fn draw(r: &Robustness, path: &Path) -> anyhow::Result<()> {
     let labels: Vec<String> = cases().into_iter().map(|(s, f)| case_label(s, f)).collect();
     let n = labels.len();
     let panels = r.presets.len().max(1);
+    let smallest = r
+        .jobs
+        .iter()
+        .flat_map(|j| j.runs.iter())
+        .filter_map(|x| x.nrmse_measured_pct)
+        .filter(|y| *y > 0.0)
+        .fold(Y_MIN_PCT, f64::min);
+    let y_min = if smallest < Y_MIN_PCT {
+        10f64.powf(smallest.log10().floor()).max(Y_FLOOR_PCT)
+    } else {
+        Y_MIN_PCT
+    };
     let root = BitMapBackend::new(path, (1200, 120 + 420 * panels as u32)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let root = root
@@ -50,7 +64,7 @@ pub fn draw(r: &Robustness, path: &Path) -> anyhow::Result<()> {
             .margin(15)
             .x_label_area_size(35)
             .y_label_area_size(70)
-            .build_cartesian_2d(-0.5..(n as f64 - 0.5), (Y_MIN_PCT..Y_MAX_PCT).log_scale())
+            .build_cartesian_2d(-0.5..(n as f64 - 0.5), (y_min..Y_MAX_PCT).log_scale())
             .map_err(|e| err(&e))?;
         let fmt_x = |v: &f64| {
             let i = v.round();
@@ -98,13 +112,13 @@ pub fn draw(r: &Robustness, path: &Path) -> anyhow::Result<()> {
                     match (run.stable, run.nrmse_measured_pct) {
                         (true, Some(y)) => {
                             ys.push(y);
-                            stable_pts.push((x, y.clamp(Y_MIN_PCT, Y_MAX_PCT)));
+                            stable_pts.push((x, y.clamp(y_min, Y_MAX_PCT)));
                         }
                         _ => unstable_pts.push((x, UNSTABLE_AT_PCT)),
                     }
                 }
                 if let Some(m) = super::report::median(&mut ys) {
-                    medians.push((x0, m.clamp(Y_MIN_PCT, Y_MAX_PCT)));
+                    medians.push((x0, m.clamp(y_min, Y_MAX_PCT)));
                 }
             }
             chart
