@@ -347,8 +347,29 @@ fn main() {
         .unwrap_or_else(|| fail("no parent of the firmware directory".into()));
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").unwrap_or_default());
 
-    // cortex-m-rt's link.x includes memory.x from the linker search path.
-    let mem = read(&root.join("memory.x"));
+    // The board's core must match the code generated for it: the M7 boards need `-C
+    // target-cpu=cortex-m7` (hardware f64), which `cargo build-m7` passes; an M4 board must not get it.
+    let m7_board = std::env::var_os("CARGO_FEATURE_BOARD_MPS2_AN500").is_some();
+    let flags = std::env::var("CARGO_ENCODED_RUSTFLAGS").unwrap_or_default();
+    let m7_code = flags
+        .split('\u{1f}')
+        .any(|f| f.contains("target-cpu=cortex-m7"));
+    if m7_board && !m7_code {
+        fail("a Cortex-M7 board is built with `cargo build-m7` (-C target-cpu=cortex-m7, hardware f64); see firmware/.cargo/config.toml".into());
+    }
+    if !m7_board && m7_code {
+        fail("-C target-cpu=cortex-m7 given for a Cortex-M4 board (the F405/F407 have no double-precision FPU)".into());
+    }
+    println!("cargo:rerun-if-env-changed=CARGO_ENCODED_RUSTFLAGS");
+
+    // cortex-m-rt's link.x includes memory.x from the linker search path: the board's memory map
+    // (the root memory.x serves both STM32F405/407 boards).
+    let mem_file = if m7_board {
+        root.join("boards/mps2-an500/memory.x")
+    } else {
+        root.join("memory.x")
+    };
+    let mem = read(&mem_file);
     std::fs::write(out_dir.join("memory.x"), mem)
         .unwrap_or_else(|e| fail(format!("cannot write memory.x: {e}")));
     println!("cargo:rustc-link-search={}", out_dir.display());
