@@ -27,29 +27,23 @@ use rths_hal_sim::{FaultPlan, Preset, RigConfig, SimError, Specimen, VirtualRig}
 /// SysTick reload: the whole 24-bit range (far longer than a tick on every emulated board).
 const SYST_RELOAD: u32 = 0x00FF_FFFF;
 
-/// SysTick as a free-running down-counter on the core clock: the instruction counter.
-pub struct InstrCounter {
+/// SysTick as a free-running down-counter on the core clock: the instruction counter, for a
+/// machine whose core clock is `SYSCLK_HZ` under `-icount shift=S` (`NS_PER_INSTR` = 2^S virtual
+/// nanoseconds per instruction). Compile-time constants, so that converting a count loads nothing
+/// the compiler could hoist into the measured section.
+pub struct InstrCounter<const SYSCLK_HZ: u32, const NS_PER_INSTR: u32> {
     syst: SYST,
-    /// SysTick ticks per second of virtual time (the machine's core clock).
-    sysclk_hz: u32,
-    /// Virtual nanoseconds per instruction (`-icount shift=S`: 2^S).
-    ns_per_instr: u32,
 }
 
-impl InstrCounter {
-    /// Start SysTick on the core clock (`sysclk_hz`, the machine's) over its full 24-bit range, no
-    /// interrupt; QEMU runs with `-icount shift=S`, `ns_per_instr` = 2^S.
-    pub fn new(mut syst: SYST, sysclk_hz: u32, ns_per_instr: u32) -> Self {
+impl<const SYSCLK_HZ: u32, const NS_PER_INSTR: u32> InstrCounter<SYSCLK_HZ, NS_PER_INSTR> {
+    /// Start SysTick on the core clock over its full 24-bit range, no interrupt.
+    pub fn new(mut syst: SYST) -> Self {
         syst.disable_interrupt();
         syst.set_clock_source(SystClkSource::Core);
         syst.set_reload(SYST_RELOAD);
         syst.clear_current();
         syst.enable_counter();
-        Self {
-            syst,
-            sysclk_hz,
-            ns_per_instr,
-        }
+        Self { syst }
     }
 
     /// The raw counter (counts down).
@@ -65,9 +59,10 @@ impl InstrCounter {
         start.wrapping_sub(end) & SYST_RELOAD
     }
 
-    /// Instructions for `ticks` SysTick ticks: `ticks / (f_systick · ns_per_instr · 1 ns)`, rounded.
-    pub fn ticks_to_instructions(&self, ticks: u32) -> u32 {
-        let per_s = self.sysclk_hz as u64 * self.ns_per_instr.max(1) as u64;
+    /// Instructions for `ticks` SysTick ticks: `ticks / (f_systick · NS_PER_INSTR · 1 ns)`,
+    /// rounded.
+    pub fn ticks_to_instructions(ticks: u32) -> u32 {
+        let per_s = SYSCLK_HZ as u64 * NS_PER_INSTR.max(1) as u64;
         ((ticks as u64 * 1_000_000_000 + per_s / 2) / per_s.max(1)) as u32
     }
 
@@ -77,14 +72,16 @@ impl InstrCounter {
     }
 }
 
-impl rths_app::board::InstrCounter for InstrCounter {
+impl<const SYSCLK_HZ: u32, const NS_PER_INSTR: u32> rths_app::board::InstrCounter
+    for InstrCounter<SYSCLK_HZ, NS_PER_INSTR>
+{
     #[inline(always)]
     fn now(&self) -> u32 {
         InstrCounter::now(self)
     }
     #[inline(always)]
     fn instructions(&self, start: u32, end: u32) -> u32 {
-        self.ticks_to_instructions(InstrCounter::elapsed_ticks(start, end))
+        Self::ticks_to_instructions(Self::elapsed_ticks(start, end))
     }
 }
 
@@ -107,8 +104,9 @@ pub struct Calibration {
     pub timer_counts: u32,
     /// Instructions measured around an empty section (the counter's own overhead).
     pub overhead_instructions: u32,
-    /// The tick timer's actual rate, Hz.
-    pub tick_hz: f64,
+    /// The tick timer's actual rate, Hz (computed when printed: an f64 division here, in software
+    /// on the M4, would shift SysTick's phase as `calibrate` explains).
+    pub tick_hz: fn() -> f64,
     /// The FPU's media and VFP feature register 0 (MVFR0) as the core reports it: bits 11:8 say
     /// whether double precision is implemented (2) or not (0): the M7's `f64` in hardware, checked
     /// on the emulated core itself.
@@ -123,18 +121,28 @@ impl Calibration {
 }
 
 /// Run a `subs`/`bne` loop of `iterations` (2 instructions each) and measure it with SysTick and the
-/// tick timer; also measure the overhead of two back-to-back SysTick reads, and read the FPU's
-/// feature register from `fpu`. The timer must be stopped with its interrupt not yet enabled in the
-/// NVIC; it is stopped again at the end.
-pub fn calibrate<T: CountingTimer>(
-    counter: &InstrCounter,
+/// tick timer; also measure the overhead of two back-to-back SysTick reads. `fpu_mvfr0` is the FPU's
+/// feature register, read by the board before it started SysTick (reading it later would shift
+/// SysTick's phase against the tick timer, and with it every per-tick count by up to one SysTick
+/// count). The timer must be stopped with its interrupt not yet enabled in the NVIC; it is stopped
+/// again at the end.
+pub fn calibrate<T: CountingTimer, const SYSCLK_HZ: u32, const NS_PER_INSTR: u32>(
+    counter: &InstrCounter<SYSCLK_HZ, NS_PER_INSTR>,
     timer: &mut T,
     iterations: u32,
-    fpu: &cortex_m::peripheral::FPU,
+    fpu_mvfr0: u32,
 ) -> Calibration {
+    let to_instr = |a: u32, b: u32| {
+        InstrCounter::<SYSCLK_HZ, NS_PER_INSTR>::ticks_to_instructions(InstrCounter::<
+            SYSCLK_HZ,
+            NS_PER_INSTR,
+        >::elapsed_ticks(
+            a, b
+        ))
+    };
     let a = counter.now();
     let b = counter.now();
-    let overhead = counter.ticks_to_instructions(InstrCounter::elapsed_ticks(a, b));
+    let overhead = to_instr(a, b);
     timer.start();
     let c0 = timer.count();
     let s0 = counter.now();
@@ -144,11 +152,11 @@ pub fn calibrate<T: CountingTimer>(
     timer.stop();
     Calibration {
         loop_instructions: iterations.saturating_mul(2),
-        measured_instructions: counter.ticks_to_instructions(InstrCounter::elapsed_ticks(s0, s1)),
+        measured_instructions: to_instr(s0, s1),
         timer_counts: c1.wrapping_sub(c0),
         overhead_instructions: overhead,
-        tick_hz: T::tick_rate_hz(),
-        fpu_mvfr0: fpu.mvfr[0].read(),
+        tick_hz: T::tick_rate_hz,
+        fpu_mvfr0,
     }
 }
 
@@ -179,7 +187,7 @@ impl rths_app::board::Calibration for Calibration {
             self.measured_instructions,
             self.timer_counts,
             self.overhead_instructions,
-            self.tick_hz,
+            (self.tick_hz)(),
             self.fpu_mvfr0,
             self.fpu_f64()
         ))

@@ -19,9 +19,7 @@ pub mod pac;
 
 pub use rths_board_emulated::logger;
 use rths_board_emulated::CountingTimer;
-pub use rths_board_emulated::{
-    calibrate, exit, BoardError, Calibration, Harness, InstrCounter, Plant,
-};
+pub use rths_board_emulated::{calibrate, exit, BoardError, Calibration, Harness, Plant};
 use rths_hal_sim::SimError;
 
 /// The MPS2's core and peripheral clock in QEMU (`SYSCLK_FRQ`), Hz.
@@ -29,6 +27,9 @@ pub const SYSCLK_HZ: u32 = 25_000_000;
 
 /// The CMSDK timers' and UARTs' clock, Hz (the same 25 MHz).
 pub const PCLK_HZ: u32 = SYSCLK_HZ;
+
+/// The instruction counter: SysTick at [`SYSCLK_HZ`], [`ICOUNT_NS_PER_INSTR`] ns per instruction.
+pub type Counter = rths_board_emulated::InstrCounter<SYSCLK_HZ, ICOUNT_NS_PER_INSTR>;
 
 /// Virtual nanoseconds per instruction: the runner's `-icount shift=3`.
 pub const ICOUNT_NS_PER_INSTR: u32 = 8;
@@ -154,7 +155,7 @@ impl rths_app::board::Board for Mps2An500 {
     type Link = LinkUart;
     type RigError = SimError;
     type Rig = Plant;
-    type Counter = InstrCounter;
+    type Counter = Counter;
     type EStop = rths_app::board::NoEStop;
     type Harness = Harness;
     type Calibration = Calibration;
@@ -184,9 +185,11 @@ pub fn init(
     dp: pac::Peripherals,
     core: cortex_m::Peripherals,
 ) -> Result<rths_app::board::Parts<Mps2An500>, BoardError> {
-    let counter = InstrCounter::new(core.SYST, SYSCLK_HZ, ICOUNT_NS_PER_INSTR);
+    // Before SysTick starts: see `calibrate`.
+    let fpu_mvfr0 = core.FPU.mvfr[0].read();
+    let counter = Counter::new(core.SYST);
     let mut timer = TickTimer::new(dp.TIMER0);
-    let calib = calibrate(&counter, &mut timer, CALIBRATION_ITERATIONS, &core.FPU);
+    let calib = calibrate(&counter, &mut timer, CALIBRATION_ITERATIONS, fpu_mvfr0);
     let (rig, harness) = rths_board_emulated::plant_and_harness()?;
     Ok(rths_app::board::Parts {
         timer,

@@ -17,15 +17,16 @@
 pub use rths_board_emulated::logger;
 
 use rths_board_emulated::CountingTimer;
-pub use rths_board_emulated::{
-    calibrate, exit, BoardError, Calibration, Harness, InstrCounter, Plant,
-};
+pub use rths_board_emulated::{calibrate, exit, BoardError, Calibration, Harness, Plant};
 use rths_hal_sim::SimError;
 /// The device crate (STM32F405) the firmware's RTIC app is built on.
 pub use stm32f4::stm32f405 as pac;
 
 /// Core clock QEMU's netduinoplus2 machine gives the Cortex-M4 (and SysTick with CLKSOURCE = core), Hz.
 pub const SYSCLK_HZ: u32 = 168_000_000;
+
+/// The instruction counter: SysTick at [`SYSCLK_HZ`], [`ICOUNT_NS_PER_INSTR`] ns per instruction.
+pub type Counter = rths_board_emulated::InstrCounter<SYSCLK_HZ, ICOUNT_NS_PER_INSTR>;
 
 /// Virtual nanoseconds per instruction: the runner's `-icount shift=0`.
 pub const ICOUNT_NS_PER_INSTR: u32 = 1;
@@ -160,7 +161,7 @@ impl rths_app::board::Board for Qemu {
     type Link = LinkUart;
     type RigError = SimError;
     type Rig = Plant;
-    type Counter = InstrCounter;
+    type Counter = Counter;
     type EStop = rths_app::board::NoEStop;
     type Harness = Harness;
     type Calibration = Calibration;
@@ -189,9 +190,11 @@ pub fn init(
     dp: pac::Peripherals,
     core: cortex_m::Peripherals,
 ) -> Result<rths_app::board::Parts<Qemu>, BoardError> {
-    let counter = InstrCounter::new(core.SYST, SYSCLK_HZ, ICOUNT_NS_PER_INSTR);
+    // Before SysTick starts: see `calibrate`.
+    let fpu_mvfr0 = core.FPU.mvfr[0].read();
+    let counter = Counter::new(core.SYST);
     let mut timer = TickTimer::new(dp.TIM2, &dp.RCC);
-    let calib = calibrate(&counter, &mut timer, 100_000, &core.FPU);
+    let calib = calibrate(&counter, &mut timer, 100_000, fpu_mvfr0);
     let (rig, harness) = rths_board_emulated::plant_and_harness()?;
     Ok(rths_app::board::Parts {
         timer,
