@@ -12,16 +12,75 @@
 //! The files are read by the host's own readers (`rths-files`): a model file is checked exactly as
 //! `rths check-model` checks it (feature names included), the record parsed as `rths analyze` parses
 //! it. A bad file fails the build with a message naming the file and the problem.
+//!
+//! The rate (`rate-4096`): the record's ticks and the fault plan's start follow it; the default model
+//! files in `data/models/` become `lr-4096.json`, `lrx-4096.json`, `rnn-10-4096.json`, and a model
+//! file trained at another rate (its `dt_s`) is refused. The board's core: a Cortex-M7 board needs `-C target-cpu=cortex-m7` (`cargo build-m7`),
+//! a Cortex-M4 board must not have it.
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use rths_core::params::DT_S;
+use rths_core::params::{dt_s, CONTROL_RATES_HZ};
 use rths_files::model_file::{ModelFile, ModelKind};
 use rths_files::motion::parse_at2;
 
 fn fail(msg: String) -> ! {
     eprintln!("error: {msg}");
     panic!("rths-firmware build script: {msg}");
+}
+
+/// The controller rate of this build, Hz: `rate-4096` selects core's second rate. (This build
+/// script's own rths-core is built without the firmware's features, so it asks the feature itself.)
+fn rate_hz() -> u32 {
+    if std::env::var_os("CARGO_FEATURE_RATE_4096").is_some() {
+        CONTROL_RATES_HZ[1]
+    } else {
+        CONTROL_RATES_HZ[0]
+    }
+}
+
+/// The shipped model `stem` for this build's rate, in `data/models/`: `lr.json` at 2048 Hz,
+/// `lr-4096.json` at 4096 Hz (stem `lr`).
+fn default_model(root: &Path, stem: &str) -> PathBuf {
+    let rate = rate_hz();
+    if rate == CONTROL_RATES_HZ[0] {
+        root.join(format!("data/models/{stem}.json"))
+    } else {
+        root.join(format!("data/models/{stem}-{rate}.json"))
+    }
+}
+
+/// A model file that must exist: else the command that trains it at this build's rate.
+fn require(path: &Path, train: &str) {
+    if !path.exists() {
+        let rate = rate_hz();
+        let features = if rate == CONTROL_RATES_HZ[0] {
+            "sim"
+        } else {
+            "sim,rate-4096"
+        };
+        fail(format!(
+            "{}: no such model file: train one at {rate} Hz with `cargo run --release --features \
+             {features} -- train {train} --out {}` (or point the build at one)",
+            path.display(),
+            path.display()
+        ));
+    }
+}
+
+/// Refuse a model trained at another rate than this build's: its coefficients are per tick.
+fn check_rate(path: &Path, m: &ModelFile) {
+    let rate = rate_hz();
+    if m.dt_s.to_bits() != dt_s(rate).to_bits() {
+        fail(format!(
+            "{}: the model was trained at {:.0} Hz (dt_s = {}), this build runs at {rate} Hz: train one \
+             at {rate} Hz (`cargo run --release --features sim{} -- train ...`) and point the build at it",
+            path.display(),
+            1.0 / m.dt_s,
+            m.dt_s,
+            if rate == CONTROL_RATES_HZ[0] { "" } else { ",rate-4096" }
+        ));
+    }
 }
 
 fn read(path: &Path) -> String {
@@ -60,8 +119,10 @@ fn lr(out: &mut String, root: &Path) {
     println!("cargo:rerun-if-env-changed=RTHS_MODEL");
     let path = std::env::var_os("RTHS_MODEL")
         .map(PathBuf::from)
-        .unwrap_or_else(|| root.join("data/models/lr.json"));
+        .unwrap_or_else(|| default_model(root, "lr"));
+    require(&path, "lr");
     let m = load_model(&path, ModelKind::Lr);
+    check_rate(&path, &m);
     // load_kind checked the section's shape: 6 finite coefficients.
     let theta =
         m.lr.unwrap_or_else(|| fail(format!("{}: no lr section", path.display())))
@@ -80,8 +141,10 @@ fn lrx(out: &mut String, root: &Path) {
     println!("cargo:rerun-if-env-changed=RTHS_LRX_MODEL");
     let path = std::env::var_os("RTHS_LRX_MODEL")
         .map(PathBuf::from)
-        .unwrap_or_else(|| root.join("data/models/lrx.json"));
+        .unwrap_or_else(|| default_model(root, "lrx"));
+    require(&path, "lrx");
     let m = load_model(&path, ModelKind::Lrx);
+    check_rate(&path, &m);
     let x = m
         .lrx
         .unwrap_or_else(|| fail(format!("{}: no lrx section", path.display())));
@@ -137,11 +200,12 @@ fn rnn(out: &mut String, root: &Path) {
     println!("cargo:rerun-if-env-changed=RTHS_RNN_MODEL");
     let path = std::env::var_os("RTHS_RNN_MODEL")
         .map(PathBuf::from)
-        .unwrap_or_else(|| root.join("data/models/rnn-10.json"));
+        .unwrap_or_else(|| default_model(root, "rnn-10"));
     println!("cargo:rerun-if-changed={}", path.display());
     let (h, w_ih, w_hh, b_h, w_ho, b_o, in_mean, in_std, out_mean, out_std, dummy);
     if path.exists() {
         let m = load_model(&path, ModelKind::Rnn);
+        check_rate(&path, &m);
         let r = m
             .rnn
             .unwrap_or_else(|| fail(format!("{}: no rnn section", path.display())));
@@ -236,12 +300,12 @@ fn motion(out: &mut String, root: &Path) {
     let text = read(&path);
     let record =
         parse_at2(&text, "IELC180").unwrap_or_else(|e| fail(format!("{}: {e}", path.display())));
-    let ticks = record.record().ticks(DT_S);
+    let ticks = record.record().ticks(dt_s(rate_hz()));
     let ticks = u32::try_from(ticks)
         .ok()
         .filter(|t| *t > 0)
         .unwrap_or_else(|| fail(format!("{}: {ticks} controller ticks", path.display())));
-    let (npts, dt_s, values) = (record.accel_g.len(), record.dt_s, record.accel_g);
+    let (npts, record_dt_s, values) = (record.accel_g.len(), record.dt_s, record.accel_g);
     let _ = writeln!(out, "/// El Centro 1940 NS (IELC180), g.");
     let _ = writeln!(
         out,
@@ -249,10 +313,11 @@ fn motion(out: &mut String, root: &Path) {
         array(&values)
     );
     let _ = writeln!(out, "/// Record step, s.");
-    let _ = writeln!(out, "pub const MOTION_DT_S: f64 = {};", lit(dt_s));
+    let _ = writeln!(out, "pub const MOTION_DT_S: f64 = {};", lit(record_dt_s));
     let _ = writeln!(
         out,
-        "/// Controller ticks in the record (resampled at 2048 Hz)."
+        "/// Controller ticks in the record (resampled at {} Hz).",
+        rate_hz()
     );
     let _ = writeln!(out, "pub const RECORD_TICKS: u32 = {ticks};");
 }
@@ -278,7 +343,7 @@ fn fault(out: &mut String) {
     if !(secs.is_finite() && secs >= 0.0) {
         bad("start must be a finite, non-negative number of seconds");
     }
-    let start = (secs * 2048.0).round() as u64;
+    let start = (secs * f64::from(rate_hz())).round() as u64;
     let ticks = match ticks {
         Some(t) => t
             .parse::<u64>()
@@ -367,8 +432,33 @@ fn main() {
         .unwrap_or_else(|| fail("no parent of the firmware directory".into()));
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").unwrap_or_default());
 
-    // cortex-m-rt's link.x includes memory.x from the linker search path.
-    let mem = read(&root.join("memory.x"));
+    // The board's core must match the code generated for it: the M7 boards need `-C
+    // target-cpu=cortex-m7` (hardware f64), which `cargo build-m7` passes; an M4 board must not get it.
+    let mps2 = std::env::var_os("CARGO_FEATURE_BOARD_MPS2_AN500").is_some();
+    let h743 = std::env::var_os("CARGO_FEATURE_BOARD_STM32H743").is_some();
+    let m7_board = mps2 || h743;
+    let flags = std::env::var("CARGO_ENCODED_RUSTFLAGS").unwrap_or_default();
+    let m7_code = flags
+        .split('\u{1f}')
+        .any(|f| f.contains("target-cpu=cortex-m7"));
+    if m7_board && !m7_code {
+        fail("a Cortex-M7 board is built with `cargo build-m7` (-C target-cpu=cortex-m7, hardware f64); see firmware/.cargo/config.toml".into());
+    }
+    if !m7_board && m7_code {
+        fail("-C target-cpu=cortex-m7 given for a Cortex-M4 board (the F405/F407 have no double-precision FPU)".into());
+    }
+    println!("cargo:rerun-if-env-changed=CARGO_ENCODED_RUSTFLAGS");
+
+    // cortex-m-rt's link.x includes memory.x from the linker search path: the board's memory map
+    // (the root memory.x serves both STM32F405/407 boards).
+    let mem_file = if mps2 {
+        root.join("boards/mps2-an500/memory.x")
+    } else if h743 {
+        root.join("boards/stm32h743/memory.x")
+    } else {
+        root.join("memory.x")
+    };
+    let mem = read(&mem_file);
     std::fs::write(out_dir.join("memory.x"), mem)
         .unwrap_or_else(|e| fail(format!("cannot write memory.x: {e}")));
     println!("cargo:rustc-link-search={}", out_dir.display());

@@ -3,7 +3,9 @@
 # graph (every direct branch to another symbol: bl, b.w, conditional tail branches) and walks it from
 # `control_step`, the measured section of the `control` task (DAQ read, Controller::tick, command
 # write, log record); ROOT=TIM2 walks the whole task, test harness and simulated plant included. Fails if a panic entry point is reachable, and reports the
-# indirect branches met on the way (the walk cannot follow those).
+# indirect branches met on the way (the walk cannot follow those). It also counts the software
+# double-precision routines (`__aeabi_d*`, `__*df*`) reachable: many on the Cortex-M4 (no f64 FPU),
+# none expected on the Cortex-M7 (`SOFT_F64_MAX=0` makes any a failure).
 #
 #   ./panic-check.sh [ELF] [ROOT_SYMBOL]
 set -euo pipefail
@@ -21,7 +23,9 @@ if [ -z "$OBJDUMP" ]; then
   exit 0
 fi
 
-"$OBJDUMP" -d --no-show-raw-insn "$ELF" | awk -v root="$ROOT" '
+# Decoded as Cortex-M7 code: a superset of the M4's instructions (FPv5 double precision), so both
+# boards' images decode fully.
+"$OBJDUMP" -d --no-show-raw-insn --mcpu=cortex-m7 "$ELF" | awk -v root="$ROOT" -v soft_max="${SOFT_F64_MAX:--1}" '
   /^[0-9a-f]+ <[^>]+>:$/ {
     name = $2; gsub(/[<>:]/, "", name)
     # ARM mapping symbols ($t code, $d data) are not functions.
@@ -29,7 +33,10 @@ fi
     next
   }
   fn != "" && /\tb[a-z.]*\t0x[0-9a-f]+ <[^>]+>/ {
-    t = $0; sub(/.*</, "", t); sub(/>.*/, "", t); sub(/\+0x[0-9a-f]+$/, "", t)
+    t = $0; sub(/.*</, "", t); sub(/>.*/, "", t)
+    # A branch into the middle of another function is not a call: it is padding or data decoded
+    # as an instruction (seen after the last return of a function). Calls and tail calls go to a start.
+    if (t ~ /\+0x[0-9a-f]+$/) { next }
     if (t != fn && t !~ /^\$/) { edge[fn] = edge[fn] " " t }
     next
   }
@@ -42,14 +49,16 @@ fi
       f = queue[i]; k = split(edge[f], ts, " ")
       for (j = 1; j <= k; j++) if (!(ts[j] in seen)) { seen[ts[j]] = 1; queue[++n] = ts[j]; from[ts[j]] = f }
     }
-    bad = 0; ind = 0
+    bad = 0; ind = 0; soft = 0
     for (f in seen) {
+      if (f ~ /^__aeabi_(d[a-z0-9]+|[fiul]2d|d2[fiul][a-z]*)$|^__[a-z]*df[0-9a-z]*$/) { soft++ }
       if (f ~ /panic|rust_begin_unwind|slice_index_fail|slice_(start|end)_index|assert_failed|unwrap_failed|expect_failed|panic_bounds_check|already_borrowed/) {
         bad++; path = f; g = f; while (g in from) { g = from[g]; path = g " <- " path }
         print "REACHABLE PANIC: " path
       }
       ind += indirect[f]
     }
-    printf "panic check: %d functions reachable from %s, %d panic entry points reachable, %d indirect branches (not followed)\n", n, root, bad, ind
+    printf "panic check: %d functions reachable from %s, %d panic entry points reachable, %d indirect branches (not followed), %d software f64 routines\n", n, root, bad, ind, soft
+    if (soft_max >= 0 && soft > soft_max) { print "SOFTWARE F64: " soft " routines reachable from " root " (at most " soft_max ")"; bad++ }
     exit bad > 0
   }'

@@ -1,7 +1,7 @@
 //! The firmware in the loop: builds `firmware/` for the emulated STM32F405 and runs it in QEMU
 //! (`qemu-system-arm`, netduinoplus2, `-icount shift=0`), then checks its RESULT line against the host
 //! simulation of the same scenario and seed, the supervisor's trip and ramp under an injected fault,
-//! and the timing budget.
+//! and the timing budget; the same for the emulated Cortex-M7 (mps2-an500, `cargo build-m7`).
 //!
 //! Skipped (with a loud message) only when `qemu-system-arm` is not installed; CI installs it.
 #![cfg(feature = "sim")]
@@ -25,6 +25,37 @@ static BUILD: Mutex<()> = Mutex::new(());
 /// The issue's target for the LR path: at most 2000 instructions per control tick.
 const MAX_LR_INSTR: f64 = 2000.0;
 
+/// The emulated boards: the Cortex-M4 (`board-qemu`, netduinoplus2) and the Cortex-M7
+/// (`board-mps2-an500`, built with `cargo build-m7`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Emulated {
+    M4,
+    M7,
+}
+
+impl Emulated {
+    /// The cargo subcommand (an alias of `firmware/.cargo/config.toml` for the M7) and the ELF.
+    fn build_cmd(self) -> (&'static str, &'static str) {
+        match self {
+            Emulated::M4 => (
+                "build",
+                "target/thumbv7em-none-eabihf/release/rths-firmware",
+            ),
+            Emulated::M7 => (
+                "build-m7",
+                "target/m7/thumbv7em-none-eabihf/release/rths-firmware",
+            ),
+        }
+    }
+    /// The board feature.
+    fn board(self) -> &'static str {
+        match self {
+            Emulated::M4 => "board-qemu",
+            Emulated::M7 => "board-mps2-an500",
+        }
+    }
+}
+
 /// `cargo build --release` of the firmware with `features` (on top of the defaults unless
 /// `no_default`), ELF copied to a private path.
 fn build(name: &str, no_default: bool, features: &str) -> PathBuf {
@@ -33,44 +64,91 @@ fn build(name: &str, no_default: bool, features: &str) -> PathBuf {
 
 /// [`build`] with the `fault-inject` plan `RTHS_FAULT` set to `fault` (or unset: the default plan).
 fn build_env(name: &str, no_default: bool, features: &str, fault: Option<&str>) -> PathBuf {
+    build_on(Emulated::M4, name, no_default, features, fault)
+}
+
+/// The firmware for the emulated board `on` with `features` (the board's feature is added when
+/// `no_default`).
+fn build_on(
+    on: Emulated,
+    name: &str,
+    no_default: bool,
+    features: &str,
+    fault: Option<&str>,
+) -> PathBuf {
     let _guard = BUILD.lock().unwrap_or_else(|e| e.into_inner());
+    let (sub, elf) = on.build_cmd();
     let mut cmd = Command::new(env!("CARGO"));
     cmd.current_dir(firmware_dir())
-        .args(["build", "--release"])
+        .arg(sub)
         // The outer cargo's target dir belongs to the host workspace.
         .env_remove("CARGO_TARGET_DIR");
+    if on == Emulated::M4 {
+        cmd.arg("--release");
+    }
     match fault {
         Some(f) => cmd.env("RTHS_FAULT", f),
         None => cmd.env_remove("RTHS_FAULT"),
+    };
+    let features = if no_default && on == Emulated::M7 {
+        features.replace("board-qemu", on.board())
+    } else {
+        features.to_string()
     };
     if no_default {
         cmd.arg("--no-default-features");
     }
     if !features.is_empty() {
-        cmd.args(["--features", features]);
+        cmd.args(["--features", &features]);
     }
     let status = cmd.status().unwrap();
-    assert!(status.success(), "firmware build ({features}) failed");
-    let elf = firmware_dir().join("target/thumbv7em-none-eabihf/release/rths-firmware");
+    assert!(
+        status.success(),
+        "firmware build ({features}, {on:?}) failed"
+    );
     let dest = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("rths-firmware-{name}.elf"));
-    std::fs::copy(&elf, &dest).unwrap();
+    std::fs::copy(firmware_dir().join(elf), &dest).unwrap();
     dest
 }
 
-/// The QEMU command line of `firmware/.cargo/config.toml`'s runner (one source of truth).
-fn runner() -> Vec<String> {
+/// The QEMU command line of `firmware/.cargo/config.toml`'s runner (one source of truth): the
+/// target's `runner` for the M4, the `run-m7` alias's for the M7.
+fn runner(on: Emulated) -> Vec<String> {
     let cfg = std::fs::read_to_string(firmware_dir().join(".cargo/config.toml")).unwrap();
-    let line = cfg
-        .lines()
-        .find(|l| l.trim_start().starts_with("runner"))
-        .unwrap();
-    let quoted = line.split('"').nth(1).unwrap();
+    let quoted = match on {
+        Emulated::M4 => {
+            let line = cfg
+                .lines()
+                .find(|l| l.trim_start().starts_with("runner"))
+                .unwrap();
+            line.split('"').nth(1).unwrap()
+        }
+        Emulated::M7 => {
+            let line = cfg
+                .lines()
+                .find(|l| l.trim_start().starts_with("run-m7"))
+                .unwrap();
+            let at = line.find("runner='").unwrap() + "runner='".len();
+            line[at..].split('\'').next().unwrap()
+        }
+    };
     quoted.split_whitespace().map(str::to_string).collect()
 }
 
 /// Run an ELF in QEMU (5 min timeout); its RESULT line as JSON and the exit status.
 fn run(elf: &Path) -> (serde_json::Value, bool) {
-    let argv = runner();
+    run_on(Emulated::M4, elf)
+}
+
+/// [`run`] on the emulated board `on`.
+fn run_on(on: Emulated, elf: &Path) -> (serde_json::Value, bool) {
+    let (result, _, ok) = run_full(on, elf);
+    (result, ok)
+}
+
+/// [`run_on`], with the CALIB line as JSON too.
+fn run_full(on: Emulated, elf: &Path) -> (serde_json::Value, serde_json::Value, bool) {
+    let argv = runner(on);
     let dir = tempfile::tempdir().unwrap();
     let mut child = Command::new(&argv[0])
         .args(&argv[1..])
@@ -99,7 +177,16 @@ fn run(elf: &Path) -> (serde_json::Value, bool) {
         .rev()
         .find_map(|l| l.strip_prefix("RESULT "))
         .unwrap_or_else(|| panic!("no RESULT line in:\n{out}"));
-    (serde_json::from_str(line).unwrap(), status.success())
+    let calib = out
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("CALIB "))
+        .unwrap_or_else(|| panic!("no CALIB line in:\n{out}"));
+    (
+        serde_json::from_str(line).unwrap(),
+        serde_json::from_str(calib).unwrap(),
+        status.success(),
+    )
 }
 
 fn f(v: &serde_json::Value, key: &str) -> f64 {
@@ -136,6 +223,18 @@ fn host_lr_online_nrmse() -> f64 {
 
 fn tick_share(instr: f64) -> f64 {
     instr * CYCLES_PER_INSTR / (CPU_HZ * DT_S)
+}
+
+/// The Cortex-M7 board's clock (STM32H743), Hz: the emulated M7's counts are placed on it.
+const M7_CPU_HZ: f64 = 480e6;
+
+/// The issue's target for the LR path on the Cortex-M7: at most 500 instructions per control tick.
+const MAX_M7_LR_INSTR: f64 = 500.0;
+
+/// The share of the tick `instr` instructions take on the Cortex-M7 board (same cycles per
+/// instruction as the M4's budget: conservative for the dual-issue M7).
+fn m7_tick_share(instr: f64) -> f64 {
+    instr * CYCLES_PER_INSTR / (M7_CPU_HZ * DT_S)
 }
 
 #[test]
@@ -186,6 +285,86 @@ fn lr_online_in_qemu_matches_the_host_and_fits_the_budget() {
         max <= MAX_LR_INSTR,
         "LR path: {max} instructions per tick > {MAX_LR_INSTR}"
     );
+}
+
+/// The Cortex-M7 (QEMU mps2-an500, f64 in hardware) runs the same firmware: the same RESULT as the
+/// host simulation, within the LR budget of the M7 (≤ 500 instructions per tick).
+#[test]
+fn lr_online_on_the_m7_matches_the_host_and_fits_the_budget() {
+    if qemu_missing("firmware-in-the-loop test (Cortex-M7)") {
+        return;
+    }
+    let elf = build_on(Emulated::M7, "m7-lr", true, "board-qemu,model-lr", None);
+    let (r, calib, ok) = run_full(Emulated::M7, &elf);
+    assert!(ok, "firmware exit status was not 0: {r}");
+    // The emulated core reports a double-precision FPU (MVFR0), which the build uses (no software
+    // f64 routine is reachable from the control step: budget.sh's panic check).
+    assert_eq!(calib["fpu_f64"], true, "{calib}");
+    assert_eq!(r["scenario"], "lr-online");
+    assert_eq!(r["ticks"], 81_900, "the whole El Centro record");
+    assert_eq!(r["overruns"], 0);
+    assert_eq!(r["faults"], 0);
+    assert_eq!(r["end_state"], "done");
+    assert_eq!(f(&r, "final_cmd_mm"), 0.0);
+    let fw = f(&r, "nrmse_pct");
+    let host = host_lr_online_nrmse();
+    println!(
+        "M7 lr-online NRMSE: firmware {fw:?} %, host {host:?} %, bit-identical: {}",
+        fw.to_bits() == host.to_bits()
+    );
+    assert!(
+        (fw - host).abs() <= 1e-6 * host.abs(),
+        "firmware {fw} % vs host {host} %: more than float noise"
+    );
+    let max = f(&r["instr_per_tick"], "max");
+    let share = m7_tick_share(max);
+    println!(
+        "M7 LR budget: max {max} instructions/tick = {:.3}% of the tick at 480 MHz",
+        share * 100.0
+    );
+    assert!(
+        max <= MAX_M7_LR_INSTR,
+        "M7 LR path: {max} instructions per tick > {MAX_M7_LR_INSTR}"
+    );
+    assert!(share <= MAX_TICK_SHARE, "{:.2}% of the tick", share * 100.0);
+}
+
+/// Every other analytical part on the Cortex-M7: builds, runs the whole record, and fits 10% of the
+/// tick at 480 MHz (hardware f64: the RNN-10 that overruns the M4's tick fits here).
+#[test]
+fn every_analytical_part_fits_the_m7_budget() {
+    if qemu_missing("firmware-in-the-loop test (Cortex-M7)") {
+        return;
+    }
+    for (name, features) in [
+        ("rnn", "model-rnn"),
+        ("fe-ats", "fe-ats"),
+        ("lrx", "model-lrx"),
+    ] {
+        let elf = build_on(
+            Emulated::M7,
+            &format!("m7-{name}"),
+            true,
+            &format!("board-qemu,{features}"),
+            None,
+        );
+        let (r, _) = run_on(Emulated::M7, &elf);
+        let max = f(&r["instr_per_tick"], "max");
+        let share = m7_tick_share(max);
+        println!(
+            "M7 {name}: {} max {max} instructions/tick = {:.2}% of the tick at 480 MHz",
+            r["scenario"],
+            share * 100.0
+        );
+        assert_eq!(r["ticks"], 81_900, "{name}: {r}");
+        assert_eq!(r["overruns"], 0, "{name}: {r}");
+        assert!(max > 0.0, "{name}: {r}");
+        assert!(
+            share <= MAX_TICK_SHARE,
+            "M7 {name}: {:.2}% of the tick",
+            share * 100.0
+        );
+    }
 }
 
 #[test]

@@ -12,15 +12,30 @@ use libm::sqrt;
 /// Standard gravity in mm/s² (CGPM 1901), to convert ground motions recorded in g.
 pub const G_MM_S2: f64 = 9806.65;
 
-/// Controller (and hybrid simulation) rate in Hz: the paper's 2048 Hz real-time controller. Every
-/// other rate constant derives from it (Δt, the boards' tick timers, the firmware's 1 s counts).
-pub const CONTROL_RATE_HZ: u32 = 2048;
+/// The controller rates a build can choose, Hz: the paper's 2048 Hz real-time controller, and the
+/// vRTHS benchmark's 4096 Hz (feature `rate-4096`).
+pub const CONTROL_RATES_HZ: [u32; 2] = [2048, 4096];
+
+/// Controller (and hybrid simulation) rate in Hz: 2048, or 4096 with the `rate-4096` feature (a
+/// build-time choice: the plant's discretization, the trained models and the boards' tick timers
+/// all follow it). Every other rate constant derives from it (Δt, the boards' tick timers, the
+/// firmware's 1 s counts, [`PAPER_DELAY_STEPS`]).
+pub const CONTROL_RATE_HZ: u32 = if cfg!(feature = "rate-4096") {
+    CONTROL_RATES_HZ[1]
+} else {
+    CONTROL_RATES_HZ[0]
+};
 
 /// [`CONTROL_RATE_HZ`] as a float.
 pub const CONTROLLER_RATE_HZ: f64 = CONTROL_RATE_HZ as f64;
 
-/// Controller step in s (1/2048 s ≈ 488 µs).
-pub const DT_S: f64 = 1.0 / CONTROLLER_RATE_HZ;
+/// The controller step at `rate_hz`, s.
+pub const fn dt_s(rate_hz: u32) -> f64 {
+    1.0 / rate_hz as f64
+}
+
+/// Controller step in s (1/2048 s ≈ 488 µs; 1/4096 s ≈ 244 µs with `rate-4096`).
+pub const DT_S: f64 = dt_s(CONTROL_RATE_HZ);
 
 /// Seismic mass of the one-story prototype, kN·s²/mm (paper).
 pub const MASS_KN_S2_PER_MM: f64 = 1.75;
@@ -54,8 +69,9 @@ pub const ACTUATOR_CAPACITY_KN: f64 = 31.14;
 /// Actuator no-load velocity, mm/s (paper).
 pub const ACTUATOR_VELOCITY_MM_S: f64 = 338.84;
 
-/// Delay of the paper's actuator loop in controller steps (13.7 ms at 2048 Hz ≈ 28 steps).
-pub const PAPER_DELAY_STEPS: usize = 28;
+/// Delay of the paper's actuator loop in controller steps (13.7 ms: 28 steps at 2048 Hz, 56 at
+/// 4096 Hz).
+pub const PAPER_DELAY_STEPS: usize = 28 * CONTROL_RATE_HZ as usize / CONTROL_RATES_HZ[0] as usize;
 
 /// A parameter that failed validation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
