@@ -10,8 +10,9 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use rths_link::{
-    DeviceMsg, FrameReader, Gap, HostMsg, LinkError, NackReason, Request, RunState, SeqCheck,
-    Status, Telemetry, LR_COEFFS, MAX_FRAME,
+    DeviceMsg, FrameReader, Gap, HostMsg, LinkError, ModelKind as WireModelKind, NackReason,
+    RecordSource, Request, RunState, SeqCheck, Status, Telemetry, LR_COEFFS, MAX_FRAME,
+    RECORD_CHUNK,
 };
 
 use crate::model_file::{ModelFile, ModelKind};
@@ -46,6 +47,9 @@ pub enum LinkHostError {
     /// The model file cannot be sent (not LR, wrong shape or delay).
     #[error("model: {0}")]
     Model(String),
+    /// The ground-motion record cannot be sent (empty, not finite, too long for the protocol).
+    #[error("ground motion: {0}")]
+    Motion(String),
     /// QEMU could not be started or stopped early.
     #[error("qemu: {0}")]
     Qemu(String),
@@ -310,6 +314,23 @@ impl Link {
         }
     }
 
+    /// Upload a ground-motion record (samples in g every `dt_s`, already multiplied by `scale`,
+    /// which the device keeps for its status): `RecordBegin`, the chunks, `RecordCommit`, each
+    /// acknowledged. Its checksum on success; the device's refusal (the record it had stays in
+    /// force) as [`LinkHostError::Refused`].
+    pub fn upload_record(
+        &mut self,
+        samples_g: &[f64],
+        dt_s: f64,
+        scale: f64,
+    ) -> Result<u32, LinkHostError> {
+        let msgs = record_messages(samples_g, dt_s, scale)?;
+        for m in &msgs {
+            self.expect_ack(m)?;
+        }
+        Ok(rths_link::record_checksum(samples_g, dt_s))
+    }
+
     /// New stroke, velocity and force limits.
     pub fn set_limits(
         &mut self,
@@ -410,6 +431,195 @@ pub fn upload_message(model: &ModelFile) -> Result<HostMsg, LinkHostError> {
         delay_steps: delay,
         checksum: rths_link::model_checksum(&theta, delay),
     })
+}
+
+/// The messages of a record upload: `RecordBegin`, one `RecordChunk` per [`RECORD_CHUNK`] samples
+/// (numbered from 0), `RecordCommit`. Checked here too (≥ 2 finite samples, a finite step and scale)
+/// so that a bad file fails before anything is sent; the device checks again.
+pub fn record_messages(
+    samples_g: &[f64],
+    dt_s: f64,
+    scale: f64,
+) -> Result<Vec<HostMsg>, LinkHostError> {
+    if samples_g.len() < 2 {
+        return Err(LinkHostError::Motion("fewer than 2 samples".into()));
+    }
+    if let Some(i) = samples_g.iter().position(|v| !v.is_finite()) {
+        return Err(LinkHostError::Motion(format!("sample {i} is not finite")));
+    }
+    if !(dt_s.is_finite() && dt_s > 0.0 && scale.is_finite()) {
+        return Err(LinkHostError::Motion(format!(
+            "step {dt_s} s or scale {scale} is not a finite positive number"
+        )));
+    }
+    let samples = u32::try_from(samples_g.len())
+        .map_err(|_| LinkHostError::Motion("more than 2^32 samples".into()))?;
+    let mut out = Vec::with_capacity(samples_g.len() / RECORD_CHUNK + 3);
+    out.push(HostMsg::RecordBegin {
+        samples,
+        dt_s,
+        scale,
+        checksum: rths_link::record_checksum(samples_g, dt_s),
+    });
+    for (i, ch) in samples_g.chunks(RECORD_CHUNK).enumerate() {
+        let mut values = [0.0; RECORD_CHUNK];
+        values
+            .get_mut(..ch.len())
+            .ok_or_else(|| LinkHostError::Motion("chunk".into()))?
+            .copy_from_slice(ch);
+        out.push(HostMsg::RecordChunk {
+            seq: i as u32,
+            count: ch.len() as u8,
+            values,
+        });
+    }
+    out.push(HostMsg::RecordCommit);
+    Ok(out)
+}
+
+/// The name of a model kind as the device reports it.
+pub fn model_kind_name(k: WireModelKind) -> &'static str {
+    match k {
+        WireModelKind::Lr => "lr",
+        WireModelKind::Lrx => "lrx",
+        WireModelKind::Rnn => "rnn",
+        WireModelKind::FeAts => "fe-ats",
+    }
+}
+
+/// The name of a record's source as the device reports it.
+pub fn record_source_name(s: RecordSource) -> &'static str {
+    match s {
+        RecordSource::Compiled => "compiled in",
+        RecordSource::Uploaded => "uploaded",
+    }
+}
+
+/// What a recording is of: `# key: value` lines before the CSV header (the ground motion as given
+/// and its name, the scale, the record's and the model's checksums as the device reported them, the
+/// scenario, the structure...), read back by `rths report` to compute the reference.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RunHeader {
+    /// The fields, in order.
+    pub fields: Vec<(String, String)>,
+}
+
+/// The first header line of a recording with a header.
+pub const RECORDING_FORMAT: &str = "rths-recording 1";
+
+impl RunHeader {
+    /// Set `key` (replacing an earlier value).
+    pub fn set(&mut self, key: &str, value: impl std::fmt::Display) {
+        let v = value.to_string().replace(['\n', '\r'], " ");
+        match self.fields.iter_mut().find(|(k, _)| k == key) {
+            Some(f) => f.1 = v,
+            None => self.fields.push((key.to_string(), v)),
+        }
+    }
+
+    /// The value of `key`.
+    pub fn get(&self, key: &str) -> Option<&str> {
+        self.fields
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+    }
+
+    /// The header lines (`# format: rths-recording 1` first).
+    pub fn lines(&self) -> Vec<String> {
+        std::iter::once(format!("# format: {RECORDING_FORMAT}"))
+            .chain(self.fields.iter().map(|(k, v)| format!("# {k}: {v}")))
+            .collect()
+    }
+}
+
+/// One row of a recording read back.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordingRow {
+    /// Record number.
+    pub seq: u32,
+    /// Tick from the run's start.
+    pub tick: u32,
+    /// State name ([`state_name`]).
+    pub state: String,
+    /// Command sent at this tick, mm.
+    pub command_mm: f64,
+    /// Target produced at this tick, mm.
+    pub target_mm: f64,
+    /// Measured displacement read at this tick, mm.
+    pub measured_mm: f64,
+    /// Measured force read at this tick, kN.
+    pub force_kn: f64,
+}
+
+/// A recording (`rths link run/record --out`) read back.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recording {
+    /// Its header (empty for a recording without one).
+    pub header: RunHeader,
+    /// Its rows.
+    pub rows: Vec<RecordingRow>,
+}
+
+/// Read a recording's text: optional `# key: value` lines, the [`CSV_HEADER`], the rows.
+pub fn read_recording(text: &str) -> Result<Recording, LinkHostError> {
+    let bad =
+        |line: usize, why: String| LinkHostError::Motion(format!("recording line {line}: {why}"));
+    let mut header = RunHeader::default();
+    let mut lines = text.lines().enumerate();
+    loop {
+        let Some((i, l)) = lines.next() else {
+            return Err(bad(0, "no CSV header".into()));
+        };
+        if let Some(kv) = l.strip_prefix('#') {
+            let (k, v) = kv
+                .split_once(':')
+                .ok_or_else(|| bad(i + 1, format!("not `# key: value`: {l}")))?;
+            let (k, v) = (k.trim(), v.trim());
+            if k == "format" {
+                if v != RECORDING_FORMAT {
+                    return Err(bad(i + 1, format!("unknown format `{v}`")));
+                }
+            } else {
+                header.set(k, v);
+            }
+            continue;
+        }
+        if l.trim() != CSV_HEADER {
+            return Err(bad(i + 1, format!("expected the header `{CSV_HEADER}`")));
+        }
+        break;
+    }
+    let mut rows = Vec::new();
+    for (i, l) in lines {
+        if l.trim().is_empty() {
+            continue;
+        }
+        let f: Vec<&str> = l.split(',').collect();
+        if f.len() != 8 {
+            return Err(bad(i + 1, format!("{} fields, expected 8", f.len())));
+        }
+        let num = |j: usize| -> Result<f64, LinkHostError> {
+            f[j].trim()
+                .parse::<f64>()
+                .map_err(|e| bad(i + 1, format!("field {}: {e}", j + 1)))
+        };
+        let int = |j: usize| -> Result<u32, LinkHostError> {
+            f[j].trim()
+                .parse::<u32>()
+                .map_err(|e| bad(i + 1, format!("field {}: {e}", j + 1)))
+        };
+        rows.push(RecordingRow {
+            seq: int(0)?,
+            tick: int(1)?,
+            state: f[3].trim().to_string(),
+            command_mm: num(4)?,
+            target_mm: num(5)?,
+            measured_mm: num(6)?,
+            force_kn: num(7)?,
+        });
+    }
+    Ok(Recording { header, rows })
 }
 
 /// The CSV header of a recording.

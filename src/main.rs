@@ -33,6 +33,8 @@ enum Command {
     Identify(cmd::identify::Args),
     /// Drive and record a test on a board over the command link (serial port, QEMU socket).
     Link(cmd::link::Args),
+    /// The figures, metrics and plots of `rths simulate` for a recording of a board's test.
+    Report(cmd::report::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -46,6 +48,7 @@ fn main() -> std::process::ExitCode {
         Command::Faults(a) => cmd::faults::run(a),
         Command::CheckModel(a) => cmd::check_model::run(a),
         Command::Link(a) => cmd::link::run(a),
+        Command::Report(a) => cmd::report::run(a),
         Command::Identify(a) => cmd::identify::run(a),
     };
     match result {

@@ -487,3 +487,281 @@ fn the_cli_talks_through_its_own_qemu_and_through_a_pty() {
     );
     assert!(text.contains("state            idle"), "{text}");
 }
+
+/// A record upload request; the device's refusal reason, if any.
+fn refusal(link: &mut rths::link_host::Link, msg: &HostMsg) -> Option<NackReason> {
+    match link.request(msg) {
+        Ok(_) => None,
+        Err(LinkHostError::Refused(_, why)) => Some(why),
+        Err(e) => panic!("{msg:?}: {e}"),
+    }
+}
+
+#[test]
+fn bad_record_uploads_are_refused_with_their_reason_and_the_record_in_force_stays() {
+    use rths_link::{RecordSource, RECORD_CHUNK};
+    if qemu_missing("link test") {
+        return;
+    }
+    let elf = link_elf();
+    let dir = tempfile::tempdir().unwrap();
+    let mut q = Qemu::start(&elf, dir.path()).unwrap();
+    let link = &mut q.link;
+    link.timeout = Duration::from_secs(20);
+
+    // Boot: the compiled-in El Centro, the host's embedded one bit for bit.
+    let s0 = link.status().unwrap();
+    let el = rths::motion::GroundMotion::el_centro();
+    assert_eq!(s0.record.source, RecordSource::Compiled);
+    assert_eq!(
+        s0.record.checksum,
+        rths_link::record_checksum(&el.accel_g, el.dt_s)
+    );
+    assert_eq!(s0.record.ticks as usize, el.resample_mm_s2(DT_S).len());
+    assert_eq!(s0.record_capacity, 4096, "64 KiB, two halves of f64");
+    println!(
+        "record capacity {} samples: {:.2} s at 0.01 s, {:.2} s at 0.02 s",
+        s0.record_capacity,
+        (s0.record_capacity - 1) as f64 * 0.01,
+        (s0.record_capacity - 1) as f64 * 0.02
+    );
+
+    // A good upload first (Northridge × 0.5): in force, and reported.
+    let nr = rths::motion::GroundMotion::try_embedded("northridge")
+        .unwrap()
+        .scaled(0.5);
+    let c = link.upload_record(&nr.accel_g, nr.dt_s, 0.5).unwrap();
+    let good = link.status().unwrap().record;
+    assert_eq!(good.source, RecordSource::Uploaded);
+    assert_eq!(good.checksum, c);
+    assert_eq!((good.samples, good.dt_s, good.scale), (2000, 0.02, 0.5));
+    let in_force = |link: &mut rths::link_host::Link, what: &str| {
+        assert_eq!(link.status().unwrap().record, good, "after {what}");
+    };
+
+    let msgs = rths::link_host::record_messages(&nr.accel_g, nr.dt_s, 0.5).unwrap();
+    let (begin, chunks, commit) = (&msgs[0], &msgs[1..msgs.len() - 1], &msgs[msgs.len() - 1]);
+    let HostMsg::RecordBegin { checksum, .. } = *begin else {
+        unreachable!()
+    };
+    // Too long for memory: Loma Prieta's 7998 samples.
+    let lp = rths::motion::GroundMotion::try_embedded("loma-prieta").unwrap();
+    let lp_begin = rths::link_host::record_messages(&lp.accel_g, lp.dt_s, 1.0).unwrap()[0];
+    assert_eq!(refusal(link, &lp_begin), Some(NackReason::TooLong));
+    // Wrong rates: 0.5 s (a unit mistake), 0.1 ms (faster than the controller), NaN.
+    for dt_s in [0.5, 1e-4, f64::NAN] {
+        let m = HostMsg::RecordBegin {
+            samples: 2000,
+            dt_s,
+            scale: 0.5,
+            checksum,
+        };
+        assert_eq!(refusal(link, &m), Some(NackReason::Rate), "dt {dt_s}");
+    }
+    in_force(link, "bad headers");
+    // A NaN in a chunk.
+    assert_eq!(refusal(link, begin), None);
+    let HostMsg::RecordChunk { seq, count, values } = chunks[0] else {
+        unreachable!()
+    };
+    let mut nan = values;
+    nan[RECORD_CHUNK / 2] = f64::NAN;
+    let m = HostMsg::RecordChunk {
+        seq,
+        count,
+        values: nan,
+    };
+    assert_eq!(refusal(link, &m), Some(NackReason::NotFinite));
+    in_force(link, "a NaN");
+    // Reordered (chunk 1 before 0) and duplicated (chunk 0 twice).
+    assert_eq!(refusal(link, begin), None);
+    assert_eq!(refusal(link, &chunks[1]), Some(NackReason::Sequence));
+    assert_eq!(refusal(link, begin), None);
+    assert_eq!(refusal(link, &chunks[0]), None);
+    assert_eq!(refusal(link, &chunks[0]), Some(NackReason::Sequence));
+    in_force(link, "reordered and duplicated chunks");
+    // Truncated: the commit before the last chunk.
+    assert_eq!(refusal(link, begin), None);
+    for ch in &chunks[..chunks.len() - 1] {
+        assert_eq!(refusal(link, ch), None);
+    }
+    assert_eq!(refusal(link, commit), Some(NackReason::Incomplete));
+    in_force(link, "a truncated upload");
+    // Corrupted on the wire: chunk 3's frame with a bit flipped is dropped (bad frame, no answer),
+    // so chunk 4 comes out of sequence.
+    let bad0 = link.status().unwrap().bad_frames;
+    assert_eq!(refusal(link, begin), None);
+    for ch in &chunks[..3] {
+        assert_eq!(refusal(link, ch), None);
+    }
+    let mut frame = [0u8; rths_link::MAX_FRAME + 1];
+    let n = rths_link::encode(&chunks[3], &mut frame).unwrap();
+    frame[n / 2] ^= 0x04;
+    link.send_raw(&[0]).unwrap();
+    link.send_raw(&frame[..n]).unwrap();
+    assert_eq!(refusal(link, &chunks[4]), Some(NackReason::Sequence));
+    assert_eq!(link.status().unwrap().bad_frames, bad0 + 1);
+    in_force(link, "a corrupted chunk");
+    // Samples changed (each frame intact, the end-to-end checksum not): refused at the commit.
+    let HostMsg::RecordBegin {
+        samples,
+        dt_s,
+        scale,
+        ..
+    } = *begin
+    else {
+        unreachable!()
+    };
+    let wrong = HostMsg::RecordBegin {
+        samples,
+        dt_s,
+        scale,
+        checksum: checksum ^ 1,
+    };
+    assert_eq!(refusal(link, &wrong), None);
+    for ch in chunks {
+        assert_eq!(refusal(link, ch), None);
+    }
+    assert_eq!(refusal(link, commit), Some(NackReason::Checksum));
+    in_force(link, "a wrong checksum");
+    // An upload while a test is armed: refused Busy.
+    link.arm(1).unwrap();
+    assert_eq!(refusal(link, begin), Some(NackReason::Busy));
+    assert_eq!(refusal(link, commit), Some(NackReason::Busy));
+    assert_eq!(link.status().unwrap().record, good, "armed");
+}
+
+/// The ground motion as a CSV file the firmware does not have compiled in, the `rths link run`
+/// of it in QEMU, and `rths report` of the recording against `rths simulate` of the same record.
+#[test]
+fn a_csv_record_uploaded_run_and_reported_equals_the_host_simulation() {
+    if qemu_missing("link test") {
+        return;
+    }
+    let elf = link_elf();
+    let exe = env!("CARGO_BIN_EXE_rths");
+    let dir = tempfile::tempdir().unwrap();
+    let csv_motion = dir.path().join("northridge.csv");
+    let nr = rths::motion::GroundMotion::try_embedded("northridge").unwrap();
+    std::fs::write(&csv_motion, nr.to_csv()).unwrap();
+    let run_csv = dir.path().join("run.csv");
+    let out = Command::new(exe)
+        .args(["link", "--qemu"])
+        .arg(&elf)
+        .args(["run", "--motion"])
+        .arg(&csv_motion)
+        .args(["--scale", "0.5", "--out"])
+        .arg(&run_csv)
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    println!("{text}");
+
+    // The commands, bit for bit, against the host simulation of the same record (as the CSV file
+    // reads back), scale and model (the compiled-in data/models/lr.json).
+    let rec = rths::link_host::read_recording(&std::fs::read_to_string(&run_csv).unwrap()).unwrap();
+    assert_eq!(rec.header.get("scale"), Some("0.5"));
+    assert_eq!(rec.header.get("scenario"), Some("lr-online"));
+    let motion = rths::motion::GroundMotion::from_path(&csv_motion)
+        .unwrap()
+        .scaled(0.5);
+    let ag = motion.resample_mm_s2(DT_S);
+    let reference = study::reference_mm(&ag, 1.0).unwrap();
+    let lr_file =
+        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json"))
+            .unwrap();
+    let host = scenario::run(&setup(
+        ScenarioId::LrOnline,
+        &ag,
+        &reference,
+        &theta(&lr_file),
+    ))
+    .unwrap();
+    let h = &host.history;
+    assert!(rec.rows.len() >= ag.len());
+    let mut identical = 0;
+    for (row, hs) in rec.rows.iter().zip(&h.command_mm[1..]) {
+        assert_eq!(row.command_mm.to_bits(), hs.to_bits(), "tick {}", row.tick);
+        identical += 1;
+    }
+    println!(
+        "{identical} of {} commands bit-identical to the host",
+        ag.len() - 1
+    );
+    assert_eq!(identical, ag.len() - 1);
+
+    // `rths report --json` equals `rths simulate --json` on every figure.
+    let json = |args: &[&str]| -> serde_json::Value {
+        let out = Command::new(exe)
+            .args(args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let rep = json(&["report", run_csv.to_str().unwrap(), "--json"]);
+    let sim = json(&[
+        "simulate",
+        "--scenario",
+        "lr-online",
+        "--motion",
+        csv_motion.to_str().unwrap(),
+        "--scale",
+        "0.5",
+        "--json",
+    ]);
+    println!("report   {}", rep["scenarios"][0]);
+    println!("simulate {}", sim["scenarios"][0]);
+    assert_eq!(rep["scenarios"][0], sim["scenarios"][0]);
+    assert!(rep["scenarios"][0]["nrmse_measured_pct"].as_f64().unwrap() > 0.0);
+
+    // With --out: the same history file and figure as `rths simulate --out`.
+    let rep_dir = dir.path().join("report");
+    let sim_dir = dir.path().join("simulate");
+    json(&[
+        "report",
+        run_csv.to_str().unwrap(),
+        "--json",
+        "--out",
+        rep_dir.to_str().unwrap(),
+    ]);
+    json(&[
+        "simulate",
+        "--scenario",
+        "lr-online",
+        "--motion",
+        csv_motion.to_str().unwrap(),
+        "--scale",
+        "0.5",
+        "--json",
+        "--out",
+        sim_dir.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        std::fs::read_to_string(rep_dir.join("history.csv")).unwrap(),
+        std::fs::read_to_string(sim_dir.join("history.csv")).unwrap()
+    );
+    assert!(rep_dir.join("lr-online.png").exists());
+
+    // A recording whose record is not the one named is refused.
+    let text = std::fs::read_to_string(&run_csv).unwrap();
+    let other = dir.path().join("other.csv");
+    std::fs::write(&other, text.replace("# scale: 0.5", "# scale: 0.6")).unwrap();
+    let out = Command::new(exe)
+        .args(["report", other.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not the record of this recording"));
+}

@@ -4,9 +4,12 @@
 use rths_core::control::{Analytical, Controller};
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_core::supervisor::{Limits, State, Supervisor};
-use rths_link::{DeviceMsg, HostMsg, NackReason, RunState, Status, Telemetry, LR_COEFFS};
+use rths_link::{
+    DeviceMsg, HostMsg, ModelKind, NackReason, RunState, Status, Telemetry, LR_COEFFS,
+};
 
 use crate::board::LinkPort;
+use crate::record::RecordStore;
 use crate::{Record, Run};
 
 /// The wire state of a supervisor state.
@@ -115,11 +118,13 @@ pub struct Session {
     pub upload_lr: bool,
     /// How `Arm` arms.
     pub rearm: Rearm,
+    /// The kind of the analytical part (reported in the status).
+    pub model_kind: ModelKind,
 }
 
 impl Session {
-    /// A session with the compiled-in model of `model_checksum`.
-    pub fn new(model_checksum: u32, upload_lr: bool, rearm: Rearm) -> Self {
+    /// A session with the compiled-in model of `model_checksum`, of kind `model_kind`.
+    pub fn new(model_checksum: u32, upload_lr: bool, rearm: Rearm, model_kind: ModelKind) -> Self {
         Self {
             every: 1,
             seq: 0,
@@ -127,6 +132,7 @@ impl Session {
             model_checksum,
             upload_lr,
             rearm,
+            model_kind,
         }
     }
 
@@ -170,18 +176,34 @@ pub enum Effect {
 }
 
 /// Handle one request: its answer (always exactly one) and its effect. `finished`: the emulated
-/// plant's run is over. Runs at the link's priority with the controller and the run locked: it
-/// does no I/O (the caller sends the answer after unlocking).
+/// plant's run is over. Runs at the link's priority with the controller, the run and the record
+/// store locked: it does no I/O (the caller sends the answer after unlocking), and its longest
+/// work, a record chunk, is a copy and a CRC of [`rths_link::RECORD_CHUNK`] samples.
 pub fn handle(
     msg: HostMsg,
     ctl: &mut Controller,
     run: &mut Run,
+    store: &mut RecordStore<'_>,
     s: &mut Session,
     finished: bool,
 ) -> (DeviceMsg, Effect) {
     let req = msg.request();
+    // A record is replaced only at rest: the control task plays it during a run.
+    let at_rest = ctl.supervisor().at_rest();
     let result: Result<Effect, NackReason> = match msg {
-        HostMsg::Status => return (DeviceMsg::Status(status(ctl, s, run)), Effect::None),
+        HostMsg::Status => return (DeviceMsg::Status(status(ctl, s, run, store)), Effect::None),
+        HostMsg::RecordBegin {
+            samples,
+            dt_s,
+            scale,
+            checksum,
+        } => store
+            .begin(samples, dt_s, scale, checksum, at_rest)
+            .map(|()| Effect::None),
+        HostMsg::RecordChunk { seq, count, values } => store
+            .chunk(seq, count, &values, at_rest)
+            .map(|()| Effect::None),
+        HostMsg::RecordCommit => store.commit(at_rest).map(|_| Effect::None),
         HostMsg::UploadLr {
             features,
             theta,
@@ -252,7 +274,7 @@ fn arm(ctl: &mut Controller, run: &Run, rearm: Rearm, finished: bool) -> Result<
 }
 
 /// The status answer.
-pub fn status(ctl: &Controller, s: &Session, run: &Run) -> Status {
+pub fn status(ctl: &Controller, s: &Session, run: &Run, store: &RecordStore<'_>) -> Status {
     let sup = ctl.supervisor();
     let l = sup.limits();
     Status {
@@ -265,6 +287,9 @@ pub fn status(ctl: &Controller, s: &Session, run: &Run) -> Status {
         velocity_mm_s: l.velocity_mm_s(),
         force_kn: l.force_kn(),
         bad_frames: s.bad_frames,
+        model_kind: s.model_kind,
+        record: store.info(),
+        record_capacity: store.capacity(),
     }
 }
 

@@ -33,6 +33,17 @@ pub const SCENARIO_SUFFIX: Option<usize> = Some(crate::gen::RNN_HIDDEN);
 #[cfg(not(feature = "model-rnn"))]
 pub const SCENARIO_SUFFIX: Option<usize> = None;
 
+/// The kind of this build's analytical part (the link's status reports it).
+pub const MODEL_KIND: rths_link::ModelKind = if cfg!(feature = "model-rnn") {
+    rths_link::ModelKind::Rnn
+} else if cfg!(feature = "fe-ats") {
+    rths_link::ModelKind::FeAts
+} else if cfg!(feature = "model-lrx") {
+    rths_link::ModelKind::Lrx
+} else {
+    rths_link::ModelKind::Lr
+};
+
 /// The link's `UploadLr` replaces the analytical part with an LR model (not with an RNN or FE part,
 /// whose runs compare against their own reference).
 pub const UPLOAD_LR: bool = !cfg!(any(feature = "model-rnn", feature = "fe-ats"));

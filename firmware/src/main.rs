@@ -106,13 +106,15 @@ fn fault_spec() -> Option<&'static str> {
     None
 }
 
-/// Print the CALIB and RESULT lines; whether the run went as this build expects.
+/// Print the CALIB and RESULT lines; whether the run went as this build expects. `record_ticks`:
+/// the ticks of the record played (the compiled-in one's, or an uploaded one's).
 fn report(
     r: &Run,
     end: State,
     calib: &<B as Board>::Calibration,
     daq_errors: u32,
     held_samples: u32,
+    record_ticks: u32,
 ) -> bool {
     let mut c = heapless::String::<256>::new();
     let _ = calib.write_line(&mut c);
@@ -120,7 +122,7 @@ fn report(
     let info = ReportInfo {
         scenario: analytical::SCENARIO_PREFIX,
         scenario_suffix: analytical::SCENARIO_SUFFIX,
-        record_ticks: gen::RECORD_TICKS,
+        record_ticks,
         model: gen::MODEL_SOURCE,
         fault_spec: fault_spec(),
         stack: stack::high_water(),
@@ -139,7 +141,7 @@ fn report(
         r,
         end,
         &info.limits,
-        gen::RECORD_TICKS,
+        record_ticks,
         cfg!(feature = "fault-inject"),
     )
 }
@@ -149,6 +151,7 @@ mod app {
     use super::*;
     use heapless::spsc::{Consumer, Producer, Queue};
     use rths_app::board::{EStop, Harness, InstrCounter, TickTimer};
+    use rths_app::record::RecordStore;
     use rths_app::run::TickFacts;
     use rths_app::{control_step, Record};
     use rths_core::control::Controller;
@@ -166,6 +169,8 @@ mod app {
         timer: <B as Board>::Timer,
         run: Run,
         link: Link,
+        /// The ground-motion record in force (compiled in or uploaded) and the upload in progress.
+        store: RecordStore<'static>,
     }
 
     #[local]
@@ -199,10 +204,9 @@ mod app {
         };
         #[cfg(feature = "fault-inject")]
         parts.rig.inject(analytical::faults());
-        <<B as Board>::Harness as Harness<<B as Board>::Rig>>::reset(
-            &mut parts.harness,
-            motion::ground_accel_mm_s2(0),
-        );
+        let store = motion::store();
+        let ag0 = store.accel_mm_s2(0);
+        <<B as Board>::Harness as Harness<<B as Board>::Rig>>::reset(&mut parts.harness, ag0);
         let (ctl, model_checksum) = match analytical::controller() {
             Ok(c) => c,
             Err(e) => die(e),
@@ -240,8 +244,10 @@ mod app {
                         } else {
                             rths_app::link::Rearm::AtMeasured
                         },
+                        analytical::MODEL_KIND,
                     ),
                 },
+                store,
             },
             Local {
                 rig: parts.rig,
@@ -251,7 +257,7 @@ mod app {
                 calibration: parts.calibration,
                 producer,
                 consumer,
-                ag: motion::ground_accel_mm_s2(0),
+                ag: ag0,
                 overhead_instr: parts.calibration.counter_overhead_instr(),
                 #[cfg(feature = "link")]
                 reader: rths_link::FrameReader::new(),
@@ -273,7 +279,7 @@ mod app {
     /// (82 031 cycles at 168 MHz). The controller's work (measured) must fit in 10% of it; the whole
     /// task, harness and plant included, must end before the next update, else the next tick is told
     /// it overran, which the run counts and the supervisor sees (4 in a row trip it).
-    #[task(binds = TIM2, priority = 3, shared = [ctl, timer, run],
+    #[task(binds = TIM2, priority = 3, shared = [ctl, timer, run, store],
            local = [rig, counter, estop, harness, producer, ag, overhead_instr,
                     k: u32 = 0, overrun: bool = false])]
     fn control(mut cx: control::Context) {
@@ -284,6 +290,14 @@ mod app {
             return;
         }
         let k = if running { *cx.local.k } else { 0 };
+        let record_ticks = cx.shared.store.lock(|s| s.ticks());
+        if cfg!(feature = "link") && B::EMULATED_PLANT && running && k == 0 {
+            // The record may have been uploaded after boot: the emulated structure starts at rest
+            // under its first sample (as `init` did for the compiled-in one).
+            let ag0 = cx.shared.store.lock(|s| s.accel_mm_s2(0));
+            *cx.local.ag = ag0;
+            <<B as Board>::Harness as Harness<<B as Board>::Rig>>::reset(cx.local.harness, ag0);
+        }
         let ag = if running { *cx.local.ag } else { 0.0 };
         let overrun = *cx.local.overrun || injected_overrun(k);
         if EStop::asserted(cx.local.estop) {
@@ -305,14 +319,14 @@ mod app {
 
         let instr =
             InstrCounter::instructions(counter, t0, t1).saturating_sub(*cx.local.overhead_instr);
-        let in_record = k < gen::RECORD_TICKS;
+        let in_record = k < record_ticks;
         let row = Harness::after_tick(cx.local.harness, rig, k, in_record, ag, step.out.target_mm);
         let next_k = if running { k.saturating_add(1) } else { 0 };
         // ü_g for the next tick, interpolated in the slack of this one (docs/design.md §8 counts
         // only the DAQ read, the control step, the command write and the log record).
-        *cx.local.ag = motion::ground_accel_mm_s2(next_k);
+        *cx.local.ag = cx.shared.store.lock(|s| s.accel_mm_s2(next_k));
         let state = step.out.state;
-        let record_end = running && next_k >= gen::RECORD_TICKS && state == State::Running;
+        let record_end = running && next_k >= record_ticks && state == State::Running;
         let ended = cx.shared.ctl.lock(|c| {
             if record_end {
                 let _ = c.supervisor_mut().finish();
@@ -357,7 +371,7 @@ mod app {
 
     /// The supervisor: starts an autonomous run; stops an emulated run on a settled fault or at
     /// `Done`, and reports it.
-    #[task(binds = UART4, priority = 2, shared = [ctl, timer, run],
+    #[task(binds = UART4, priority = 2, shared = [ctl, timer, run, store],
            local = [calibration, started: bool = cfg!(feature = "link")])]
     fn supervisor(mut cx: supervisor::Context) {
         if !*cx.local.started {
@@ -396,7 +410,15 @@ mod app {
                 .shared
                 .ctl
                 .lock(|c| (c.supervisor().total_daq_errors(), c.held_samples()));
-            let ok = report(&run, state, cx.local.calibration, daq_errors, held);
+            let record_ticks = cx.shared.store.lock(|s| s.ticks());
+            let ok = report(
+                &run,
+                state,
+                cx.local.calibration,
+                daq_errors,
+                held,
+                record_ticks,
+            );
             if cfg!(feature = "link") {
                 // The board stays up for the host (status, the telemetry's end).
                 RUN_ENDED.store(true, Ordering::Release);
@@ -448,7 +470,7 @@ mod app {
     /// `link`: the host's requests, one answer each (the link UART's receive interrupt, lowest
     /// priority).
     #[cfg(feature = "link")]
-    #[task(binds = USART2, priority = 1, shared = [ctl, run, link], local = [reader])]
+    #[task(binds = USART2, priority = 1, shared = [ctl, run, link, store], local = [reader])]
     fn link_rx(mut cx: link_rx::Context) {
         use rths_app::board::LinkPort;
         use rths_app::link::{handle, send, Effect};
@@ -467,10 +489,12 @@ mod app {
             let finished = FINISHED.load(Ordering::Acquire);
             let ctl = &mut cx.shared.ctl;
             let run = &mut cx.shared.run;
-            let (answer, effect) = cx
-                .shared
-                .link
-                .lock(|l| ctl.lock(|c| run.lock(|r| handle(msg, c, r, &mut l.session, finished))));
+            let store = &mut cx.shared.store;
+            let (answer, effect) = cx.shared.link.lock(|l| {
+                ctl.lock(|c| {
+                    run.lock(|r| store.lock(|st| handle(msg, c, r, st, &mut l.session, finished)))
+                })
+            });
             if effect == Effect::Started {
                 defmt::info!("link: running");
                 RUNNING.store(true, Ordering::Release);

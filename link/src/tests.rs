@@ -46,7 +46,43 @@ fn any_host() -> impl Strategy<Value = HostMsg> {
         any::<u16>().prop_map(|telemetry_every| HostMsg::Arm { telemetry_every }),
         Just(HostMsg::Start),
         Just(HostMsg::Abort),
+        (any::<u32>(), any_f64(), any_f64(), any::<u32>()).prop_map(
+            |(samples, dt_s, scale, checksum)| HostMsg::RecordBegin {
+                samples,
+                dt_s,
+                scale,
+                checksum
+            }
+        ),
+        (
+            any::<u32>(),
+            any::<u8>(),
+            prop::collection::vec(any_f64(), RECORD_CHUNK)
+        )
+            .prop_map(|(seq, count, v)| HostMsg::RecordChunk {
+                seq,
+                count,
+                values: v.try_into().unwrap(),
+            }),
+        Just(HostMsg::RecordCommit),
     ]
+}
+
+fn any_record_info() -> impl Strategy<Value = RecordInfo> {
+    (
+        prop_oneof![Just(RecordSource::Compiled), Just(RecordSource::Uploaded)],
+        any::<[u32; 3]>(),
+        any_f64(),
+        any_f64(),
+    )
+        .prop_map(|(source, u, dt_s, scale)| RecordInfo {
+            source,
+            samples: u[0],
+            dt_s,
+            scale,
+            ticks: u[1],
+            checksum: u[2],
+        })
 }
 
 fn any_device() -> impl Strategy<Value = DeviceMsg> {
@@ -57,6 +93,9 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
         Just(Request::Arm),
         Just(Request::Start),
         Just(Request::Abort),
+        Just(Request::RecordBegin),
+        Just(Request::RecordChunk),
+        Just(Request::RecordCommit),
     ];
     let reason = prop_oneof![
         Just(NackReason::Shape),
@@ -66,6 +105,16 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
         Just(NackReason::Busy),
         Just(NackReason::InvalidState),
         Just(NackReason::Unsupported),
+        Just(NackReason::Sequence),
+        Just(NackReason::Incomplete),
+        Just(NackReason::TooLong),
+        Just(NackReason::Rate),
+    ];
+    let kind = prop_oneof![
+        Just(ModelKind::Lr),
+        Just(ModelKind::Lrx),
+        Just(ModelKind::Rnn),
+        Just(ModelKind::FeAts),
     ];
     prop_oneof![
         req.clone().prop_map(DeviceMsg::Ack),
@@ -73,21 +122,27 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
         (
             any_state(),
             any::<[u32; 5]>(),
-            any_f64(),
-            any_f64(),
-            any_f64()
+            (any_f64(), any_f64(), any_f64()),
+            (kind, any_record_info(), any::<u32>()),
         )
-            .prop_map(|(state, u, a, b, c)| DeviceMsg::Status(Status {
-                state,
-                model_checksum: u[0],
-                tick: u[1],
-                records_sent: u[2],
-                records_dropped: u[3],
-                stroke_mm: a,
-                velocity_mm_s: b,
-                force_kn: c,
-                bad_frames: u[4],
-            })),
+            .prop_map(
+                |(state, u, (a, b, c), (model_kind, record, record_capacity))| DeviceMsg::Status(
+                    Status {
+                        state,
+                        model_checksum: u[0],
+                        tick: u[1],
+                        records_sent: u[2],
+                        records_dropped: u[3],
+                        stroke_mm: a,
+                        velocity_mm_s: b,
+                        force_kn: c,
+                        bad_frames: u[4],
+                        model_kind,
+                        record,
+                        record_capacity,
+                    }
+                )
+            ),
         (
             any::<u32>(),
             any::<u32>(),
@@ -229,6 +284,60 @@ fn the_largest_messages_fit_a_frame() {
         checksum: u32::MAX,
     };
     assert!(encode(&u, &mut buf).unwrap() <= MAX_FRAME);
+    let c = HostMsg::RecordChunk {
+        seq: u32::MAX,
+        count: u8::MAX,
+        values: [f64::MAX; RECORD_CHUNK],
+    };
+    let n = encode(&c, &mut buf).unwrap();
+    println!("largest record chunk frame: {n} bytes");
+    assert!(n <= MAX_FRAME + 1, "{n}");
+    let info = RecordInfo {
+        source: RecordSource::Uploaded,
+        samples: u32::MAX,
+        dt_s: f64::MAX,
+        scale: f64::MAX,
+        ticks: u32::MAX,
+        checksum: u32::MAX,
+    };
+    let st = DeviceMsg::Status(Status {
+        state: RunState::Fault(255),
+        model_checksum: u32::MAX,
+        tick: u32::MAX,
+        records_sent: u32::MAX,
+        records_dropped: u32::MAX,
+        stroke_mm: f64::MAX,
+        velocity_mm_s: f64::MAX,
+        force_kn: f64::MAX,
+        bad_frames: u32::MAX,
+        model_kind: ModelKind::FeAts,
+        record: info,
+        record_capacity: u32::MAX,
+    });
+    let n = encode(&st, &mut buf).unwrap();
+    println!("largest status frame: {n} bytes");
+    assert!(n <= MAX_FRAME + 1, "{n}");
+}
+
+#[test]
+fn record_checksum_covers_every_sample_its_order_and_the_step() {
+    let a = [0.01, -0.02, 0.5, 1e-9, -0.0];
+    let c = record_checksum(&a, 0.01);
+    // Fed in chunks of any size, the running digest gives the same checksum.
+    let mut d = RecordDigest::new();
+    d.update(&a[..2]);
+    d.update(&a[2..]);
+    assert_eq!(d.finalize(0.01), c);
+    assert_ne!(record_checksum(&a, 0.02), c, "the step counts");
+    for i in 0..a.len() {
+        let mut b = a;
+        b[i] = f64::from_bits(b[i].to_bits() ^ 1);
+        assert_ne!(record_checksum(&b, 0.01), c, "sample {i}");
+    }
+    let mut swapped = a;
+    swapped.swap(0, 1);
+    assert_ne!(record_checksum(&swapped, 0.01), c, "the order counts");
+    assert_ne!(record_checksum(&a[..4], 0.01), c, "the length counts");
 }
 
 #[test]

@@ -33,6 +33,12 @@ pub use stm32f4::stm32f405 as pac;
 /// Core clock QEMU's netduinoplus2 machine gives the Cortex-M4 (and SysTick with CLKSOURCE = core), Hz.
 pub const SYSCLK_HZ: u32 = 168_000_000;
 
+/// The ground-motion record buffer (address, bytes) for uploads over the link: QEMU maps 192 KiB of
+/// SRAM at 0x2000_0000 where the STM32F405 has 128 KiB plus a 64 KiB CCM that QEMU does not model;
+/// `memory.x` gives the linker the first 128 KiB, and the last 64 KiB stand for the real board's
+/// CCM (the STM32F407 board crate's `RECORD_BUFFER`): the same size on both boards.
+pub const RECORD_BUFFER: (usize, usize) = (0x2002_0000, 64 * 1024);
+
 /// Counting clock of QEMU's STM32F2xx/F4xx timer model, Hz (its `clock-frequency` default: 1 GHz of
 /// virtual time, whatever the RCC says).
 pub const TIM_CLOCK_HZ: u32 = 1_000_000_000;

@@ -32,6 +32,11 @@ use stm32f4xx_hal::spi::{Mode, Phase, Polarity, Spi};
 pub const HSE_HZ: u32 = 8_000_000;
 /// Core clock, Hz.
 pub const SYSCLK_HZ: u32 = 168_000_000;
+
+/// The ground-motion record buffer (address, bytes) for uploads over the link: the 64 KiB CCM RAM
+/// (core-coupled, not reachable by DMA, which the record does not need), outside `memory.x`, so the
+/// statics and the stack keep the whole 128 KiB of main SRAM.
+pub const RECORD_BUFFER: (usize, usize) = (0x1000_0000, 64 * 1024);
 /// TIM2's counting clock (APB1 = 42 MHz, doubled for the timers since its prescaler is not 1), Hz.
 pub const TIM2_CLOCK_HZ: u32 = 84_000_000;
 /// The controller rate the tick aims at, Hz.
