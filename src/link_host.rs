@@ -304,8 +304,20 @@ impl Link {
         }
     }
 
-    /// Upload an LR model; its checksum on success.
+    /// Upload a model: an LR model in one `UploadLr`, another kind in chunks (`ModelBegin`, the
+    /// chunks, `ModelCommit`, each acknowledged; a kind the firmware does not run is refused at the
+    /// begin, `Unsupported`). Its checksum on success.
     pub fn upload(&mut self, model: &ModelFile) -> Result<u32, LinkHostError> {
+        if model.kind != ModelKind::Lr {
+            let msgs = model_messages(model)?;
+            for m in &msgs {
+                self.expect_ack(m)?;
+            }
+            return match msgs.first() {
+                Some(HostMsg::ModelBegin { checksum, .. }) => Ok(*checksum),
+                _ => Err(LinkHostError::Model("no model begin".into())),
+            };
+        }
         let msg = upload_message(model)?;
         self.expect_ack(&msg)?;
         match msg {
@@ -474,6 +486,77 @@ pub fn record_messages(
         });
     }
     out.push(HostMsg::RecordCommit);
+    Ok(out)
+}
+
+/// The flat values of a model file for a chunked upload, and its wire kind: LRX in
+/// `rths_link::lrx_values`' order; an RNN as `w_ih` (row-major), `w_hh` (row-major), `b_h`, `w_ho`,
+/// `b_o`, `input_mean`, `input_std`, `output_mean`, `output_std` (no firmware build takes RNN uploads
+/// yet: the device refuses them `Unsupported`).
+pub fn model_values(model: &ModelFile) -> Result<(WireModelKind, Vec<f64>), LinkHostError> {
+    let missing = |what: &str| LinkHostError::Model(format!("no {what} section"));
+    match model.kind {
+        ModelKind::Lrx => {
+            let x = model.lrx.as_ref().ok_or_else(|| missing("lrx"))?;
+            let v = rths_link::lrx_values(
+                &x.coeffs,
+                x.k_corr_kn_per_mm,
+                x.k_adapt_ticks,
+                &x.lead_weights,
+                x.lead_stride,
+            )
+            .ok_or_else(|| LinkHostError::Model("lrx: 9 coefficients and 8 lead weights".into()))?;
+            Ok((WireModelKind::Lrx, v.to_vec()))
+        }
+        ModelKind::Rnn => {
+            let r = model.rnn.as_ref().ok_or_else(|| missing("rnn"))?;
+            let mut v: Vec<f64> = r.w_ih.concat();
+            v.extend(r.w_hh.concat());
+            v.extend(&r.b_h);
+            v.extend(&r.w_ho);
+            v.push(r.b_o);
+            v.extend(&r.input_mean);
+            v.extend(&r.input_std);
+            v.push(r.output_mean);
+            v.push(r.output_std);
+            Ok((WireModelKind::Rnn, v))
+        }
+        ModelKind::Lr => Err(LinkHostError::Model(
+            "an LR model goes in one UploadLr".into(),
+        )),
+    }
+}
+
+/// The messages of a chunked model upload: `ModelBegin`, the chunks of [`RECORD_CHUNK`] values,
+/// `ModelCommit`.
+pub fn model_messages(model: &ModelFile) -> Result<Vec<HostMsg>, LinkHostError> {
+    let (kind, v) = model_values(model)?;
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return Err(LinkHostError::Model(format!("value {i} is not finite")));
+    }
+    let values = u16::try_from(v.len())
+        .map_err(|_| LinkHostError::Model("more than 65535 values".into()))?;
+    let delay_steps = u16::try_from(model.delay_steps)
+        .map_err(|_| LinkHostError::Model("delay_steps does not fit 16 bits".into()))?;
+    let mut out = vec![HostMsg::ModelBegin {
+        kind,
+        values,
+        delay_steps,
+        checksum: rths_link::model_values_checksum(kind, &v, delay_steps),
+    }];
+    for (i, ch) in v.chunks(RECORD_CHUNK).enumerate() {
+        let mut values = [0.0; RECORD_CHUNK];
+        values
+            .get_mut(..ch.len())
+            .ok_or_else(|| LinkHostError::Model("chunk".into()))?
+            .copy_from_slice(ch);
+        out.push(HostMsg::ModelChunk {
+            seq: i as u32,
+            count: ch.len() as u8,
+            values,
+        });
+    }
+    out.push(HostMsg::ModelCommit);
     Ok(out)
 }
 

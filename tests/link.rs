@@ -27,20 +27,51 @@ use rths_link::{HostMsg, NackReason, Request, RunState};
 /// once per test binary.
 fn link_elf() -> PathBuf {
     static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    ELF.get_or_init(|| build_elf(&["--features", "link"], "rths-firmware-link.elf"))
+        .clone()
+}
+
+/// The LRX build with the link (`--no-default-features --features board-qemu,model-lrx,link`).
+fn lrx_link_elf() -> PathBuf {
+    static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     ELF.get_or_init(|| {
-        let status = Command::new(env!("CARGO"))
-            .current_dir(firmware_dir())
-            .args(["build", "--release", "--features", "link"])
-            .env_remove("CARGO_TARGET_DIR")
-            .status()
-            .unwrap();
-        assert!(status.success(), "firmware build (link) failed");
-        let elf = firmware_dir().join("target/thumbv7em-none-eabihf/release/rths-firmware");
-        let dest = Path::new(env!("CARGO_TARGET_TMPDIR")).join("rths-firmware-link.elf");
-        std::fs::copy(&elf, &dest).unwrap();
-        dest
+        build_elf(
+            &[
+                "--no-default-features",
+                "--features",
+                "board-qemu,model-lrx,link",
+            ],
+            "rths-firmware-lrx-link.elf",
+        )
     })
     .clone()
+}
+
+/// Build the firmware with `args` and copy its ELF to `name`; one build at a time (they share the
+/// firmware's target directory and its output path).
+fn build_elf(args: &[&str], name: &str) -> PathBuf {
+    build_elf_with(args, name, None)
+}
+
+/// [`build_elf`] with the `fault-inject` plan `RTHS_FAULT` set to `fault` (or unset).
+fn build_elf_with(args: &[&str], name: &str, fault: Option<&str>) -> PathBuf {
+    static BUILD: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _one = BUILD.lock().unwrap_or_else(|e| e.into_inner());
+    let mut cmd = Command::new(env!("CARGO"));
+    cmd.current_dir(firmware_dir())
+        .args(["build", "--release"])
+        .args(args)
+        .env_remove("CARGO_TARGET_DIR");
+    match fault {
+        Some(f) => cmd.env("RTHS_FAULT", f),
+        None => cmd.env_remove("RTHS_FAULT"),
+    };
+    let status = cmd.status().unwrap();
+    assert!(status.success(), "firmware build {args:?} failed");
+    let elf = firmware_dir().join("target/thumbv7em-none-eabihf/release/rths-firmware");
+    let dest = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::copy(&elf, &dest).unwrap();
+    dest
 }
 
 struct Trained {
@@ -764,4 +795,156 @@ fn a_csv_record_uploaded_run_and_reported_equals_the_host_simulation() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("not the record of this recording"));
+}
+
+/// An LRX model uploaded in chunks to the LRX build runs El Centro exactly as the host simulation
+/// of that model; bad model uploads are refused with their reason, the model in force kept.
+#[test]
+fn an_lrx_model_uploaded_in_chunks_runs_as_the_host_simulates_it() {
+    if qemu_missing("link test") {
+        return;
+    }
+    let shipped =
+        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lrx.json"))
+            .unwrap();
+    let checksum = |m: &ModelFile| match rths::link_host::model_messages(m).unwrap()[0] {
+        HostMsg::ModelBegin { checksum, .. } => checksum,
+        _ => unreachable!(),
+    };
+    // Another valid LRX model: the shipped one with a 10% larger correction stiffness.
+    let mut other = shipped.clone();
+    other.lrx.as_mut().unwrap().k_corr_kn_per_mm *= 1.1;
+    assert_ne!(checksum(&other), checksum(&shipped));
+
+    // The LR build refuses an LRX model: a kind it does not run.
+    let dir = tempfile::tempdir().unwrap();
+    {
+        let mut q = Qemu::start(&link_elf(), dir.path()).unwrap();
+        let s0 = q.link.status().unwrap();
+        assert_eq!(s0.model_kind, rths_link::ModelKind::Lr);
+        match q.link.upload(&other) {
+            Err(LinkHostError::Refused(Request::ModelBegin, NackReason::Unsupported)) => {}
+            r => panic!("expected Unsupported, got {r:?}"),
+        }
+        assert_eq!(q.link.status().unwrap().model_checksum, s0.model_checksum);
+    }
+
+    let elf = lrx_link_elf();
+    let mut q = Qemu::start(&elf, dir.path()).unwrap();
+    let link = &mut q.link;
+    link.timeout = Duration::from_secs(20);
+    let s0 = link.status().unwrap();
+    assert_eq!(s0.model_kind, rths_link::ModelKind::Lrx);
+    assert_eq!(
+        s0.model_checksum,
+        checksum(&shipped),
+        "the compiled-in lrx.json"
+    );
+    // An RNN model: refused, a kind this build does not run.
+    let rnn =
+        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/rnn-10.json"))
+            .unwrap();
+    match link.upload(&rnn) {
+        Err(LinkHostError::Refused(Request::ModelBegin, NackReason::Unsupported)) => {}
+        r => panic!("expected Unsupported, got {r:?}"),
+    }
+    // A NaN in a chunk, a wrong checksum, a stride that is not the lead filter's: refused whole.
+    let msgs = rths::link_host::model_messages(&other).unwrap();
+    let mut nan = msgs.clone();
+    if let HostMsg::ModelChunk { values, .. } = &mut nan[1] {
+        values[2] = f64::NAN;
+    }
+    assert_eq!(refusal(link, &nan[0]), None);
+    assert_eq!(refusal(link, &nan[1]), Some(NackReason::NotFinite));
+    let mut wrong = msgs.clone();
+    if let HostMsg::ModelBegin { checksum, .. } = &mut wrong[0] {
+        *checksum ^= 1;
+    }
+    for m in &wrong[..wrong.len() - 1] {
+        assert_eq!(refusal(link, m), None);
+    }
+    assert_eq!(
+        refusal(link, wrong.last().unwrap()),
+        Some(NackReason::Checksum)
+    );
+    let mut bad_stride = other.clone();
+    bad_stride.lrx.as_mut().unwrap().lead_stride = 9;
+    match link.upload(&bad_stride) {
+        Err(LinkHostError::Refused(Request::ModelCommit, NackReason::OutOfRange)) => {}
+        r => panic!("expected OutOfRange, got {r:?}"),
+    }
+    assert_eq!(link.status().unwrap().model_checksum, s0.model_checksum);
+
+    // The other model: accepted, run, recorded.
+    let c = link.upload(&other).unwrap();
+    assert_eq!(c, checksum(&other));
+    assert_eq!(link.status().unwrap().model_checksum, c);
+    link.arm(1).unwrap();
+    link.start().unwrap();
+    let csv = dir.path().join("run.csv");
+    let summary = rths::cmd::link::record_csv(link, &csv, Duration::from_secs(60)).unwrap();
+    assert!(summary.complete(), "lost telemetry: {summary:?}");
+    let rows = read_csv(&csv);
+
+    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let reference = study::reference_mm(&ag, 1.0).unwrap();
+    let mut st = setup(ScenarioId::LrxOnline, &ag, &reference, &[0.0; 6]);
+    st.lr = None;
+    st.lrx = Some(rths::models::lrx_params(&other).unwrap());
+    st.delay_steps = other.delay_steps;
+    let host = scenario::run(&st).unwrap();
+    let mut identical = 0;
+    for (row, hs) in rows.iter().zip(&host.history.command_mm[1..]) {
+        assert_eq!(row.command_mm.to_bits(), hs.to_bits(), "tick {}", row.tick);
+        identical += 1;
+    }
+    println!("lrx-online, uploaded model: {identical} commands bit-identical to the host");
+    assert_eq!(identical, ag.len() - 1);
+    let out = q.stdout();
+    let line = out
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("RESULT "))
+        .unwrap();
+    println!("RESULT {line}");
+    let r: serde_json::Value = serde_json::from_str(line).unwrap();
+    assert_eq!(r["end_state"], "done");
+    let stack = r["stack_bytes"].as_u64().unwrap();
+    let avail = r["stack_avail_bytes"].as_u64().unwrap();
+    println!("LRX link build with an uploaded model: stack {stack} of {avail} bytes");
+    assert!(stack < avail);
+}
+
+/// The control task stalls (fault-inject `stall@1`: from tick 2048 on it never returns): the
+/// watchdog (TIM5 above the control task in QEMU; the IWDG on the real board) ends the run within
+/// its period with a `WATCHDOG` line and a failure status instead of leaving the actuator on the
+/// last command.
+#[test]
+fn the_watchdog_catches_a_stalled_control_task() {
+    if qemu_missing("watchdog test") {
+        return;
+    }
+    let elf = build_elf_with(
+        &["--features", "fault-inject"],
+        "rths-firmware-stall.elf",
+        Some("stall@1"),
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let mut args = rths::link_host::qemu_args(&elf, 0);
+    let i = args.iter().rposition(|a| a == "-serial").unwrap();
+    args.drain(i..i + 2);
+    let start = std::time::Instant::now();
+    let out = Command::new("qemu-system-arm")
+        .args(&args)
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    println!("{text}(in {:?})", start.elapsed());
+    assert!(text.contains("WATCHDOG the control task stalled"), "{text}");
+    assert!(
+        !text.contains("RESULT"),
+        "the run must not complete: {text}"
+    );
+    assert_eq!(out.status.code(), Some(1));
 }

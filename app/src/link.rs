@@ -9,6 +9,7 @@ use rths_link::{
 };
 
 use crate::board::LinkPort;
+use crate::model_upload::ModelStaging;
 use crate::record::RecordStore;
 use crate::{Record, Run};
 
@@ -120,6 +121,8 @@ pub struct Session {
     pub rearm: Rearm,
     /// The kind of the analytical part (reported in the status).
     pub model_kind: ModelKind,
+    /// A chunked model upload in progress.
+    pub model_upload: ModelStaging,
 }
 
 impl Session {
@@ -133,6 +136,7 @@ impl Session {
             upload_lr,
             rearm,
             model_kind,
+            model_upload: ModelStaging::new(),
         }
     }
 
@@ -204,6 +208,23 @@ pub fn handle(
             .chunk(seq, count, &values, at_rest)
             .map(|()| Effect::None),
         HostMsg::RecordCommit => store.commit(at_rest).map(|_| Effect::None),
+        HostMsg::ModelBegin {
+            kind,
+            values,
+            delay_steps,
+            checksum,
+        } => s
+            .model_upload
+            .begin(kind, values, delay_steps, checksum, s.model_kind, at_rest)
+            .map(|()| Effect::None),
+        HostMsg::ModelChunk { seq, count, values } => s
+            .model_upload
+            .chunk(seq, count, &values, at_rest)
+            .map(|()| Effect::None),
+        HostMsg::ModelCommit => s.model_upload.commit(ctl, at_rest).map(|crc| {
+            s.model_checksum = crc;
+            Effect::None
+        }),
         HostMsg::UploadLr {
             features,
             theta,

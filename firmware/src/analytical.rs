@@ -103,11 +103,21 @@ const SPEC: ModelSpec<'static> = ModelSpec::Lrx {
     lead_stride: crate::gen::LRX_LEAD_STRIDE,
 };
 
-/// The link checksum of the compiled-in model: an LR model's, else 0.
+/// The link checksum of the compiled-in model: an LR or LRX model's (what an upload of the same
+/// model file reports), else 0.
 fn checksum() -> u32 {
     #[cfg(feature = "model-lr")]
     return rths_app::link::compiled_model_checksum(&crate::gen::LR_THETA);
-    #[cfg(not(feature = "model-lr"))]
+    #[cfg(feature = "model-lrx")]
+    return rths_app::model_upload::lrx_checksum(
+        &crate::gen::LRX_COEFFS,
+        crate::gen::LRX_K_CORR,
+        crate::gen::LRX_K_ADAPT,
+        &crate::gen::LRX_LEAD,
+        crate::gen::LRX_LEAD_STRIDE,
+        crate::gen::LRX_DELAY_STEPS,
+    );
+    #[cfg(not(any(feature = "model-lr", feature = "model-lrx")))]
     0
 }
 

@@ -96,6 +96,20 @@ fn injected_overrun(k: u32) -> bool {
     }
 }
 
+/// The injected stall of tick `k` (`fault-inject` with `RTHS_FAULT=stall@...`): the control task
+/// never returns, for the watchdog to catch.
+fn injected_stall(k: u32) -> bool {
+    #[cfg(feature = "fault-inject")]
+    {
+        gen::FAULT_STALL && u64::from(k) >= gen::FAULT_START
+    }
+    #[cfg(not(feature = "fault-inject"))]
+    {
+        let _ = k;
+        false
+    }
+}
+
 /// The injected fault spec, if any.
 fn fault_spec() -> Option<&'static str> {
     #[cfg(feature = "fault-inject")]
@@ -150,7 +164,7 @@ fn report(
 mod app {
     use super::*;
     use heapless::spsc::{Consumer, Producer, Queue};
-    use rths_app::board::{EStop, Harness, InstrCounter, TickTimer};
+    use rths_app::board::{EStop, Harness, InstrCounter, TickTimer, Watchdog};
     use rths_app::record::RecordStore;
     use rths_app::run::TickFacts;
     use rths_app::{control_step, Record};
@@ -180,6 +194,7 @@ mod app {
         estop: <B as Board>::EStop,
         harness: <B as Board>::Harness,
         calibration: <B as Board>::Calibration,
+        watchdog: <B as Board>::Watchdog,
         producer: Producer<'static, Record>,
         consumer: Consumer<'static, Record>,
         /// ü_g for the coming tick of a run, mm/s².
@@ -255,6 +270,7 @@ mod app {
                 estop: parts.estop,
                 harness: parts.harness,
                 calibration: parts.calibration,
+                watchdog: parts.watchdog,
                 producer,
                 consumer,
                 ag: ag0,
@@ -280,10 +296,11 @@ mod app {
     /// task, harness and plant included, must end before the next update, else the next tick is told
     /// it overran, which the run counts and the supervisor sees (4 in a row trip it).
     #[task(binds = TIM2, priority = 3, shared = [ctl, timer, run, store],
-           local = [rig, counter, estop, harness, producer, ag, overhead_instr,
-                    k: u32 = 0, overrun: bool = false])]
+           local = [rig, counter, estop, harness, producer, ag, overhead_instr, watchdog,
+                    k: u32 = 0, overrun: bool = false, watching: bool = false])]
     fn control(mut cx: control::Context) {
         cx.shared.timer.lock(TickTimer::clear);
+        feed_watchdog(cx.local.watchdog, cx.local.watching);
         let running = RUNNING.load(Ordering::Acquire);
         // The emulated plant moves only during its run (it must match the host simulation's).
         if !running && B::EMULATED_PLANT {
@@ -300,6 +317,12 @@ mod app {
         }
         let ag = if running { *cx.local.ag } else { 0.0 };
         let overrun = *cx.local.overrun || injected_overrun(k);
+        if running && injected_stall(k) {
+            defmt::warn!("fault-inject: the control task stalls at tick {=u32}", k);
+            loop {
+                cortex_m::asm::nop();
+            }
+        }
         if EStop::asserted(cx.local.estop) {
             // Ramps the command to the safe position, whatever the state.
             cx.shared.ctl.lock(|c| c.supervisor_mut().emergency_stop());
@@ -367,6 +390,17 @@ mod app {
         rtic::pend(TELEMETRY_IRQ);
         // The next update already fired: this tick overran its deadline.
         *cx.local.overrun = cx.shared.timer.lock(|t| TickTimer::pending(t));
+    }
+
+    /// The watchdog runs from the first tick on; every tick feeds it. Out of line, so that the
+    /// control task's measured section compiles as it did without it.
+    #[inline(never)]
+    fn feed_watchdog(w: &mut <B as Board>::Watchdog, watching: &mut bool) {
+        if !*watching {
+            *watching = true;
+            Watchdog::start(w);
+        }
+        Watchdog::feed(w);
     }
 
     /// The supervisor: starts an autonomous run; stops an emulated run on a settled fault or at
@@ -464,6 +498,19 @@ mod app {
             cx.shared
                 .link
                 .lock(|l| send(&mut l.port, &l.session.run_ended(&run)));
+        }
+    }
+
+    /// The emulated board's watchdog (QEMU models no IWDG; the real board's IWDG resets the MCU in
+    /// hardware): TIM5, above the control task, every 2 ms; no tick in that time while the tick
+    /// timer should run (a stalled control task) ends the emulation with a `WATCHDOG` line and a
+    /// failure status, what a reset is to the real board's run.
+    #[cfg(feature = "board-qemu")]
+    #[task(binds = TIM5, priority = 4)]
+    fn watchdog(_: watchdog::Context) {
+        if board::watchdog_expired() && !FINISHED.load(Ordering::Acquire) {
+            B::host_line("WATCHDOG the control task stalled (no tick for 2 ms): safe state");
+            B::exit(false);
         }
     }
 

@@ -52,6 +52,46 @@ pub fn model_checksum(theta: &[f64; LR_COEFFS], delay_steps: u16) -> u32 {
     d.finalize()
 }
 
+/// Values of an LRX model upload ([`lrx_values`]): 9 frame coefficients, the correction stiffness,
+/// the adaptation time constant, 8 lead-filter weights, the lead stride.
+pub const LRX_VALUES: usize = 20;
+
+/// Most values a chunked model upload may have (the device's staging area).
+pub const MODEL_MAX_VALUES: usize = 32;
+
+/// An LRX model as the flat list of values a chunked upload sends, in this order: `coeffs` (9),
+/// `k_corr_kn_per_mm`, `k_adapt_ticks`, `lead_weights` (8), `lead_stride` (as f64). `None` if a
+/// slice has the wrong length.
+pub fn lrx_values(
+    coeffs: &[f64],
+    k_corr_kn_per_mm: f64,
+    k_adapt_ticks: f64,
+    lead_weights: &[f64],
+    lead_stride: usize,
+) -> Option<[f64; LRX_VALUES]> {
+    let mut v = [0.0; LRX_VALUES];
+    v.get_mut(..9)?
+        .copy_from_slice(coeffs.get(..9).filter(|_| coeffs.len() == 9)?);
+    *v.get_mut(9)? = k_corr_kn_per_mm;
+    *v.get_mut(10)? = k_adapt_ticks;
+    v.get_mut(11..19)?
+        .copy_from_slice(lead_weights.get(..8).filter(|_| lead_weights.len() == 8)?);
+    *v.get_mut(19)? = lead_stride as f64;
+    Some(v)
+}
+
+/// The end-to-end checksum of a chunked model upload: CRC-32/ISO-HDLC of the kind's wire index (one
+/// byte), the values' little-endian IEEE bytes in order, then the delay in ticks (u16, LE).
+pub fn model_values_checksum(kind: ModelKind, values: &[f64], delay_steps: u16) -> u32 {
+    let mut d = RECORD_CRC.digest();
+    d.update(&[kind as u8]);
+    for v in values {
+        d.update(&v.to_le_bytes());
+    }
+    d.update(&delay_steps.to_le_bytes());
+    d.finalize()
+}
+
 /// Samples of a ground-motion record in one [`HostMsg::RecordChunk`] (a frame stays ≤ [`MAX_FRAME`]).
 pub const RECORD_CHUNK: usize = 12;
 
@@ -154,6 +194,28 @@ pub enum HostMsg {
     },
     /// All chunks sent: check and make the new record the active one.
     RecordCommit,
+    /// Begin a chunked model upload (a model of more values than a frame holds: LRX, RNN).
+    ModelBegin {
+        /// The kind (the device refuses one its build does not run: `Unsupported`).
+        kind: ModelKind,
+        /// Values that will follow (the kind's count, e.g. [`LRX_VALUES`]).
+        values: u16,
+        /// The model's feedback delay, ticks.
+        delay_steps: u16,
+        /// [`model_values_checksum`] of the kind, values and delay.
+        checksum: u32,
+    },
+    /// The next values of the model being uploaded.
+    ModelChunk {
+        /// Chunk number, from 0, no gap.
+        seq: u32,
+        /// Values used in `values`.
+        count: u8,
+        /// The values (the first `count`).
+        values: [f64; RECORD_CHUNK],
+    },
+    /// All chunks sent: check, build the model and make it the one in force (at rest only).
+    ModelCommit,
 }
 
 /// Which request an answer is about.
@@ -177,6 +239,12 @@ pub enum Request {
     RecordChunk,
     /// [`HostMsg::RecordCommit`].
     RecordCommit,
+    /// [`HostMsg::ModelBegin`].
+    ModelBegin,
+    /// [`HostMsg::ModelChunk`].
+    ModelChunk,
+    /// [`HostMsg::ModelCommit`].
+    ModelCommit,
 }
 
 impl HostMsg {
@@ -192,6 +260,9 @@ impl HostMsg {
             Self::RecordBegin { .. } => Request::RecordBegin,
             Self::RecordChunk { .. } => Request::RecordChunk,
             Self::RecordCommit => Request::RecordCommit,
+            Self::ModelBegin { .. } => Request::ModelBegin,
+            Self::ModelChunk { .. } => Request::ModelChunk,
+            Self::ModelCommit => Request::ModelCommit,
         }
     }
 }

@@ -65,6 +65,34 @@ fn any_host() -> impl Strategy<Value = HostMsg> {
                 values: v.try_into().unwrap(),
             }),
         Just(HostMsg::RecordCommit),
+        (any_kind(), any::<u16>(), any::<u16>(), any::<u32>()).prop_map(
+            |(kind, values, delay_steps, checksum)| HostMsg::ModelBegin {
+                kind,
+                values,
+                delay_steps,
+                checksum
+            }
+        ),
+        (
+            any::<u32>(),
+            any::<u8>(),
+            prop::collection::vec(any_f64(), RECORD_CHUNK)
+        )
+            .prop_map(|(seq, count, v)| HostMsg::ModelChunk {
+                seq,
+                count,
+                values: v.try_into().unwrap(),
+            }),
+        Just(HostMsg::ModelCommit),
+    ]
+}
+
+fn any_kind() -> impl Strategy<Value = ModelKind> {
+    prop_oneof![
+        Just(ModelKind::Lr),
+        Just(ModelKind::Lrx),
+        Just(ModelKind::Rnn),
+        Just(ModelKind::FeAts),
     ]
 }
 
@@ -96,6 +124,9 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
         Just(Request::RecordBegin),
         Just(Request::RecordChunk),
         Just(Request::RecordCommit),
+        Just(Request::ModelBegin),
+        Just(Request::ModelChunk),
+        Just(Request::ModelCommit),
     ];
     let reason = prop_oneof![
         Just(NackReason::Shape),
@@ -110,12 +141,7 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
         Just(NackReason::TooLong),
         Just(NackReason::Rate),
     ];
-    let kind = prop_oneof![
-        Just(ModelKind::Lr),
-        Just(ModelKind::Lrx),
-        Just(ModelKind::Rnn),
-        Just(ModelKind::FeAts),
-    ];
+    let kind = any_kind();
     prop_oneof![
         req.clone().prop_map(DeviceMsg::Ack),
         (req, reason).prop_map(|(r, n)| DeviceMsg::Nack(r, n)),
@@ -430,4 +456,31 @@ fn seq_check_reports_gaps_and_counts_the_missing() {
             got: 3
         })
     );
+}
+
+#[test]
+fn lrx_values_order_and_their_checksum() {
+    let coeffs: [f64; 9] = core::array::from_fn(|i| i as f64);
+    let lead: [f64; 8] = core::array::from_fn(|i| 10.0 + i as f64);
+    let v = lrx_values(&coeffs, 100.0, 200.0, &lead, 3).unwrap();
+    assert_eq!(&v[..9], &coeffs);
+    assert_eq!((v[9], v[10]), (100.0, 200.0));
+    assert_eq!(&v[11..19], &lead);
+    assert_eq!(v[19], 3.0);
+    assert!(lrx_values(&coeffs[..8], 1.0, 0.0, &lead, 3).is_none());
+    assert!(lrx_values(&coeffs, 1.0, 0.0, &lead[..7], 3).is_none());
+    let c = model_values_checksum(ModelKind::Lrx, &v, 28);
+    assert_ne!(
+        model_values_checksum(ModelKind::Rnn, &v, 28),
+        c,
+        "the kind counts"
+    );
+    assert_ne!(
+        model_values_checksum(ModelKind::Lrx, &v, 29),
+        c,
+        "the delay counts"
+    );
+    let mut w = v;
+    w[19] = 4.0;
+    assert_ne!(model_values_checksum(ModelKind::Lrx, &w, 28), c);
 }

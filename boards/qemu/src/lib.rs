@@ -413,6 +413,7 @@ impl rths_app::board::Board for Qemu {
     type EStop = rths_app::board::NoEStop;
     type Harness = Harness;
     type Calibration = Calibration;
+    type Watchdog = TimerWatchdog;
     const EMULATED_PLANT: bool = true;
 
     fn tick_rate_hz() -> f64 {
@@ -450,6 +451,7 @@ pub fn init(
     let counter = InstrCounter::new(core.SYST);
     let mut timer = TickTimer::new(dp.TIM2, &dp.RCC);
     let calib = calibrate(&counter, &mut timer, 100_000);
+    let watchdog = TimerWatchdog::new(dp.TIM5, &dp.RCC);
     let rig = Plant::new(1, FaultPlan::none()).ok_or(BoardError::Plant)?;
     // Reset with the record's first ü_g before the first tick (`Harness::reset`).
     let reference =
@@ -465,7 +467,68 @@ pub fn init(
             target_row_mm: 0.0,
         },
         calibration: calib,
+        watchdog,
     })
+}
+
+/// The watchdog period, virtual ns: 4 tick periods (1.95 ms; the real board's IWDG: 2 ms).
+pub const WATCHDOG_PERIOD_COUNTS: u32 = 4 * TICK_PERIOD_COUNTS;
+
+/// How long before a tick the watchdog's check fires, virtual ns: it runs (above the control task)
+/// before the tick rather than in the middle of its measured section, whose instruction count it
+/// would otherwise inflate.
+pub const WATCHDOG_LEAD_COUNTS: u32 = 1000;
+
+/// Control ticks since the watchdog last looked (fed by the control task).
+static FEEDS: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
+
+/// The emulated board's watchdog (QEMU models no IWDG): TIM5, a 32-bit timer on its own interrupt,
+/// at a priority above the control task's; every [`WATCHDOG_PERIOD_COUNTS`] its task asks
+/// [`watchdog_expired`], which is true when no tick fed it in the period. The firmware's bite ends
+/// the emulation (what the real board's reset is to its run).
+pub struct TimerWatchdog {
+    tim: pac::TIM5,
+}
+
+impl TimerWatchdog {
+    fn new(tim: pac::TIM5, rcc: &pac::RCC) -> Self {
+        rcc.apb1enr.modify(|_, w| w.tim5en().set_bit());
+        tim.cr1.write(|w| w.cen().clear_bit());
+        tim.psc.write(|w| w.psc().bits(0));
+        tim.arr.write(|w| w.bits(WATCHDOG_PERIOD_COUNTS - 1));
+        tim.cnt.reset();
+        tim.sr.write(|w| w.uif().clear_bit());
+        tim.dier.write(|w| w.uie().set_bit());
+        Self { tim }
+    }
+}
+
+impl rths_app::board::Watchdog for TimerWatchdog {
+    fn start(&mut self) {
+        FEEDS.store(1, core::sync::atomic::Ordering::Release);
+        // In phase with the tick timer (same clock), WATCHDOG_LEAD_COUNTS ahead of its update.
+        // SAFETY: a read of TIM2's counter, which nothing else writes while it runs.
+        #[allow(unsafe_code)]
+        let phase = unsafe { &*pac::TIM2::ptr() }.cnt.read().bits();
+        self.tim
+            .cnt
+            .write(|w| w.bits((phase + WATCHDOG_LEAD_COUNTS) % WATCHDOG_PERIOD_COUNTS));
+        self.tim.cr1.modify(|_, w| w.cen().set_bit());
+    }
+    fn feed(&mut self) {
+        FEEDS.fetch_add(1, core::sync::atomic::Ordering::AcqRel);
+    }
+}
+
+/// The watchdog's check (its TIM5 task): acknowledge the interrupt; `true` if no tick fed it since
+/// the last check.
+pub fn watchdog_expired() -> bool {
+    // SAFETY: TIM5's register block is always mapped; this task is the only one that touches its
+    // status register (the `TimerWatchdog` only starts the counter, before this task can run).
+    #[allow(unsafe_code)]
+    let tim = unsafe { &*pac::TIM5::ptr() };
+    tim.sr.write(|w| w.uif().clear_bit());
+    FEEDS.swap(0, core::sync::atomic::Ordering::AcqRel) == 0
 }
 
 #[panic_handler]
