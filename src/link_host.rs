@@ -124,6 +124,9 @@ pub struct Link {
     pub bad_frames: u32,
     /// How long to wait for an answer.
     pub timeout: Duration,
+    /// While recording, send a `Status` this often (the device's sign that the host is there, for a
+    /// run armed with `LinkLoss::RampDown`); `None`: never (tests of a lost link).
+    pub heartbeat: Option<Duration>,
 }
 
 impl Link {
@@ -135,6 +138,7 @@ impl Link {
             queue: VecDeque::new(),
             bad_frames: 0,
             timeout: Duration::from_secs(10),
+            heartbeat: Some(Duration::from_millis(250)),
         }
     }
 
@@ -357,9 +361,22 @@ impl Link {
         })
     }
 
-    /// Arm, telemetry every `telemetry_every` ticks.
+    /// Arm, telemetry every `telemetry_every` ticks (the run completes if the host falls silent).
     pub fn arm(&mut self, telemetry_every: u16) -> Result<(), LinkHostError> {
         self.expect_ack(&HostMsg::Arm { telemetry_every })
+    }
+
+    /// Arm, telemetry every `telemetry_every` ticks, and what the device does if the host falls
+    /// silent during the run.
+    pub fn arm_with(
+        &mut self,
+        telemetry_every: u16,
+        on_link_loss: rths_link::LinkLoss,
+    ) -> Result<(), LinkHostError> {
+        self.expect_ack(&HostMsg::ArmWith {
+            telemetry_every,
+            on_link_loss,
+        })
     }
 
     /// Start the armed test.
@@ -390,8 +407,27 @@ impl Link {
             end: None,
         };
         let bad0 = self.bad_frames;
+        let (mut heard, mut beat) = (Instant::now(), Instant::now());
         loop {
-            match self.recv(idle)? {
+            if let Some(every) = self.heartbeat {
+                if beat.elapsed() >= every {
+                    self.send(&HostMsg::Status)?;
+                    beat = Instant::now();
+                }
+            }
+            let wait = idle
+                .saturating_sub(heard.elapsed())
+                .min(self.heartbeat.unwrap_or(idle));
+            let m = match self.recv(wait) {
+                Ok(m) => m,
+                Err(LinkHostError::Timeout(..)) if heard.elapsed() < idle => continue,
+                Err(LinkHostError::Timeout(..)) => {
+                    return Err(LinkHostError::Timeout(idle, "telemetry"))
+                }
+                Err(e) => return Err(e),
+            };
+            heard = Instant::now();
+            match m {
                 DeviceMsg::Telemetry(t) => {
                     if let Err(g) = seq.observe(t.seq) {
                         eprintln!(

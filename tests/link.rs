@@ -681,7 +681,8 @@ fn a_csv_record_uploaded_run_and_reported_equals_the_host_simulation() {
         .arg(&elf)
         .args(["run", "--motion"])
         .arg(&csv_motion)
-        .args(["--scale", "0.5", "--out"])
+        // Ramp down if this host falls silent: its heartbeats keep the run going to the end.
+        .args(["--scale", "0.5", "--on-link-loss", "ramp-down", "--out"])
         .arg(&run_csv)
         .current_dir(dir.path())
         .output()
@@ -947,4 +948,48 @@ fn the_watchdog_catches_a_stalled_control_task() {
         "the run must not complete: {text}"
     );
     assert_eq!(out.status.code(), Some(1));
+}
+
+/// A run armed to ramp down on a lost link, whose host then falls silent (no heartbeat, it only
+/// listens): 1 s of silence later the device ramps the command to zero and ends the run early. The
+/// same silence under `Complete` (the existing tests' `arm`) lets the run finish.
+#[test]
+fn a_silent_host_ramps_the_run_down_when_armed_so() {
+    if qemu_missing("link test") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let mut q = Qemu::start(&link_elf(), dir.path()).unwrap();
+    let link = &mut q.link;
+    link.timeout = Duration::from_secs(20);
+    link.heartbeat = None;
+    link.arm_with(1, rths_link::LinkLoss::RampDown).unwrap();
+    link.start().unwrap();
+    let mut rows = Vec::new();
+    let summary = link
+        .record(Duration::from_secs(60), 0, |t| {
+            rows.push(*t);
+            Ok(())
+        })
+        .unwrap();
+    let (end, ticks, _, _) = summary.end.unwrap();
+    println!(
+        "silent host: run ended {end:?} after {ticks} ticks ({} records)",
+        rows.len()
+    );
+    assert_eq!(end, RunState::Done);
+    let timeout = rths_link::LINK_TIMEOUT_TICKS;
+    assert!(ticks > timeout && ticks < 81_900, "{ticks}");
+    let first_ramp = rows
+        .iter()
+        .position(|t| t.state == RunState::RampDown)
+        .unwrap();
+    println!("ramp-down from tick {}", rows[first_ramp].tick);
+    // Silent since its `Start`: the ramp begins once the silence exceeds the timeout.
+    assert!(rows[first_ramp].tick >= timeout && rows[first_ramp].tick < timeout + 2048);
+    // The ramp to zero is never faster than the end ramp's 10 mm/s.
+    for w in rows[first_ramp..].windows(2) {
+        assert!((w[1].command_mm - w[0].command_mm).abs() <= 10.0 * DT_S + 1e-12);
+    }
+    assert_eq!(rows.last().unwrap().command_mm, 0.0);
 }

@@ -5,7 +5,8 @@ use rths_core::control::{Analytical, Controller};
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_core::supervisor::{Limits, State, Supervisor};
 use rths_link::{
-    DeviceMsg, HostMsg, ModelKind, NackReason, RunState, Status, Telemetry, LR_COEFFS,
+    DeviceMsg, HostMsg, LinkLoss, ModelKind, NackReason, RunState, Status, Telemetry,
+    LINK_TIMEOUT_TICKS, LR_COEFFS,
 };
 
 use crate::board::LinkPort;
@@ -123,6 +124,8 @@ pub struct Session {
     pub model_kind: ModelKind,
     /// A chunked model upload in progress.
     pub model_upload: ModelStaging,
+    /// What the run in progress does if the host falls silent (chosen at arm time).
+    pub link_loss: LinkLoss,
 }
 
 impl Session {
@@ -137,6 +140,7 @@ impl Session {
             rearm,
             model_kind,
             model_upload: ModelStaging::new(),
+            link_loss: LinkLoss::Complete,
         }
     }
 
@@ -246,17 +250,12 @@ pub fn handle(
             force_kn,
         } => set_limits(ctl, stroke_mm, velocity_mm_s, force_kn).map(|()| Effect::None),
         HostMsg::Arm { telemetry_every } => {
-            if telemetry_every == 0 {
-                Err(NackReason::OutOfRange)
-            } else {
-                arm(ctl, run, s.rearm, finished).map(|()| {
-                    s.every = u32::from(telemetry_every);
-                    s.seq = 0;
-                    run.restart();
-                    Effect::None
-                })
-            }
+            arm_request(ctl, run, s, finished, telemetry_every, LinkLoss::Complete)
         }
+        HostMsg::ArmWith {
+            telemetry_every,
+            on_link_loss,
+        } => arm_request(ctl, run, s, finished, telemetry_every, on_link_loss),
         HostMsg::Start => ctl
             .supervisor_mut()
             .start()
@@ -271,6 +270,32 @@ pub fn handle(
         Ok(e) => (DeviceMsg::Ack(req), e),
         Err(n) => (DeviceMsg::Nack(req, n), Effect::None),
     }
+}
+
+fn arm_request(
+    ctl: &mut Controller,
+    run: &mut Run,
+    s: &mut Session,
+    finished: bool,
+    telemetry_every: u16,
+    on_link_loss: LinkLoss,
+) -> Result<Effect, NackReason> {
+    if telemetry_every == 0 {
+        return Err(NackReason::OutOfRange);
+    }
+    arm(ctl, run, s.rearm, finished)?;
+    s.every = u32::from(telemetry_every);
+    s.seq = 0;
+    s.link_loss = on_link_loss;
+    run.restart();
+    Ok(Effect::None)
+}
+
+/// The host counts as lost: the run's policy is [`LinkLoss::RampDown`] and no valid frame came
+/// for more than [`LINK_TIMEOUT_TICKS`] (`now_tick`, `last_heard_tick`: a free-running tick count
+/// and its value at the last valid frame).
+pub fn link_lost(policy: LinkLoss, now_tick: u32, last_heard_tick: u32) -> bool {
+    policy == LinkLoss::RampDown && now_tick.wrapping_sub(last_heard_tick) > LINK_TIMEOUT_TICKS
 }
 
 fn arm(ctl: &mut Controller, run: &Run, rearm: Rearm, finished: bool) -> Result<(), NackReason> {

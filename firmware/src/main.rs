@@ -46,6 +46,8 @@ mod gen {
 mod motion;
 mod stack;
 
+#[cfg(feature = "link")]
+use core::sync::atomic::AtomicU32;
 use core::sync::atomic::{AtomicBool, Ordering};
 
 use rths_app::board::{Board, Calibration as _};
@@ -65,6 +67,15 @@ static FINISHED: AtomicBool = AtomicBool::new(false);
 static RECORD_END: AtomicBool = AtomicBool::new(false);
 /// `link`: the run ended; `telemetry` sends `RunEnded` after its last record.
 static RUN_ENDED: AtomicBool = AtomicBool::new(false);
+/// `link`: the control task's free-running tick count (the clock of the host's silence).
+#[cfg(feature = "link")]
+static TICK_COUNT: AtomicU32 = AtomicU32::new(0);
+/// `link`: [`TICK_COUNT`] at the last valid frame from the host.
+#[cfg(feature = "link")]
+static LAST_HEARD: AtomicU32 = AtomicU32::new(0);
+/// `link`: the run ramps down if the host falls silent (`LinkLoss::RampDown`, chosen at arm time).
+#[cfg(feature = "link")]
+static LINK_LOSS_RAMP: AtomicBool = AtomicBool::new(false);
 /// The supervisor task's interrupt (pended on a fault, a settled fault, the end of the record or
 /// `Done`).
 const SUPERVISOR_IRQ: board::pac::Interrupt = board::pac::Interrupt::UART4;
@@ -323,6 +334,12 @@ mod app {
                 cortex_m::asm::nop();
             }
         }
+        #[cfg(feature = "link")]
+        if link_silent() && running {
+            // The host fell silent and the run's policy is to ramp down: an abort (a no-op once
+            // ramping).
+            cx.shared.ctl.lock(|c| c.supervisor_mut().abort());
+        }
         if EStop::asserted(cx.local.estop) {
             // Ramps the command to the safe position, whatever the state.
             cx.shared.ctl.lock(|c| c.supervisor_mut().emergency_stop());
@@ -390,6 +407,19 @@ mod app {
         rtic::pend(TELEMETRY_IRQ);
         // The next update already fired: this tick overran its deadline.
         *cx.local.overrun = cx.shared.timer.lock(|t| TickTimer::pending(t));
+    }
+
+    /// `link`: count this tick; the host has been silent for longer than the link timeout and the
+    /// run's policy is to ramp down.
+    #[cfg(feature = "link")]
+    fn link_silent() -> bool {
+        let now = TICK_COUNT.fetch_add(1, Ordering::AcqRel).wrapping_add(1);
+        let policy = if LINK_LOSS_RAMP.load(Ordering::Acquire) {
+            rths_link::LinkLoss::RampDown
+        } else {
+            rths_link::LinkLoss::Complete
+        };
+        rths_app::link::link_lost(policy, now, LAST_HEARD.load(Ordering::Acquire))
     }
 
     /// The watchdog runs from the first tick on; every tick feeds it. Out of line, so that the
@@ -533,6 +563,7 @@ mod app {
                 }
                 Some(Ok(m)) => m,
             };
+            LAST_HEARD.store(TICK_COUNT.load(Ordering::Acquire), Ordering::Release);
             let finished = FINISHED.load(Ordering::Acquire);
             let ctl = &mut cx.shared.ctl;
             let run = &mut cx.shared.run;
@@ -542,6 +573,11 @@ mod app {
                     run.lock(|r| store.lock(|st| handle(msg, c, r, st, &mut l.session, finished)))
                 })
             });
+            let ramp = cx
+                .shared
+                .link
+                .lock(|l| l.session.link_loss == rths_link::LinkLoss::RampDown);
+            LINK_LOSS_RAMP.store(ramp, Ordering::Release);
             if effect == Effect::Started {
                 defmt::info!("link: running");
                 RUNNING.store(true, Ordering::Release);

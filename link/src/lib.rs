@@ -168,6 +168,14 @@ pub enum HostMsg {
         /// Decimation of the telemetry stream (1 = every tick).
         telemetry_every: u16,
     },
+    /// Arm as [`HostMsg::Arm`] and choose what the device does if the host falls silent during
+    /// the run ([`LinkLoss`]). The answer is about [`Request::Arm`].
+    ArmWith {
+        /// Decimation of the telemetry stream (1 = every tick).
+        telemetry_every: u16,
+        /// What a silence of the host longer than [`LINK_TIMEOUT_TICKS`] does to the run.
+        on_link_loss: LinkLoss,
+    },
     /// Start the armed test (play the ground motion).
     Start,
     /// Stop: ramp the command to zero (end-of-test ramp).
@@ -254,7 +262,7 @@ impl HostMsg {
             Self::Status => Request::Status,
             Self::UploadLr { .. } => Request::UploadLr,
             Self::SetLimits { .. } => Request::SetLimits,
-            Self::Arm { .. } => Request::Arm,
+            Self::Arm { .. } | Self::ArmWith { .. } => Request::Arm,
             Self::Start => Request::Start,
             Self::Abort => Request::Abort,
             Self::RecordBegin { .. } => Request::RecordBegin,
@@ -294,6 +302,20 @@ pub enum NackReason {
     /// [`RECORD_DT_MAX_S`]).
     Rate,
 }
+
+/// What the device does when the host falls silent during a run (no valid frame for
+/// [`LINK_TIMEOUT_TICKS`]; a recording host sends a `Status` every 250 ms).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum LinkLoss {
+    /// Run the test to its end (the default, and what a plain `Arm` chooses): the telemetry of the
+    /// silence is lost, the test is not.
+    Complete,
+    /// Ramp the command down to zero (an abort) and end the run.
+    RampDown,
+}
+
+/// The host's silence that counts as a lost link, controller ticks (1 s at 2048 Hz).
+pub const LINK_TIMEOUT_TICKS: u32 = 2048;
 
 /// Shortest accepted record step, s: the controller's tick (a faster record would be decimated by
 /// the interpolation, not played).

@@ -44,6 +44,14 @@ fn any_host() -> impl Strategy<Value = HostMsg> {
             force_kn: c
         }),
         any::<u16>().prop_map(|telemetry_every| HostMsg::Arm { telemetry_every }),
+        (
+            any::<u16>(),
+            prop_oneof![Just(LinkLoss::Complete), Just(LinkLoss::RampDown)]
+        )
+            .prop_map(|(telemetry_every, on_link_loss)| HostMsg::ArmWith {
+                telemetry_every,
+                on_link_loss
+            }),
         Just(HostMsg::Start),
         Just(HostMsg::Abort),
         (any::<u32>(), any_f64(), any_f64(), any::<u32>()).prop_map(

@@ -73,6 +73,9 @@ pub enum LinkCommand {
         /// Telemetry decimation: one record every N ticks.
         #[arg(long, default_value_t = 1)]
         telemetry_every: u16,
+        /// If the host falls silent for 1 s during the run: complete the test, or ramp down.
+        #[arg(long, value_enum, default_value = "complete")]
+        on_link_loss: LinkLossArg,
     },
     /// Start the armed test.
     Start,
@@ -103,6 +106,10 @@ pub enum LinkCommand {
         /// Telemetry decimation.
         #[arg(long, default_value_t = 1)]
         telemetry_every: u16,
+        /// If this host falls silent for 1 s during the run (it sends a status every 250 ms while
+        /// recording): complete the test, or ramp down.
+        #[arg(long, value_enum, default_value = "complete")]
+        on_link_loss: LinkLossArg,
         /// CSV output.
         #[arg(long)]
         out: PathBuf,
@@ -245,8 +252,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             link.set_limits(stroke_mm, velocity_mm_s, force_kn)?;
             println!("limits set");
         }
-        LinkCommand::Arm { telemetry_every } => {
-            link.arm(telemetry_every)?;
+        LinkCommand::Arm {
+            telemetry_every,
+            on_link_loss,
+        } => {
+            link.arm_with(telemetry_every, on_link_loss.into())?;
             println!("armed");
         }
         LinkCommand::Start => {
@@ -269,6 +279,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             motion,
             scale,
             telemetry_every,
+            on_link_loss,
             out,
             idle_timeout_s,
         } => {
@@ -327,7 +338,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     _ => "qemu".to_string(),
                 },
             );
-            link.arm(telemetry_every)?;
+            h.set("on_link_loss", format!("{on_link_loss:?}"));
+            link.arm_with(telemetry_every, on_link_loss.into())?;
             link.start()?;
             println!("running");
             let s = record_csv_with(
@@ -348,6 +360,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let _ = std::fs::remove_dir_all(&dir);
     }
     Ok(())
+}
+
+/// What the device does if the host falls silent during a run.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum LinkLossArg {
+    /// Run the test to its end.
+    Complete,
+    /// Ramp the command down to zero and end the run.
+    RampDown,
+}
+
+impl From<LinkLossArg> for rths_link::LinkLoss {
+    fn from(a: LinkLossArg) -> Self {
+        match a {
+            LinkLossArg::Complete => Self::Complete,
+            LinkLossArg::RampDown => Self::RampDown,
+        }
+    }
 }
 
 /// The scenario a device's analytical part runs (its figures' id in `rths report`).

@@ -431,3 +431,55 @@ fn a_record_upload_over_handle_is_reported_and_refused_under_a_test() {
     assert_eq!(st.record_capacity, 32);
     assert_eq!(st.model_kind, ModelKind::Lr);
 }
+
+#[test]
+fn the_link_loss_policy_is_chosen_at_arm_time() {
+    use rths_link::{LinkLoss, LINK_TIMEOUT_TICKS};
+    let mut ctl = controller();
+    let mut run = Run::new();
+    let mut s = session(true, Rearm::OncePerPowerUp);
+    assert_eq!(s.link_loss, LinkLoss::Complete);
+    let (m, _) = handle(
+        HostMsg::ArmWith {
+            telemetry_every: 0,
+            on_link_loss: LinkLoss::RampDown,
+        },
+        &mut ctl,
+        &mut run,
+        &mut store(),
+        &mut s,
+        false,
+    );
+    assert_eq!(m, DeviceMsg::Nack(Request::Arm, NackReason::OutOfRange));
+    assert_eq!(
+        s.link_loss,
+        LinkLoss::Complete,
+        "a refused arm changes nothing"
+    );
+    let (m, _) = handle(
+        HostMsg::ArmWith {
+            telemetry_every: 2,
+            on_link_loss: LinkLoss::RampDown,
+        },
+        &mut ctl,
+        &mut run,
+        &mut store(),
+        &mut s,
+        false,
+    );
+    assert_eq!(m, DeviceMsg::Ack(Request::Arm));
+    assert_eq!((s.link_loss, s.every), (LinkLoss::RampDown, 2));
+    // Lost after more than the timeout of silence, and only with RampDown; the tick count wraps.
+    assert!(!link_lost(
+        LinkLoss::RampDown,
+        100 + LINK_TIMEOUT_TICKS,
+        100
+    ));
+    assert!(link_lost(LinkLoss::RampDown, 101 + LINK_TIMEOUT_TICKS, 100));
+    assert!(link_lost(
+        LinkLoss::RampDown,
+        5,
+        u32::MAX - LINK_TIMEOUT_TICKS
+    ));
+    assert!(!link_lost(LinkLoss::Complete, 1_000_000, 0));
+}
