@@ -873,3 +873,57 @@ impl Drop for Qemu {
         let _ = self.child.wait();
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_recording_reads_back_and_bad_ones_are_refused() {
+        let mut h = RunHeader::default();
+        h.set("motion", "el-centro");
+        h.set("scale", "0.5");
+        h.set("scale", "0.75");
+        let mut text = h.lines().join("\n");
+        text.push('\n');
+        text.push_str(CSV_HEADER);
+        text.push_str("\n0,0,0.0,running,1.5,1.25,NaN,0.0\n\n");
+        let r = read_recording(&text).unwrap();
+        assert_eq!(r.header.get("scale"), Some("0.75"), "set replaces");
+        assert_eq!(r.header, h);
+        assert_eq!(r.rows.len(), 1);
+        assert_eq!((r.rows[0].command_mm, r.rows[0].target_mm), (1.5, 1.25));
+        assert!(r.rows[0].measured_mm.is_nan());
+        for bad in [
+            "",
+            "# format: rths-recording 9\n",
+            "# no colon\n",
+            "seq,tick\n",
+            &format!("{CSV_HEADER}\n0,0,0.0,running,1.5\n"),
+            &format!("{CSV_HEADER}\n0,x,0.0,running,1.5,0,0,0\n"),
+            &format!("{CSV_HEADER}\n0,0,0.0,running,one,0,0,0\n"),
+        ] {
+            assert!(read_recording(bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn record_and_model_messages_chunk_and_check_their_input() {
+        let samples: Vec<f64> = (0..25).map(|i| i as f64 * 0.01).collect();
+        let m = record_messages(&samples, 0.02, 1.0).unwrap();
+        assert_eq!(m.len(), 1 + 3 + 1, "begin, 12 + 12 + 1, commit");
+        match m[3] {
+            HostMsg::RecordChunk { seq, count, .. } => assert_eq!((seq, count), (2, 1)),
+            _ => panic!("{:?}", m[3]),
+        }
+        assert!(record_messages(&samples[..1], 0.02, 1.0).is_err());
+        assert!(record_messages(&[0.0, f64::NAN], 0.02, 1.0).is_err());
+        assert!(record_messages(&samples, 0.0, 1.0).is_err());
+        assert!(record_messages(&samples, 0.02, f64::INFINITY).is_err());
+        let lrx = ModelFile::from_json(include_str!("../data/models/lrx.json")).unwrap();
+        let m = model_messages(&lrx).unwrap();
+        assert_eq!(m.len(), 1 + 2 + 1, "begin, 12 + 8 values, commit");
+        let lr = ModelFile::from_json(include_str!("../data/models/lr.json")).unwrap();
+        assert!(model_messages(&lr).is_err(), "LR goes in one UploadLr");
+    }
+}

@@ -189,3 +189,76 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::link_host::read_recording;
+
+    fn row(k: u32, state: &str, command_mm: f64) -> RecordingRow {
+        RecordingRow {
+            seq: k,
+            tick: k,
+            state: state.into(),
+            command_mm,
+            target_mm: command_mm,
+            measured_mm: 0.5 * command_mm,
+            force_kn: 0.1,
+        }
+    }
+
+    #[test]
+    fn the_history_of_a_recording_is_the_host_simulations_rows() -> anyhow::Result<()> {
+        let ag = [1.0, 2.0, 3.0, 4.0];
+        let reference = [0.0, 0.1, 0.2, 0.3];
+        let rows: Vec<_> = (0..6).map(|k| row(k, "running", k as f64 + 1.0)).collect();
+        let (h, stop) = history_of(&rows, &ag, &reference)?;
+        assert!(stop.is_none());
+        assert_eq!(h.len(), 4);
+        // Row k: the command and target of record k−1 (0 at k = 0), the DAQ reading of record k.
+        assert_eq!(h.command_mm, [0.0, 1.0, 2.0, 3.0]);
+        assert_eq!(h.target_mm, [0.0, 1.0, 2.0, 3.0]);
+        assert_eq!(h.measured_mm, [0.5, 1.0, 1.5, 2.0]);
+        assert_eq!(h.reference_mm, reference);
+        assert_eq!(h.ground_accel_mm_s2, ag);
+        assert_eq!(h.time_s[2], 2.0 * DT_S);
+        Ok(())
+    }
+
+    #[test]
+    fn a_fault_stops_the_figures_and_bad_recordings_are_refused() {
+        let ag = [0.0; 4];
+        let reference = [0.0; 4];
+        let mut rows: Vec<_> = (0..2).map(|k| row(k, "running", 0.0)).collect();
+        rows.push(row(2, "fault-NonFiniteSample", 0.0));
+        let (_, stop) = history_of(&rows, &ag, &reference).unwrap();
+        assert_eq!(stop, Some(("NonFiniteSample".to_string(), 2.0 * DT_S)));
+        // Too short without a fault, decimated, a gap.
+        let short: Vec<_> = (0..3).map(|k| row(k, "running", 0.0)).collect();
+        assert!(history_of(&short, &ag, &reference).is_err());
+        let decimated: Vec<_> = (0..4).map(|k| row(k * 2, "running", 0.0)).collect();
+        assert!(history_of(&decimated, &ag, &reference).is_err());
+        let mut gap: Vec<_> = (0..5).map(|k| row(k, "running", 0.0)).collect();
+        gap.remove(1);
+        assert!(history_of(&gap, &ag, &reference).is_err());
+    }
+
+    #[test]
+    fn a_recording_without_a_header_or_of_another_record_is_refused() {
+        let csv = format!(
+            "{}\n0,0,0.0,running,0.0,0.0,0.0,0.0\n",
+            link_host::CSV_HEADER
+        );
+        let rec = read_recording(&csv).unwrap();
+        let e = analyze(&rec, None).unwrap_err().to_string();
+        assert!(e.contains("no `scenario`"), "{e}");
+        let text = format!(
+            "# format: rths-recording 1\n# scenario: lr-online\n# motion: el-centro\n# scale: 1.0\n\
+             # record_checksum: 00000000\n{csv}"
+        );
+        let e = analyze(&read_recording(&text).unwrap(), None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not the record of this recording"), "{e}");
+    }
+}
