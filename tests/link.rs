@@ -849,6 +849,14 @@ fn an_lrx_model_uploaded_in_chunks_runs_as_the_host_simulates_it() {
         Err(LinkHostError::Refused(Request::ModelBegin, NackReason::Unsupported)) => {}
         r => panic!("expected Unsupported, got {r:?}"),
     }
+    // An LR model: refused too (it would run beside LRX's lead filter).
+    let lr_file =
+        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json"))
+            .unwrap();
+    match link.upload(&lr_file) {
+        Err(LinkHostError::Refused(Request::UploadLr, NackReason::Unsupported)) => {}
+        r => panic!("expected Unsupported, got {r:?}"),
+    }
     // A NaN in a chunk, a wrong checksum, a stride that is not the lead filter's: refused whole.
     let msgs = rths::link_host::model_messages(&other).unwrap();
     let mut nan = msgs.clone();

@@ -44,9 +44,11 @@ pub const MODEL_KIND: rths_link::ModelKind = if cfg!(feature = "model-rnn") {
     rths_link::ModelKind::Lr
 };
 
-/// The link's `UploadLr` replaces the analytical part with an LR model (not with an RNN or FE part,
-/// whose runs compare against their own reference).
-pub const UPLOAD_LR: bool = !cfg!(any(feature = "model-rnn", feature = "fe-ats"));
+/// The link's `UploadLr` replaces the analytical part with an LR model only in the LR build: an LR
+/// model in another build would run beside that build's compensator (LRX's lead filter) or against
+/// another reference, a controller no host scenario simulates; those builds refuse it
+/// `Unsupported`, as they refuse every kind they do not run.
+pub const UPLOAD_LR: bool = cfg!(feature = "model-lr");
 
 /// The controller, and the link checksum of its compiled-in LR model (0 for another part).
 pub fn controller() -> Result<(Controller, u32), &'static str> {
