@@ -127,6 +127,9 @@ pub struct Link {
     /// While recording, send a `Status` this often (the device's sign that the host is there, for a
     /// run armed with `LinkLoss::RampDown`); `None`: never (tests of a lost link).
     pub heartbeat: Option<Duration>,
+    /// The token this host armed its test with ([`Self::arm_owned`]; 0: none): its `start` sends
+    /// it, and the device refuses another host's start.
+    pub owner: u32,
 }
 
 impl Link {
@@ -139,6 +142,7 @@ impl Link {
             bad_frames: 0,
             timeout: Duration::from_secs(10),
             heartbeat: Some(Duration::from_millis(250)),
+            owner: 0,
         }
     }
 
@@ -367,20 +371,47 @@ impl Link {
     }
 
     /// Arm, telemetry every `telemetry_every` ticks, and what the device does if the host falls
-    /// silent during the run.
+    /// silent during the run; any host may start it.
     pub fn arm_with(
         &mut self,
         telemetry_every: u16,
         on_link_loss: rths_link::LinkLoss,
     ) -> Result<(), LinkHostError> {
+        self.owner = 0;
         self.expect_ack(&HostMsg::ArmWith {
             telemetry_every,
             on_link_loss,
+            owner: 0,
         })
     }
 
-    /// Start the armed test.
+    /// [`Self::arm_with`], owned by this host: a token (from the clock and the process id, never 0)
+    /// that [`Self::start`] sends; the device refuses any other host's start of this test (an
+    /// abort from anyone is still obeyed).
+    pub fn arm_owned(
+        &mut self,
+        telemetry_every: u16,
+        on_link_loss: rths_link::LinkLoss,
+    ) -> Result<(), LinkHostError> {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos());
+        let owner = (nanos ^ std::process::id().rotate_left(16)).max(1);
+        self.expect_ack(&HostMsg::ArmWith {
+            telemetry_every,
+            on_link_loss,
+            owner,
+        })?;
+        self.owner = owner;
+        Ok(())
+    }
+
+    /// Start the armed test (as its owner if this host armed it with [`Self::arm_owned`]).
     pub fn start(&mut self) -> Result<(), LinkHostError> {
+        if self.owner != 0 {
+            let owner = self.owner;
+            return self.expect_ack(&HostMsg::StartAs { owner });
+        }
         self.expect_ack(&HostMsg::Start)
     }
 

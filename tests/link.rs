@@ -971,7 +971,9 @@ fn a_silent_host_ramps_the_run_down_when_armed_so() {
     let link = &mut q.link;
     link.timeout = Duration::from_secs(20);
     link.heartbeat = None;
-    link.arm_with(1, rths_link::LinkLoss::RampDown).unwrap();
+    link.arm_owned(1, rths_link::LinkLoss::RampDown).unwrap();
+    // Another host's start (without the token) is refused; this host's goes through.
+    assert_eq!(refusal(link, &HostMsg::Start), Some(NackReason::NotOwner));
     link.start().unwrap();
     let mut rows = Vec::new();
     let summary = link

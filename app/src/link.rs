@@ -126,6 +126,8 @@ pub struct Session {
     pub model_upload: ModelStaging,
     /// What the run in progress does if the host falls silent (chosen at arm time).
     pub link_loss: LinkLoss,
+    /// The arming host's token (0: none, anyone may start).
+    pub owner: u32,
 }
 
 impl Session {
@@ -141,6 +143,7 @@ impl Session {
             model_kind,
             model_upload: ModelStaging::new(),
             link_loss: LinkLoss::Complete,
+            owner: 0,
         }
     }
 
@@ -249,18 +252,22 @@ pub fn handle(
             velocity_mm_s,
             force_kn,
         } => set_limits(ctl, stroke_mm, velocity_mm_s, force_kn).map(|()| Effect::None),
-        HostMsg::Arm { telemetry_every } => {
-            arm_request(ctl, run, s, finished, telemetry_every, LinkLoss::Complete)
-        }
+        HostMsg::Arm { telemetry_every } => arm_request(
+            ctl,
+            run,
+            s,
+            finished,
+            telemetry_every,
+            LinkLoss::Complete,
+            0,
+        ),
         HostMsg::ArmWith {
             telemetry_every,
             on_link_loss,
-        } => arm_request(ctl, run, s, finished, telemetry_every, on_link_loss),
-        HostMsg::Start => ctl
-            .supervisor_mut()
-            .start()
-            .map(|()| Effect::Started)
-            .map_err(|_| NackReason::InvalidState),
+            owner,
+        } => arm_request(ctl, run, s, finished, telemetry_every, on_link_loss, owner),
+        HostMsg::Start => start(ctl, s, 0),
+        HostMsg::StartAs { owner } => start(ctl, s, owner),
         HostMsg::Abort => {
             ctl.supervisor_mut().abort();
             Ok(Effect::None)
@@ -272,6 +279,17 @@ pub fn handle(
     }
 }
 
+/// Start the armed test; a test armed with an owner token starts only for that token.
+fn start(ctl: &mut Controller, s: &Session, owner: u32) -> Result<Effect, NackReason> {
+    if s.owner != 0 && owner != s.owner && ctl.supervisor().state() == State::Armed {
+        return Err(NackReason::NotOwner);
+    }
+    ctl.supervisor_mut()
+        .start()
+        .map(|()| Effect::Started)
+        .map_err(|_| NackReason::InvalidState)
+}
+
 fn arm_request(
     ctl: &mut Controller,
     run: &mut Run,
@@ -279,6 +297,7 @@ fn arm_request(
     finished: bool,
     telemetry_every: u16,
     on_link_loss: LinkLoss,
+    owner: u32,
 ) -> Result<Effect, NackReason> {
     if telemetry_every == 0 {
         return Err(NackReason::OutOfRange);
@@ -287,6 +306,7 @@ fn arm_request(
     s.every = u32::from(telemetry_every);
     s.seq = 0;
     s.link_loss = on_link_loss;
+    s.owner = owner;
     run.restart();
     Ok(Effect::None)
 }

@@ -175,6 +175,15 @@ pub enum HostMsg {
         telemetry_every: u16,
         /// What a silence of the host longer than [`LINK_TIMEOUT_TICKS`] does to the run.
         on_link_loss: LinkLoss,
+        /// The arming host's token (≠ 0): only a [`HostMsg::StartAs`] with it starts the test; 0:
+        /// anyone's `Start` does.
+        owner: u32,
+    },
+    /// Start the armed test as the host that armed it (`owner` of its [`HostMsg::ArmWith`]). The
+    /// answer is about [`Request::Start`].
+    StartAs {
+        /// The token given at arm time.
+        owner: u32,
     },
     /// Start the armed test (play the ground motion).
     Start,
@@ -263,7 +272,7 @@ impl HostMsg {
             Self::UploadLr { .. } => Request::UploadLr,
             Self::SetLimits { .. } => Request::SetLimits,
             Self::Arm { .. } | Self::ArmWith { .. } => Request::Arm,
-            Self::Start => Request::Start,
+            Self::Start | Self::StartAs { .. } => Request::Start,
             Self::Abort => Request::Abort,
             Self::RecordBegin { .. } => Request::RecordBegin,
             Self::RecordChunk { .. } => Request::RecordChunk,
@@ -298,6 +307,8 @@ pub enum NackReason {
     Incomplete,
     /// The record is longer than the device can hold (or shorter than 2 samples).
     TooLong,
+    /// The test was armed by another host (its token): only that host, or an abort, moves it.
+    NotOwner,
     /// The record's step is not finite or outside the accepted range ([`RECORD_DT_MIN_S`] ..=
     /// [`RECORD_DT_MAX_S`]).
     Rate,

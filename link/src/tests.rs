@@ -46,12 +46,15 @@ fn any_host() -> impl Strategy<Value = HostMsg> {
         any::<u16>().prop_map(|telemetry_every| HostMsg::Arm { telemetry_every }),
         (
             any::<u16>(),
-            prop_oneof![Just(LinkLoss::Complete), Just(LinkLoss::RampDown)]
+            prop_oneof![Just(LinkLoss::Complete), Just(LinkLoss::RampDown)],
+            any::<u32>()
         )
-            .prop_map(|(telemetry_every, on_link_loss)| HostMsg::ArmWith {
+            .prop_map(|(telemetry_every, on_link_loss, owner)| HostMsg::ArmWith {
                 telemetry_every,
-                on_link_loss
+                on_link_loss,
+                owner
             }),
+        any::<u32>().prop_map(|owner| HostMsg::StartAs { owner }),
         Just(HostMsg::Start),
         Just(HostMsg::Abort),
         (any::<u32>(), any_f64(), any_f64(), any::<u32>()).prop_map(
@@ -148,6 +151,7 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
         Just(NackReason::Incomplete),
         Just(NackReason::TooLong),
         Just(NackReason::Rate),
+        Just(NackReason::NotOwner),
     ];
     let kind = any_kind();
     prop_oneof![

@@ -339,7 +339,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 },
             );
             h.set("on_link_loss", format!("{on_link_loss:?}"));
-            link.arm_with(telemetry_every, on_link_loss.into())?;
+            // One connection arms and starts: the test is this host's (another host's start is
+            // refused; an abort is not).
+            link.arm_owned(telemetry_every, on_link_loss.into())?;
             link.start()?;
             println!("running");
             let s = record_csv_with(

@@ -443,6 +443,7 @@ fn the_link_loss_policy_is_chosen_at_arm_time() {
         HostMsg::ArmWith {
             telemetry_every: 0,
             on_link_loss: LinkLoss::RampDown,
+            owner: 7,
         },
         &mut ctl,
         &mut run,
@@ -460,6 +461,7 @@ fn the_link_loss_policy_is_chosen_at_arm_time() {
         HostMsg::ArmWith {
             telemetry_every: 2,
             on_link_loss: LinkLoss::RampDown,
+            owner: 7,
         },
         &mut ctl,
         &mut run,
@@ -469,6 +471,30 @@ fn the_link_loss_policy_is_chosen_at_arm_time() {
     );
     assert_eq!(m, DeviceMsg::Ack(Request::Arm));
     assert_eq!((s.link_loss, s.every), (LinkLoss::RampDown, 2));
+    // Another host cannot start it (a plain Start or another token); its owner can; an abort
+    // from anyone is obeyed.
+    for m in [HostMsg::Start, HostMsg::StartAs { owner: 8 }] {
+        let (a, _) = handle(m, &mut ctl, &mut run, &mut store(), &mut s, false);
+        assert_eq!(a, DeviceMsg::Nack(Request::Start, NackReason::NotOwner));
+    }
+    let (a, e) = handle(
+        HostMsg::StartAs { owner: 7 },
+        &mut ctl,
+        &mut run,
+        &mut store(),
+        &mut s,
+        false,
+    );
+    assert_eq!((a, e), (DeviceMsg::Ack(Request::Start), Effect::Started));
+    let (a, _) = handle(
+        HostMsg::Abort,
+        &mut ctl,
+        &mut run,
+        &mut store(),
+        &mut s,
+        false,
+    );
+    assert_eq!(a, DeviceMsg::Ack(Request::Abort));
     // Lost after more than the timeout of silence, and only with RampDown; the tick count wraps.
     assert!(!link_lost(
         LinkLoss::RampDown,
