@@ -145,6 +145,13 @@ fn lrx(out: &mut String, root: &Path) {
     require(&path, "lrx");
     let m = load_model(&path, ModelKind::Lrx);
     check_rate(&path, &m);
+    let delay = u16::try_from(m.delay_steps)
+        .unwrap_or_else(|_| fail(format!("{}: delay_steps over 16 bits", path.display())));
+    let _ = writeln!(
+        out,
+        "/// LRX feedback delay, ticks (the link checksum covers it)."
+    );
+    let _ = writeln!(out, "pub const LRX_DELAY_STEPS: u16 = {delay};");
     let x = m
         .lrx
         .unwrap_or_else(|| fail(format!("{}: no lrx section", path.display())));
@@ -325,7 +332,8 @@ fn motion(out: &mut String, root: &Path) {
 /// The compile-time fault plan of a `fault-inject` build: `RTHS_FAULT=KIND@SECONDS[+TICKS]` (default
 /// `nan-disp@10`, for ever). KIND: `nan-disp`, `nan-force`, `dropout`, `stuck-disp`, `stuck-force`,
 /// `spike-disp:MM`, `spike-force:KN`, `valve:FRACTION`, `stiffness:FACTOR`, `lost` (lost ticks),
-/// `overrun` (the controller is told its previous tick overran).
+/// `overrun` (the controller is told its previous tick overran), `stall` (the control task never
+/// returns: the watchdog's test).
 fn fault(out: &mut String) {
     println!("cargo:rerun-if-env-changed=RTHS_FAULT");
     let spec = std::env::var("RTHS_FAULT").unwrap_or_else(|_| "nan-disp@10".to_string());
@@ -388,7 +396,7 @@ fn fault(out: &mut String) {
             lit(need(arg))
         )),
         "lost" => Some(format!("{hs}::FaultKind::LostTicks")),
-        "overrun" => None,
+        "overrun" | "stall" => None,
         _ => bad("unknown kind"),
     };
     let _ = writeln!(
@@ -402,6 +410,11 @@ fn fault(out: &mut String) {
     let _ = writeln!(
         out,
         "/// Faulty ticks.\npub const FAULT_TICKS: u64 = {ticks};"
+    );
+    let _ = writeln!(
+        out,
+        "/// The control task stalls from the first faulty tick (the watchdog's test).\npub const FAULT_STALL: bool = {};",
+        name == "stall"
     );
     match kind_expr {
         Some(k) => {
@@ -418,7 +431,8 @@ fn fault(out: &mut String) {
             );
             let _ = writeln!(
                 out,
-                "/// Injected overruns.\npub const FAULT_OVERRUN: bool = true;"
+                "/// Injected overruns.\npub const FAULT_OVERRUN: bool = {};",
+                name == "overrun"
             );
         }
     }

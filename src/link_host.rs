@@ -10,8 +10,9 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use rths_link::{
-    DeviceMsg, FrameReader, Gap, HostMsg, LinkError, NackReason, Request, RunState, SeqCheck,
-    Status, Telemetry, LR_COEFFS, MAX_FRAME,
+    DeviceMsg, FrameReader, Gap, HostMsg, LinkError, ModelKind as WireModelKind, NackReason,
+    RecordSource, Request, RunState, SeqCheck, Status, Telemetry, LR_COEFFS, MAX_FRAME,
+    RECORD_CHUNK,
 };
 
 use crate::model_file::{ModelFile, ModelKind};
@@ -46,6 +47,9 @@ pub enum LinkHostError {
     /// The model file cannot be sent (not LR, wrong shape or delay).
     #[error("model: {0}")]
     Model(String),
+    /// The ground-motion record cannot be sent (empty, not finite, too long for the protocol).
+    #[error("ground motion: {0}")]
+    Motion(String),
     /// QEMU could not be started or stopped early.
     #[error("qemu: {0}")]
     Qemu(String),
@@ -120,6 +124,12 @@ pub struct Link {
     pub bad_frames: u32,
     /// How long to wait for an answer.
     pub timeout: Duration,
+    /// While recording, send a `Status` this often (the device's sign that the host is there, for a
+    /// run armed with `LinkLoss::RampDown`); `None`: never (tests of a lost link).
+    pub heartbeat: Option<Duration>,
+    /// The token this host armed its test with ([`Self::arm_owned`]; 0: none): its `start` sends
+    /// it, and the device refuses another host's start.
+    pub owner: u32,
 }
 
 impl Link {
@@ -131,6 +141,8 @@ impl Link {
             queue: VecDeque::new(),
             bad_frames: 0,
             timeout: Duration::from_secs(10),
+            heartbeat: Some(Duration::from_millis(250)),
+            owner: 0,
         }
     }
 
@@ -300,14 +312,43 @@ impl Link {
         }
     }
 
-    /// Upload an LR model; its checksum on success.
+    /// Upload a model: an LR model in one `UploadLr`, another kind in chunks (`ModelBegin`, the
+    /// chunks, `ModelCommit`, each acknowledged; a kind the firmware does not run is refused at the
+    /// begin, `Unsupported`). Its checksum on success.
     pub fn upload(&mut self, model: &ModelFile) -> Result<u32, LinkHostError> {
+        if model.kind != ModelKind::Lr {
+            let msgs = model_messages(model)?;
+            for m in &msgs {
+                self.expect_ack(m)?;
+            }
+            return match msgs.first() {
+                Some(HostMsg::ModelBegin { checksum, .. }) => Ok(*checksum),
+                _ => Err(LinkHostError::Model("no model begin".into())),
+            };
+        }
         let msg = upload_message(model)?;
         self.expect_ack(&msg)?;
         match msg {
             HostMsg::UploadLr { checksum, .. } => Ok(checksum),
             _ => Err(LinkHostError::Model("not an LR upload".into())),
         }
+    }
+
+    /// Upload a ground-motion record (samples in g every `dt_s`, already multiplied by `scale`,
+    /// which the device keeps for its status): `RecordBegin`, the chunks, `RecordCommit`, each
+    /// acknowledged. Its checksum on success; the device's refusal (the record it had stays in
+    /// force) as [`LinkHostError::Refused`].
+    pub fn upload_record(
+        &mut self,
+        samples_g: &[f64],
+        dt_s: f64,
+        scale: f64,
+    ) -> Result<u32, LinkHostError> {
+        let msgs = record_messages(samples_g, dt_s, scale)?;
+        for m in &msgs {
+            self.expect_ack(m)?;
+        }
+        Ok(rths_link::record_checksum(samples_g, dt_s))
     }
 
     /// New stroke, velocity and force limits.
@@ -324,13 +365,53 @@ impl Link {
         })
     }
 
-    /// Arm, telemetry every `telemetry_every` ticks.
+    /// Arm, telemetry every `telemetry_every` ticks (the run completes if the host falls silent).
     pub fn arm(&mut self, telemetry_every: u16) -> Result<(), LinkHostError> {
         self.expect_ack(&HostMsg::Arm { telemetry_every })
     }
 
-    /// Start the armed test.
+    /// Arm, telemetry every `telemetry_every` ticks, and what the device does if the host falls
+    /// silent during the run; any host may start it.
+    pub fn arm_with(
+        &mut self,
+        telemetry_every: u16,
+        on_link_loss: rths_link::LinkLoss,
+    ) -> Result<(), LinkHostError> {
+        self.owner = 0;
+        self.expect_ack(&HostMsg::ArmWith {
+            telemetry_every,
+            on_link_loss,
+            owner: 0,
+        })
+    }
+
+    /// [`Self::arm_with`], owned by this host: a token (from the clock and the process id, never 0)
+    /// that [`Self::start`] sends; the device refuses any other host's start of this test (an
+    /// abort from anyone is still obeyed).
+    pub fn arm_owned(
+        &mut self,
+        telemetry_every: u16,
+        on_link_loss: rths_link::LinkLoss,
+    ) -> Result<(), LinkHostError> {
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos());
+        let owner = (nanos ^ std::process::id().rotate_left(16)).max(1);
+        self.expect_ack(&HostMsg::ArmWith {
+            telemetry_every,
+            on_link_loss,
+            owner,
+        })?;
+        self.owner = owner;
+        Ok(())
+    }
+
+    /// Start the armed test (as its owner if this host armed it with [`Self::arm_owned`]).
     pub fn start(&mut self) -> Result<(), LinkHostError> {
+        if self.owner != 0 {
+            let owner = self.owner;
+            return self.expect_ack(&HostMsg::StartAs { owner });
+        }
         self.expect_ack(&HostMsg::Start)
     }
 
@@ -357,8 +438,27 @@ impl Link {
             end: None,
         };
         let bad0 = self.bad_frames;
+        let (mut heard, mut beat) = (Instant::now(), Instant::now());
         loop {
-            match self.recv(idle)? {
+            if let Some(every) = self.heartbeat {
+                if beat.elapsed() >= every {
+                    self.send(&HostMsg::Status)?;
+                    beat = Instant::now();
+                }
+            }
+            let wait = idle
+                .saturating_sub(heard.elapsed())
+                .min(self.heartbeat.unwrap_or(idle));
+            let m = match self.recv(wait) {
+                Ok(m) => m,
+                Err(LinkHostError::Timeout(..)) if heard.elapsed() < idle => continue,
+                Err(LinkHostError::Timeout(..)) => {
+                    return Err(LinkHostError::Timeout(idle, "telemetry"))
+                }
+                Err(e) => return Err(e),
+            };
+            heard = Instant::now();
+            match m {
                 DeviceMsg::Telemetry(t) => {
                     if let Err(g) = seq.observe(t.seq) {
                         eprintln!(
@@ -410,6 +510,266 @@ pub fn upload_message(model: &ModelFile) -> Result<HostMsg, LinkHostError> {
         delay_steps: delay,
         checksum: rths_link::model_checksum(&theta, delay),
     })
+}
+
+/// The messages of a record upload: `RecordBegin`, one `RecordChunk` per [`RECORD_CHUNK`] samples
+/// (numbered from 0), `RecordCommit`. Checked here too (≥ 2 finite samples, a finite step and scale)
+/// so that a bad file fails before anything is sent; the device checks again.
+pub fn record_messages(
+    samples_g: &[f64],
+    dt_s: f64,
+    scale: f64,
+) -> Result<Vec<HostMsg>, LinkHostError> {
+    if samples_g.len() < 2 {
+        return Err(LinkHostError::Motion("fewer than 2 samples".into()));
+    }
+    if let Some(i) = samples_g.iter().position(|v| !v.is_finite()) {
+        return Err(LinkHostError::Motion(format!("sample {i} is not finite")));
+    }
+    if !(dt_s.is_finite() && dt_s > 0.0 && scale.is_finite()) {
+        return Err(LinkHostError::Motion(format!(
+            "step {dt_s} s or scale {scale} is not a finite positive number"
+        )));
+    }
+    let samples = u32::try_from(samples_g.len())
+        .map_err(|_| LinkHostError::Motion("more than 2^32 samples".into()))?;
+    let mut out = Vec::with_capacity(samples_g.len() / RECORD_CHUNK + 3);
+    out.push(HostMsg::RecordBegin {
+        samples,
+        dt_s,
+        scale,
+        checksum: rths_link::record_checksum(samples_g, dt_s),
+    });
+    for (i, ch) in samples_g.chunks(RECORD_CHUNK).enumerate() {
+        let mut values = [0.0; RECORD_CHUNK];
+        values
+            .get_mut(..ch.len())
+            .ok_or_else(|| LinkHostError::Motion("chunk".into()))?
+            .copy_from_slice(ch);
+        out.push(HostMsg::RecordChunk {
+            seq: i as u32,
+            count: ch.len() as u8,
+            values,
+        });
+    }
+    out.push(HostMsg::RecordCommit);
+    Ok(out)
+}
+
+/// The flat values of a model file for a chunked upload, and its wire kind: LRX in
+/// `rths_link::lrx_values`' order; an RNN as `w_ih` (row-major), `w_hh` (row-major), `b_h`, `w_ho`,
+/// `b_o`, `input_mean`, `input_std`, `output_mean`, `output_std` (no firmware build takes RNN uploads
+/// yet: the device refuses them `Unsupported`).
+pub fn model_values(model: &ModelFile) -> Result<(WireModelKind, Vec<f64>), LinkHostError> {
+    let missing = |what: &str| LinkHostError::Model(format!("no {what} section"));
+    match model.kind {
+        ModelKind::Lrx => {
+            let x = model.lrx.as_ref().ok_or_else(|| missing("lrx"))?;
+            let v = rths_link::lrx_values(
+                &x.coeffs,
+                x.k_corr_kn_per_mm,
+                x.k_adapt_ticks,
+                &x.lead_weights,
+                x.lead_stride,
+            )
+            .ok_or_else(|| LinkHostError::Model("lrx: 9 coefficients and 8 lead weights".into()))?;
+            Ok((WireModelKind::Lrx, v.to_vec()))
+        }
+        ModelKind::Rnn => {
+            let r = model.rnn.as_ref().ok_or_else(|| missing("rnn"))?;
+            let mut v: Vec<f64> = r.w_ih.concat();
+            v.extend(r.w_hh.concat());
+            v.extend(&r.b_h);
+            v.extend(&r.w_ho);
+            v.push(r.b_o);
+            v.extend(&r.input_mean);
+            v.extend(&r.input_std);
+            v.push(r.output_mean);
+            v.push(r.output_std);
+            Ok((WireModelKind::Rnn, v))
+        }
+        ModelKind::Lr => Err(LinkHostError::Model(
+            "an LR model goes in one UploadLr".into(),
+        )),
+    }
+}
+
+/// The messages of a chunked model upload: `ModelBegin`, the chunks of [`RECORD_CHUNK`] values,
+/// `ModelCommit`.
+pub fn model_messages(model: &ModelFile) -> Result<Vec<HostMsg>, LinkHostError> {
+    let (kind, v) = model_values(model)?;
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return Err(LinkHostError::Model(format!("value {i} is not finite")));
+    }
+    let values = u16::try_from(v.len())
+        .map_err(|_| LinkHostError::Model("more than 65535 values".into()))?;
+    let delay_steps = u16::try_from(model.delay_steps)
+        .map_err(|_| LinkHostError::Model("delay_steps does not fit 16 bits".into()))?;
+    let mut out = vec![HostMsg::ModelBegin {
+        kind,
+        values,
+        delay_steps,
+        checksum: rths_link::model_values_checksum(kind, &v, delay_steps),
+    }];
+    for (i, ch) in v.chunks(RECORD_CHUNK).enumerate() {
+        let mut values = [0.0; RECORD_CHUNK];
+        values
+            .get_mut(..ch.len())
+            .ok_or_else(|| LinkHostError::Model("chunk".into()))?
+            .copy_from_slice(ch);
+        out.push(HostMsg::ModelChunk {
+            seq: i as u32,
+            count: ch.len() as u8,
+            values,
+        });
+    }
+    out.push(HostMsg::ModelCommit);
+    Ok(out)
+}
+
+/// The name of a model kind as the device reports it.
+pub fn model_kind_name(k: WireModelKind) -> &'static str {
+    match k {
+        WireModelKind::Lr => "lr",
+        WireModelKind::Lrx => "lrx",
+        WireModelKind::Rnn => "rnn",
+        WireModelKind::FeAts => "fe-ats",
+    }
+}
+
+/// The name of a record's source as the device reports it.
+pub fn record_source_name(s: RecordSource) -> &'static str {
+    match s {
+        RecordSource::Compiled => "compiled in",
+        RecordSource::Uploaded => "uploaded",
+    }
+}
+
+/// What a recording is of: `# key: value` lines before the CSV header (the ground motion as given
+/// and its name, the scale, the record's and the model's checksums as the device reported them, the
+/// scenario, the structure...), read back by `rths report` to compute the reference.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RunHeader {
+    /// The fields, in order.
+    pub fields: Vec<(String, String)>,
+}
+
+/// The first header line of a recording with a header.
+pub const RECORDING_FORMAT: &str = "rths-recording 1";
+
+impl RunHeader {
+    /// Set `key` (replacing an earlier value).
+    pub fn set(&mut self, key: &str, value: impl std::fmt::Display) {
+        let v = value.to_string().replace(['\n', '\r'], " ");
+        match self.fields.iter_mut().find(|(k, _)| k == key) {
+            Some(f) => f.1 = v,
+            None => self.fields.push((key.to_string(), v)),
+        }
+    }
+
+    /// The value of `key`.
+    pub fn get(&self, key: &str) -> Option<&str> {
+        self.fields
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+    }
+
+    /// The header lines (`# format: rths-recording 1` first).
+    pub fn lines(&self) -> Vec<String> {
+        std::iter::once(format!("# format: {RECORDING_FORMAT}"))
+            .chain(self.fields.iter().map(|(k, v)| format!("# {k}: {v}")))
+            .collect()
+    }
+}
+
+/// One row of a recording read back.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordingRow {
+    /// Record number.
+    pub seq: u32,
+    /// Tick from the run's start.
+    pub tick: u32,
+    /// State name ([`state_name`]).
+    pub state: String,
+    /// Command sent at this tick, mm.
+    pub command_mm: f64,
+    /// Target produced at this tick, mm.
+    pub target_mm: f64,
+    /// Measured displacement read at this tick, mm.
+    pub measured_mm: f64,
+    /// Measured force read at this tick, kN.
+    pub force_kn: f64,
+}
+
+/// A recording (`rths link run/record --out`) read back.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recording {
+    /// Its header (empty for a recording without one).
+    pub header: RunHeader,
+    /// Its rows.
+    pub rows: Vec<RecordingRow>,
+}
+
+/// Read a recording's text: optional `# key: value` lines, the [`CSV_HEADER`], the rows.
+pub fn read_recording(text: &str) -> Result<Recording, LinkHostError> {
+    let bad =
+        |line: usize, why: String| LinkHostError::Motion(format!("recording line {line}: {why}"));
+    let mut header = RunHeader::default();
+    let mut lines = text.lines().enumerate();
+    loop {
+        let Some((i, l)) = lines.next() else {
+            return Err(bad(0, "no CSV header".into()));
+        };
+        if let Some(kv) = l.strip_prefix('#') {
+            let (k, v) = kv
+                .split_once(':')
+                .ok_or_else(|| bad(i + 1, format!("not `# key: value`: {l}")))?;
+            let (k, v) = (k.trim(), v.trim());
+            if k == "format" {
+                if v != RECORDING_FORMAT {
+                    return Err(bad(i + 1, format!("unknown format `{v}`")));
+                }
+            } else {
+                header.set(k, v);
+            }
+            continue;
+        }
+        if l.trim() != CSV_HEADER {
+            return Err(bad(i + 1, format!("expected the header `{CSV_HEADER}`")));
+        }
+        break;
+    }
+    let mut rows = Vec::new();
+    for (i, l) in lines {
+        if l.trim().is_empty() {
+            continue;
+        }
+        let f: Vec<&str> = l.split(',').collect();
+        if f.len() != 8 {
+            return Err(bad(i + 1, format!("{} fields, expected 8", f.len())));
+        }
+        let num = |j: usize| -> Result<f64, LinkHostError> {
+            f[j].trim()
+                .parse::<f64>()
+                .map_err(|e| bad(i + 1, format!("field {}: {e}", j + 1)))
+        };
+        let int = |j: usize| -> Result<u32, LinkHostError> {
+            f[j].trim()
+                .parse::<u32>()
+                .map_err(|e| bad(i + 1, format!("field {}: {e}", j + 1)))
+        };
+        rows.push(RecordingRow {
+            seq: int(0)?,
+            tick: int(1)?,
+            state: f[3].trim().to_string(),
+            command_mm: num(4)?,
+            target_mm: num(5)?,
+            measured_mm: num(6)?,
+            force_kn: num(7)?,
+        });
+    }
+    Ok(Recording { header, rows })
 }
 
 /// The CSV header of a recording.
@@ -542,5 +902,59 @@ impl Drop for Qemu {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_recording_reads_back_and_bad_ones_are_refused() {
+        let mut h = RunHeader::default();
+        h.set("motion", "el-centro");
+        h.set("scale", "0.5");
+        h.set("scale", "0.75");
+        let mut text = h.lines().join("\n");
+        text.push('\n');
+        text.push_str(CSV_HEADER);
+        text.push_str("\n0,0,0.0,running,1.5,1.25,NaN,0.0\n\n");
+        let r = read_recording(&text).unwrap();
+        assert_eq!(r.header.get("scale"), Some("0.75"), "set replaces");
+        assert_eq!(r.header, h);
+        assert_eq!(r.rows.len(), 1);
+        assert_eq!((r.rows[0].command_mm, r.rows[0].target_mm), (1.5, 1.25));
+        assert!(r.rows[0].measured_mm.is_nan());
+        for bad in [
+            "",
+            "# format: rths-recording 9\n",
+            "# no colon\n",
+            "seq,tick\n",
+            &format!("{CSV_HEADER}\n0,0,0.0,running,1.5\n"),
+            &format!("{CSV_HEADER}\n0,x,0.0,running,1.5,0,0,0\n"),
+            &format!("{CSV_HEADER}\n0,0,0.0,running,one,0,0,0\n"),
+        ] {
+            assert!(read_recording(bad).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn record_and_model_messages_chunk_and_check_their_input() {
+        let samples: Vec<f64> = (0..25).map(|i| i as f64 * 0.01).collect();
+        let m = record_messages(&samples, 0.02, 1.0).unwrap();
+        assert_eq!(m.len(), 1 + 3 + 1, "begin, 12 + 12 + 1, commit");
+        match m[3] {
+            HostMsg::RecordChunk { seq, count, .. } => assert_eq!((seq, count), (2, 1)),
+            _ => panic!("{:?}", m[3]),
+        }
+        assert!(record_messages(&samples[..1], 0.02, 1.0).is_err());
+        assert!(record_messages(&[0.0, f64::NAN], 0.02, 1.0).is_err());
+        assert!(record_messages(&samples, 0.0, 1.0).is_err());
+        assert!(record_messages(&samples, 0.02, f64::INFINITY).is_err());
+        let lrx = ModelFile::from_json(include_str!("../data/models/lrx.json")).unwrap();
+        let m = model_messages(&lrx).unwrap();
+        assert_eq!(m.len(), 1 + 2 + 1, "begin, 12 + 8 values, commit");
+        let lr = ModelFile::from_json(include_str!("../data/models/lr.json")).unwrap();
+        assert!(model_messages(&lr).is_err(), "LR goes in one UploadLr");
     }
 }

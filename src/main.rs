@@ -35,6 +35,8 @@ enum Command {
     Robustness(cmd::robustness::Args),
     /// Drive and record a test on a board over the command link (serial port, QEMU socket).
     Link(cmd::link::Args),
+    /// The figures, metrics and plots of `rths simulate` for a recording of a board's test.
+    Report(cmd::report::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -48,6 +50,7 @@ fn main() -> std::process::ExitCode {
         Command::Faults(a) => cmd::faults::run(a),
         Command::CheckModel(a) => cmd::check_model::run(a),
         Command::Link(a) => cmd::link::run(a),
+        Command::Report(a) => cmd::report::run(a),
         Command::Identify(a) => cmd::identify::run(a),
         Command::Robustness(a) => cmd::robustness::run(a),
     };

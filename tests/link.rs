@@ -27,20 +27,51 @@ use rths_link::{HostMsg, NackReason, Request, RunState};
 /// once per test binary.
 fn link_elf() -> PathBuf {
     static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    ELF.get_or_init(|| build_elf(&["--features", "link"], "rths-firmware-link.elf"))
+        .clone()
+}
+
+/// The LRX build with the link (`--no-default-features --features board-qemu,model-lrx,link`).
+fn lrx_link_elf() -> PathBuf {
+    static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     ELF.get_or_init(|| {
-        let status = Command::new(env!("CARGO"))
-            .current_dir(firmware_dir())
-            .args(["build", "--release", "--features", "link"])
-            .env_remove("CARGO_TARGET_DIR")
-            .status()
-            .unwrap();
-        assert!(status.success(), "firmware build (link) failed");
-        let elf = firmware_dir().join("target/thumbv7em-none-eabihf/release/rths-firmware");
-        let dest = Path::new(env!("CARGO_TARGET_TMPDIR")).join("rths-firmware-link.elf");
-        std::fs::copy(&elf, &dest).unwrap();
-        dest
+        build_elf(
+            &[
+                "--no-default-features",
+                "--features",
+                "board-qemu,model-lrx,link",
+            ],
+            "rths-firmware-lrx-link.elf",
+        )
     })
     .clone()
+}
+
+/// Build the firmware with `args` and copy its ELF to `name`; one build at a time (they share the
+/// firmware's target directory and its output path).
+fn build_elf(args: &[&str], name: &str) -> PathBuf {
+    build_elf_with(args, name, None)
+}
+
+/// [`build_elf`] with the `fault-inject` plan `RTHS_FAULT` set to `fault` (or unset).
+fn build_elf_with(args: &[&str], name: &str, fault: Option<&str>) -> PathBuf {
+    static BUILD: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _one = BUILD.lock().unwrap_or_else(|e| e.into_inner());
+    let mut cmd = Command::new(env!("CARGO"));
+    cmd.current_dir(firmware_dir())
+        .args(["build", "--release"])
+        .args(args)
+        .env_remove("CARGO_TARGET_DIR");
+    match fault {
+        Some(f) => cmd.env("RTHS_FAULT", f),
+        None => cmd.env_remove("RTHS_FAULT"),
+    };
+    let status = cmd.status().unwrap();
+    assert!(status.success(), "firmware build {args:?} failed");
+    let elf = firmware_dir().join("target/thumbv7em-none-eabihf/release/rths-firmware");
+    let dest = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::copy(&elf, &dest).unwrap();
+    dest
 }
 
 struct Trained {
@@ -486,4 +517,489 @@ fn the_cli_talks_through_its_own_qemu_and_through_a_pty() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(text.contains("state            idle"), "{text}");
+}
+
+/// A record upload request; the device's refusal reason, if any.
+fn refusal(link: &mut rths::link_host::Link, msg: &HostMsg) -> Option<NackReason> {
+    match link.request(msg) {
+        Ok(_) => None,
+        Err(LinkHostError::Refused(_, why)) => Some(why),
+        Err(e) => panic!("{msg:?}: {e}"),
+    }
+}
+
+#[test]
+fn bad_record_uploads_are_refused_with_their_reason_and_the_record_in_force_stays() {
+    use rths_link::{RecordSource, RECORD_CHUNK};
+    if qemu_missing("link test") {
+        return;
+    }
+    let elf = link_elf();
+    let dir = tempfile::tempdir().unwrap();
+    let mut q = Qemu::start(&elf, dir.path()).unwrap();
+    let link = &mut q.link;
+    link.timeout = Duration::from_secs(20);
+
+    // Boot: the compiled-in El Centro, the host's embedded one bit for bit.
+    let s0 = link.status().unwrap();
+    let el = rths::motion::GroundMotion::el_centro();
+    assert_eq!(s0.record.source, RecordSource::Compiled);
+    assert_eq!(
+        s0.record.checksum,
+        rths_link::record_checksum(&el.accel_g, el.dt_s)
+    );
+    assert_eq!(s0.record.ticks as usize, el.resample_mm_s2(DT_S).len());
+    assert_eq!(s0.record_capacity, 4096, "64 KiB, two halves of f64");
+    println!(
+        "record capacity {} samples: {:.2} s at 0.01 s, {:.2} s at 0.02 s",
+        s0.record_capacity,
+        (s0.record_capacity - 1) as f64 * 0.01,
+        (s0.record_capacity - 1) as f64 * 0.02
+    );
+
+    // A good upload first (Northridge × 0.5): in force, and reported.
+    let nr = rths::motion::GroundMotion::try_embedded("northridge")
+        .unwrap()
+        .scaled(0.5);
+    let c = link.upload_record(&nr.accel_g, nr.dt_s, 0.5).unwrap();
+    let good = link.status().unwrap().record;
+    assert_eq!(good.source, RecordSource::Uploaded);
+    assert_eq!(good.checksum, c);
+    assert_eq!((good.samples, good.dt_s, good.scale), (2000, 0.02, 0.5));
+    let in_force = |link: &mut rths::link_host::Link, what: &str| {
+        assert_eq!(link.status().unwrap().record, good, "after {what}");
+    };
+
+    let msgs = rths::link_host::record_messages(&nr.accel_g, nr.dt_s, 0.5).unwrap();
+    let (begin, chunks, commit) = (&msgs[0], &msgs[1..msgs.len() - 1], &msgs[msgs.len() - 1]);
+    let HostMsg::RecordBegin { checksum, .. } = *begin else {
+        unreachable!()
+    };
+    // Too long for memory: Loma Prieta's 7998 samples.
+    let lp = rths::motion::GroundMotion::try_embedded("loma-prieta").unwrap();
+    let lp_begin = rths::link_host::record_messages(&lp.accel_g, lp.dt_s, 1.0).unwrap()[0];
+    assert_eq!(refusal(link, &lp_begin), Some(NackReason::TooLong));
+    // Wrong rates: 0.5 s (a unit mistake), 0.1 ms (faster than the controller), NaN.
+    for dt_s in [0.5, 1e-4, f64::NAN] {
+        let m = HostMsg::RecordBegin {
+            samples: 2000,
+            dt_s,
+            scale: 0.5,
+            checksum,
+        };
+        assert_eq!(refusal(link, &m), Some(NackReason::Rate), "dt {dt_s}");
+    }
+    in_force(link, "bad headers");
+    // A NaN in a chunk.
+    assert_eq!(refusal(link, begin), None);
+    let HostMsg::RecordChunk { seq, count, values } = chunks[0] else {
+        unreachable!()
+    };
+    let mut nan = values;
+    nan[RECORD_CHUNK / 2] = f64::NAN;
+    let m = HostMsg::RecordChunk {
+        seq,
+        count,
+        values: nan,
+    };
+    assert_eq!(refusal(link, &m), Some(NackReason::NotFinite));
+    in_force(link, "a NaN");
+    // Reordered (chunk 1 before 0) and duplicated (chunk 0 twice).
+    assert_eq!(refusal(link, begin), None);
+    assert_eq!(refusal(link, &chunks[1]), Some(NackReason::Sequence));
+    assert_eq!(refusal(link, begin), None);
+    assert_eq!(refusal(link, &chunks[0]), None);
+    assert_eq!(refusal(link, &chunks[0]), Some(NackReason::Sequence));
+    in_force(link, "reordered and duplicated chunks");
+    // Truncated: the commit before the last chunk.
+    assert_eq!(refusal(link, begin), None);
+    for ch in &chunks[..chunks.len() - 1] {
+        assert_eq!(refusal(link, ch), None);
+    }
+    assert_eq!(refusal(link, commit), Some(NackReason::Incomplete));
+    in_force(link, "a truncated upload");
+    // Corrupted on the wire: chunk 3's frame with a bit flipped is dropped (bad frame, no answer),
+    // so chunk 4 comes out of sequence.
+    let bad0 = link.status().unwrap().bad_frames;
+    assert_eq!(refusal(link, begin), None);
+    for ch in &chunks[..3] {
+        assert_eq!(refusal(link, ch), None);
+    }
+    let mut frame = [0u8; rths_link::MAX_FRAME + 1];
+    let n = rths_link::encode(&chunks[3], &mut frame).unwrap();
+    frame[n / 2] ^= 0x04;
+    link.send_raw(&[0]).unwrap();
+    link.send_raw(&frame[..n]).unwrap();
+    assert_eq!(refusal(link, &chunks[4]), Some(NackReason::Sequence));
+    assert_eq!(link.status().unwrap().bad_frames, bad0 + 1);
+    in_force(link, "a corrupted chunk");
+    // Samples changed (each frame intact, the end-to-end checksum not): refused at the commit.
+    let HostMsg::RecordBegin {
+        samples,
+        dt_s,
+        scale,
+        ..
+    } = *begin
+    else {
+        unreachable!()
+    };
+    let wrong = HostMsg::RecordBegin {
+        samples,
+        dt_s,
+        scale,
+        checksum: checksum ^ 1,
+    };
+    assert_eq!(refusal(link, &wrong), None);
+    for ch in chunks {
+        assert_eq!(refusal(link, ch), None);
+    }
+    assert_eq!(refusal(link, commit), Some(NackReason::Checksum));
+    in_force(link, "a wrong checksum");
+    // An upload while a test is armed: refused Busy.
+    link.arm(1).unwrap();
+    assert_eq!(refusal(link, begin), Some(NackReason::Busy));
+    assert_eq!(refusal(link, commit), Some(NackReason::Busy));
+    assert_eq!(link.status().unwrap().record, good, "armed");
+}
+
+/// The ground motion as a CSV file the firmware does not have compiled in, the `rths link run`
+/// of it in QEMU, and `rths report` of the recording against `rths simulate` of the same record.
+#[test]
+fn a_csv_record_uploaded_run_and_reported_equals_the_host_simulation() {
+    if qemu_missing("link test") {
+        return;
+    }
+    let elf = link_elf();
+    let exe = env!("CARGO_BIN_EXE_rths");
+    let dir = tempfile::tempdir().unwrap();
+    let csv_motion = dir.path().join("northridge.csv");
+    let nr = rths::motion::GroundMotion::try_embedded("northridge").unwrap();
+    std::fs::write(&csv_motion, nr.to_csv()).unwrap();
+    let run_csv = dir.path().join("run.csv");
+    let out = Command::new(exe)
+        .args(["link", "--qemu"])
+        .arg(&elf)
+        .args(["run", "--motion"])
+        .arg(&csv_motion)
+        // Ramp down if this host falls silent: its heartbeats keep the run going to the end.
+        .args(["--scale", "0.5", "--on-link-loss", "ramp-down", "--out"])
+        .arg(&run_csv)
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    println!("{text}");
+
+    // The commands, bit for bit, against the host simulation of the same record (as the CSV file
+    // reads back), scale and model (the compiled-in data/models/lr.json).
+    let rec = rths::link_host::read_recording(&std::fs::read_to_string(&run_csv).unwrap()).unwrap();
+    assert_eq!(rec.header.get("scale"), Some("0.5"));
+    assert_eq!(rec.header.get("scenario"), Some("lr-online"));
+    let motion = rths::motion::GroundMotion::from_path(&csv_motion)
+        .unwrap()
+        .scaled(0.5);
+    let ag = motion.resample_mm_s2(DT_S);
+    let reference = study::reference_mm(&ag, 1.0).unwrap();
+    let lr_file =
+        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json"))
+            .unwrap();
+    let host = scenario::run(&setup(
+        ScenarioId::LrOnline,
+        &ag,
+        &reference,
+        &theta(&lr_file),
+    ))
+    .unwrap();
+    let h = &host.history;
+    assert!(rec.rows.len() >= ag.len());
+    let mut identical = 0;
+    for (row, hs) in rec.rows.iter().zip(&h.command_mm[1..]) {
+        assert_eq!(row.command_mm.to_bits(), hs.to_bits(), "tick {}", row.tick);
+        identical += 1;
+    }
+    println!(
+        "{identical} of {} commands bit-identical to the host",
+        ag.len() - 1
+    );
+    assert_eq!(identical, ag.len() - 1);
+
+    // `rths report --json` equals `rths simulate --json` on every figure.
+    let json = |args: &[&str]| -> serde_json::Value {
+        let out = Command::new(exe)
+            .args(args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let rep = json(&["report", run_csv.to_str().unwrap(), "--json"]);
+    let sim = json(&[
+        "simulate",
+        "--scenario",
+        "lr-online",
+        "--motion",
+        csv_motion.to_str().unwrap(),
+        "--scale",
+        "0.5",
+        "--json",
+    ]);
+    println!("report   {}", rep["scenarios"][0]);
+    println!("simulate {}", sim["scenarios"][0]);
+    assert_eq!(rep["scenarios"][0], sim["scenarios"][0]);
+    assert!(rep["scenarios"][0]["nrmse_measured_pct"].as_f64().unwrap() > 0.0);
+
+    // With --out: the same history file and figure as `rths simulate --out`.
+    let rep_dir = dir.path().join("report");
+    let sim_dir = dir.path().join("simulate");
+    json(&[
+        "report",
+        run_csv.to_str().unwrap(),
+        "--json",
+        "--out",
+        rep_dir.to_str().unwrap(),
+    ]);
+    json(&[
+        "simulate",
+        "--scenario",
+        "lr-online",
+        "--motion",
+        csv_motion.to_str().unwrap(),
+        "--scale",
+        "0.5",
+        "--json",
+        "--out",
+        sim_dir.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        std::fs::read_to_string(rep_dir.join("history.csv")).unwrap(),
+        std::fs::read_to_string(sim_dir.join("history.csv")).unwrap()
+    );
+    assert!(rep_dir.join("lr-online.png").exists());
+
+    // A recording whose record is not the one named is refused.
+    let text = std::fs::read_to_string(&run_csv).unwrap();
+    let other = dir.path().join("other.csv");
+    std::fs::write(&other, text.replace("# scale: 0.5", "# scale: 0.6")).unwrap();
+    let out = Command::new(exe)
+        .args(["report", other.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("not the record of this recording"));
+}
+
+/// An LRX model uploaded in chunks to the LRX build runs El Centro exactly as the host simulation
+/// of that model; bad model uploads are refused with their reason, the model in force kept.
+#[test]
+fn an_lrx_model_uploaded_in_chunks_runs_as_the_host_simulates_it() {
+    if qemu_missing("link test") {
+        return;
+    }
+    let shipped =
+        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lrx.json"))
+            .unwrap();
+    let checksum = |m: &ModelFile| match rths::link_host::model_messages(m).unwrap()[0] {
+        HostMsg::ModelBegin { checksum, .. } => checksum,
+        _ => unreachable!(),
+    };
+    // Another valid LRX model: the shipped one with a 10% larger correction stiffness.
+    let mut other = shipped.clone();
+    other.lrx.as_mut().unwrap().k_corr_kn_per_mm *= 1.1;
+    assert_ne!(checksum(&other), checksum(&shipped));
+
+    // The LR build refuses an LRX model: a kind it does not run.
+    let dir = tempfile::tempdir().unwrap();
+    {
+        let mut q = Qemu::start(&link_elf(), dir.path()).unwrap();
+        let s0 = q.link.status().unwrap();
+        assert_eq!(s0.model_kind, rths_link::ModelKind::Lr);
+        match q.link.upload(&other) {
+            Err(LinkHostError::Refused(Request::ModelBegin, NackReason::Unsupported)) => {}
+            r => panic!("expected Unsupported, got {r:?}"),
+        }
+        assert_eq!(q.link.status().unwrap().model_checksum, s0.model_checksum);
+    }
+
+    let elf = lrx_link_elf();
+    let mut q = Qemu::start(&elf, dir.path()).unwrap();
+    let link = &mut q.link;
+    link.timeout = Duration::from_secs(20);
+    let s0 = link.status().unwrap();
+    assert_eq!(s0.model_kind, rths_link::ModelKind::Lrx);
+    assert_eq!(
+        s0.model_checksum,
+        checksum(&shipped),
+        "the compiled-in lrx.json"
+    );
+    // An RNN model: refused, a kind this build does not run.
+    let rnn =
+        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/rnn-10.json"))
+            .unwrap();
+    match link.upload(&rnn) {
+        Err(LinkHostError::Refused(Request::ModelBegin, NackReason::Unsupported)) => {}
+        r => panic!("expected Unsupported, got {r:?}"),
+    }
+    // An LR model: refused too (it would run beside LRX's lead filter).
+    let lr_file =
+        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json"))
+            .unwrap();
+    match link.upload(&lr_file) {
+        Err(LinkHostError::Refused(Request::UploadLr, NackReason::Unsupported)) => {}
+        r => panic!("expected Unsupported, got {r:?}"),
+    }
+    // A NaN in a chunk, a wrong checksum, a stride that is not the lead filter's: refused whole.
+    let msgs = rths::link_host::model_messages(&other).unwrap();
+    let mut nan = msgs.clone();
+    if let HostMsg::ModelChunk { values, .. } = &mut nan[1] {
+        values[2] = f64::NAN;
+    }
+    assert_eq!(refusal(link, &nan[0]), None);
+    assert_eq!(refusal(link, &nan[1]), Some(NackReason::NotFinite));
+    let mut wrong = msgs.clone();
+    if let HostMsg::ModelBegin { checksum, .. } = &mut wrong[0] {
+        *checksum ^= 1;
+    }
+    for m in &wrong[..wrong.len() - 1] {
+        assert_eq!(refusal(link, m), None);
+    }
+    assert_eq!(
+        refusal(link, wrong.last().unwrap()),
+        Some(NackReason::Checksum)
+    );
+    let mut bad_stride = other.clone();
+    bad_stride.lrx.as_mut().unwrap().lead_stride = 9;
+    match link.upload(&bad_stride) {
+        Err(LinkHostError::Refused(Request::ModelCommit, NackReason::OutOfRange)) => {}
+        r => panic!("expected OutOfRange, got {r:?}"),
+    }
+    assert_eq!(link.status().unwrap().model_checksum, s0.model_checksum);
+
+    // The other model: accepted, run, recorded.
+    let c = link.upload(&other).unwrap();
+    assert_eq!(c, checksum(&other));
+    assert_eq!(link.status().unwrap().model_checksum, c);
+    link.arm(1).unwrap();
+    link.start().unwrap();
+    let csv = dir.path().join("run.csv");
+    let summary = rths::cmd::link::record_csv(link, &csv, Duration::from_secs(60)).unwrap();
+    assert!(summary.complete(), "lost telemetry: {summary:?}");
+    let rows = read_csv(&csv);
+
+    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let reference = study::reference_mm(&ag, 1.0).unwrap();
+    let mut st = setup(ScenarioId::LrxOnline, &ag, &reference, &[0.0; 6]);
+    st.lr = None;
+    st.lrx = Some(rths::models::lrx_params(&other).unwrap());
+    st.delay_steps = other.delay_steps;
+    let host = scenario::run(&st).unwrap();
+    let mut identical = 0;
+    for (row, hs) in rows.iter().zip(&host.history.command_mm[1..]) {
+        assert_eq!(row.command_mm.to_bits(), hs.to_bits(), "tick {}", row.tick);
+        identical += 1;
+    }
+    println!("lrx-online, uploaded model: {identical} commands bit-identical to the host");
+    assert_eq!(identical, ag.len() - 1);
+    let out = q.stdout();
+    let line = out
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("RESULT "))
+        .unwrap();
+    println!("RESULT {line}");
+    let r: serde_json::Value = serde_json::from_str(line).unwrap();
+    assert_eq!(r["end_state"], "done");
+    let stack = r["stack_bytes"].as_u64().unwrap();
+    let avail = r["stack_avail_bytes"].as_u64().unwrap();
+    println!("LRX link build with an uploaded model: stack {stack} of {avail} bytes");
+    assert!(stack < avail);
+}
+
+/// The control task stalls (fault-inject `stall@1`: from tick 2048 on it never returns): the
+/// watchdog (TIM5 above the control task in QEMU; the IWDG on the real board) ends the run within
+/// its period with a `WATCHDOG` line and a failure status instead of leaving the actuator on the
+/// last command.
+#[test]
+fn the_watchdog_catches_a_stalled_control_task() {
+    if qemu_missing("watchdog test") {
+        return;
+    }
+    let elf = build_elf_with(
+        &["--features", "fault-inject"],
+        "rths-firmware-stall.elf",
+        Some("stall@1"),
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let mut args = rths::link_host::qemu_args(&elf, 0);
+    let i = args.iter().rposition(|a| a == "-serial").unwrap();
+    args.drain(i..i + 2);
+    let start = std::time::Instant::now();
+    let out = Command::new("qemu-system-arm")
+        .args(&args)
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    println!("{text}(in {:?})", start.elapsed());
+    assert!(text.contains("WATCHDOG the control task stalled"), "{text}");
+    assert!(
+        !text.contains("RESULT"),
+        "the run must not complete: {text}"
+    );
+    assert_eq!(out.status.code(), Some(1));
+}
+
+/// A run armed to ramp down on a lost link, whose host then falls silent (no heartbeat, it only
+/// listens): 1 s of silence later the device ramps the command to zero and ends the run early. The
+/// same silence under `Complete` (the existing tests' `arm`) lets the run finish.
+#[test]
+fn a_silent_host_ramps_the_run_down_when_armed_so() {
+    if qemu_missing("link test") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let mut q = Qemu::start(&link_elf(), dir.path()).unwrap();
+    let link = &mut q.link;
+    link.timeout = Duration::from_secs(20);
+    link.heartbeat = None;
+    link.arm_owned(1, rths_link::LinkLoss::RampDown).unwrap();
+    // Another host's start (without the token) is refused; this host's goes through.
+    assert_eq!(refusal(link, &HostMsg::Start), Some(NackReason::NotOwner));
+    link.start().unwrap();
+    let mut rows = Vec::new();
+    let summary = link
+        .record(Duration::from_secs(60), 0, |t| {
+            rows.push(*t);
+            Ok(())
+        })
+        .unwrap();
+    let (end, ticks, _, _) = summary.end.unwrap();
+    println!(
+        "silent host: run ended {end:?} after {ticks} ticks ({} records)",
+        rows.len()
+    );
+    assert_eq!(end, RunState::Done);
+    let timeout = rths_link::LINK_TIMEOUT_TICKS;
+    assert!(ticks > timeout && ticks < 81_900, "{ticks}");
+    let first_ramp = rows
+        .iter()
+        .position(|t| t.state == RunState::RampDown)
+        .unwrap();
+    println!("ramp-down from tick {}", rows[first_ramp].tick);
+    // Silent since its `Start`: the ramp begins once the silence exceeds the timeout.
+    assert!(rows[first_ramp].tick >= timeout && rows[first_ramp].tick < timeout + 2048);
+    // The ramp to zero is never faster than the end ramp's 10 mm/s.
+    for w in rows[first_ramp..].windows(2) {
+        assert!((w[1].command_mm - w[0].command_mm).abs() <= 10.0 * DT_S + 1e-12);
+    }
+    assert_eq!(rows.last().unwrap().command_mm, 0.0);
 }

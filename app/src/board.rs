@@ -35,6 +35,17 @@ pub trait InstrCounter {
     fn instructions(&self, start: u32, end: u32) -> u32;
 }
 
+/// The watchdog of the control task: started once the tick timer runs, fed at every tick. If the
+/// control task stalls (a tick not run for the watchdog's period), it forces the safe state: a
+/// reset of the MCU, whose start-up latches the actuator command at its safe position (the real
+/// board's IWDG), or, on the emulated board, the end of the emulation with a `WATCHDOG` line.
+pub trait Watchdog {
+    /// Start it (it cannot be stopped on a real board: the tick must run from then on).
+    fn start(&mut self);
+    /// The control task ran a tick.
+    fn feed(&mut self);
+}
+
 /// The hardware emergency-stop input.
 pub trait EStop {
     /// The stop is asserted (a broken wire reads as asserted).
@@ -119,6 +130,8 @@ pub trait Board {
     type Harness: Harness<Self::Rig>;
     /// The instruction counter's calibration.
     type Calibration: Calibration + Copy;
+    /// The control task's watchdog.
+    type Watchdog: Watchdog;
     /// The plant runs inside the MCU (QEMU): the record plays once per power-up from rest at 0 mm,
     /// the controller ticks only during that run, the board advances the plant after each tick and
     /// the run ends with the `RESULT` report. A real rig instead ticks from boot (the interlocks
@@ -152,4 +165,6 @@ pub struct Parts<B: Board> {
     pub harness: B::Harness,
     /// The instruction counter's calibration.
     pub calibration: B::Calibration,
+    /// The control task's watchdog (stopped).
+    pub watchdog: B::Watchdog,
 }

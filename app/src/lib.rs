@@ -7,6 +7,8 @@
 //! - [`run`]: the run's statistics, updated once per tick.
 //! - [`report`]: the `CALIB` and `RESULT` lines of the emulated board.
 //! - [`link`]: the command link's request handling and telemetry stream.
+//! - [`model_upload`]: chunked model uploads (LRX), validated on the device.
+//! - [`record`]: the ground-motion record in force (compiled in or uploaded) and upload validation.
 //!
 //! The firmware binary (`firmware/src/main.rs`) is the RTIC shell around these.
 #![no_std]
@@ -16,6 +18,8 @@
 pub mod board;
 pub mod control;
 pub mod link;
+pub mod model_upload;
+pub mod record;
 pub mod report;
 pub mod run;
 

@@ -4,9 +4,14 @@
 use rths_core::control::{Analytical, Controller};
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_core::supervisor::{Limits, State, Supervisor};
-use rths_link::{DeviceMsg, HostMsg, NackReason, RunState, Status, Telemetry, LR_COEFFS};
+use rths_link::{
+    DeviceMsg, HostMsg, LinkLoss, ModelKind, NackReason, RunState, Status, Telemetry,
+    LINK_TIMEOUT_TICKS, LR_COEFFS,
+};
 
 use crate::board::LinkPort;
+use crate::model_upload::ModelStaging;
+use crate::record::RecordStore;
 use crate::{Record, Run};
 
 /// The wire state of a supervisor state.
@@ -115,11 +120,19 @@ pub struct Session {
     pub upload_lr: bool,
     /// How `Arm` arms.
     pub rearm: Rearm,
+    /// The kind of the analytical part (reported in the status).
+    pub model_kind: ModelKind,
+    /// A chunked model upload in progress.
+    pub model_upload: ModelStaging,
+    /// What the run in progress does if the host falls silent (chosen at arm time).
+    pub link_loss: LinkLoss,
+    /// The arming host's token (0: none, anyone may start).
+    pub owner: u32,
 }
 
 impl Session {
-    /// A session with the compiled-in model of `model_checksum`.
-    pub fn new(model_checksum: u32, upload_lr: bool, rearm: Rearm) -> Self {
+    /// A session with the compiled-in model of `model_checksum`, of kind `model_kind`.
+    pub fn new(model_checksum: u32, upload_lr: bool, rearm: Rearm, model_kind: ModelKind) -> Self {
         Self {
             every: 1,
             seq: 0,
@@ -127,6 +140,10 @@ impl Session {
             model_checksum,
             upload_lr,
             rearm,
+            model_kind,
+            model_upload: ModelStaging::new(),
+            link_loss: LinkLoss::Complete,
+            owner: 0,
         }
     }
 
@@ -170,18 +187,51 @@ pub enum Effect {
 }
 
 /// Handle one request: its answer (always exactly one) and its effect. `finished`: the emulated
-/// plant's run is over. Runs at the link's priority with the controller and the run locked: it
-/// does no I/O (the caller sends the answer after unlocking).
+/// plant's run is over. Runs at the link's priority with the controller, the run and the record
+/// store locked: it does no I/O (the caller sends the answer after unlocking), and its longest
+/// work, a record chunk, is a copy and a CRC of [`rths_link::RECORD_CHUNK`] samples.
 pub fn handle(
     msg: HostMsg,
     ctl: &mut Controller,
     run: &mut Run,
+    store: &mut RecordStore<'_>,
     s: &mut Session,
     finished: bool,
 ) -> (DeviceMsg, Effect) {
     let req = msg.request();
+    // A record is replaced only at rest: the control task plays it during a run.
+    let at_rest = ctl.supervisor().at_rest();
     let result: Result<Effect, NackReason> = match msg {
-        HostMsg::Status => return (DeviceMsg::Status(status(ctl, s, run)), Effect::None),
+        HostMsg::Status => return (DeviceMsg::Status(status(ctl, s, run, store)), Effect::None),
+        HostMsg::RecordBegin {
+            samples,
+            dt_s,
+            scale,
+            checksum,
+        } => store
+            .begin(samples, dt_s, scale, checksum, at_rest)
+            .map(|()| Effect::None),
+        HostMsg::RecordChunk { seq, count, values } => store
+            .chunk(seq, count, &values, at_rest)
+            .map(|()| Effect::None),
+        HostMsg::RecordCommit => store.commit(at_rest).map(|_| Effect::None),
+        HostMsg::ModelBegin {
+            kind,
+            values,
+            delay_steps,
+            checksum,
+        } => s
+            .model_upload
+            .begin(kind, values, delay_steps, checksum, s.model_kind, at_rest)
+            .map(|()| Effect::None),
+        HostMsg::ModelChunk { seq, count, values } => s
+            .model_upload
+            .chunk(seq, count, &values, at_rest)
+            .map(|()| Effect::None),
+        HostMsg::ModelCommit => s.model_upload.commit(ctl, at_rest).map(|crc| {
+            s.model_checksum = crc;
+            Effect::None
+        }),
         HostMsg::UploadLr {
             features,
             theta,
@@ -202,23 +252,22 @@ pub fn handle(
             velocity_mm_s,
             force_kn,
         } => set_limits(ctl, stroke_mm, velocity_mm_s, force_kn).map(|()| Effect::None),
-        HostMsg::Arm { telemetry_every } => {
-            if telemetry_every == 0 {
-                Err(NackReason::OutOfRange)
-            } else {
-                arm(ctl, run, s.rearm, finished).map(|()| {
-                    s.every = u32::from(telemetry_every);
-                    s.seq = 0;
-                    run.restart();
-                    Effect::None
-                })
-            }
-        }
-        HostMsg::Start => ctl
-            .supervisor_mut()
-            .start()
-            .map(|()| Effect::Started)
-            .map_err(|_| NackReason::InvalidState),
+        HostMsg::Arm { telemetry_every } => arm_request(
+            ctl,
+            run,
+            s,
+            finished,
+            telemetry_every,
+            LinkLoss::Complete,
+            0,
+        ),
+        HostMsg::ArmWith {
+            telemetry_every,
+            on_link_loss,
+            owner,
+        } => arm_request(ctl, run, s, finished, telemetry_every, on_link_loss, owner),
+        HostMsg::Start => start(ctl, s, 0),
+        HostMsg::StartAs { owner } => start(ctl, s, owner),
         HostMsg::Abort => {
             ctl.supervisor_mut().abort();
             Ok(Effect::None)
@@ -228,6 +277,45 @@ pub fn handle(
         Ok(e) => (DeviceMsg::Ack(req), e),
         Err(n) => (DeviceMsg::Nack(req, n), Effect::None),
     }
+}
+
+/// Start the armed test; a test armed with an owner token starts only for that token.
+fn start(ctl: &mut Controller, s: &Session, owner: u32) -> Result<Effect, NackReason> {
+    if s.owner != 0 && owner != s.owner && ctl.supervisor().state() == State::Armed {
+        return Err(NackReason::NotOwner);
+    }
+    ctl.supervisor_mut()
+        .start()
+        .map(|()| Effect::Started)
+        .map_err(|_| NackReason::InvalidState)
+}
+
+fn arm_request(
+    ctl: &mut Controller,
+    run: &mut Run,
+    s: &mut Session,
+    finished: bool,
+    telemetry_every: u16,
+    on_link_loss: LinkLoss,
+    owner: u32,
+) -> Result<Effect, NackReason> {
+    if telemetry_every == 0 {
+        return Err(NackReason::OutOfRange);
+    }
+    arm(ctl, run, s.rearm, finished)?;
+    s.every = u32::from(telemetry_every);
+    s.seq = 0;
+    s.link_loss = on_link_loss;
+    s.owner = owner;
+    run.restart();
+    Ok(Effect::None)
+}
+
+/// The host counts as lost: the run's policy is [`LinkLoss::RampDown`] and no valid frame came
+/// for more than [`LINK_TIMEOUT_TICKS`] (`now_tick`, `last_heard_tick`: a free-running tick count
+/// and its value at the last valid frame).
+pub fn link_lost(policy: LinkLoss, now_tick: u32, last_heard_tick: u32) -> bool {
+    policy == LinkLoss::RampDown && now_tick.wrapping_sub(last_heard_tick) > LINK_TIMEOUT_TICKS
 }
 
 fn arm(ctl: &mut Controller, run: &Run, rearm: Rearm, finished: bool) -> Result<(), NackReason> {
@@ -252,7 +340,7 @@ fn arm(ctl: &mut Controller, run: &Run, rearm: Rearm, finished: bool) -> Result<
 }
 
 /// The status answer.
-pub fn status(ctl: &Controller, s: &Session, run: &Run) -> Status {
+pub fn status(ctl: &Controller, s: &Session, run: &Run, store: &RecordStore<'_>) -> Status {
     let sup = ctl.supervisor();
     let l = sup.limits();
     Status {
@@ -265,6 +353,9 @@ pub fn status(ctl: &Controller, s: &Session, run: &Run) -> Status {
         velocity_mm_s: l.velocity_mm_s(),
         force_kn: l.force_kn(),
         bad_frames: s.bad_frames,
+        model_kind: s.model_kind,
+        record: store.info(),
+        record_capacity: store.capacity(),
     }
 }
 

@@ -314,6 +314,20 @@ impl Controller {
         Ok(())
     }
 
+    /// Swap in an LRX model and its lead filter (a model upload), built in place; like
+    /// [`Self::set_analytical`], only at rest, and the controller starts over.
+    pub fn set_lrx(
+        &mut self,
+        frame: crate::metamodel::LrxParams,
+        lead: crate::compensator::LeadParams,
+    ) -> Result<(), Busy> {
+        self.supervisor.reset()?;
+        self.analytical = Analytical::Lrx(Lrx::new(frame));
+        self.compensator = Compensator::Lead(crate::compensator::Lead::new(lead));
+        self.clear();
+        Ok(())
+    }
+
     /// The supervisor (to arm, start, finish, abort, read counters).
     pub fn supervisor(&self) -> &Supervisor {
         &self.supervisor

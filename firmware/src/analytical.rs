@@ -33,9 +33,22 @@ pub const SCENARIO_SUFFIX: Option<usize> = Some(crate::gen::RNN_HIDDEN);
 #[cfg(not(feature = "model-rnn"))]
 pub const SCENARIO_SUFFIX: Option<usize> = None;
 
-/// The link's `UploadLr` replaces the analytical part with an LR model (not with an RNN or FE part,
-/// whose runs compare against their own reference).
-pub const UPLOAD_LR: bool = !cfg!(any(feature = "model-rnn", feature = "fe-ats"));
+/// The kind of this build's analytical part (the link's status reports it).
+pub const MODEL_KIND: rths_link::ModelKind = if cfg!(feature = "model-rnn") {
+    rths_link::ModelKind::Rnn
+} else if cfg!(feature = "fe-ats") {
+    rths_link::ModelKind::FeAts
+} else if cfg!(feature = "model-lrx") {
+    rths_link::ModelKind::Lrx
+} else {
+    rths_link::ModelKind::Lr
+};
+
+/// The link's `UploadLr` replaces the analytical part with an LR model only in the LR build: an LR
+/// model in another build would run beside that build's compensator (LRX's lead filter) or against
+/// another reference, a controller no host scenario simulates; those builds refuse it
+/// `Unsupported`, as they refuse every kind they do not run.
+pub const UPLOAD_LR: bool = cfg!(feature = "model-lr");
 
 /// The controller, and the link checksum of its compiled-in LR model (0 for another part).
 pub fn controller() -> Result<(Controller, u32), &'static str> {
@@ -94,11 +107,21 @@ const SPEC: ModelSpec<'static> = ModelSpec::Lrx {
     specimen_dynamics: crate::gen::LRX_SPECIMEN_DYNAMICS,
 };
 
-/// The link checksum of the compiled-in model: an LR model's, else 0.
+/// The link checksum of the compiled-in model: an LR or LRX model's (what an upload of the same
+/// model file reports), else 0.
 fn checksum() -> u32 {
     #[cfg(feature = "model-lr")]
     return rths_app::link::compiled_model_checksum(&crate::gen::LR_THETA);
-    #[cfg(not(feature = "model-lr"))]
+    #[cfg(feature = "model-lrx")]
+    return rths_app::model_upload::lrx_checksum(
+        &crate::gen::LRX_COEFFS,
+        crate::gen::LRX_K_CORR,
+        crate::gen::LRX_K_ADAPT,
+        &crate::gen::LRX_LEAD,
+        crate::gen::LRX_LEAD_STRIDE,
+        crate::gen::LRX_DELAY_STEPS,
+    );
+    #[cfg(not(any(feature = "model-lr", feature = "model-lrx")))]
     0
 }
 

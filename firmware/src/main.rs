@@ -75,6 +75,8 @@ mod gen {
 mod motion;
 mod stack;
 
+#[cfg(feature = "link")]
+use core::sync::atomic::AtomicU32;
 use core::sync::atomic::{AtomicBool, Ordering};
 
 use rths_app::board::{Board, Calibration as _};
@@ -94,6 +96,15 @@ static FINISHED: AtomicBool = AtomicBool::new(false);
 static RECORD_END: AtomicBool = AtomicBool::new(false);
 /// `link`: the run ended; `telemetry` sends `RunEnded` after its last record.
 static RUN_ENDED: AtomicBool = AtomicBool::new(false);
+/// `link`: the control task's free-running tick count (the clock of the host's silence).
+#[cfg(feature = "link")]
+static TICK_COUNT: AtomicU32 = AtomicU32::new(0);
+/// `link`: [`TICK_COUNT`] at the last valid frame from the host.
+#[cfg(feature = "link")]
+static LAST_HEARD: AtomicU32 = AtomicU32::new(0);
+/// `link`: the run ramps down if the host falls silent (`LinkLoss::RampDown`, chosen at arm time).
+#[cfg(feature = "link")]
+static LINK_LOSS_RAMP: AtomicBool = AtomicBool::new(false);
 /// The supervisor task's interrupt (pended on a fault, a settled fault, the end of the record or
 /// `Done`).
 const SUPERVISOR_IRQ: board::pac::Interrupt = board::pac::Interrupt::UART4;
@@ -125,6 +136,20 @@ fn injected_overrun(k: u32) -> bool {
     }
 }
 
+/// The injected stall of tick `k` (`fault-inject` with `RTHS_FAULT=stall@...`): the control task
+/// never returns, for the watchdog to catch.
+fn injected_stall(k: u32) -> bool {
+    #[cfg(feature = "fault-inject")]
+    {
+        gen::FAULT_STALL && u64::from(k) >= gen::FAULT_START
+    }
+    #[cfg(not(feature = "fault-inject"))]
+    {
+        let _ = k;
+        false
+    }
+}
+
 /// The injected fault spec, if any.
 fn fault_spec() -> Option<&'static str> {
     #[cfg(feature = "fault-inject")]
@@ -135,13 +160,15 @@ fn fault_spec() -> Option<&'static str> {
     None
 }
 
-/// Print the CALIB and RESULT lines; whether the run went as this build expects.
+/// Print the CALIB and RESULT lines; whether the run went as this build expects. `record_ticks`:
+/// the ticks of the record played (the compiled-in one's, or an uploaded one's).
 fn report(
     r: &Run,
     end: State,
     calib: &<B as Board>::Calibration,
     daq_errors: u32,
     held_samples: u32,
+    record_ticks: u32,
 ) -> bool {
     let mut c = heapless::String::<256>::new();
     let _ = calib.write_line(&mut c);
@@ -149,7 +176,7 @@ fn report(
     let info = ReportInfo {
         scenario: analytical::SCENARIO_PREFIX,
         scenario_suffix: analytical::SCENARIO_SUFFIX,
-        record_ticks: gen::RECORD_TICKS,
+        record_ticks,
         model: gen::MODEL_SOURCE,
         fault_spec: fault_spec(),
         stack: stack::high_water(),
@@ -168,7 +195,7 @@ fn report(
         r,
         end,
         &info.limits,
-        gen::RECORD_TICKS,
+        record_ticks,
         cfg!(feature = "fault-inject"),
     )
 }
@@ -177,7 +204,8 @@ fn report(
 mod app {
     use super::*;
     use heapless::spsc::{Consumer, Producer, Queue};
-    use rths_app::board::{EStop, Harness, InstrCounter, TickTimer};
+    use rths_app::board::{EStop, Harness, InstrCounter, TickTimer, Watchdog};
+    use rths_app::record::RecordStore;
     use rths_app::run::TickFacts;
     use rths_app::{control_step, Record};
     use rths_core::control::Controller;
@@ -195,6 +223,8 @@ mod app {
         timer: <B as Board>::Timer,
         run: Run,
         link: Link,
+        /// The ground-motion record in force (compiled in or uploaded) and the upload in progress.
+        store: RecordStore<'static>,
     }
 
     #[local]
@@ -204,6 +234,7 @@ mod app {
         estop: <B as Board>::EStop,
         harness: <B as Board>::Harness,
         calibration: <B as Board>::Calibration,
+        watchdog: <B as Board>::Watchdog,
         producer: Producer<'static, Record>,
         consumer: Consumer<'static, Record>,
         /// ü_g for the coming tick of a run, mm/s².
@@ -228,10 +259,9 @@ mod app {
         };
         #[cfg(feature = "fault-inject")]
         parts.rig.inject(analytical::faults());
-        <<B as Board>::Harness as Harness<<B as Board>::Rig>>::reset(
-            &mut parts.harness,
-            motion::ground_accel_mm_s2(0),
-        );
+        let store = motion::store();
+        let ag0 = store.accel_mm_s2(0);
+        <<B as Board>::Harness as Harness<<B as Board>::Rig>>::reset(&mut parts.harness, ag0);
         let (ctl, model_checksum) = match analytical::controller() {
             Ok(c) => c,
             Err(e) => die(e),
@@ -269,8 +299,10 @@ mod app {
                         } else {
                             rths_app::link::Rearm::AtMeasured
                         },
+                        analytical::MODEL_KIND,
                     ),
                 },
+                store,
             },
             Local {
                 rig: parts.rig,
@@ -278,9 +310,10 @@ mod app {
                 estop: parts.estop,
                 harness: parts.harness,
                 calibration: parts.calibration,
+                watchdog: parts.watchdog,
                 producer,
                 consumer,
-                ag: motion::ground_accel_mm_s2(0),
+                ag: ag0,
                 overhead_instr: parts.calibration.counter_overhead_instr(),
                 #[cfg(feature = "link")]
                 reader: rths_link::FrameReader::new(),
@@ -302,19 +335,40 @@ mod app {
     /// (82 031 cycles at 168 MHz). The controller's work (measured) must fit in 10% of it; the whole
     /// task, harness and plant included, must end before the next update, else the next tick is told
     /// it overran, which the run counts and the supervisor sees (4 in a row trip it).
-    #[task(binds = TIM2, priority = 3, shared = [ctl, timer, run],
-           local = [rig, counter, estop, harness, producer, ag, overhead_instr,
-                    k: u32 = 0, overrun: bool = false])]
+    #[task(binds = TIM2, priority = 3, shared = [ctl, timer, run, store],
+           local = [rig, counter, estop, harness, producer, ag, overhead_instr, watchdog,
+                    k: u32 = 0, overrun: bool = false, watching: bool = false])]
     fn control(mut cx: control::Context) {
         cx.shared.timer.lock(TickTimer::clear);
+        feed_watchdog(cx.local.watchdog, cx.local.watching);
         let running = RUNNING.load(Ordering::Acquire);
         // The emulated plant moves only during its run (it must match the host simulation's).
         if !running && B::EMULATED_PLANT {
             return;
         }
         let k = if running { *cx.local.k } else { 0 };
+        let record_ticks = cx.shared.store.lock(|s| s.ticks());
+        if cfg!(feature = "link") && B::EMULATED_PLANT && running && k == 0 {
+            // The record may have been uploaded after boot: the emulated structure starts at rest
+            // under its first sample (as `init` did for the compiled-in one).
+            let ag0 = cx.shared.store.lock(|s| s.accel_mm_s2(0));
+            *cx.local.ag = ag0;
+            <<B as Board>::Harness as Harness<<B as Board>::Rig>>::reset(cx.local.harness, ag0);
+        }
         let ag = if running { *cx.local.ag } else { 0.0 };
         let overrun = *cx.local.overrun || injected_overrun(k);
+        if running && injected_stall(k) {
+            defmt::warn!("fault-inject: the control task stalls at tick {=u32}", k);
+            loop {
+                cortex_m::asm::nop();
+            }
+        }
+        #[cfg(feature = "link")]
+        if link_silent() && running {
+            // The host fell silent and the run's policy is to ramp down: an abort (a no-op once
+            // ramping).
+            cx.shared.ctl.lock(|c| c.supervisor_mut().abort());
+        }
         if EStop::asserted(cx.local.estop) {
             // Ramps the command to the safe position, whatever the state.
             cx.shared.ctl.lock(|c| c.supervisor_mut().emergency_stop());
@@ -334,14 +388,14 @@ mod app {
 
         let instr =
             InstrCounter::instructions(counter, t0, t1).saturating_sub(*cx.local.overhead_instr);
-        let in_record = k < gen::RECORD_TICKS;
+        let in_record = k < record_ticks;
         let row = Harness::after_tick(cx.local.harness, rig, k, in_record, ag, step.out.target_mm);
         let next_k = if running { k.saturating_add(1) } else { 0 };
         // ü_g for the next tick, interpolated in the slack of this one (docs/design.md §8 counts
         // only the DAQ read, the control step, the command write and the log record).
-        *cx.local.ag = motion::ground_accel_mm_s2(next_k);
+        *cx.local.ag = cx.shared.store.lock(|s| s.accel_mm_s2(next_k));
         let state = step.out.state;
-        let record_end = running && next_k >= gen::RECORD_TICKS && state == State::Running;
+        let record_end = running && next_k >= record_ticks && state == State::Running;
         let ended = cx.shared.ctl.lock(|c| {
             if record_end {
                 let _ = c.supervisor_mut().finish();
@@ -384,9 +438,33 @@ mod app {
         *cx.local.overrun = cx.shared.timer.lock(|t| TickTimer::pending(t));
     }
 
+    /// `link`: count this tick; the host has been silent for longer than the link timeout and the
+    /// run's policy is to ramp down.
+    #[cfg(feature = "link")]
+    fn link_silent() -> bool {
+        let now = TICK_COUNT.fetch_add(1, Ordering::AcqRel).wrapping_add(1);
+        let policy = if LINK_LOSS_RAMP.load(Ordering::Acquire) {
+            rths_link::LinkLoss::RampDown
+        } else {
+            rths_link::LinkLoss::Complete
+        };
+        rths_app::link::link_lost(policy, now, LAST_HEARD.load(Ordering::Acquire))
+    }
+
+    /// The watchdog runs from the first tick on; every tick feeds it. Out of line, so that the
+    /// control task's measured section compiles as it did without it.
+    #[inline(never)]
+    fn feed_watchdog(w: &mut <B as Board>::Watchdog, watching: &mut bool) {
+        if !*watching {
+            *watching = true;
+            Watchdog::start(w);
+        }
+        Watchdog::feed(w);
+    }
+
     /// The supervisor: starts an autonomous run; stops an emulated run on a settled fault or at
     /// `Done`, and reports it.
-    #[task(binds = UART4, priority = 2, shared = [ctl, timer, run],
+    #[task(binds = UART4, priority = 2, shared = [ctl, timer, run, store],
            local = [calibration, started: bool = cfg!(feature = "link")])]
     fn supervisor(mut cx: supervisor::Context) {
         if !*cx.local.started {
@@ -425,7 +503,15 @@ mod app {
                 .shared
                 .ctl
                 .lock(|c| (c.supervisor().total_daq_errors(), c.held_samples()));
-            let ok = report(&run, state, cx.local.calibration, daq_errors, held);
+            let record_ticks = cx.shared.store.lock(|s| s.ticks());
+            let ok = report(
+                &run,
+                state,
+                cx.local.calibration,
+                daq_errors,
+                held,
+                record_ticks,
+            );
             if cfg!(feature = "link") {
                 // The board stays up for the host (status, the telemetry's end).
                 RUN_ENDED.store(true, Ordering::Release);
@@ -474,10 +560,23 @@ mod app {
         }
     }
 
+    /// The emulated board's watchdog (QEMU models no IWDG; the real board's IWDG resets the MCU in
+    /// hardware): TIM5 (on the Cortex-M7 twin, CMSDK TIMER1), above the control task, every 2 ms; no tick in that time while the tick
+    /// timer should run (a stalled control task) ends the emulation with a `WATCHDOG` line and a
+    /// failure status, what a reset is to the real board's run.
+    #[cfg(any(feature = "board-qemu", feature = "board-mps2-an500"))]
+    #[task(binds = TIM5, priority = 4)]
+    fn watchdog(_: watchdog::Context) {
+        if board::watchdog_expired() && !FINISHED.load(Ordering::Acquire) {
+            B::host_line("WATCHDOG the control task stalled (no tick for 2 ms): safe state");
+            B::exit(false);
+        }
+    }
+
     /// `link`: the host's requests, one answer each (the link UART's receive interrupt, lowest
     /// priority).
     #[cfg(feature = "link")]
-    #[task(binds = USART2, priority = 1, shared = [ctl, run, link], local = [reader])]
+    #[task(binds = USART2, priority = 1, shared = [ctl, run, link, store], local = [reader])]
     fn link_rx(mut cx: link_rx::Context) {
         use rths_app::board::LinkPort;
         use rths_app::link::{handle, send, Effect};
@@ -493,13 +592,21 @@ mod app {
                 }
                 Some(Ok(m)) => m,
             };
+            LAST_HEARD.store(TICK_COUNT.load(Ordering::Acquire), Ordering::Release);
             let finished = FINISHED.load(Ordering::Acquire);
             let ctl = &mut cx.shared.ctl;
             let run = &mut cx.shared.run;
-            let (answer, effect) = cx
+            let store = &mut cx.shared.store;
+            let (answer, effect) = cx.shared.link.lock(|l| {
+                ctl.lock(|c| {
+                    run.lock(|r| store.lock(|st| handle(msg, c, r, st, &mut l.session, finished)))
+                })
+            });
+            let ramp = cx
                 .shared
                 .link
-                .lock(|l| ctl.lock(|c| run.lock(|r| handle(msg, c, r, &mut l.session, finished))));
+                .lock(|l| l.session.link_loss == rths_link::LinkLoss::RampDown);
+            LINK_LOSS_RAMP.store(ramp, Ordering::Release);
             if effect == Effect::Started {
                 defmt::info!("link: running");
                 RUNNING.store(true, Ordering::Release);

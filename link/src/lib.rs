@@ -17,6 +17,12 @@
 //! **Model upload** ([`HostMsg::UploadLr`]): the device accepts a model only whole: the feature count
 //! must be the LR's 6, every coefficient finite, the end-to-end [`model_checksum`] must match, and the
 //! controller must be at rest; otherwise it answers `Nack` and keeps the model it had.
+//!
+//! **Record upload** ([`HostMsg::RecordBegin`], [`HostMsg::RecordChunk`], [`HostMsg::RecordCommit`]):
+//! a ground-motion record too long for one frame goes in chunks of [`RECORD_CHUNK`] samples, numbered
+//! from 0, each acknowledged; the commit checks the count and the end-to-end [`record_checksum`]. The
+//! device refuses the whole upload on the first bad chunk (out of order, duplicated, a NaN) and keeps
+//! the record it had until a commit succeeds.
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
@@ -44,6 +50,91 @@ pub fn model_checksum(theta: &[f64; LR_COEFFS], delay_steps: u16) -> u32 {
     }
     d.update(&delay_steps.to_le_bytes());
     d.finalize()
+}
+
+/// Values of an LRX model upload ([`lrx_values`]): 9 frame coefficients, the correction stiffness,
+/// the adaptation time constant, 8 lead-filter weights, the lead stride.
+pub const LRX_VALUES: usize = 20;
+
+/// Most values a chunked model upload may have (the device's staging area).
+pub const MODEL_MAX_VALUES: usize = 32;
+
+/// An LRX model as the flat list of values a chunked upload sends, in this order: `coeffs` (9),
+/// `k_corr_kn_per_mm`, `k_adapt_ticks`, `lead_weights` (8), `lead_stride` (as f64). `None` if a
+/// slice has the wrong length.
+pub fn lrx_values(
+    coeffs: &[f64],
+    k_corr_kn_per_mm: f64,
+    k_adapt_ticks: f64,
+    lead_weights: &[f64],
+    lead_stride: usize,
+) -> Option<[f64; LRX_VALUES]> {
+    let mut v = [0.0; LRX_VALUES];
+    v.get_mut(..9)?
+        .copy_from_slice(coeffs.get(..9).filter(|_| coeffs.len() == 9)?);
+    *v.get_mut(9)? = k_corr_kn_per_mm;
+    *v.get_mut(10)? = k_adapt_ticks;
+    v.get_mut(11..19)?
+        .copy_from_slice(lead_weights.get(..8).filter(|_| lead_weights.len() == 8)?);
+    *v.get_mut(19)? = lead_stride as f64;
+    Some(v)
+}
+
+/// The end-to-end checksum of a chunked model upload: CRC-32/ISO-HDLC of the kind's wire index (one
+/// byte), the values' little-endian IEEE bytes in order, then the delay in ticks (u16, LE).
+pub fn model_values_checksum(kind: ModelKind, values: &[f64], delay_steps: u16) -> u32 {
+    let mut d = RECORD_CRC.digest();
+    d.update(&[kind as u8]);
+    for v in values {
+        d.update(&v.to_le_bytes());
+    }
+    d.update(&delay_steps.to_le_bytes());
+    d.finalize()
+}
+
+/// Samples of a ground-motion record in one [`HostMsg::RecordChunk`] (a frame stays ≤ [`MAX_FRAME`]).
+pub const RECORD_CHUNK: usize = 12;
+
+/// The record check: CRC-32/ISO-HDLC, a `static` so that a running digest can be kept across chunks.
+pub static RECORD_CRC: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// The running end-to-end checksum of a ground-motion record ([`record_checksum`]), fed chunk by
+/// chunk on the device as the samples arrive.
+#[derive(Clone)]
+pub struct RecordDigest(crc::Digest<'static, u32>);
+
+impl Default for RecordDigest {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl RecordDigest {
+    /// Nothing fed yet.
+    pub fn new() -> Self {
+        Self(RECORD_CRC.digest())
+    }
+
+    /// Feed samples, in order.
+    pub fn update(&mut self, samples_g: &[f64]) {
+        for x in samples_g {
+            self.0.update(&x.to_le_bytes());
+        }
+    }
+
+    /// The checksum of the samples fed and the record step `dt_s`.
+    pub fn finalize(mut self, dt_s: f64) -> u32 {
+        self.0.update(&dt_s.to_le_bytes());
+        self.0.finalize()
+    }
+}
+
+/// The end-to-end checksum of a ground-motion record: CRC-32/ISO-HDLC of its samples' (g, as sent,
+/// i.e. already scaled) little-endian IEEE bytes, in order, then the step `dt_s`'s.
+pub fn record_checksum(samples_g: &[f64], dt_s: f64) -> u32 {
+    let mut d = RecordDigest::new();
+    d.update(samples_g);
+    d.finalize(dt_s)
 }
 
 /// What the host asks.
@@ -77,10 +168,71 @@ pub enum HostMsg {
         /// Decimation of the telemetry stream (1 = every tick).
         telemetry_every: u16,
     },
+    /// Arm as [`HostMsg::Arm`] and choose what the device does if the host falls silent during
+    /// the run ([`LinkLoss`]). The answer is about [`Request::Arm`].
+    ArmWith {
+        /// Decimation of the telemetry stream (1 = every tick).
+        telemetry_every: u16,
+        /// What a silence of the host longer than [`LINK_TIMEOUT_TICKS`] does to the run.
+        on_link_loss: LinkLoss,
+        /// The arming host's token (≠ 0): only a [`HostMsg::StartAs`] with it starts the test; 0:
+        /// anyone's `Start` does.
+        owner: u32,
+    },
+    /// Start the armed test as the host that armed it (`owner` of its [`HostMsg::ArmWith`]). The
+    /// answer is about [`Request::Start`].
+    StartAs {
+        /// The token given at arm time.
+        owner: u32,
+    },
     /// Start the armed test (play the ground motion).
     Start,
     /// Stop: ramp the command to zero (end-of-test ramp).
     Abort,
+    /// Begin a ground-motion record upload (replaces any upload in progress).
+    RecordBegin {
+        /// Samples that will follow (≥ 2, ≤ the device's capacity).
+        samples: u32,
+        /// Record step, s.
+        dt_s: f64,
+        /// The factor the host already applied to the samples (kept for the status, not applied).
+        scale: f64,
+        /// [`record_checksum`] of all the samples and `dt_s`.
+        checksum: u32,
+    },
+    /// The next samples of the record being uploaded.
+    RecordChunk {
+        /// Chunk number, from 0, no gap.
+        seq: u32,
+        /// Samples used in `values` (1..=[`RECORD_CHUNK`]; only the last chunk may be short).
+        count: u8,
+        /// The samples, g (the first `count`).
+        values: [f64; RECORD_CHUNK],
+    },
+    /// All chunks sent: check and make the new record the active one.
+    RecordCommit,
+    /// Begin a chunked model upload (a model of more values than a frame holds: LRX, RNN).
+    ModelBegin {
+        /// The kind (the device refuses one its build does not run: `Unsupported`).
+        kind: ModelKind,
+        /// Values that will follow (the kind's count, e.g. [`LRX_VALUES`]).
+        values: u16,
+        /// The model's feedback delay, ticks.
+        delay_steps: u16,
+        /// [`model_values_checksum`] of the kind, values and delay.
+        checksum: u32,
+    },
+    /// The next values of the model being uploaded.
+    ModelChunk {
+        /// Chunk number, from 0, no gap.
+        seq: u32,
+        /// Values used in `values`.
+        count: u8,
+        /// The values (the first `count`).
+        values: [f64; RECORD_CHUNK],
+    },
+    /// All chunks sent: check, build the model and make it the one in force (at rest only).
+    ModelCommit,
 }
 
 /// Which request an answer is about.
@@ -98,6 +250,18 @@ pub enum Request {
     Start,
     /// [`HostMsg::Abort`].
     Abort,
+    /// [`HostMsg::RecordBegin`].
+    RecordBegin,
+    /// [`HostMsg::RecordChunk`].
+    RecordChunk,
+    /// [`HostMsg::RecordCommit`].
+    RecordCommit,
+    /// [`HostMsg::ModelBegin`].
+    ModelBegin,
+    /// [`HostMsg::ModelChunk`].
+    ModelChunk,
+    /// [`HostMsg::ModelCommit`].
+    ModelCommit,
 }
 
 impl HostMsg {
@@ -107,9 +271,15 @@ impl HostMsg {
             Self::Status => Request::Status,
             Self::UploadLr { .. } => Request::UploadLr,
             Self::SetLimits { .. } => Request::SetLimits,
-            Self::Arm { .. } => Request::Arm,
-            Self::Start => Request::Start,
+            Self::Arm { .. } | Self::ArmWith { .. } => Request::Arm,
+            Self::Start | Self::StartAs { .. } => Request::Start,
             Self::Abort => Request::Abort,
+            Self::RecordBegin { .. } => Request::RecordBegin,
+            Self::RecordChunk { .. } => Request::RecordChunk,
+            Self::RecordCommit => Request::RecordCommit,
+            Self::ModelBegin { .. } => Request::ModelBegin,
+            Self::ModelChunk { .. } => Request::ModelChunk,
+            Self::ModelCommit => Request::ModelCommit,
         }
     }
 }
@@ -131,6 +301,77 @@ pub enum NackReason {
     InvalidState,
     /// The device cannot do this (e.g. a second run on the emulated board).
     Unsupported,
+    /// A record chunk out of order, duplicated or without a `RecordBegin` (the upload is dropped).
+    Sequence,
+    /// A commit before every sample arrived, or a chunk with a bad count.
+    Incomplete,
+    /// The record is longer than the device can hold (or shorter than 2 samples).
+    TooLong,
+    /// The test was armed by another host (its token): only that host, or an abort, moves it.
+    NotOwner,
+    /// The record's step is not finite or outside the accepted range ([`RECORD_DT_MIN_S`] ..=
+    /// [`RECORD_DT_MAX_S`]).
+    Rate,
+}
+
+/// What the device does when the host falls silent during a run (no valid frame for
+/// [`LINK_TIMEOUT_TICKS`]; a recording host sends a `Status` every 250 ms).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum LinkLoss {
+    /// Run the test to its end (the default, and what a plain `Arm` chooses): the telemetry of the
+    /// silence is lost, the test is not.
+    Complete,
+    /// Ramp the command down to zero (an abort) and end the run.
+    RampDown,
+}
+
+/// The host's silence that counts as a lost link, controller ticks (1 s at 2048 Hz).
+pub const LINK_TIMEOUT_TICKS: u32 = 2048;
+
+/// Shortest accepted record step, s: the controller's tick (a faster record would be decimated by
+/// the interpolation, not played).
+pub const RECORD_DT_MIN_S: f64 = 1.0 / 2048.0;
+/// Longest accepted record step, s (strong-motion records are sampled at 0.005-0.02 s; a step this
+/// long is a unit mistake, e.g. a record in ms).
+pub const RECORD_DT_MAX_S: f64 = 0.1;
+
+/// Where the active ground-motion record came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum RecordSource {
+    /// Compiled into the firmware.
+    Compiled,
+    /// Uploaded over the link.
+    Uploaded,
+}
+
+/// The active ground-motion record, as the status reports it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RecordInfo {
+    /// Compiled in or uploaded.
+    pub source: RecordSource,
+    /// Samples.
+    pub samples: u32,
+    /// Step, s.
+    pub dt_s: f64,
+    /// The scale the host applied before uploading (1 for the compiled-in record).
+    pub scale: f64,
+    /// Controller ticks it lasts.
+    pub ticks: u32,
+    /// [`record_checksum`].
+    pub checksum: u32,
+}
+
+/// The kind of the analytical part the device runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ModelKind {
+    /// Linear regression (`UploadLr` replaces it).
+    Lr,
+    /// LRX, the specimen-faithful frame metamodel.
+    Lrx,
+    /// Recurrent network.
+    Rnn,
+    /// Finite elements with ATS.
+    FeAts,
 }
 
 /// The supervisor's state, as sent.
@@ -171,6 +412,12 @@ pub struct Status {
     pub force_kn: f64,
     /// Frames received with a bad COBS body, CRC or message since power-up.
     pub bad_frames: u32,
+    /// The analytical part's kind.
+    pub model_kind: ModelKind,
+    /// The active ground-motion record.
+    pub record: RecordInfo,
+    /// Largest record the device can take, samples (0: no uploads).
+    pub record_capacity: u32,
 }
 
 /// One telemetry record: what the controller did at `tick`.

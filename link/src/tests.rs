@@ -44,9 +44,84 @@ fn any_host() -> impl Strategy<Value = HostMsg> {
             force_kn: c
         }),
         any::<u16>().prop_map(|telemetry_every| HostMsg::Arm { telemetry_every }),
+        (
+            any::<u16>(),
+            prop_oneof![Just(LinkLoss::Complete), Just(LinkLoss::RampDown)],
+            any::<u32>()
+        )
+            .prop_map(|(telemetry_every, on_link_loss, owner)| HostMsg::ArmWith {
+                telemetry_every,
+                on_link_loss,
+                owner
+            }),
+        any::<u32>().prop_map(|owner| HostMsg::StartAs { owner }),
         Just(HostMsg::Start),
         Just(HostMsg::Abort),
+        (any::<u32>(), any_f64(), any_f64(), any::<u32>()).prop_map(
+            |(samples, dt_s, scale, checksum)| HostMsg::RecordBegin {
+                samples,
+                dt_s,
+                scale,
+                checksum
+            }
+        ),
+        (
+            any::<u32>(),
+            any::<u8>(),
+            prop::collection::vec(any_f64(), RECORD_CHUNK)
+        )
+            .prop_map(|(seq, count, v)| HostMsg::RecordChunk {
+                seq,
+                count,
+                values: v.try_into().unwrap(),
+            }),
+        Just(HostMsg::RecordCommit),
+        (any_kind(), any::<u16>(), any::<u16>(), any::<u32>()).prop_map(
+            |(kind, values, delay_steps, checksum)| HostMsg::ModelBegin {
+                kind,
+                values,
+                delay_steps,
+                checksum
+            }
+        ),
+        (
+            any::<u32>(),
+            any::<u8>(),
+            prop::collection::vec(any_f64(), RECORD_CHUNK)
+        )
+            .prop_map(|(seq, count, v)| HostMsg::ModelChunk {
+                seq,
+                count,
+                values: v.try_into().unwrap(),
+            }),
+        Just(HostMsg::ModelCommit),
     ]
+}
+
+fn any_kind() -> impl Strategy<Value = ModelKind> {
+    prop_oneof![
+        Just(ModelKind::Lr),
+        Just(ModelKind::Lrx),
+        Just(ModelKind::Rnn),
+        Just(ModelKind::FeAts),
+    ]
+}
+
+fn any_record_info() -> impl Strategy<Value = RecordInfo> {
+    (
+        prop_oneof![Just(RecordSource::Compiled), Just(RecordSource::Uploaded)],
+        any::<[u32; 3]>(),
+        any_f64(),
+        any_f64(),
+    )
+        .prop_map(|(source, u, dt_s, scale)| RecordInfo {
+            source,
+            samples: u[0],
+            dt_s,
+            scale,
+            ticks: u[1],
+            checksum: u[2],
+        })
 }
 
 fn any_device() -> impl Strategy<Value = DeviceMsg> {
@@ -57,6 +132,12 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
         Just(Request::Arm),
         Just(Request::Start),
         Just(Request::Abort),
+        Just(Request::RecordBegin),
+        Just(Request::RecordChunk),
+        Just(Request::RecordCommit),
+        Just(Request::ModelBegin),
+        Just(Request::ModelChunk),
+        Just(Request::ModelCommit),
     ];
     let reason = prop_oneof![
         Just(NackReason::Shape),
@@ -66,28 +147,40 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
         Just(NackReason::Busy),
         Just(NackReason::InvalidState),
         Just(NackReason::Unsupported),
+        Just(NackReason::Sequence),
+        Just(NackReason::Incomplete),
+        Just(NackReason::TooLong),
+        Just(NackReason::Rate),
+        Just(NackReason::NotOwner),
     ];
+    let kind = any_kind();
     prop_oneof![
         req.clone().prop_map(DeviceMsg::Ack),
         (req, reason).prop_map(|(r, n)| DeviceMsg::Nack(r, n)),
         (
             any_state(),
             any::<[u32; 5]>(),
-            any_f64(),
-            any_f64(),
-            any_f64()
+            (any_f64(), any_f64(), any_f64()),
+            (kind, any_record_info(), any::<u32>()),
         )
-            .prop_map(|(state, u, a, b, c)| DeviceMsg::Status(Status {
-                state,
-                model_checksum: u[0],
-                tick: u[1],
-                records_sent: u[2],
-                records_dropped: u[3],
-                stroke_mm: a,
-                velocity_mm_s: b,
-                force_kn: c,
-                bad_frames: u[4],
-            })),
+            .prop_map(
+                |(state, u, (a, b, c), (model_kind, record, record_capacity))| DeviceMsg::Status(
+                    Status {
+                        state,
+                        model_checksum: u[0],
+                        tick: u[1],
+                        records_sent: u[2],
+                        records_dropped: u[3],
+                        stroke_mm: a,
+                        velocity_mm_s: b,
+                        force_kn: c,
+                        bad_frames: u[4],
+                        model_kind,
+                        record,
+                        record_capacity,
+                    }
+                )
+            ),
         (
             any::<u32>(),
             any::<u32>(),
@@ -229,6 +322,60 @@ fn the_largest_messages_fit_a_frame() {
         checksum: u32::MAX,
     };
     assert!(encode(&u, &mut buf).unwrap() <= MAX_FRAME);
+    let c = HostMsg::RecordChunk {
+        seq: u32::MAX,
+        count: u8::MAX,
+        values: [f64::MAX; RECORD_CHUNK],
+    };
+    let n = encode(&c, &mut buf).unwrap();
+    println!("largest record chunk frame: {n} bytes");
+    assert!(n <= MAX_FRAME + 1, "{n}");
+    let info = RecordInfo {
+        source: RecordSource::Uploaded,
+        samples: u32::MAX,
+        dt_s: f64::MAX,
+        scale: f64::MAX,
+        ticks: u32::MAX,
+        checksum: u32::MAX,
+    };
+    let st = DeviceMsg::Status(Status {
+        state: RunState::Fault(255),
+        model_checksum: u32::MAX,
+        tick: u32::MAX,
+        records_sent: u32::MAX,
+        records_dropped: u32::MAX,
+        stroke_mm: f64::MAX,
+        velocity_mm_s: f64::MAX,
+        force_kn: f64::MAX,
+        bad_frames: u32::MAX,
+        model_kind: ModelKind::FeAts,
+        record: info,
+        record_capacity: u32::MAX,
+    });
+    let n = encode(&st, &mut buf).unwrap();
+    println!("largest status frame: {n} bytes");
+    assert!(n <= MAX_FRAME + 1, "{n}");
+}
+
+#[test]
+fn record_checksum_covers_every_sample_its_order_and_the_step() {
+    let a = [0.01, -0.02, 0.5, 1e-9, -0.0];
+    let c = record_checksum(&a, 0.01);
+    // Fed in chunks of any size, the running digest gives the same checksum.
+    let mut d = RecordDigest::new();
+    d.update(&a[..2]);
+    d.update(&a[2..]);
+    assert_eq!(d.finalize(0.01), c);
+    assert_ne!(record_checksum(&a, 0.02), c, "the step counts");
+    for i in 0..a.len() {
+        let mut b = a;
+        b[i] = f64::from_bits(b[i].to_bits() ^ 1);
+        assert_ne!(record_checksum(&b, 0.01), c, "sample {i}");
+    }
+    let mut swapped = a;
+    swapped.swap(0, 1);
+    assert_ne!(record_checksum(&swapped, 0.01), c, "the order counts");
+    assert_ne!(record_checksum(&a[..4], 0.01), c, "the length counts");
 }
 
 #[test]
@@ -321,4 +468,31 @@ fn seq_check_reports_gaps_and_counts_the_missing() {
             got: 3
         })
     );
+}
+
+#[test]
+fn lrx_values_order_and_their_checksum() {
+    let coeffs: [f64; 9] = core::array::from_fn(|i| i as f64);
+    let lead: [f64; 8] = core::array::from_fn(|i| 10.0 + i as f64);
+    let v = lrx_values(&coeffs, 100.0, 200.0, &lead, 3).unwrap();
+    assert_eq!(&v[..9], &coeffs);
+    assert_eq!((v[9], v[10]), (100.0, 200.0));
+    assert_eq!(&v[11..19], &lead);
+    assert_eq!(v[19], 3.0);
+    assert!(lrx_values(&coeffs[..8], 1.0, 0.0, &lead, 3).is_none());
+    assert!(lrx_values(&coeffs, 1.0, 0.0, &lead[..7], 3).is_none());
+    let c = model_values_checksum(ModelKind::Lrx, &v, 28);
+    assert_ne!(
+        model_values_checksum(ModelKind::Rnn, &v, 28),
+        c,
+        "the kind counts"
+    );
+    assert_ne!(
+        model_values_checksum(ModelKind::Lrx, &v, 29),
+        c,
+        "the delay counts"
+    );
+    let mut w = v;
+    w[19] = 4.0;
+    assert_ne!(model_values_checksum(ModelKind::Lrx, &w, 28), c);
 }

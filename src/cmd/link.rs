@@ -8,7 +8,8 @@ use std::time::Duration;
 use anyhow::Context;
 use clap::{Args as ClapArgs, Subcommand};
 
-use crate::link_host::{self, Link, Qemu, RecordSummary};
+use crate::cmd::analyze::load_motion;
+use crate::link_host::{self, Link, Qemu, RecordSummary, RunHeader};
 use crate::model_file::ModelFile;
 
 /// `rths link` arguments.
@@ -41,11 +42,19 @@ pub struct Args {
 pub enum LinkCommand {
     /// Print the device's state, model checksum, limits and counters.
     Status,
-    /// Upload an LR model file (validated on the device; refused whole, old model kept).
+    /// Upload an LR model file and/or a ground-motion record (validated on the device; refused
+    /// whole, the old one kept).
+    #[command(group(clap::ArgGroup::new("what").required(true).multiple(true).args(["model", "motion"])))]
     Upload {
         /// The model file (`rths train lr` / `rths reproduce`'s lr.json).
         #[arg(long)]
-        model: PathBuf,
+        model: Option<PathBuf>,
+        /// A ground motion: an AT2/CSV file or an embedded record name.
+        #[arg(long, value_name = "PATH|NAME")]
+        motion: Option<String>,
+        /// Multiplies the ground acceleration (applied here, before the upload).
+        #[arg(long, default_value_t = 1.0, value_name = "S")]
+        scale: f64,
     },
     /// Set the stroke, velocity and force limits (at rest, command at 0 mm).
     Limits {
@@ -64,6 +73,9 @@ pub enum LinkCommand {
         /// Telemetry decimation: one record every N ticks.
         #[arg(long, default_value_t = 1)]
         telemetry_every: u16,
+        /// If the host falls silent for 1 s during the run: complete the test, or ramp down.
+        #[arg(long, value_enum, default_value = "complete")]
+        on_link_loss: LinkLossArg,
     },
     /// Start the armed test.
     Start,
@@ -78,14 +90,26 @@ pub enum LinkCommand {
         #[arg(long, default_value_t = 30.0)]
         idle_timeout_s: f64,
     },
-    /// The whole test: [upload], arm, start, record to CSV until the run ends.
+    /// The whole test: [upload], arm, start, record to CSV (with a header for `rths report`) until
+    /// the run ends.
     Run {
         /// Upload this model first.
         #[arg(long)]
         model: Option<PathBuf>,
+        /// Upload this ground motion first (an AT2/CSV file or an embedded record name); without
+        /// it the device plays the record it holds.
+        #[arg(long, value_name = "PATH|NAME")]
+        motion: Option<String>,
+        /// Multiplies the ground acceleration of --motion (applied here, before the upload).
+        #[arg(long, default_value_t = 1.0, value_name = "S")]
+        scale: f64,
         /// Telemetry decimation.
         #[arg(long, default_value_t = 1)]
         telemetry_every: u16,
+        /// If this host falls silent for 1 s during the run (it sends a status every 250 ms while
+        /// recording): complete the test, or ramp down.
+        #[arg(long, value_enum, default_value = "complete")]
+        on_link_loss: LinkLossArg,
         /// CSV output.
         #[arg(long)]
         out: PathBuf,
@@ -95,15 +119,30 @@ pub enum LinkCommand {
     },
 }
 
-/// Record to `out`; fails (after writing the file) if anything was lost.
+/// Record to `out` (no header); fails (after writing the file) if anything was lost.
 pub fn record_csv(
     link: &mut Link,
     out: &std::path::Path,
     idle: Duration,
 ) -> anyhow::Result<RecordSummary> {
+    record_csv_with(link, out, idle, None)
+}
+
+/// Record to `out`, `header` first (`# key: value` lines, what `rths report` reads).
+pub fn record_csv_with(
+    link: &mut Link,
+    out: &std::path::Path,
+    idle: Duration,
+    header: Option<&RunHeader>,
+) -> anyhow::Result<RecordSummary> {
     let f =
         std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut w = std::io::BufWriter::new(f);
+    if let Some(h) = header {
+        for l in h.lines() {
+            writeln!(w, "{l}")?;
+        }
+    }
     writeln!(w, "{}", link_host::CSV_HEADER)?;
     let s = link.record(idle, 0, |t| writeln!(w, "{}", link_host::csv_row(t)))?;
     w.flush()?;
@@ -172,11 +211,38 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 s.stroke_mm, s.velocity_mm_s, s.force_kn
             );
             println!("bad frames       {}", s.bad_frames);
+            println!(
+                "model kind       {}",
+                link_host::model_kind_name(s.model_kind)
+            );
+            let r = s.record;
+            println!(
+                "record           {}: {} samples at {} s ({} ticks), scale {}, checksum {:08x}",
+                link_host::record_source_name(r.source),
+                r.samples,
+                r.dt_s,
+                r.ticks,
+                r.scale,
+                r.checksum
+            );
+            println!(
+                "record capacity  {} samples ({:.1} s at 0.01 s, {:.1} s at 0.02 s)",
+                s.record_capacity,
+                f64::from(s.record_capacity.saturating_sub(1)) * 0.01,
+                f64::from(s.record_capacity.saturating_sub(1)) * 0.02
+            );
         }
-        LinkCommand::Upload { model } => {
-            let m = ModelFile::load(&model)?;
-            let c = link.upload(&m)?;
-            println!("uploaded {} (checksum {c:08x})", model.display());
+        LinkCommand::Upload {
+            model,
+            motion,
+            scale,
+        } => {
+            if let Some(p) = model {
+                upload_model(&mut link, &p)?;
+            }
+            if let Some(spec) = motion {
+                upload_motion(&mut link, &spec, scale)?;
+            }
         }
         LinkCommand::Limits {
             stroke_mm,
@@ -186,8 +252,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             link.set_limits(stroke_mm, velocity_mm_s, force_kn)?;
             println!("limits set");
         }
-        LinkCommand::Arm { telemetry_every } => {
-            link.arm(telemetry_every)?;
+        LinkCommand::Arm {
+            telemetry_every,
+            on_link_loss,
+        } => {
+            link.arm_with(telemetry_every, on_link_loss.into())?;
             println!("armed");
         }
         LinkCommand::Start => {
@@ -207,19 +276,80 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         LinkCommand::Run {
             model,
+            motion,
+            scale,
             telemetry_every,
+            on_link_loss,
             out,
             idle_timeout_s,
         } => {
-            if let Some(p) = model {
-                let m = ModelFile::load(&p)?;
-                let c = link.upload(&m)?;
-                println!("uploaded {} (checksum {c:08x})", p.display());
+            let mut h = RunHeader::default();
+            if let Some(p) = &model {
+                upload_model(&mut link, p)?;
+                h.set("model", p.display());
             }
-            link.arm(telemetry_every)?;
+            match &motion {
+                Some(spec) => {
+                    let name = upload_motion(&mut link, spec, scale)?;
+                    h.set("motion", spec);
+                    h.set("motion_name", name);
+                    h.set("scale", format!("{scale:?}"));
+                }
+                None => {
+                    // The compiled-in record: El Centro (`firmware/build.rs`), embedded in the host
+                    // too; `rths report` checks its checksum against the device's.
+                    h.set("motion", "el-centro");
+                    h.set("scale", "1.0");
+                }
+            }
+            let st = link.status()?;
+            if motion.is_none() && st.record.source == rths_link::RecordSource::Uploaded {
+                anyhow::bail!(
+                    "the device holds an uploaded record (checksum {:08x}) that this host cannot \
+                     name: give --motion",
+                    st.record.checksum
+                );
+            }
+            h.set("record_checksum", format!("{:08x}", st.record.checksum));
+            h.set("record_samples", st.record.samples);
+            h.set("record_dt_s", format!("{:?}", st.record.dt_s));
+            h.set("record_ticks", st.record.ticks);
+            h.set("model_kind", link_host::model_kind_name(st.model_kind));
+            h.set("model_checksum", format!("{:08x}", st.model_checksum));
+            h.set("scenario", scenario_of(st.model_kind));
+            // The structure the firmware's controller is built for (`analytical::controller`): the
+            // paper's frame with its nominal brace; the reference is that structure's response.
+            h.set("structure", "paper");
+            h.set("specimen", "linear");
+            h.set("specimen_stiffness_factor", "1.0");
+            h.set("telemetry_every", telemetry_every);
+            h.set(
+                "limits",
+                format!(
+                    "{:?} mm, {:?} mm/s, {:?} kN",
+                    st.stroke_mm, st.velocity_mm_s, st.force_kn
+                ),
+            );
+            h.set(
+                "link",
+                match (&a.port, &a.tcp) {
+                    (Some(p), _) => format!("serial {p}"),
+                    (_, Some(t)) => format!("tcp {t}"),
+                    _ => "qemu".to_string(),
+                },
+            );
+            h.set("on_link_loss", format!("{on_link_loss:?}"));
+            // One connection arms and starts: the test is this host's (another host's start is
+            // refused; an abort is not).
+            link.arm_owned(telemetry_every, on_link_loss.into())?;
             link.start()?;
             println!("running");
-            let s = record_csv(&mut link, &out, Duration::from_secs_f64(idle_timeout_s))?;
+            let s = record_csv_with(
+                &mut link,
+                &out,
+                Duration::from_secs_f64(idle_timeout_s),
+                Some(&h),
+            )?;
             report(&s, &out)?;
         }
     }
@@ -232,6 +362,59 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let _ = std::fs::remove_dir_all(&dir);
     }
     Ok(())
+}
+
+/// What the device does if the host falls silent during a run.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum LinkLossArg {
+    /// Run the test to its end.
+    Complete,
+    /// Ramp the command down to zero and end the run.
+    RampDown,
+}
+
+impl From<LinkLossArg> for rths_link::LinkLoss {
+    fn from(a: LinkLossArg) -> Self {
+        match a {
+            LinkLossArg::Complete => Self::Complete,
+            LinkLossArg::RampDown => Self::RampDown,
+        }
+    }
+}
+
+/// The scenario a device's analytical part runs (its figures' id in `rths report`).
+fn scenario_of(kind: rths_link::ModelKind) -> &'static str {
+    match kind {
+        rths_link::ModelKind::Lr => "lr-online",
+        rths_link::ModelKind::Lrx => "lrx-online",
+        // The shipped firmware's RNN is the 10-unit one (`firmware/build.rs`).
+        rths_link::ModelKind::Rnn => "rnn-online-10",
+        rths_link::ModelKind::FeAts => "fe-online-ats",
+    }
+}
+
+fn upload_model(link: &mut Link, p: &std::path::Path) -> anyhow::Result<()> {
+    let m = ModelFile::load(p)?;
+    let c = link.upload(&m)?;
+    println!("uploaded {} (checksum {c:08x})", p.display());
+    Ok(())
+}
+
+/// Upload the ground motion `spec` (a file or an embedded name) × `scale`; its name.
+fn upload_motion(link: &mut Link, spec: &str, scale: f64) -> anyhow::Result<String> {
+    if !(scale.is_finite() && scale > 0.0) {
+        anyhow::bail!("--scale must be a positive number, got {scale}");
+    }
+    let m = load_motion(Some(spec))?;
+    let scaled = m.scaled(scale);
+    let c = link.upload_record(&scaled.accel_g, scaled.dt_s, scale)?;
+    println!(
+        "uploaded ground motion {} ({} samples at {} s, checksum {c:08x})",
+        scaled.name,
+        scaled.accel_g.len(),
+        scaled.dt_s
+    );
+    Ok(scaled.name)
 }
 
 /// A port that is never used (the placeholder left in `Qemu` once its link is taken).

@@ -6,6 +6,7 @@ pub mod faults;
 pub mod identify;
 pub mod link;
 pub mod plant;
+pub mod report;
 pub mod reproduce;
 pub mod robustness;
 pub mod simulate;

@@ -189,6 +189,24 @@ fn load_model(args: &Args, kind: ModelKind) -> anyhow::Result<ModelFile> {
     Ok(file)
 }
 
+/// Print a run's figures (stability, NRMSE, J1-J5, peak command): `rths simulate`'s lines, which
+/// `rths report` prints for a recording too.
+pub fn print_figures(r: &crate::scenario::ScenarioReport) {
+    let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
+    match (&r.stop_reason, r.stop_time_s) {
+        (Some(why), Some(t)) => {
+            println!("stable              no: the supervisor stopped it ({why} at {t:.3} s)")
+        }
+        _ => println!("stable              yes"),
+    }
+    println!("NRMSE command       {} %", o(r.nrmse_pct));
+    println!("NRMSE measured      {} %", o(r.nrmse_measured_pct));
+    println!("J1 delay            {} ms", o(r.j1_ms));
+    println!("J2 / J3             {} / {} %", o(r.j2_pct), o(r.j3_pct));
+    println!("J4 / J5             {} / {} %", o(r.j4_pct), o(r.j5_pct));
+    println!("peak command        {} mm", o(r.peak_disp_mm));
+}
+
 /// Run `rths simulate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let f = args.specimen_stiffness_factor;
@@ -319,7 +337,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     let r = &report;
-    let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
     println!(
         "scenario            {id} ({}, {}, {}, F = {f}, seed {})",
         motion_label,
@@ -348,18 +365,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "ATS start           from the rig file: a0 {a0:.4}, a1 {a1:.5} s, a2 {a2:.3e} s^2"
         );
     }
-    match (&r.stop_reason, r.stop_time_s) {
-        (Some(why), Some(t)) => {
-            println!("stable              no: the supervisor stopped it ({why} at {t:.3} s)")
-        }
-        _ => println!("stable              yes"),
-    }
-    println!("NRMSE command       {} %", o(r.nrmse_pct));
-    println!("NRMSE measured      {} %", o(r.nrmse_measured_pct));
-    println!("J1 delay            {} ms", o(r.j1_ms));
-    println!("J2 / J3             {} / {} %", o(r.j2_pct), o(r.j3_pct));
-    println!("J4 / J5             {} / {} %", o(r.j4_pct), o(r.j5_pct));
-    println!("peak command        {} mm", o(r.peak_disp_mm));
+    print_figures(r);
     if let Some(dir) = &args.out {
         println!("wrote {}", dir.join("history.csv").display());
         println!("wrote {}", dir.join(format!("{id}.png")).display());

@@ -23,7 +23,18 @@ fn controller() -> Controller {
 }
 
 fn session(upload_lr: bool, rearm: Rearm) -> Session {
-    Session::new(compiled_model_checksum(&THETA), upload_lr, rearm)
+    Session::new(
+        compiled_model_checksum(&THETA),
+        upload_lr,
+        rearm,
+        ModelKind::Lr,
+    )
+}
+
+/// A compiled-in record of 3 samples and no upload buffer (the requests these tests send do not
+/// touch the record).
+fn store() -> RecordStore<'static> {
+    RecordStore::new(&[0.0, 0.1, 0.0], 0.01, 41, &mut [])
 }
 
 fn ack(r: Request) -> (DeviceMsg, Effect) {
@@ -35,7 +46,14 @@ fn arm_start_abort_and_refusals() {
     let mut ctl = controller();
     let mut run = Run::new();
     let mut s = session(true, Rearm::OncePerPowerUp);
-    let (m, _) = handle(HostMsg::Start, &mut ctl, &mut run, &mut s, false);
+    let (m, _) = handle(
+        HostMsg::Start,
+        &mut ctl,
+        &mut run,
+        &mut store(),
+        &mut s,
+        false,
+    );
     assert_eq!(
         m,
         DeviceMsg::Nack(Request::Start, NackReason::InvalidState),
@@ -45,6 +63,7 @@ fn arm_start_abort_and_refusals() {
         HostMsg::Arm { telemetry_every: 0 },
         &mut ctl,
         &mut run,
+        &mut store(),
         &mut s,
         false,
     );
@@ -54,6 +73,7 @@ fn arm_start_abort_and_refusals() {
             HostMsg::Arm { telemetry_every: 4 },
             &mut ctl,
             &mut run,
+            &mut store(),
             &mut s,
             false
         ),
@@ -61,12 +81,26 @@ fn arm_start_abort_and_refusals() {
     );
     assert_eq!(s.every, 4);
     assert_eq!(
-        handle(HostMsg::Start, &mut ctl, &mut run, &mut s, false),
+        handle(
+            HostMsg::Start,
+            &mut ctl,
+            &mut run,
+            &mut store(),
+            &mut s,
+            false
+        ),
         (DeviceMsg::Ack(Request::Start), Effect::Started)
     );
     assert_eq!(ctl.supervisor().state(), State::Running);
     assert_eq!(
-        handle(HostMsg::Abort, &mut ctl, &mut run, &mut s, false),
+        handle(
+            HostMsg::Abort,
+            &mut ctl,
+            &mut run,
+            &mut store(),
+            &mut s,
+            false
+        ),
         ack(Request::Abort)
     );
     assert_eq!(ctl.supervisor().state(), State::RampDown);
@@ -75,6 +109,7 @@ fn arm_start_abort_and_refusals() {
         HostMsg::Arm { telemetry_every: 1 },
         &mut ctl,
         &mut run,
+        &mut store(),
         &mut s,
         true,
     );
@@ -90,10 +125,18 @@ fn a_real_rig_rearms_after_a_run_at_the_measured_position() {
         HostMsg::Arm { telemetry_every: 1 },
         &mut ctl,
         &mut run,
+        &mut store(),
         &mut s,
         false,
     );
-    handle(HostMsg::Abort, &mut ctl, &mut run, &mut s, false);
+    handle(
+        HostMsg::Abort,
+        &mut ctl,
+        &mut run,
+        &mut store(),
+        &mut s,
+        false,
+    );
     // Ramp the aborted run down to Done (it was armed at 0 mm and never moved).
     for _ in 0..10 {
         ctl.tick(0.0, Ok(rths_core::hal::Sample::default()), false);
@@ -105,6 +148,7 @@ fn a_real_rig_rearms_after_a_run_at_the_measured_position() {
             HostMsg::Arm { telemetry_every: 2 },
             &mut ctl,
             &mut run,
+            &mut store(),
             &mut s,
             true
         ),
@@ -127,7 +171,14 @@ fn upload_lr_refusals_and_swap() {
         checksum,
     };
     let mut off = session(false, Rearm::OncePerPowerUp);
-    let (m, _) = handle(up(6, theta, crc), &mut ctl, &mut run, &mut off, false);
+    let (m, _) = handle(
+        up(6, theta, crc),
+        &mut ctl,
+        &mut run,
+        &mut store(),
+        &mut off,
+        false,
+    );
     assert_eq!(
         m,
         DeviceMsg::Nack(Request::UploadLr, NackReason::Unsupported)
@@ -135,25 +186,63 @@ fn upload_lr_refusals_and_swap() {
     let mut s = session(true, Rearm::OncePerPowerUp);
     let nack = |n| DeviceMsg::Nack(Request::UploadLr, n);
     assert_eq!(
-        handle(up(5, theta, crc), &mut ctl, &mut run, &mut s, false).0,
+        handle(
+            up(5, theta, crc),
+            &mut ctl,
+            &mut run,
+            &mut store(),
+            &mut s,
+            false
+        )
+        .0,
         nack(NackReason::Shape)
     );
     let mut bad = theta;
     bad[1] = f64::NAN;
     assert_eq!(
-        handle(up(6, bad, crc), &mut ctl, &mut run, &mut s, false).0,
+        handle(
+            up(6, bad, crc),
+            &mut ctl,
+            &mut run,
+            &mut store(),
+            &mut s,
+            false
+        )
+        .0,
         nack(NackReason::NotFinite)
     );
     assert_eq!(
-        handle(up(6, theta, crc ^ 1), &mut ctl, &mut run, &mut s, false).0,
+        handle(
+            up(6, theta, crc ^ 1),
+            &mut ctl,
+            &mut run,
+            &mut store(),
+            &mut s,
+            false
+        )
+        .0,
         nack(NackReason::Checksum)
     );
     assert_eq!(
-        handle(up(6, theta, crc), &mut ctl, &mut run, &mut s, false),
+        handle(
+            up(6, theta, crc),
+            &mut ctl,
+            &mut run,
+            &mut store(),
+            &mut s,
+            false
+        ),
         ack(Request::UploadLr)
     );
     assert_eq!(s.model_checksum, crc);
-    let (st, _) = handle(HostMsg::Status, &mut ctl, &mut run, &mut s, false);
+    let (st, _) = handle(
+        HostMsg::Status,
+        &mut ctl,
+        &mut run,
+        &mut store(),
+        &mut s,
+        false,
+    );
     match st {
         DeviceMsg::Status(st) => {
             assert_eq!(st.model_checksum, crc);
@@ -166,12 +255,28 @@ fn upload_lr_refusals_and_swap() {
         HostMsg::Arm { telemetry_every: 1 },
         &mut ctl,
         &mut run,
+        &mut store(),
         &mut s,
         false,
     );
-    handle(HostMsg::Start, &mut ctl, &mut run, &mut s, false);
+    handle(
+        HostMsg::Start,
+        &mut ctl,
+        &mut run,
+        &mut store(),
+        &mut s,
+        false,
+    );
     assert_eq!(
-        handle(up(6, theta, crc), &mut ctl, &mut run, &mut s, false).0,
+        handle(
+            up(6, theta, crc),
+            &mut ctl,
+            &mut run,
+            &mut store(),
+            &mut s,
+            false
+        )
+        .0,
         nack(NackReason::Busy)
     );
     let (m, _) = handle(
@@ -182,6 +287,7 @@ fn upload_lr_refusals_and_swap() {
         },
         &mut ctl,
         &mut run,
+        &mut store(),
         &mut s,
         false,
     );
@@ -244,4 +350,162 @@ fn send_writes_one_frame() {
             .map(|m| m.unwrap())
             .collect();
     assert_eq!(got.as_slice(), &[DeviceMsg::Ack(Request::Abort)]);
+}
+
+#[test]
+fn a_record_upload_over_handle_is_reported_and_refused_under_a_test() {
+    extern crate std;
+    use rths_link::{record_checksum, RecordSource, RECORD_CHUNK};
+    use std::vec::Vec;
+    let mut ctl = controller();
+    let mut run = Run::new();
+    let mut s = session(true, Rearm::AtMeasured);
+    let mut buf = [0.0; 64];
+    let compiled = [0.0, 0.1, 0.0];
+    let mut store = RecordStore::new(&compiled, 0.01, 41, &mut buf);
+    let motion: Vec<f64> = (0..20).map(|i| i as f64 * 0.01).collect();
+    let c = record_checksum(&motion, 0.02);
+    let chunk = |i: usize| {
+        let ch = motion.chunks(RECORD_CHUNK).nth(i).unwrap();
+        let mut values = [0.0; RECORD_CHUNK];
+        values[..ch.len()].copy_from_slice(ch);
+        HostMsg::RecordChunk {
+            seq: i as u32,
+            count: ch.len() as u8,
+            values,
+        }
+    };
+    let begin = HostMsg::RecordBegin {
+        samples: 20,
+        dt_s: 0.02,
+        scale: 0.5,
+        checksum: c,
+    };
+    let mut h = |m: HostMsg, ctl: &mut Controller, store: &mut RecordStore<'_>| {
+        handle(m, ctl, &mut run, store, &mut s, false).0
+    };
+    // Armed: every record request is refused Busy, nothing changes.
+    assert_eq!(
+        h(HostMsg::Arm { telemetry_every: 1 }, &mut ctl, &mut store),
+        DeviceMsg::Ack(Request::Arm)
+    );
+    assert_eq!(
+        h(begin, &mut ctl, &mut store),
+        DeviceMsg::Nack(Request::RecordBegin, NackReason::Busy)
+    );
+    assert_eq!(store.info().source, RecordSource::Compiled);
+    // At rest (a fresh controller): the upload goes through.
+    let mut ctl = controller();
+    assert_eq!(
+        h(begin, &mut ctl, &mut store),
+        DeviceMsg::Ack(Request::RecordBegin)
+    );
+    assert_eq!(
+        h(chunk(1), &mut ctl, &mut store),
+        DeviceMsg::Nack(Request::RecordChunk, NackReason::Sequence),
+        "reordered"
+    );
+    assert_eq!(
+        h(begin, &mut ctl, &mut store),
+        DeviceMsg::Ack(Request::RecordBegin)
+    );
+    assert_eq!(
+        h(chunk(0), &mut ctl, &mut store),
+        DeviceMsg::Ack(Request::RecordChunk)
+    );
+    assert_eq!(
+        h(chunk(1), &mut ctl, &mut store),
+        DeviceMsg::Ack(Request::RecordChunk)
+    );
+    assert_eq!(
+        h(HostMsg::RecordCommit, &mut ctl, &mut store),
+        DeviceMsg::Ack(Request::RecordCommit)
+    );
+    let DeviceMsg::Status(st) = h(HostMsg::Status, &mut ctl, &mut store) else {
+        panic!("status")
+    };
+    assert_eq!(st.record.source, RecordSource::Uploaded);
+    assert_eq!(st.record.checksum, c);
+    assert_eq!(st.record.samples, 20);
+    assert_eq!(st.record.scale, 0.5);
+    assert_eq!(st.record_capacity, 32);
+    assert_eq!(st.model_kind, ModelKind::Lr);
+}
+
+#[test]
+fn the_link_loss_policy_is_chosen_at_arm_time() {
+    use rths_link::{LinkLoss, LINK_TIMEOUT_TICKS};
+    let mut ctl = controller();
+    let mut run = Run::new();
+    let mut s = session(true, Rearm::OncePerPowerUp);
+    assert_eq!(s.link_loss, LinkLoss::Complete);
+    let (m, _) = handle(
+        HostMsg::ArmWith {
+            telemetry_every: 0,
+            on_link_loss: LinkLoss::RampDown,
+            owner: 7,
+        },
+        &mut ctl,
+        &mut run,
+        &mut store(),
+        &mut s,
+        false,
+    );
+    assert_eq!(m, DeviceMsg::Nack(Request::Arm, NackReason::OutOfRange));
+    assert_eq!(
+        s.link_loss,
+        LinkLoss::Complete,
+        "a refused arm changes nothing"
+    );
+    let (m, _) = handle(
+        HostMsg::ArmWith {
+            telemetry_every: 2,
+            on_link_loss: LinkLoss::RampDown,
+            owner: 7,
+        },
+        &mut ctl,
+        &mut run,
+        &mut store(),
+        &mut s,
+        false,
+    );
+    assert_eq!(m, DeviceMsg::Ack(Request::Arm));
+    assert_eq!((s.link_loss, s.every), (LinkLoss::RampDown, 2));
+    // Another host cannot start it (a plain Start or another token); its owner can; an abort
+    // from anyone is obeyed.
+    for m in [HostMsg::Start, HostMsg::StartAs { owner: 8 }] {
+        let (a, _) = handle(m, &mut ctl, &mut run, &mut store(), &mut s, false);
+        assert_eq!(a, DeviceMsg::Nack(Request::Start, NackReason::NotOwner));
+    }
+    let (a, e) = handle(
+        HostMsg::StartAs { owner: 7 },
+        &mut ctl,
+        &mut run,
+        &mut store(),
+        &mut s,
+        false,
+    );
+    assert_eq!((a, e), (DeviceMsg::Ack(Request::Start), Effect::Started));
+    let (a, _) = handle(
+        HostMsg::Abort,
+        &mut ctl,
+        &mut run,
+        &mut store(),
+        &mut s,
+        false,
+    );
+    assert_eq!(a, DeviceMsg::Ack(Request::Abort));
+    // Lost after more than the timeout of silence, and only with RampDown; the tick count wraps.
+    assert!(!link_lost(
+        LinkLoss::RampDown,
+        100 + LINK_TIMEOUT_TICKS,
+        100
+    ));
+    assert!(link_lost(LinkLoss::RampDown, 101 + LINK_TIMEOUT_TICKS, 100));
+    assert!(link_lost(
+        LinkLoss::RampDown,
+        5,
+        u32::MAX - LINK_TIMEOUT_TICKS
+    ));
+    assert!(!link_lost(LinkLoss::Complete, 1_000_000, 0));
 }

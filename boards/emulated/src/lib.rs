@@ -15,6 +15,7 @@
 #![deny(missing_docs)]
 
 pub mod logger;
+pub mod watchdog;
 
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;

@@ -159,6 +159,7 @@ impl rths_app::board::Board for Mps2An500 {
     type EStop = rths_app::board::NoEStop;
     type Harness = Harness;
     type Calibration = Calibration;
+    type Watchdog = TimerWatchdog;
     const EMULATED_PLANT: bool = true;
 
     fn tick_rate_hz() -> f64 {
@@ -199,5 +200,58 @@ pub fn init(
         estop: rths_app::board::NoEStop,
         harness,
         calibration: calib,
+        watchdog: TimerWatchdog::new(dp.TIMER1),
     })
+}
+
+/// The ground-motion record buffer (address, bytes) for uploads over the link: the 64 KiB after the
+/// 128 KiB the linker uses in the 4 MiB of SSRAM2/3 (`memory.x`), the size of the STM32 boards'.
+pub const RECORD_BUFFER: (usize, usize) = (0x2002_0000, 64 * 1024);
+
+/// The watchdog period, PCLK counts: 4 tick periods (1.95 ms; the real boards' IWDG: 2 ms or more).
+pub const WATCHDOG_PERIOD_COUNTS: u32 = 4 * TICK_PERIOD_COUNTS;
+
+/// How long before a tick the watchdog's check fires, PCLK counts (1 µs): it runs (above the control
+/// task) before the tick rather than inside its measured section, whose count it would inflate.
+pub const WATCHDOG_LEAD_COUNTS: u32 = 25;
+
+/// The emulated watchdog: CMSDK TIMER1 on its own interrupt (the firmware's `TIM5` task, above the
+/// control task) asks [`watchdog_expired`] every [`WATCHDOG_PERIOD_COUNTS`]; the counting is
+/// `rths_board_emulated::watchdog`'s, shared with the Cortex-M4 twin.
+pub struct TimerWatchdog {
+    tim: pac::TIMER1,
+}
+
+impl TimerWatchdog {
+    fn new(tim: pac::TIMER1) -> Self {
+        tim.ctrl().write(0);
+        tim.reload().write(WATCHDOG_PERIOD_COUNTS - 1);
+        tim.value().write(WATCHDOG_PERIOD_COUNTS - 1);
+        tim.int().write(1);
+        Self { tim }
+    }
+}
+
+impl rths_app::board::Watchdog for TimerWatchdog {
+    fn start(&mut self) {
+        rths_board_emulated::watchdog::arm();
+        // Both timers count down on PCLK; TIMER0 reaches 0 at a tick. Phase TIMER1 to reach 0
+        // WATCHDOG_LEAD_COUNTS before one.
+        // SAFETY: a read of TIMER0's VALUE, which nothing writes while it runs.
+        let to_tick = unsafe { pac::Peripherals::steal() }.TIMER0.value().read();
+        let v = (to_tick + WATCHDOG_PERIOD_COUNTS - WATCHDOG_LEAD_COUNTS) % WATCHDOG_PERIOD_COUNTS;
+        self.tim.value().write(v);
+        self.tim.ctrl().write(TIMER_ENABLE | TIMER_IRQ_ENABLE);
+    }
+    fn feed(&mut self) {
+        rths_board_emulated::watchdog::feed();
+    }
+}
+
+/// The watchdog's check (its `TIM5` task): acknowledge the interrupt; `true` if no tick fed it since
+/// the last check.
+pub fn watchdog_expired() -> bool {
+    // SAFETY: only this task touches TIMER1's INTCLEAR once the watchdog runs.
+    unsafe { pac::Peripherals::steal() }.TIMER1.int().write(1);
+    rths_board_emulated::watchdog::starved()
 }

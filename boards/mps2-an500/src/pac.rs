@@ -2,7 +2,7 @@
 //! peripherals this board uses, written by hand (there is no svd2rust crate for the MPS2 FPGA
 //! images; RTIC needs only `Interrupt`, `interrupt`, `NVIC_PRIO_BITS` and `Peripherals::steal`).
 //!
-//! The firmware binds its tasks to the STM32 vector names (`TIM2`, `USART2`, `UART4`, `USART3`),
+//! The firmware binds its tasks to the STM32 vector names (`TIM2`, `TIM5`, `USART2`, `UART4`, `USART3`),
 //! one app for every board: here those names are given to the AN500 lines that play the same roles.
 #![allow(non_camel_case_types, non_snake_case, clippy::upper_case_acronyms)]
 
@@ -18,6 +18,8 @@ pub enum Interrupt {
     USART2 = 2,
     /// CMSDK TIMER0 (IRQ 8): the controller tick (the STM32 boards' TIM2).
     TIM2 = 8,
+    /// CMSDK TIMER1 (IRQ 9): the emulated watchdog's check (the emulated STM32's TIM5).
+    TIM5 = 9,
     /// Line 30, wired to no device: the supervisor task, pended by software (the STM32's UART4).
     UART4 = 30,
     /// Line 31, wired to no device: the telemetry task, pended by software (the STM32's USART3).
@@ -44,6 +46,7 @@ const LINES: usize = 32;
 extern "C" {
     fn USART2();
     fn TIM2();
+    fn TIM5();
     fn UART4();
     fn USART3();
 }
@@ -65,6 +68,7 @@ pub static __INTERRUPTS: [Vector; LINES] = {
     let mut v = [NONE; LINES];
     v[Interrupt::USART2 as usize] = Vector { handler: USART2 };
     v[Interrupt::TIM2 as usize] = Vector { handler: TIM2 };
+    v[Interrupt::TIM5 as usize] = Vector { handler: TIM5 };
     v[Interrupt::UART4 as usize] = Vector { handler: UART4 };
     v[Interrupt::USART3 as usize] = Vector { handler: USART3 };
     v
@@ -72,6 +76,11 @@ pub static __INTERRUPTS: [Vector; LINES] = {
 
 /// CMSDK APB TIMER0 at 0x4000_0000 (a 32-bit down-counter on the 25 MHz PCLK).
 pub struct TIMER0 {
+    _own: (),
+}
+
+/// CMSDK APB TIMER1 at 0x4000_1000 (the same timer as TIMER0).
+pub struct TIMER1 {
     _own: (),
 }
 
@@ -99,6 +108,26 @@ impl Reg {
 
 impl TIMER0 {
     const BASE: usize = 0x4000_0000;
+    /// CTRL: bit 0 enable, bit 3 interrupt enable.
+    pub(crate) fn ctrl(&self) -> Reg {
+        Reg(Self::BASE)
+    }
+    /// VALUE: the current count (counts down).
+    pub(crate) fn value(&self) -> Reg {
+        Reg(Self::BASE + 0x4)
+    }
+    /// RELOAD: loaded into VALUE when it reaches 0.
+    pub(crate) fn reload(&self) -> Reg {
+        Reg(Self::BASE + 0x8)
+    }
+    /// INTSTATUS (read) / INTCLEAR (write 1): bit 0, the count reached 0.
+    pub(crate) fn int(&self) -> Reg {
+        Reg(Self::BASE + 0xC)
+    }
+}
+
+impl TIMER1 {
+    const BASE: usize = 0x4000_1000;
     /// CTRL: bit 0 enable, bit 3 interrupt enable.
     pub(crate) fn ctrl(&self) -> Reg {
         Reg(Self::BASE)
@@ -145,6 +174,8 @@ impl UART1 {
 pub struct Peripherals {
     /// The tick timer.
     pub TIMER0: TIMER0,
+    /// The watchdog's timer.
+    pub TIMER1: TIMER1,
     /// The link UART.
     pub UART1: UART1,
 }
@@ -158,6 +189,7 @@ impl Peripherals {
     pub unsafe fn steal() -> Self {
         Self {
             TIMER0: TIMER0 { _own: () },
+            TIMER1: TIMER1 { _own: () },
             UART1: UART1 { _own: () },
         }
     }

@@ -31,6 +31,12 @@ pub type Counter = rths_board_emulated::InstrCounter<SYSCLK_HZ, ICOUNT_NS_PER_IN
 /// Virtual nanoseconds per instruction: the runner's `-icount shift=0`.
 pub const ICOUNT_NS_PER_INSTR: u32 = 1;
 
+/// The ground-motion record buffer (address, bytes) for uploads over the link: QEMU maps 192 KiB of
+/// SRAM at 0x2000_0000 where the STM32F405 has 128 KiB plus a 64 KiB CCM that QEMU does not model;
+/// `memory.x` gives the linker the first 128 KiB, and the last 64 KiB stand for the real board's
+/// CCM (the STM32F407 board crate's `RECORD_BUFFER`): the same size on both boards.
+pub const RECORD_BUFFER: (usize, usize) = (0x2002_0000, 64 * 1024);
+
 /// Counting clock of QEMU's STM32F2xx/F4xx timer model, Hz (its `clock-frequency` default: 1 GHz of
 /// virtual time, whatever the RCC says).
 pub const TIM_CLOCK_HZ: u32 = 1_000_000_000;
@@ -165,6 +171,7 @@ impl rths_app::board::Board for Qemu {
     type EStop = rths_app::board::NoEStop;
     type Harness = Harness;
     type Calibration = Calibration;
+    type Watchdog = TimerWatchdog;
     const EMULATED_PLANT: bool = true;
 
     fn tick_rate_hz() -> f64 {
@@ -196,6 +203,7 @@ pub fn init(
     let mut timer = TickTimer::new(dp.TIM2, &dp.RCC);
     let calib = calibrate(&counter, &mut timer, 100_000, fpu_mvfr0);
     let (rig, harness) = rths_board_emulated::plant_and_harness()?;
+    let watchdog = TimerWatchdog::new(dp.TIM5, &dp.RCC);
     Ok(rths_app::board::Parts {
         timer,
         link: LinkUart::new(dp.USART2, &dp.RCC),
@@ -204,5 +212,63 @@ pub fn init(
         estop: rths_app::board::NoEStop,
         harness,
         calibration: calib,
+        watchdog,
     })
+}
+
+/// The watchdog period, virtual ns: 4 tick periods (1.95 ms; the real board's IWDG: 2 ms).
+pub const WATCHDOG_PERIOD_COUNTS: u32 = 4 * TICK_PERIOD_COUNTS;
+
+/// How long before a tick the watchdog's check fires, virtual ns: it runs (above the control task)
+/// before the tick rather than in the middle of its measured section, whose instruction count it
+/// would otherwise inflate.
+pub const WATCHDOG_LEAD_COUNTS: u32 = 1000;
+
+/// The emulated board's watchdog (QEMU models no IWDG): TIM5, a 32-bit timer on its own interrupt,
+/// at a priority above the control task's; every [`WATCHDOG_PERIOD_COUNTS`] its task asks
+/// [`watchdog_expired`], which is true when no tick fed it in the period. The firmware's bite ends
+/// the emulation (what the real board's reset is to its run).
+pub struct TimerWatchdog {
+    tim: pac::TIM5,
+}
+
+impl TimerWatchdog {
+    fn new(tim: pac::TIM5, rcc: &pac::RCC) -> Self {
+        rcc.apb1enr.modify(|_, w| w.tim5en().set_bit());
+        tim.cr1.write(|w| w.cen().clear_bit());
+        tim.psc.write(|w| w.psc().bits(0));
+        tim.arr.write(|w| w.bits(WATCHDOG_PERIOD_COUNTS - 1));
+        tim.cnt.reset();
+        tim.sr.write(|w| w.uif().clear_bit());
+        tim.dier.write(|w| w.uie().set_bit());
+        Self { tim }
+    }
+}
+
+impl rths_app::board::Watchdog for TimerWatchdog {
+    fn start(&mut self) {
+        rths_board_emulated::watchdog::arm();
+        // In phase with the tick timer (same clock), WATCHDOG_LEAD_COUNTS ahead of its update.
+        // SAFETY: a read of TIM2's counter, which nothing else writes while it runs.
+        #[allow(unsafe_code)]
+        let phase = unsafe { &*pac::TIM2::ptr() }.cnt.read().bits();
+        self.tim
+            .cnt
+            .write(|w| w.bits((phase + WATCHDOG_LEAD_COUNTS) % WATCHDOG_PERIOD_COUNTS));
+        self.tim.cr1.modify(|_, w| w.cen().set_bit());
+    }
+    fn feed(&mut self) {
+        rths_board_emulated::watchdog::feed();
+    }
+}
+
+/// The watchdog's check (its TIM5 task): acknowledge the interrupt; `true` if no tick fed it since
+/// the last check.
+pub fn watchdog_expired() -> bool {
+    // SAFETY: TIM5's register block is always mapped; this task is the only one that touches its
+    // status register (the `TimerWatchdog` only starts the counter, before this task can run).
+    #[allow(unsafe_code)]
+    let tim = unsafe { &*pac::TIM5::ptr() };
+    tim.sr.write(|w| w.uif().clear_bit());
+    rths_board_emulated::watchdog::starved()
 }

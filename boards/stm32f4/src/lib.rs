@@ -32,6 +32,11 @@ use stm32f4xx_hal::spi::{Mode, Phase, Polarity, Spi};
 pub const HSE_HZ: u32 = 8_000_000;
 /// Core clock, Hz.
 pub const SYSCLK_HZ: u32 = 168_000_000;
+
+/// The ground-motion record buffer (address, bytes) for uploads over the link: the 64 KiB CCM RAM
+/// (core-coupled, not reachable by DMA, which the record does not need), outside `memory.x`, so the
+/// statics and the stack keep the whole 128 KiB of main SRAM.
+pub const RECORD_BUFFER: (usize, usize) = (0x1000_0000, 64 * 1024);
 /// TIM2's counting clock (APB1 = 42 MHz, doubled for the timers since its prescaler is not 1), Hz.
 pub const TIM2_CLOCK_HZ: u32 = 84_000_000;
 /// The controller rate the tick aims at, Hz.
@@ -138,12 +143,15 @@ pub struct Board {
     pub estop: BoardEStop,
     /// The command link.
     pub link: LinkSerial,
+    /// The control task's watchdog (stopped).
+    pub watchdog: Iwdg,
 }
 
 impl Board {
     /// Clocks, pins, converters (ADC reset, DAC range set and read back, output latched at 0 V), E-stop,
     /// link UART, and the tick timer (stopped).
     pub fn init(dp: pac::Peripherals, cal: Calibration) -> Result<Self, BoardError> {
+        let watchdog = Iwdg(stm32f4xx_hal::watchdog::IndependentWatchdog::new(dp.IWDG));
         let mut rcc = dp.RCC.freeze(
             Config::hse(HSE_HZ.Hz())
                 .sysclk(SYSCLK_HZ.Hz())
@@ -227,6 +235,7 @@ impl Board {
             rig: Rig::new(adc, dac, cal),
             estop,
             link: LinkSerial { tx, rx },
+            watchdog,
         })
     }
 }
@@ -303,6 +312,7 @@ impl rths_app::board::Board for Stm32f4 {
     type EStop = EStopInput;
     type Harness = rths_app::board::NoHarness;
     type Calibration = rths_app::board::NoCalibration;
+    type Watchdog = Iwdg;
     const EMULATED_PLANT: bool = false;
 
     fn tick_rate_hz() -> f64 {
@@ -343,7 +353,26 @@ pub fn init(
         estop: EStopInput(b.estop),
         harness: rths_app::board::NoHarness,
         calibration: rths_app::board::NoCalibration,
+        watchdog: b.watchdog,
     })
+}
+
+/// The control task's watchdog period, ms: 4 ticks at 2048 Hz (IWDG on the ~32 kHz LSI, whose
+/// spread, 17-47 kHz, makes the real timeout 1.4-3.8 ms; never shorter than 2 ticks).
+pub const WATCHDOG_MS: u32 = 2;
+
+/// The independent watchdog: on its own clock (LSI), it resets the MCU if the control task does
+/// not feed it within [`WATCHDOG_MS`]; the start-up then latches the DAC at 0 V (`Board::init`),
+/// the safe command.
+pub struct Iwdg(stm32f4xx_hal::watchdog::IndependentWatchdog);
+
+impl rths_app::board::Watchdog for Iwdg {
+    fn start(&mut self) {
+        self.0.start(WATCHDOG_MS.millis());
+    }
+    fn feed(&mut self) {
+        self.0.feed();
+    }
 }
 
 #[panic_handler]

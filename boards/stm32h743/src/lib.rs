@@ -59,6 +59,10 @@ pub const TICK_PERIOD_COUNTS: u32 = (TIM2_CLOCK_HZ + TARGET_TICK_HZ / 2) / TARGE
 pub const LINK_BAUD: u32 = 2_000_000;
 /// SPI clock of both converters, Hz (AD7606: ≤ 23.5 MHz; AD5754R: ≤ 30 MHz): 80 MHz / 8.
 pub const SPI_HZ: u32 = 10_000_000;
+/// The ground-motion record buffer (address, bytes) for uploads over the link: the first 64 KiB of
+/// the 512 KiB AXI SRAM, which no linker region uses (`memory.x`); the size of the other boards'.
+pub const RECORD_BUFFER: (usize, usize) = (0x2400_0000, 64 * 1024);
+
 /// The watchdog's timeout, ms: ~20 ticks at 2048 Hz, far above a tick, far below a rig's reaction.
 pub const WATCHDOG_TIMEOUT_MS: u32 = 10;
 
@@ -190,13 +194,11 @@ impl rths_app::board::EStop for EStopInput {
 /// [`WATCHDOG_TIMEOUT_MS`]; the DAC's output then returns to 0 V at its power-on reset.
 pub struct Watchdog(IndependentWatchdog);
 
-impl Watchdog {
-    /// Start it (it cannot be stopped again).
-    pub fn start(&mut self) {
+impl rths_app::board::Watchdog for Watchdog {
+    fn start(&mut self) {
         self.0.start(WATCHDOG_TIMEOUT_MS.millis());
     }
-    /// Reload its counter.
-    pub fn feed(&mut self) {
+    fn feed(&mut self) {
         self.0.feed();
     }
 }
@@ -349,6 +351,7 @@ impl rths_app::board::Board for Stm32h743 {
     type EStop = EStopInput;
     type Harness = rths_app::board::NoHarness;
     type Calibration = rths_app::board::NoCalibration;
+    type Watchdog = Watchdog;
     const EMULATED_PLANT: bool = false;
 
     fn tick_rate_hz() -> f64 {
@@ -393,6 +396,7 @@ pub fn init(
         estop: EStopInput(b.estop),
         harness: rths_app::board::NoHarness,
         calibration: rths_app::board::NoCalibration,
+        watchdog: b.watchdog,
     })
 }
 
