@@ -33,6 +33,8 @@ enum Command {
     Identify(cmd::identify::Args),
     /// Drive and record a test on a board over the command link (serial port, QEMU socket).
     Link(cmd::link::Args),
+    /// The vRTHS benchmark problem: one case × record with J1-J9, or the whole grid's table.
+    Benchmark(cmd::benchmark::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -47,6 +49,7 @@ fn main() -> std::process::ExitCode {
         Command::CheckModel(a) => cmd::check_model::run(a),
         Command::Link(a) => cmd::link::run(a),
         Command::Identify(a) => cmd::identify::run(a),
+        Command::Benchmark(a) => cmd::benchmark::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
