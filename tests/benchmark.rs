@@ -167,8 +167,10 @@ fn a_benchmark_run_is_stable_with_finite_criteria() {
     println!("{j:?}");
     assert!(j.as_array().iter().all(|v| v.is_finite()));
     assert_eq!(r.history.time_s.len(), r.history.reference_mm[2].len());
-    // The numerical floors follow the reference (the compensated loop is faithful upstairs).
-    assert!(j.j6_pct < 5.0 && j.j7_pct < 5.0, "{j:?}");
+    // Measured on this run: J2 2.69 %, J4 2.94 %, J6/J7 1.23 % (docs/benchmark.md); the bounds
+    // leave room for round-off across platforms, not for a regression.
+    assert!(j.j2_pct < 3.0 && j.j4_pct < 3.5, "{j:?}");
+    assert!(j.j6_pct < 1.5 && j.j7_pct < 1.5, "{j:?}");
 }
 
 #[test]
@@ -193,7 +195,22 @@ fn whole_grid_is_stable() {
     let g = rths::benchmark::grid::run_grid(ControllerKind::FeAts, 0.4, 20).unwrap();
     println!("{}", g.table());
     for c in &g.cells {
-        assert!(c.nominal.is_some(), "case {} {} unstable", c.case, c.record);
+        let j = c
+            .nominal
+            .unwrap_or_else(|| panic!("case {} {} unstable", c.case, c.record));
         assert_eq!(c.perturbed_unstable, 0, "case {} {}", c.case, c.record);
+        // The goals: J4 ≤ 4 %, J6-J7 ≤ 4 % nominal; J4 ≤ 8 % on every perturbed plant.
+        assert!(
+            j[3] <= 4.0 && j[5] <= 4.0 && j[6] <= 4.0,
+            "case {} {}: {j:?}",
+            c.case,
+            c.record
+        );
+        assert!(
+            c.perturbed_max_j4_pct.is_some_and(|j4| j4 <= 8.0),
+            "case {} {}",
+            c.case,
+            c.record
+        );
     }
 }

@@ -16,10 +16,12 @@ pub struct Cell {
     pub record: Record,
     /// J1..J9 on the nominal plant (`None`: unstable).
     pub nominal: Option<[f64; 9]>,
-    /// Largest J4 over the perturbed plants, %.
-    pub perturbed_max_j4_pct: f64,
-    /// Mean J4 over the perturbed plants, %.
-    pub perturbed_mean_j4_pct: f64,
+    /// J2 of the noise-free displacement on the nominal plant, % (evaluation only).
+    pub nominal_j2_noise_free_pct: Option<f64>,
+    /// Largest J4 over the stable perturbed plants, % (`None`: none stable, or none run).
+    pub perturbed_max_j4_pct: Option<f64>,
+    /// Mean J4 over the stable perturbed plants, %.
+    pub perturbed_mean_j4_pct: Option<f64>,
     /// Perturbed plants whose run went unstable.
     pub perturbed_unstable: usize,
 }
@@ -60,23 +62,24 @@ pub fn run_grid(
         }
     }
     // Keep only the figures: the histories of 252 runs would not fit comfortably in memory.
-    let results: Vec<(RunConfig, Option<BenchmarkCriteria>)> = configs
+    let results: Vec<(RunConfig, Option<BenchmarkCriteria>, Option<f64>)> = configs
         .par_iter()
-        .map(|c| run(c).map(|r| (r.config, r.criteria)))
+        .map(|c| run(c).map(|r| (r.config, r.criteria, r.j2_noise_free_pct)))
         .collect::<anyhow::Result<_>>()?;
     let mut cells = Vec::new();
     for case in 1..=4u8 {
         for record in Record::ALL {
             let of_cell = results
                 .iter()
-                .filter(|(c, _)| c.case == case && c.record == record);
-            let nominal = of_cell
+                .filter(|(c, _, _)| c.case == case && c.record == record);
+            let nominal_run = of_cell
                 .clone()
-                .find(|(c, _)| c.plant == PlantDraw::Nominal)
-                .and_then(|(_, j)| j.map(|j| j.as_array()));
+                .find(|(c, _, _)| c.plant == PlantDraw::Nominal);
+            let nominal = nominal_run.and_then(|(_, j, _)| j.map(|j| j.as_array()));
+            let nominal_j2_noise_free_pct = nominal_run.and_then(|(_, _, j2)| *j2);
             let perturbed: Vec<&Option<BenchmarkCriteria>> = of_cell
-                .filter(|(c, _)| c.plant != PlantDraw::Nominal)
-                .map(|(_, j)| j)
+                .filter(|(c, _, _)| c.plant != PlantDraw::Nominal)
+                .map(|(_, j, _)| j)
                 .collect();
             let j4: Vec<f64> = perturbed
                 .iter()
@@ -86,8 +89,10 @@ pub fn run_grid(
                 case,
                 record,
                 nominal,
-                perturbed_max_j4_pct: j4.iter().copied().fold(f64::NAN, f64::max),
-                perturbed_mean_j4_pct: j4.iter().sum::<f64>() / j4.len().max(1) as f64,
+                nominal_j2_noise_free_pct,
+                perturbed_max_j4_pct: j4.iter().copied().reduce(f64::max),
+                perturbed_mean_j4_pct: (!j4.is_empty())
+                    .then(|| j4.iter().sum::<f64>() / j4.len() as f64),
                 perturbed_unstable: perturbed.iter().filter(|j| j.is_none()).count(),
             });
         }
@@ -107,8 +112,8 @@ impl Grid {
         let mut s = format!(
             "controller {}, intensity {}, {} perturbed plants per cell\n\n\
              | case | record | J1 ms | J2 % | J3 % | J4 % | J5 % | J6 % | J7 % | J8 % | J9 % | \
-             J4 max (pert.) % | J4 mean (pert.) % | unstable |\n\
-             |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+             J2 noise-free % | J4 max (pert.) % | J4 mean (pert.) % | unstable (pert.) |\n\
+             |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
             self.controller.name(),
             self.intensity,
             self.perturbed_plants
@@ -122,12 +127,14 @@ impl Grid {
                     .join(" | "),
                 None => ["unstable"; 9].join(" | "),
             };
+            let opt = |v: Option<f64>| v.map_or("n/a".to_string(), |v| format!("{v:.2}"));
             s.push_str(&format!(
-                "| {} | {} | {js} | {:.2} | {:.2} | {} |\n",
+                "| {} | {} | {js} | {} | {} | {} | {} |\n",
                 c.case,
                 c.record,
-                c.perturbed_max_j4_pct,
-                c.perturbed_mean_j4_pct,
+                opt(c.nominal_j2_noise_free_pct),
+                opt(c.perturbed_max_j4_pct),
+                opt(c.perturbed_mean_j4_pct),
                 c.perturbed_unstable
             ));
         }

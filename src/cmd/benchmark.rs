@@ -99,6 +99,7 @@ fn single_json(r: &RunResult) -> serde_json::Value {
         "ticks": r.history.time_s.len(),
         "unstable": r.unstable,
         "ats_coefficients": r.ats_coefficients,
+        "j2_noise_free_pct": r.j2_noise_free_pct,
         "criteria": r.criteria.map(|j| serde_json::json!({
             "j1_ms": j.j1_ms, "j2_pct": j.j2_pct, "j3_pct": j.j3_pct, "j4_pct": j.j4_pct,
             "j5_pct": j.j5_pct, "j6_pct": j.j6_pct, "j7_pct": j.j7_pct, "j8_pct": j.j8_pct,
@@ -134,6 +135,9 @@ fn print_single(r: &RunResult) {
                 "J2 {:.2} %  J3 {:.2} %  (tracking, floor 1)",
                 j.j2_pct, j.j3_pct
             );
+            if let Some(j2) = r.j2_noise_free_pct {
+                println!("   J2 of the noise-free displacement {j2:.2} % (evaluation only)");
+            }
             println!(
                 "J4 {:.2} %  J5 {:.2} %  (floor 1 vs reference)",
                 j.j4_pct, j.j5_pct

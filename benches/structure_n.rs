@@ -1,0 +1,52 @@
+//! Cost of one step of the run-time sized N-DOF analytical part (`ChangN::advance`: Chang's
+//! method, the FE path of a structure file) for N = 1, 3, 8 shear buildings, ns per tick. The
+//! figure to set beside a metamodel's constant per-tick cost (`docs/benchmark.md`).
+
+use std::hint::black_box;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use rths_core::structure::{LinearStructure, ShearBuilding, Vector};
+use rths_core::structure_n::{ChangN, StructureN, MAX_DOF};
+
+const DT_S: f64 = 1.0 / 4096.0;
+
+fn model<const N: usize>() -> StructureN {
+    let b: LinearStructure<N> = ShearBuilding::<N>::uniform(1.0, 30.0, 0.05)
+        .model()
+        .expect("valid building");
+    let flat = |m: &rths_core::structure::Mat<N>| -> Vec<f64> {
+        (0..N * N).map(|k| m[(k / N, k % N)]).collect()
+    };
+    let gm = b.mass() * Vector::<N>::repeat(1.0);
+    StructureN::new(
+        N,
+        &flat(b.mass()),
+        &flat(b.damping()),
+        &flat(b.stiffness()),
+        &flat(b.initial_stiffness()),
+        gm.as_slice(),
+    )
+    .expect("valid model")
+}
+
+fn step(c: &mut Criterion) {
+    let mut g = c.benchmark_group("chang_n_tick");
+    for (n, m) in [(1, model::<1>()), (3, model::<3>()), (8, model::<8>())] {
+        let mut integ = ChangN::new(m, DT_S).expect("valid step");
+        let mut k = 0u32;
+        g.bench_function(format!("n{n}"), |b| {
+            b.iter(|| {
+                k = k.wrapping_add(1);
+                let ag = f64::from(k % 64) - 32.0;
+                let mut r = [0.0; MAX_DOF];
+                r[0] = 0.01 * integ.next_displacement()[0];
+                integ.advance(black_box(ag), black_box(&r));
+                black_box(integ.next_displacement()[0])
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, step);
+criterion_main!(benches);
