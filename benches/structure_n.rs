@@ -5,15 +5,37 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use rths_core::integrator::{Chang, ExplicitIntegrator};
 use rths_core::structure::{LinearStructure, ShearBuilding, Vector};
 use rths_core::structure_n::{ChangN, StructureN, MAX_DOF};
 
 const DT_S: f64 = 1.0 / 4096.0;
 
-fn model<const N: usize>() -> StructureN {
-    let b: LinearStructure<N> = ShearBuilding::<N>::uniform(1.0, 30.0, 0.05)
+fn building<const N: usize>() -> LinearStructure<N> {
+    ShearBuilding::<N>::uniform(1.0, 30.0, 0.05)
         .model()
-        .expect("valid building");
+        .expect("valid building")
+}
+
+/// The same step with the compile-time sized `Chang<N>` (nalgebra static matrices), under the same
+/// machine load: the reference the run-time sized one is compared with.
+fn fixed<const N: usize>(g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>) {
+    let mut integ = Chang::new(building::<N>(), DT_S).expect("valid step");
+    let mut k = 0u32;
+    g.bench_function(format!("fixed_n{N}"), |b| {
+        b.iter(|| {
+            k = k.wrapping_add(1);
+            let ag = f64::from(k % 64) - 32.0;
+            let mut r = Vector::<N>::zeros();
+            r[0] = 0.01 * integ.next_displacement()[0];
+            integ.advance(black_box(ag), black_box(&r));
+            black_box(integ.next_displacement()[0])
+        })
+    });
+}
+
+fn model<const N: usize>() -> StructureN {
+    let b = building::<N>();
     let flat = |m: &rths_core::structure::Mat<N>| -> Vec<f64> {
         (0..N * N).map(|k| m[(k / N, k % N)]).collect()
     };
@@ -45,6 +67,9 @@ fn step(c: &mut Criterion) {
             })
         });
     }
+    fixed::<1>(&mut g);
+    fixed::<3>(&mut g);
+    fixed::<8>(&mut g);
     g.finish();
 }
 

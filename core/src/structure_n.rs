@@ -1,7 +1,7 @@
 //! An N-DOF linear analytical substructure whose size is chosen at run time (1 ≤ N ≤ [`MAX_DOF`]),
 //! and Chang's explicit integrator for it: the structure a structure file describes, integrated by
 //! the same method as the FE path of the one-DOF frame ([`crate::integrator::Chang`], docs/design.md
-//! §3 and §9).
+//! §3 and §3.1).
 //!
 //! Storage is fixed-capacity (`MAX_DOF`² per matrix) so the controller stays `no_std` and
 //! allocation-free; every loop runs over the `N` DOFs in use only, so a step costs O(N²)
@@ -156,6 +156,7 @@ impl StructureN {
     }
 
     /// Effective earthquake force `−(M·ι)·ü_g`, kN, for a ground acceleration in mm/s².
+    #[inline]
     fn ground_force(&self, ground_accel_mm_s2: f64) -> Dofs {
         let mut f = [0.0; MAX_DOF];
         for (fi, gi) in f.iter_mut().zip(&self.ground_mass).take(self.dofs) {
@@ -166,6 +167,7 @@ impl StructureN {
 }
 
 /// `a·x` over the leading `n` DOFs.
+#[inline]
 fn mul(a: &Square, x: &Dofs, n: usize) -> Dofs {
     let mut y = [0.0; MAX_DOF];
     for ((yi, row), _) in y.iter_mut().zip(a).zip(0..n) {
@@ -278,6 +280,7 @@ impl ChangN {
         &self.accel
     }
 
+    #[inline]
     fn predict(&mut self) {
         let n = self.model.dofs;
         let bv = mul(&self.b1_dt, &self.vel, n);
@@ -293,6 +296,7 @@ impl ChangN {
 
     /// Complete the step at [`Self::next_displacement`]: `ground_accel_mm_s2` is `ü_g` there and
     /// `r_ext_kn` the restoring force of the physical part at each DOF (zero where there is none).
+    #[inline]
     pub fn advance(&mut self, ground_accel_mm_s2: f64, r_ext_kn: &Dofs) {
         let n = self.model.dofs;
         let half_dt = 0.5 * self.dt_s;

@@ -1,7 +1,7 @@
 //! The vRTHS benchmark problem (Silva, Gomez, Maghareh, Dyke, Spencer 2020) run against rths's
-//! controllers: its four partitioning cases of the 3-story frame (`data/structures/vrths-case*.json`),
-//! its three records, its plant, sensors and converters at 4096 Hz, and its criteria J1-J9
-//! (`docs/benchmark.md`).
+//! controllers: its four partitioning cases of the 3-story frame (the files
+//! `data/structures/vrths-case1.json` to `-case4.json`), its three records, its plant, sensors and
+//! converters at 4096 Hz, and its criteria J1-J9 (`docs/benchmark.md`).
 //!
 //! - [`run`]: one run (case × record × plant × controller) and its reference.
 //! - [`grid`]: every case × record on the nominal and the perturbed plants, on every core.
