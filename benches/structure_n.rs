@@ -1,6 +1,7 @@
 //! Cost of one step of the run-time sized N-DOF analytical part (`ChangN::advance`: Chang's
-//! method, the FE path of a structure file) for N = 1, 3, 8 shear buildings, ns per tick. The
-//! figure to set beside a metamodel's constant per-tick cost (`docs/benchmark.md`).
+//! method, the FE path of a structure file) for N = 1, 3, 8 shear buildings, ns per tick, beside
+//! the compile-time sized `Chang<N>` and the fixed-order metamodel `meta-ats` uses (trained on
+//! each building), whose cost does not depend on N (`docs/benchmark.md`).
 
 use std::hint::black_box;
 
@@ -51,6 +52,28 @@ fn model<const N: usize>() -> StructureN {
     .expect("valid model")
 }
 
+/// The metamodel of an N-story building (as a structure file), trained as `meta-ats` trains it.
+fn meta<const N: usize>(g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>) {
+    let json = format!(
+        r#"{{"format": "rths-structure", "version": 1, "name": "b{N}", "units": "mm-kn",
+        "stories": {{"floor_mass": {m:?}, "story_stiffness": {k:?}, "damping_ratio": 0.05}},
+        "specimen": {{"dof": 1, "mass": 0, "stiffness": 3.0, "damping": 0}}}}"#,
+        m = vec![1.0; N],
+        k = vec![30.0; N]
+    );
+    let s = rths_files::structure_file::Structure::from_json(&json).expect("valid building");
+    let mut m = rths::benchmark::meta::train(&s, 0.4).expect("trained");
+    let mut k = 0u32;
+    g.bench_function(format!("meta_n{N}"), |b| {
+        b.iter(|| {
+            k = k.wrapping_add(1);
+            let ag = f64::from(k % 64) - 32.0;
+            let f = 0.01 * m.current_mm();
+            black_box(m.step(black_box(ag), black_box(f)))
+        })
+    });
+}
+
 fn step(c: &mut Criterion) {
     let mut g = c.benchmark_group("chang_n_tick");
     for (n, m) in [(1, model::<1>()), (3, model::<3>()), (8, model::<8>())] {
@@ -70,6 +93,9 @@ fn step(c: &mut Criterion) {
     fixed::<1>(&mut g);
     fixed::<3>(&mut g);
     fixed::<8>(&mut g);
+    meta::<1>(&mut g);
+    meta::<3>(&mut g);
+    meta::<8>(&mut g);
     g.finish();
 }
 
