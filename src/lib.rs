@@ -4,6 +4,7 @@
 #![deny(missing_docs)]
 
 pub mod analysis;
+pub mod benchmark;
 pub mod cmd;
 pub mod faults;
 pub mod identify;

@@ -37,6 +37,8 @@ enum Command {
     Link(cmd::link::Args),
     /// The figures, metrics and plots of `rths simulate` for a recording of a board's test.
     Report(cmd::report::Args),
+    /// The vRTHS benchmark problem: one case × record with J1-J9, or the whole grid's table.
+    Benchmark(cmd::benchmark::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -53,6 +55,7 @@ fn main() -> std::process::ExitCode {
         Command::Report(a) => cmd::report::run(a),
         Command::Identify(a) => cmd::identify::run(a),
         Command::Robustness(a) => cmd::robustness::run(a),
+        Command::Benchmark(a) => cmd::benchmark::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

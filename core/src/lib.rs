@@ -24,4 +24,5 @@ pub mod motion;
 pub mod params;
 pub mod reference;
 pub mod structure;
+pub mod structure_n;
 pub mod supervisor;

@@ -4,6 +4,8 @@
 //! - RTHS benchmark criteria (Silva et al. 2020): J1 = delay (lag, in samples, that maximizes the
 //!   correlation of measured with target), J2 = 100·std(x_m − x_t)/std(x_t),
 //!   J3 = 100·max|x_m − x_t|/max|x_t|; J4/J5 are J2/J3 against the reference response.
+//! - The vRTHS benchmark's J6-J9 ([`benchmark_criteria`]): J4/J5 for the numerical floors 2 and 3
+//!   against the reference structure's.
 //!
 //! All functions take slices and allocate nothing.
 
@@ -537,6 +539,75 @@ pub fn tracking_with_delay(
         j3_pct: normalized_peak_error_pct(measured, target)?,
         j4_pct: normalized_std_error_pct(measured, reference)?,
         j5_pct: normalized_peak_error_pct(measured, reference)?,
+    })
+}
+
+/// Largest lag of the vRTHS benchmark's J1 search, samples (lags 0..49).
+pub const BENCHMARK_MAX_LAG: usize = 49;
+
+/// The nine criteria of the vRTHS benchmark (Silva et al. 2020) of one run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BenchmarkCriteria {
+    /// J1: delay of the measured first floor behind its target, ms.
+    pub j1_ms: f64,
+    /// J2: `100·std(x_m − x_t)/std(x_t)`, %.
+    pub j2_pct: f64,
+    /// J3: `100·peak(x_m − x_t)/peak(x_t)`, %.
+    pub j3_pct: f64,
+    /// J4: `100·std(x_m − x_r1)/std(x_r1)`, %.
+    pub j4_pct: f64,
+    /// J5: `100·peak(x_m − x_r1)/peak(x_r1)`, %.
+    pub j5_pct: f64,
+    /// J6: J4 of floor 2 (numerical against reference), %.
+    pub j6_pct: f64,
+    /// J7: J4 of floor 3, %.
+    pub j7_pct: f64,
+    /// J8: J5 of floor 2, %.
+    pub j8_pct: f64,
+    /// J9: J5 of floor 3, %.
+    pub j9_pct: f64,
+}
+
+impl BenchmarkCriteria {
+    /// J1..J9 in order (J1 in ms, the others in %).
+    pub fn as_array(&self) -> [f64; 9] {
+        [
+            self.j1_ms,
+            self.j2_pct,
+            self.j3_pct,
+            self.j4_pct,
+            self.j5_pct,
+            self.j6_pct,
+            self.j7_pct,
+            self.j8_pct,
+            self.j9_pct,
+        ]
+    }
+}
+
+/// J1-J9 of a three-story vRTHS run: `measured` and `target` first-floor displacements, the
+/// numerical floors 2 and 3 (`upper`), the reference structure's floors 1-3, and the sample step
+/// `dt_s` (J1 is reported in ms, searched over lags `0..=`[`BENCHMARK_MAX_LAG`]).
+pub fn benchmark_criteria(
+    measured: &[f64],
+    target: &[f64],
+    upper: [&[f64]; 2],
+    reference: [&[f64]; 3],
+    dt_s: f64,
+) -> Result<BenchmarkCriteria, MetricError> {
+    let [r1, r2, r3] = reference;
+    let [x2, x3] = upper;
+    let t = tracking(measured, target, r1, BENCHMARK_MAX_LAG)?;
+    Ok(BenchmarkCriteria {
+        j1_ms: t.j1_steps as f64 * dt_s * 1e3,
+        j2_pct: t.j2_pct,
+        j3_pct: t.j3_pct,
+        j4_pct: t.j4_pct,
+        j5_pct: t.j5_pct,
+        j6_pct: normalized_std_error_pct(x2, r2)?,
+        j7_pct: normalized_std_error_pct(x3, r3)?,
+        j8_pct: normalized_peak_error_pct(x2, r2)?,
+        j9_pct: normalized_peak_error_pct(x3, r3)?,
     })
 }
 

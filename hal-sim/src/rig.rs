@@ -57,7 +57,16 @@ extern crate std;
 
 /// Round `value` to a 16-bit bipolar converter of full scale `±full_scale` (value units ↔ ±10 V).
 pub fn quantize(value: f64, full_scale: f64) -> f64 {
-    let half = f64::from(1u32 << (CONVERTER_BITS - 1));
+    quantize_bits(value, full_scale, CONVERTER_BITS)
+}
+
+/// Round `value` to a `bits`-bit bipolar converter of full scale `±full_scale` (2 ≤ `bits` ≤ 31;
+/// outside, the value passes unchanged). The vRTHS benchmark's converters have 18 bits.
+pub fn quantize_bits(value: f64, full_scale: f64, bits: u32) -> f64 {
+    if !(2..=31).contains(&bits) {
+        return value;
+    }
+    let half = f64::from(1u32 << (bits - 1));
     let code = libm::round(value / full_scale * half).clamp(-half, half - 1.0);
     code * full_scale / half
 }

@@ -1,6 +1,7 @@
 //! The subcommands of the `rths` binary, one module each.
 
 pub mod analyze;
+pub mod benchmark;
 pub mod check_model;
 pub mod faults;
 pub mod identify;

@@ -229,3 +229,49 @@ fn fused_passes_equal_the_separate_ones_on_response_like_signals() {
     let nrmse = 100.0 * sqrt(sum / n as f64) / peak_abs(&t);
     assert_eq!(nrmse_pct(&x, &t).map(f64::to_bits), Ok(nrmse.to_bits()));
 }
+
+#[test]
+fn benchmark_criteria_on_known_signals() -> Result<(), MetricError> {
+    // Floor 1 measured = target delayed by 12 samples; floors 2-3 scaled copies of the reference.
+    // (Content at 15 Hz and above: J1's overlap-averaged correlation favours longer lags by
+    // n/(n − lag), which a slow signal's flat correlation peak would not outweigh.)
+    let dt = 1.0 / 4096.0;
+    let n = 8192;
+    // A broadband burst that starts and ends at rest, as an earthquake response does.
+    let sig = |k: usize, f: f64| {
+        let w = 2.0 * core::f64::consts::PI * k as f64 * dt;
+        let env = libm::sin(0.5 * w / 2.0);
+        env * env * (libm::sin(f * w) + 0.7 * libm::sin(3.3 * f * w) + 0.4 * libm::sin(7.9 * f * w))
+    };
+    let target: [f64; 8192] = core::array::from_fn(|k| sig(k, 15.0));
+    let measured: [f64; 8192] =
+        core::array::from_fn(|k| if k >= 12 { target[k - 12] } else { 0.0 });
+    let r1 = target;
+    let r2: [f64; 8192] = core::array::from_fn(|k| 2.0 * sig(k, 15.0));
+    let r3: [f64; 8192] = core::array::from_fn(|k| 3.0 * sig(k, 15.0));
+    let x2: [f64; 8192] = core::array::from_fn(|k| 1.1 * r2[k]); // 10% too large
+    let x3: [f64; 8192] = core::array::from_fn(|k| 0.95 * r3[k]); // 5% too small
+    let j = benchmark_criteria(&measured, &target, [&x2, &x3], [&r1, &r2, &r3], dt)?;
+    assert_eq!(j.j1_ms, 12.0 * dt * 1e3);
+    assert_eq!(
+        j.j2_pct, j.j4_pct,
+        "target and reference 1 are the same signal"
+    );
+    assert!(
+        (j.j6_pct - 10.0).abs() < 1e-9 && (j.j8_pct - 10.0).abs() < 1e-9,
+        "{j:?}"
+    );
+    assert!(
+        (j.j7_pct - 5.0).abs() < 1e-9 && (j.j9_pct - 5.0).abs() < 1e-9,
+        "{j:?}"
+    );
+    assert_eq!(j.as_array()[0], j.j1_ms);
+    assert_eq!(n, measured.len());
+    // A zero reference floor is refused, not divided by.
+    let zero = [0.0; 8192];
+    assert_eq!(
+        benchmark_criteria(&measured, &target, [&x2, &x3], [&r1, &zero, &r3], dt),
+        Err(MetricError::ZeroReference)
+    );
+    Ok(())
+}
