@@ -38,32 +38,27 @@ fn post_yield_ratio(alpha: f64) -> Result<f64, ParamError> {
     }
 }
 
-/// A validated hysteresis law of one story.
+/// A validated hysteresis law of one story (built only by [`Law::bilinear`] and
+/// [`Law::bouc_wen`], so every law in use passed their checks).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Law {
-    /// Bilinear kinematic hardening.
+pub struct Law(Kind);
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kind {
     Bilinear {
-        /// Initial (elastic) stiffness, kN/mm.
         k0_kn_per_mm: f64,
-        /// Yield force, kN.
         yield_force_kn: f64,
-        /// Post-yield stiffness ratio `α`.
         post_yield_ratio: f64,
     },
-    /// Bouc–Wen smooth hysteresis.
     BoucWen {
-        /// Initial (elastic) stiffness, kN/mm.
         k0_kn_per_mm: f64,
-        /// Yield force, kN.
         yield_force_kn: f64,
-        /// Post-yield stiffness ratio `α`.
         post_yield_ratio: f64,
-        /// Exponent `n`.
         exponent: f64,
-        /// `β`.
         beta: f64,
-        /// `γ`.
         gamma: f64,
+        /// `(β+γ)^(−1/n)`, the bound of `|z|`.
+        z_max: f64,
     },
 }
 
@@ -74,11 +69,11 @@ impl Law {
         yield_force_kn: f64,
         post_yield_ratio_: f64,
     ) -> Result<Self, ParamError> {
-        Ok(Law::Bilinear {
+        Ok(Law(Kind::Bilinear {
             k0_kn_per_mm: positive(k0_kn_per_mm, "initial story stiffness")?,
             yield_force_kn: positive(yield_force_kn, "yield force")?,
             post_yield_ratio: post_yield_ratio(post_yield_ratio_)?,
-        })
+        }))
     }
 
     /// Bouc–Wen: as [`Law::bilinear`], plus `n` in [`BOUC_WEN_EXPONENT_RANGE`], `β > 0` and
@@ -106,27 +101,30 @@ impl Law {
         if gamma.abs() > beta || gamma <= -beta {
             return Err(ParamError::OutOfRange("Bouc-Wen γ (−β < γ ≤ β)"));
         }
-        Ok(Law::BoucWen {
+        Ok(Law(Kind::BoucWen {
             k0_kn_per_mm: k0,
             yield_force_kn: fy,
             post_yield_ratio: alpha,
             exponent,
             beta,
             gamma,
-        })
+            z_max: libm::pow(beta + gamma, -1.0 / exponent),
+        }))
     }
 
     /// Initial stiffness, kN/mm.
     pub fn k0_kn_per_mm(&self) -> f64 {
-        match *self {
-            Law::Bilinear { k0_kn_per_mm, .. } | Law::BoucWen { k0_kn_per_mm, .. } => k0_kn_per_mm,
+        match self.0 {
+            Kind::Bilinear { k0_kn_per_mm, .. } | Kind::BoucWen { k0_kn_per_mm, .. } => {
+                k0_kn_per_mm
+            }
         }
     }
 
     /// Yield force, kN.
     pub fn yield_force_kn(&self) -> f64 {
-        match *self {
-            Law::Bilinear { yield_force_kn, .. } | Law::BoucWen { yield_force_kn, .. } => {
+        match self.0 {
+            Kind::Bilinear { yield_force_kn, .. } | Kind::BoucWen { yield_force_kn, .. } => {
                 yield_force_kn
             }
         }
@@ -175,9 +173,9 @@ impl Story {
 
     /// The force at the last update, kN.
     pub fn force_kn(&self) -> f64 {
-        match self.law {
-            Law::Bilinear { .. } => self.internal,
-            Law::BoucWen {
+        match self.law.0 {
+            Kind::Bilinear { .. } => self.internal,
+            Kind::BoucWen {
                 k0_kn_per_mm,
                 yield_force_kn,
                 post_yield_ratio,
@@ -196,8 +194,8 @@ impl Story {
             return self.force_kn();
         }
         let du = drift_mm - self.drift_mm;
-        match self.law {
-            Law::Bilinear {
+        match self.law.0 {
+            Kind::Bilinear {
                 k0_kn_per_mm,
                 yield_force_kn,
                 post_yield_ratio,
@@ -207,12 +205,13 @@ impl Story {
                 let band = (1.0 - post_yield_ratio) * yield_force_kn;
                 self.internal = trial.clamp(back - band, back + band);
             }
-            Law::BoucWen {
+            Kind::BoucWen {
                 k0_kn_per_mm,
                 yield_force_kn,
                 exponent,
                 beta,
                 gamma,
+                z_max,
                 ..
             } => {
                 let uy = yield_force_kn / k0_kn_per_mm;
@@ -224,10 +223,12 @@ impl Story {
                     let sign = if h * z >= 0.0 { 1.0 } else { -1.0 };
                     (1.0 - libm::pow(libm::fabs(z), exponent) * (beta * sign + gamma)) / uy
                 };
+                // `|z|` never exceeds its bound `(β+γ)^(−1/n)` (where dz/du vanishes); clamping
+                // to it keeps a drift jump far larger than the sub-step cap from overshooting.
                 let mut z = self.internal;
                 for _ in 0..steps {
-                    let mid = z + 0.5 * h * rate(z);
-                    z += h * rate(mid);
+                    let mid = (z + 0.5 * h * rate(z)).clamp(-z_max, z_max);
+                    z = (z + h * rate(mid)).clamp(-z_max, z_max);
                 }
                 self.internal = z;
             }

@@ -150,3 +150,32 @@ fn a_non_finite_drift_leaves_the_state_unchanged() {
         assert_eq!(s.drift_mm(), 0.3);
     }
 }
+
+proptest::proptest! {
+    /// Any admissible law on any drift path: finite forces, the bilinear force inside its band,
+    /// the Bouc–Wen `z` inside its bound.
+    #[test]
+    fn admissible_laws_stay_bounded(
+        k0 in 1.0..1000.0_f64,
+        fy in 0.1..5000.0_f64,
+        alpha in MIN_POST_YIELD_RATIO..0.99,
+        n in 1.0..20.0_f64,
+        gamma_over_beta in -0.99..1.0_f64,
+        path in proptest::collection::vec(-50.0..50.0_f64, 1..200),
+    ) {
+        let beta = 0.5;
+        let gamma = gamma_over_beta * beta;
+        let mut b = Story::new(Law::bilinear(k0, fy, alpha).unwrap());
+        let mut w = Story::new(Law::bouc_wen(k0, fy, alpha, n, beta, gamma).unwrap());
+        let z_max = libm::pow(1.0 / (beta + gamma), 1.0 / n) * (1.0 + 1e-6) + 1e-9;
+        for u in path {
+            let f = b.update(u);
+            proptest::prop_assert!(f.is_finite());
+            proptest::prop_assert!((f - alpha * k0 * u).abs() <= (1.0 - alpha) * fy * (1.0 + 1e-12) + 1e-9);
+            let g = w.update(u);
+            proptest::prop_assert!(g.is_finite());
+            let z = (g - alpha * k0 * u) / ((1.0 - alpha) * fy);
+            proptest::prop_assert!(z.abs() <= z_max.max(1.0) + 1e-6, "z = {} > {}", z, z_max);
+        }
+    }
+}
