@@ -163,7 +163,7 @@ fn nonlinear(args: &Args, path: &Path, motion: &GroundMotion) -> anyhow::Result<
         crate::nonlinear::FREE_VIBRATION_S
     );
     println!(
-        "structure              {} ({} stories, Chang explicit at {} Hz)",
+        "structure              {} ({} DOFs, Chang explicit at {} Hz)",
         structure.name(),
         structure.dofs(),
         1.0 / DT_S
@@ -222,10 +222,9 @@ fn nonlinear(args: &Args, path: &Path, motion: &GroundMotion) -> anyhow::Result<
     }
     if let Some(png) = &args.plot {
         let title = format!(
-            "{} under {} x{}: peak ductility {:.2}",
+            "{} under {}: peak ductility {:.2}",
             structure.name(),
             motion.name,
-            args.scale,
             r.peak_ductility()
         );
         crate::nonlinear::plot::hysteresis(png, &title, &r)?;
