@@ -94,3 +94,35 @@ fn a_linear_file_is_refused_by_the_nonlinear_path() {
     let e = fe_reference(&s, &el_centro(1.0), DT_S).unwrap_err();
     assert!(format!("{e:#}").contains("linear"), "{e:#}");
 }
+
+#[test]
+fn analyze_structure_prints_ductility_and_refuses_a_non_physical_law() {
+    let bin = env!("CARGO_BIN_EXE_rths");
+    let good = root("data/structures/paper-frame-yielding.json");
+    let out = std::process::Command::new(bin)
+        .args(["analyze", "--structure"])
+        .arg(&good)
+        .args(["--scale", "2.5"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains("peak ductility         4.685"), "{text}");
+    let bad_text = std::fs::read_to_string(&good)
+        .unwrap()
+        .replace("\"post_yield_ratio\": 0.05", "\"post_yield_ratio\": -0.5");
+    let bad = std::env::temp_dir().join(format!("rths-nl-bad-{}.json", std::process::id()));
+    std::fs::write(&bad, bad_text).unwrap();
+    let out = std::process::Command::new(bin)
+        .args(["analyze", "--structure"])
+        .arg(&bad)
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_file(&bad);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("story 1 hysteresis: post-yield ratio"),
+        "{err}"
+    );
+}
