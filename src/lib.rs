@@ -12,6 +12,7 @@ pub mod link_host;
 pub mod model_file;
 pub mod models;
 pub mod motion;
+pub mod nonlinear;
 pub mod plot;
 pub mod robustness;
 pub mod scenario;

@@ -5,7 +5,8 @@
 //! {"format": "rths-structure", "version": 1, "name": "vrths-case1", "description": "...",
 //!  "units": "si" | "mm-kn",
 //!  "matrices": {"mass": [[..]], "stiffness": [[..]], "damping": [[..]]},        (either this)
-//!  "stories": {"floor_mass": [..], "story_stiffness": [..], "damping_ratio": z}, (or this)
+//!  "stories": {"floor_mass": [..], "story_stiffness": [..], "damping_ratio": z,  (or this)
+//!              "hysteresis": [{"law": "bilinear", "yield_force": fy, "post_yield_ratio": a}, ..]},
 //!  "specimen": {"dof": 1, "mass": m, "stiffness": k, "damping_ratio": z | "damping": c}}
 //! ```
 //!
@@ -20,6 +21,14 @@
 //!   subtracted from the whole structure at that DOF to give the numerical part, as the vRTHS
 //!   benchmark partitions its frame (`docs/benchmark.md`).
 //!
+//! - `stories.hysteresis` (optional, one entry per story from the ground up): the numerical
+//!   stories yield. `"bilinear"` is kinematic hardening (`yield_force`, `post_yield_ratio`);
+//!   `"bouc-wen"` adds `exponent`, `beta`, `gamma` (`rths_core::hysteresis::Law`). The story's
+//!   initial stiffness is its `story_stiffness`, minus the specimen's stiffness in the first story:
+//!   a hysteretic file puts its specimen on DOF 1, where a spring to ground *is* a story spring, so
+//!   the whole structure is the yielding numerical stories plus the linear specimen. Forces are in
+//!   N (`"si"`) or kN (`"mm-kn"`). Without it the file loads exactly as before (version 1 kept).
+//!
 //! [`Structure::from_json`] checks the format tag and version first, then refuses with the reason:
 //! N = 0 or N > [`MAX_DOF`], a non-square or ragged matrix, a non-finite value, a matrix that is not
 //! symmetric (within [`SYMMETRY_TOLERANCE`] of its largest entry), a mass or stiffness that is not
@@ -29,9 +38,11 @@
 use std::path::{Path, PathBuf};
 
 use nalgebra::DMatrix;
+use rths_core::hysteresis::Law;
 use rths_core::params::ParamError;
 use rths_core::structure::ShearBuilding;
 use rths_core::structure_n::StructureN;
+use rths_core::structure_nl::NonlinearFrame;
 use serde::{Deserialize, Serialize};
 
 /// The `format` tag of every structure file.
@@ -65,6 +76,14 @@ impl Units {
             Units::MmKn => 1.0,
         }
     }
+
+    /// The factor from this system's force (N or kN) to kN.
+    pub fn force_to_kn(self) -> f64 {
+        match self {
+            Units::Si => 1e-3,
+            Units::MmKn => 1.0,
+        }
+    }
 }
 
 /// The whole structure's matrices, in the file's units, row by row.
@@ -89,6 +108,35 @@ pub struct Stories {
     pub story_stiffness: Vec<f64>,
     /// Damping ratio of the first and the last mode.
     pub damping_ratio: f64,
+    /// The numerical stories' hysteresis laws, from the ground up (absent: linear).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hysteresis: Option<Vec<StoryLawSpec>>,
+}
+
+/// A story's hysteresis law as stored (force in the file's units).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "law", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum StoryLawSpec {
+    /// Bilinear kinematic hardening.
+    Bilinear {
+        /// Yield force.
+        yield_force: f64,
+        /// Post-yield stiffness over initial stiffness.
+        post_yield_ratio: f64,
+    },
+    /// Bouc–Wen.
+    BoucWen {
+        /// Yield force.
+        yield_force: f64,
+        /// Post-yield stiffness over initial stiffness.
+        post_yield_ratio: f64,
+        /// Sharpness `n`.
+        exponent: f64,
+        /// `β`.
+        beta: f64,
+        /// `γ`.
+        gamma: f64,
+    },
 }
 
 /// The physical specimen, in the file's units.
@@ -226,6 +274,23 @@ pub enum StructureFileError {
     /// The core model refused the parameters.
     #[error("invalid structure: {0}")]
     Param(#[from] ParamError),
+    /// A story's hysteresis law is refused.
+    #[error("{}hysteresis: {reason}", story_prefix(*.story))]
+    Hysteresis {
+        /// The story, 1-based (0: the section as a whole).
+        story: usize,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// `"story N "` for a story's error, nothing for the section's.
+fn story_prefix(story: usize) -> String {
+    if story == 0 {
+        String::new()
+    } else {
+        format!("story {story} ")
+    }
 }
 
 /// A validated structure, in rths units (mm, kN, s).
@@ -240,6 +305,65 @@ pub struct Structure {
     specimen_mass: f64,
     specimen_stiffness: f64,
     specimen_damping: f64,
+    /// The numerical stories' laws (rths units), when the file has a `hysteresis` section.
+    story_laws: Option<Vec<Law>>,
+}
+
+/// The laws of a `hysteresis` section in rths units: story `i`'s initial stiffness is its story
+/// stiffness, minus the specimen's in the first story.
+fn story_laws(
+    s: &Stories,
+    specs: &[StoryLawSpec],
+    units: Units,
+    specimen_dof: usize,
+    specimen_k: f64,
+) -> Result<Vec<Law>, StructureFileError> {
+    let whole = |reason: &str| StructureFileError::Hysteresis {
+        story: 0,
+        reason: reason.to_string(),
+    };
+    if specs.len() != s.story_stiffness.len() {
+        return Err(whole(&format!(
+            "{} laws for {} stories (give one per story)",
+            specs.len(),
+            s.story_stiffness.len()
+        )));
+    }
+    if specimen_dof != 1 {
+        return Err(whole(
+            "a hysteretic frame puts its specimen on DOF 1 (the first story)",
+        ));
+    }
+    let force = units.force_to_kn();
+    let mut laws = Vec::with_capacity(specs.len());
+    for (i, (spec, k)) in specs.iter().zip(&s.story_stiffness).enumerate() {
+        let k0 = k * units.to_mm_kn() - if i == 0 { specimen_k } else { 0.0 };
+        let law = match *spec {
+            StoryLawSpec::Bilinear {
+                yield_force,
+                post_yield_ratio,
+            } => Law::bilinear(k0, yield_force * force, post_yield_ratio),
+            StoryLawSpec::BoucWen {
+                yield_force,
+                post_yield_ratio,
+                exponent,
+                beta,
+                gamma,
+            } => Law::bouc_wen(
+                k0,
+                yield_force * force,
+                post_yield_ratio,
+                exponent,
+                beta,
+                gamma,
+            ),
+        };
+        laws.push(law.map_err(|e| StructureFileError::Hysteresis {
+            story: i + 1,
+            reason: e.to_string(),
+        })?);
+    }
+    Ok(laws)
 }
 
 fn matrix(
@@ -418,6 +542,13 @@ impl StructureFile {
                 })
             }
         };
+        let laws = match &self.stories {
+            Some(st) => match &st.hysteresis {
+                Some(specs) => Some(story_laws(st, specs, self.units, sp.dof, k_e)?),
+                None => None,
+            },
+            None => None,
+        };
         let s = Structure {
             name: self.name.clone(),
             mass,
@@ -427,6 +558,7 @@ impl StructureFile {
             specimen_mass: m_e,
             specimen_stiffness: k_e,
             specimen_damping: c_e,
+            story_laws: laws,
         };
         let (m_n, _, _) = s.numerical_matrices();
         positive_definite(&m_n, "numerical mass (whole mass minus the specimen's)")?;
@@ -522,6 +654,52 @@ impl Structure {
         )?)
     }
 
+    /// The numerical stories' hysteresis laws (`None`: a linear structure).
+    pub fn story_laws(&self) -> Option<&[Law]> {
+        self.story_laws.as_deref()
+    }
+
+    /// The nonlinear numerical substructure for a step `dt_s`: mass `M − M_E`, damping `C − C_E`,
+    /// the yielding stories, Chang's coefficients on the whole initial `K`; the specimen's force
+    /// enters as `r_ext`. Refused for a linear structure.
+    pub fn nonlinear_numerical(&self, dt_s: f64) -> Result<NonlinearFrame, StructureFileError> {
+        let (m, _, c) = self.numerical_matrices();
+        self.nonlinear(&m, &c, &DMatrix::zeros(self.dofs(), self.dofs()), dt_s)
+    }
+
+    /// The whole nonlinear structure (the reference): the yielding stories plus the linear
+    /// specimen at DOF 1, whole mass and damping.
+    pub fn nonlinear_whole(&self, dt_s: f64) -> Result<NonlinearFrame, StructureFileError> {
+        let mut k_lin = DMatrix::zeros(self.dofs(), self.dofs());
+        k_lin[(self.specimen_dof, self.specimen_dof)] = self.specimen_stiffness;
+        self.nonlinear(&self.mass, &self.damping, &k_lin, dt_s)
+    }
+
+    fn nonlinear(
+        &self,
+        m: &DMatrix<f64>,
+        c: &DMatrix<f64>,
+        k_lin: &DMatrix<f64>,
+        dt_s: f64,
+    ) -> Result<NonlinearFrame, StructureFileError> {
+        let laws = self
+            .story_laws
+            .as_deref()
+            .ok_or_else(|| StructureFileError::Hysteresis {
+                story: 0,
+                reason: "this structure is linear (no \"hysteresis\" section)".to_string(),
+            })?;
+        let model = StructureN::new(
+            self.dofs(),
+            &row_major(m),
+            &row_major(c),
+            &row_major(k_lin),
+            &row_major(&self.stiffness),
+            &self.ground_mass(),
+        )?;
+        Ok(NonlinearFrame::new(model, laws, dt_s)?)
+    }
+
     /// `M·ι`, kN·s²/mm.
     pub fn ground_mass(&self) -> Vec<f64> {
         self.mass.column_sum().iter().copied().collect()
@@ -593,6 +771,78 @@ mod tests {
         assert!(
             e(&frame("[[1000, 0], [0, 1000]]", 1).replace("\"version\": 1", "\"version\": 2"))
                 .contains("version 2")
+        );
+    }
+
+    fn yielding(laws: &str, dof: usize) -> String {
+        format!(
+            r#"{{"format": "rths-structure", "version": 1, "name": "y", "units": "mm-kn",
+            "stories": {{"floor_mass": [0.5, 0.5], "story_stiffness": [200, 150], "damping_ratio": 0.02,
+                         "hysteresis": {laws}}},
+            "specimen": {{"dof": {dof}, "mass": 0, "stiffness": 50, "damping": 0}}}}"#
+        )
+    }
+
+    const TWO_LAWS: &str = r#"[{"law": "bilinear", "yield_force": 30, "post_yield_ratio": 0.05},
+        {"law": "bouc-wen", "yield_force": 20, "post_yield_ratio": 0.02, "exponent": 2,
+         "beta": 0.5, "gamma": 0.5}]"#;
+
+    #[test]
+    fn a_hysteresis_section_gives_yielding_numerical_stories() -> Result<(), StructureFileError> {
+        let s = Structure::from_json(&yielding(TWO_LAWS, 1))?;
+        let laws = s.story_laws().ok_or(StructureFileError::Definition)?;
+        // The specimen's 50 kN/mm comes off the first story only.
+        assert_eq!(laws[0].k0_kn_per_mm(), 150.0);
+        assert_eq!(laws[1].k0_kn_per_mm(), 150.0);
+        assert_eq!(laws[1].yield_force_kn(), 20.0);
+        assert_eq!(s.nonlinear_numerical(1.0 / 4096.0)?.dofs(), 2);
+        assert_eq!(s.nonlinear_whole(1.0 / 4096.0)?.dofs(), 2);
+        // Linear files load as before and refuse the nonlinear path with the reason.
+        let lin = Structure::from_json(&frame("[[1000, 0], [0, 1000]]", 1))?;
+        assert!(lin.story_laws().is_none());
+        let e = lin.nonlinear_whole(1.0 / 4096.0).map(|_| ()).unwrap_err();
+        assert!(e.to_string().contains("linear"));
+        Ok(())
+    }
+
+    #[test]
+    fn non_physical_hysteresis_is_refused_with_the_reason() {
+        let e = |laws: &str, dof: usize| {
+            Structure::from_json(&yielding(laws, dof))
+                .map(|_| ())
+                .unwrap_err()
+                .to_string()
+        };
+        let bl = |fy: &str, a: &str| {
+            format!(
+                r#"[{{"law": "bilinear", "yield_force": {fy}, "post_yield_ratio": {a}}},
+                   {{"law": "bilinear", "yield_force": 10, "post_yield_ratio": 0.0}}]"#
+            )
+        };
+        assert!(e(&bl("-5", "0.05"), 1).contains("story 1 hysteresis: yield force"));
+        assert!(e(&bl("0", "0.05"), 1).contains("yield force"));
+        assert!(e(&bl("10", "-0.5"), 1).contains("post-yield ratio"));
+        assert!(e(&bl("10", "1.5"), 1).contains("post-yield ratio"));
+        // NaN is not JSON; a string or null in its place is refused by the parser.
+        assert!(e(&bl("null", "0.05"), 1).contains("malformed"));
+        assert!(e(&bl("10", "0.05"), 2).contains("DOF 1"));
+        assert!(e(
+            r#"[{"law": "bilinear", "yield_force": 10, "post_yield_ratio": 0}]"#,
+            1
+        )
+        .contains("1 laws for 2 stories"));
+        assert!(e(&TWO_LAWS.replace("\"gamma\": 0.5", "\"gamma\": -0.5"), 1)
+            .contains("story 2 hysteresis: Bouc-Wen γ"));
+        assert!(e(&TWO_LAWS.replace("bilinear", "trilinear"), 1).contains("malformed"));
+        // A specimen stiffer than the first story leaves it no positive initial stiffness.
+        let soft = yielding(TWO_LAWS, 1).replace("[200, 150]", "[40, 150]");
+        let err = Structure::from_json(&soft)
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("story 1 hysteresis: initial story stiffness"),
+            "{err}"
         );
     }
 }

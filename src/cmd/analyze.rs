@@ -29,9 +29,14 @@ pub struct Args {
     /// Write the response (one row per 1/2048 s step) to this CSV file.
     #[arg(long, value_name = "FILE.csv")]
     pub out: Option<PathBuf>,
-    /// Draw ground acceleration, brace displacement and brace force (the paper's Figure 2) to this PNG.
+    /// Draw ground acceleration, brace displacement and brace force (the paper's Figure 2) to this PNG;
+    /// with `--structure`, the hysteresis (story force against drift) of every story.
     #[arg(long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
+    /// Analyze this structure file instead of the prototype; with a `hysteresis` section, the
+    /// nonlinear FE response (peak ductility, residual drift; docs/nonlinear.md).
+    #[arg(long, value_name = "FILE.json")]
+    pub structure: Option<PathBuf>,
 }
 
 /// The record named by `--motion`: an existing file first, then an embedded name.
@@ -60,6 +65,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let motion = load_motion(args.motion.as_deref())?.scaled(args.scale);
     motion.validate().context("ground motion")?;
+    if let Some(path) = &args.structure {
+        return nonlinear(&args, path, &motion);
+    }
     let proto = Prototype::paper();
     let ag = motion.resample_mm_s2(DT_S);
     let r = pure_response(&proto, &ag, DT_S, args.method).context("analysis")?;
@@ -137,4 +145,90 @@ pub fn actuator_warnings(s: &Summary, scale: f64) -> Vec<String> {
             )
         })
         .collect()
+}
+
+/// `rths analyze --structure FILE`: the nonlinear FE response of a yielding structure file.
+fn nonlinear(args: &Args, path: &Path, motion: &GroundMotion) -> anyhow::Result<()> {
+    if args.method != Method::Chang {
+        anyhow::bail!("--structure is integrated by Chang's explicit method only (drop --method)");
+    }
+    let structure = rths_files::structure_file::Structure::load(path)?;
+    let ag = motion.resample_mm_s2(DT_S);
+    let r = crate::nonlinear::fe_reference(&structure, &ag, DT_S)?;
+    println!(
+        "ground motion          {}: PGA {:.4} g, {:.3} s (+{} s free vibration)",
+        motion.name,
+        motion.pga_g(),
+        motion.duration_s(),
+        crate::nonlinear::FREE_VIBRATION_S
+    );
+    println!(
+        "structure              {} ({} DOFs, Chang explicit at {} Hz)",
+        structure.name(),
+        structure.dofs(),
+        1.0 / DT_S
+    );
+    println!("peak ductility         {:.3}", r.peak_ductility());
+    let residual = r.residual_drift_mm(DT_S);
+    let peaks = r.peak_story_force_kn();
+    for (j, uy) in r.yield_drift_mm.iter().enumerate() {
+        let peak_drift = r.story_drift_mm[j]
+            .iter()
+            .fold(0.0_f64, |m, v| m.max(v.abs()));
+        println!(
+            "story {}                yield drift {:.3} mm, peak drift {:.3} mm (ductility {:.2}), \
+             peak force {:.1} kN, residual drift {:.3} mm",
+            j + 1,
+            uy,
+            peak_drift,
+            peak_drift / uy,
+            peaks[j],
+            residual[j]
+        );
+    }
+    let elastic = crate::nonlinear::elastic_drifts(&structure, &r, DT_S)?;
+    let err = crate::nonlinear::drift_nrmse_pct(&elastic, &r)?;
+    let residual_lin = crate::nonlinear::NlResponse {
+        story_drift_mm: elastic,
+        ..Default::default()
+    }
+    .residual_drift_mm(DT_S);
+    for (j, (e, res)) in err.iter().zip(&residual_lin).enumerate() {
+        println!(
+            "elastic path, story {}  drift NRMSE {e:.2} % against the nonlinear reference, \
+             residual drift {res:.3} mm",
+            j + 1
+        );
+    }
+    if let Some(out) = &args.out {
+        use std::io::Write;
+        let file = std::fs::File::create(out).with_context(|| format!("{}", out.display()))?;
+        let mut w = std::io::BufWriter::new(file);
+        let n = r.story_drift_mm.len();
+        write!(w, "time_s,ground_accel_mm_s2")?;
+        for j in 1..=n {
+            write!(w, ",drift{j}_mm,force{j}_kn")?;
+        }
+        writeln!(w)?;
+        for (i, (t, a)) in r.time_s.iter().zip(&r.ground_accel_mm_s2).enumerate() {
+            write!(w, "{t},{a}")?;
+            for (d, f) in r.story_drift_mm.iter().zip(&r.story_force_kn) {
+                write!(w, ",{},{}", d[i], f[i])?;
+            }
+            writeln!(w)?;
+        }
+        w.flush()?;
+        println!("wrote {} ({} rows)", out.display(), r.time_s.len());
+    }
+    if let Some(png) = &args.plot {
+        let title = format!(
+            "{} under {}: peak ductility {:.2}",
+            structure.name(),
+            motion.name,
+            r.peak_ductility()
+        );
+        crate::nonlinear::plot::hysteresis(png, &title, &r)?;
+        println!("wrote {}", png.display());
+    }
+    Ok(())
 }

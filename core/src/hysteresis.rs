@@ -1,0 +1,242 @@
+//! Hysteretic story laws: the force–drift relation of a story that yields (docs/design.md §3.2).
+//!
+//! Two laws, both rate-independent and evaluated once per integration step at the step's drift
+//! (an explicit integrator fixes the displacement before the force is needed, so no iteration):
+//!
+//! - **Bilinear kinematic hardening**: elastic slope `k0` inside a yield band that translates along
+//!   the hardening line `α·k0·u`. The force is the elastic trial clamped to the band
+//!   `α·k0·u ± (1−α)·fy`, which is the exact return map of the law, so loops are exact
+//!   parallelograms (area `4·(1−α)·fy·(u_max − u_y)` per symmetric cycle).
+//! - **Bouc–Wen**: `f = α·k0·u + (1−α)·fy·z`, `dz/du = (1 − |z|ⁿ·(β·sgn(du·z) + γ))/u_y`, with
+//!   `u_y = fy/k0`; `z` is integrated over the step's drift increment by midpoint (RK2) sub-steps of
+//!   at most [`BOUC_WEN_MAX_SUBSTEP`]·`u_y` (bounded count, so the cost per tick is bounded).
+//!
+//! Units: mm, kN.
+
+use crate::params::{positive, ParamError};
+
+/// Lowest admissible post-yield stiffness ratio `α`. Mild softening (P-Δ) is allowed; steeper
+/// negative stiffness makes the story collapse under its own drift and is refused.
+pub const MIN_POST_YIELD_RATIO: f64 = -0.1;
+/// Highest admissible post-yield stiffness ratio (exclusive): `α = 1` is no yielding at all.
+pub const MAX_POST_YIELD_RATIO: f64 = 1.0;
+/// Admissible Bouc–Wen exponents `n` (sharpness of the yield knee).
+pub const BOUC_WEN_EXPONENT_RANGE: (f64, f64) = (1.0, 20.0);
+/// Largest Bouc–Wen sub-step, as a fraction of the yield drift `u_y`.
+pub const BOUC_WEN_MAX_SUBSTEP: f64 = 0.05;
+/// Most sub-steps per update (a drift jump larger than this many sub-steps is integrated in this
+/// many equal, coarser steps: the cost per tick stays bounded).
+pub const BOUC_WEN_MAX_SUBSTEPS: usize = 64;
+
+fn post_yield_ratio(alpha: f64) -> Result<f64, ParamError> {
+    if !alpha.is_finite() {
+        Err(ParamError::NotFinite("post-yield ratio"))
+    } else if !(MIN_POST_YIELD_RATIO..MAX_POST_YIELD_RATIO).contains(&alpha) {
+        Err(ParamError::OutOfRange("post-yield ratio (-0.1 ≤ α < 1)"))
+    } else {
+        Ok(alpha)
+    }
+}
+
+/// A validated hysteresis law of one story (built only by [`Law::bilinear`] and
+/// [`Law::bouc_wen`], so every law in use passed their checks).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Law(Kind);
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kind {
+    Bilinear {
+        k0_kn_per_mm: f64,
+        yield_force_kn: f64,
+        post_yield_ratio: f64,
+    },
+    BoucWen {
+        k0_kn_per_mm: f64,
+        yield_force_kn: f64,
+        post_yield_ratio: f64,
+        exponent: f64,
+        beta: f64,
+        gamma: f64,
+        /// `(β+γ)^(−1/n)`, the bound of `|z|`.
+        z_max: f64,
+    },
+}
+
+impl Law {
+    /// Bilinear kinematic hardening: `k0 > 0`, `fy > 0`, `α` in [[`MIN_POST_YIELD_RATIO`], 1).
+    pub fn bilinear(
+        k0_kn_per_mm: f64,
+        yield_force_kn: f64,
+        post_yield_ratio_: f64,
+    ) -> Result<Self, ParamError> {
+        Ok(Law(Kind::Bilinear {
+            k0_kn_per_mm: positive(k0_kn_per_mm, "initial story stiffness")?,
+            yield_force_kn: positive(yield_force_kn, "yield force")?,
+            post_yield_ratio: post_yield_ratio(post_yield_ratio_)?,
+        }))
+    }
+
+    /// Bouc–Wen: as [`Law::bilinear`], plus `n` in [`BOUC_WEN_EXPONENT_RANGE`], `β > 0` and
+    /// `|γ| ≤ β` (the loop is traversed clockwise and dissipates energy) and `β + γ > 0` (z is
+    /// bounded, so the story yields at `fy·(β+γ)^(−1/n)`; `β = γ = ½` yields at `fy`).
+    pub fn bouc_wen(
+        k0_kn_per_mm: f64,
+        yield_force_kn: f64,
+        post_yield_ratio_: f64,
+        exponent: f64,
+        beta: f64,
+        gamma: f64,
+    ) -> Result<Self, ParamError> {
+        let k0 = positive(k0_kn_per_mm, "initial story stiffness")?;
+        let fy = positive(yield_force_kn, "yield force")?;
+        let alpha = post_yield_ratio(post_yield_ratio_)?;
+        if !exponent.is_finite() || !gamma.is_finite() {
+            return Err(ParamError::NotFinite("Bouc-Wen n or γ"));
+        }
+        let (lo, hi) = BOUC_WEN_EXPONENT_RANGE;
+        if !(lo..=hi).contains(&exponent) {
+            return Err(ParamError::OutOfRange("Bouc-Wen exponent n (1..=20)"));
+        }
+        let beta = positive(beta, "Bouc-Wen β")?;
+        if gamma.abs() > beta || gamma <= -beta {
+            return Err(ParamError::OutOfRange("Bouc-Wen γ (−β < γ ≤ β)"));
+        }
+        Ok(Law(Kind::BoucWen {
+            k0_kn_per_mm: k0,
+            yield_force_kn: fy,
+            post_yield_ratio: alpha,
+            exponent,
+            beta,
+            gamma,
+            z_max: libm::pow(beta + gamma, -1.0 / exponent),
+        }))
+    }
+
+    /// Initial stiffness, kN/mm.
+    pub fn k0_kn_per_mm(&self) -> f64 {
+        match self.0 {
+            Kind::Bilinear { k0_kn_per_mm, .. } | Kind::BoucWen { k0_kn_per_mm, .. } => {
+                k0_kn_per_mm
+            }
+        }
+    }
+
+    /// Yield force, kN.
+    pub fn yield_force_kn(&self) -> f64 {
+        match self.0 {
+            Kind::Bilinear { yield_force_kn, .. } | Kind::BoucWen { yield_force_kn, .. } => {
+                yield_force_kn
+            }
+        }
+    }
+
+    /// Yield drift `fy/k0`, mm: the unit of ductility.
+    pub fn yield_drift_mm(&self) -> f64 {
+        self.yield_force_kn() / self.k0_kn_per_mm()
+    }
+}
+
+/// A story: its law and its small state (last drift and the law's internal variable).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Story {
+    law: Law,
+    drift_mm: f64,
+    /// Bilinear: the force, kN. Bouc–Wen: `z`.
+    internal: f64,
+}
+
+impl Story {
+    /// A story at rest.
+    pub fn new(law: Law) -> Self {
+        Self {
+            law,
+            drift_mm: 0.0,
+            internal: 0.0,
+        }
+    }
+
+    /// The law.
+    pub fn law(&self) -> &Law {
+        &self.law
+    }
+
+    /// Back to rest, virgin state.
+    pub fn reset(&mut self) {
+        self.drift_mm = 0.0;
+        self.internal = 0.0;
+    }
+
+    /// The drift of the last update, mm.
+    pub fn drift_mm(&self) -> f64 {
+        self.drift_mm
+    }
+
+    /// The force at the last update, kN.
+    pub fn force_kn(&self) -> f64 {
+        match self.law.0 {
+            Kind::Bilinear { .. } => self.internal,
+            Kind::BoucWen {
+                k0_kn_per_mm,
+                yield_force_kn,
+                post_yield_ratio,
+                ..
+            } => {
+                post_yield_ratio * k0_kn_per_mm * self.drift_mm
+                    + (1.0 - post_yield_ratio) * yield_force_kn * self.internal
+            }
+        }
+    }
+
+    /// Move to `drift_mm` (the path from the last drift is taken as monotonic) and return the
+    /// story force, kN. A non-finite drift leaves the state unchanged.
+    pub fn update(&mut self, drift_mm: f64) -> f64 {
+        if !drift_mm.is_finite() {
+            return self.force_kn();
+        }
+        let du = drift_mm - self.drift_mm;
+        match self.law.0 {
+            Kind::Bilinear {
+                k0_kn_per_mm,
+                yield_force_kn,
+                post_yield_ratio,
+            } => {
+                let trial = self.internal + k0_kn_per_mm * du;
+                let back = post_yield_ratio * k0_kn_per_mm * drift_mm;
+                let band = (1.0 - post_yield_ratio) * yield_force_kn;
+                self.internal = trial.clamp(back - band, back + band);
+            }
+            Kind::BoucWen {
+                k0_kn_per_mm,
+                yield_force_kn,
+                exponent,
+                beta,
+                gamma,
+                z_max,
+                ..
+            } => {
+                let uy = yield_force_kn / k0_kn_per_mm;
+                let ratio = libm::fabs(du) / (BOUC_WEN_MAX_SUBSTEP * uy);
+                // `ratio` is finite and ≥ 0 here; the cast saturates.
+                let steps = (libm::ceil(ratio) as usize).clamp(1, BOUC_WEN_MAX_SUBSTEPS);
+                let h = du / steps as f64;
+                let rate = |z: f64| {
+                    let sign = if h * z >= 0.0 { 1.0 } else { -1.0 };
+                    (1.0 - libm::pow(libm::fabs(z), exponent) * (beta * sign + gamma)) / uy
+                };
+                // `|z|` never exceeds its bound `(β+γ)^(−1/n)` (where dz/du vanishes); clamping
+                // to it keeps a drift jump far larger than the sub-step cap from overshooting.
+                let mut z = self.internal;
+                for _ in 0..steps {
+                    let mid = (z + 0.5 * h * rate(z)).clamp(-z_max, z_max);
+                    z = (z + h * rate(mid)).clamp(-z_max, z_max);
+                }
+                self.internal = z;
+            }
+        }
+        self.drift_mm = drift_mm;
+        self.force_kn()
+    }
+}
+
+#[cfg(test)]
+mod tests;
