@@ -12,8 +12,9 @@
 //! - **Converters**: AD7606 on SPI2 (PB13/14/15, CS PB12), AD5754R on SPI1 (PB3/4/5, SYNC PD0), both
 //!   at 10 MHz (80 MHz / 8), mode 2.
 //! - **Link**: USART2 (PA2 TX, PA3 RX) at 2 Mbaud (120 MHz / 60, exact), 8N1.
-//! - **Watchdog**: the IWDG ([`Watchdog`], on the 32 kHz LSI), started by the firmware once it feeds
-//!   it every tick (not started by [`init`]: a started IWDG cannot be stopped).
+//! - **Watchdog**: the IWDG ([`Watchdog`], on the 32 kHz LSI), the app's `Watchdog`: started by the
+//!   control task at its first tick and fed every tick (not by [`init`]: a started IWDG cannot be
+//!   stopped).
 //! - **Instruction counter**: the DWT cycle counter (cycles: an upper bound of the instructions).
 //!
 //! The HAL (`stm32h7xx-hal`) implements embedded-hal 0.2; [`eh1`] adapts its SPI buses and pins to
