@@ -74,15 +74,16 @@ pub static __INTERRUPTS: [Vector; LINES] = {
     v
 };
 
-/// CMSDK APB TIMER0 at 0x4000_0000 (a 32-bit down-counter on the 25 MHz PCLK).
-pub struct TIMER0 {
+/// A CMSDK APB timer at `BASE`: a 32-bit down-counter on the 25 MHz PCLK.
+pub struct CmsdkTimer<const BASE: usize> {
     _own: (),
 }
 
-/// CMSDK APB TIMER1 at 0x4000_1000 (the same timer as TIMER0).
-pub struct TIMER1 {
-    _own: (),
-}
+/// CMSDK APB TIMER0 at 0x4000_0000: the controller tick.
+pub type TIMER0 = CmsdkTimer<0x4000_0000>;
+
+/// CMSDK APB TIMER1 at 0x4000_1000: the emulated watchdog's check.
+pub type TIMER1 = CmsdkTimer<0x4000_1000>;
 
 /// CMSDK APB UART1 at 0x4000_5000 (QEMU's second `-serial`).
 pub struct UART1 {
@@ -106,43 +107,22 @@ impl Reg {
     }
 }
 
-impl TIMER0 {
-    const BASE: usize = 0x4000_0000;
+impl<const BASE: usize> CmsdkTimer<BASE> {
     /// CTRL: bit 0 enable, bit 3 interrupt enable.
     pub(crate) fn ctrl(&self) -> Reg {
-        Reg(Self::BASE)
+        Reg(BASE)
     }
     /// VALUE: the current count (counts down).
     pub(crate) fn value(&self) -> Reg {
-        Reg(Self::BASE + 0x4)
+        Reg(BASE + 0x4)
     }
     /// RELOAD: loaded into VALUE when it reaches 0.
     pub(crate) fn reload(&self) -> Reg {
-        Reg(Self::BASE + 0x8)
+        Reg(BASE + 0x8)
     }
     /// INTSTATUS (read) / INTCLEAR (write 1): bit 0, the count reached 0.
     pub(crate) fn int(&self) -> Reg {
-        Reg(Self::BASE + 0xC)
-    }
-}
-
-impl TIMER1 {
-    const BASE: usize = 0x4000_1000;
-    /// CTRL: bit 0 enable, bit 3 interrupt enable.
-    pub(crate) fn ctrl(&self) -> Reg {
-        Reg(Self::BASE)
-    }
-    /// VALUE: the current count (counts down).
-    pub(crate) fn value(&self) -> Reg {
-        Reg(Self::BASE + 0x4)
-    }
-    /// RELOAD: loaded into VALUE when it reaches 0.
-    pub(crate) fn reload(&self) -> Reg {
-        Reg(Self::BASE + 0x8)
-    }
-    /// INTSTATUS (read) / INTCLEAR (write 1): bit 0, the count reached 0.
-    pub(crate) fn int(&self) -> Reg {
-        Reg(Self::BASE + 0xC)
+        Reg(BASE + 0xC)
     }
 }
 
