@@ -6,8 +6,7 @@
 mod common;
 use common::*;
 use std::path::Path;
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
 
 use rths::model_file::ModelFile;
 use rths::models;
@@ -157,41 +156,7 @@ fn lrx_firmware_matches_the_host_and_fits_the_budget() {
         &elf,
     )
     .unwrap();
-    let cfg = std::fs::read_to_string(firmware_dir().join(".cargo/config.toml")).unwrap();
-    let line = cfg
-        .lines()
-        .find(|l| l.trim_start().starts_with("runner"))
-        .unwrap();
-    let argv: Vec<&str> = line.split('"').nth(1).unwrap().split_whitespace().collect();
-    let dir = tempfile::tempdir().unwrap();
-    let mut child = Command::new(argv[0])
-        .args(&argv[1..])
-        .arg(&elf)
-        .current_dir(dir.path())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    let exit = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if start.elapsed() > Duration::from_secs(300) {
-            let _ = child.kill();
-            panic!("QEMU did not finish within 300 s");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let mut out = String::new();
-    std::io::Read::read_to_string(&mut child.stdout.take().unwrap(), &mut out).unwrap();
-    let result = out
-        .lines()
-        .rev()
-        .find_map(|l| l.strip_prefix("RESULT "))
-        .unwrap_or_else(|| panic!("no RESULT line in:\n{out}"));
-    let r: serde_json::Value = serde_json::from_str(result).unwrap();
-    println!("{r}");
+    let (exit, r) = run_elf_in_qemu(&elf);
     assert!(exit.success(), "{r}");
     assert_eq!(r["scenario"], "lrx-online");
     assert_eq!(r["ticks"], 81_900);

@@ -37,3 +37,45 @@ pub fn qemu_missing(what: &str) -> bool {
     }
     !found
 }
+
+/// Run a firmware ELF in QEMU with the firmware's own runner line (`.cargo/config.toml`), from an
+/// empty directory, at most 300 s; print and return its exit status and its `RESULT` object.
+pub fn run_elf_in_qemu(elf: &Path) -> (std::process::ExitStatus, serde_json::Value) {
+    use std::time::{Duration, Instant};
+    let cfg = std::fs::read_to_string(firmware_dir().join(".cargo/config.toml")).unwrap();
+    let line = cfg
+        .lines()
+        .find(|l| l.trim_start().starts_with("runner"))
+        .unwrap();
+    let argv: Vec<&str> = line.split('"').nth(1).unwrap().split_whitespace().collect();
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = Command::new(argv[0])
+        .args(&argv[1..])
+        .arg(elf)
+        .current_dir(dir.path())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    let exit = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if start.elapsed() > Duration::from_secs(300) {
+            let _ = child.kill();
+            panic!("QEMU did not finish within 300 s");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut out = String::new();
+    std::io::Read::read_to_string(&mut child.stdout.take().unwrap(), &mut out).unwrap();
+    let result = out
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("RESULT "))
+        .unwrap_or_else(|| panic!("no RESULT line in:\n{out}"));
+    let r: serde_json::Value = serde_json::from_str(result).unwrap();
+    println!("{r}");
+    (exit, r)
+}
