@@ -38,8 +38,8 @@ pub fn qemu_missing(what: &str) -> bool {
     !found
 }
 
-/// Run a firmware ELF in QEMU with the firmware's own runner line (`.cargo/config.toml`), from an
-/// empty directory, at most 300 s; print and return its exit status and its `RESULT` object.
+/// Run a firmware ELF in QEMU with the firmware's own runner line (`firmware/.cargo/config.toml`),
+/// from an empty directory, at most 300 s; print and return its exit status and its `RESULT` object.
 pub fn run_elf_in_qemu(elf: &Path) -> (std::process::ExitStatus, serde_json::Value) {
     use std::time::{Duration, Instant};
     let cfg = std::fs::read_to_string(firmware_dir().join(".cargo/config.toml")).unwrap();
