@@ -117,6 +117,16 @@ pub enum Analytical {
     Rnn(Rnn),
     /// The specimen-faithful linear metamodel of the frame alone (measured force as an input).
     Lrx(Lrx),
+    // ---- structure files (issues 15, 16): the feedback is the specimen's measured displacement
+    // and force at the structure's specimen DOF (a unit [`SpecimenScale`]), the target the
+    // displacement there.
+    /// Finite elements (Chang) of an N-DOF linear numerical substructure.
+    StructureFe(StructureFe),
+    /// Finite elements (Chang) of an N-story numerical substructure whose stories yield.
+    StructureNl(StructureNl),
+    /// The structure metamodel (delta ARX) of an N-DOF numerical substructure: constant cost per
+    /// tick whatever N is.
+    StructureMeta(DeltaArx),
 }
 
 impl Analytical {
@@ -143,6 +153,11 @@ impl Analytical {
                     brace_force_fb_kn: fb.brace_force_kn,
                 })
                 .map_err(|_| StepError::NonFiniteOutput)?,
+            Analytical::StructureFe(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
+            Analytical::StructureNl(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
+            Analytical::StructureMeta(m) => m
+                .predict(ag_mm_s2, fb.brace_disp_mm, fb.brace_force_kn)
+                .map_err(|_| StepError::NonFiniteOutput)?,
         };
         if y.is_finite() {
             Ok(y)
@@ -157,6 +172,9 @@ impl Analytical {
             Analytical::Lr(m) => m.reset(),
             Analytical::Rnn(m) => m.reset(),
             Analytical::Lrx(m) => m.reset(),
+            Analytical::StructureFe(m) => m.reset(),
+            Analytical::StructureNl(m) => m.reset(),
+            Analytical::StructureMeta(m) => m.reset(),
         }
     }
 }
@@ -423,6 +441,10 @@ impl Controller {
         Ok((target, command))
     }
 }
+
+mod structure;
+use crate::metamodel::DeltaArx;
+pub use structure::{StoryLawSpec, StructureFe, StructureNl, StructureSpec};
 
 #[cfg(test)]
 mod tests;

@@ -134,6 +134,33 @@ impl Law {
     pub fn yield_drift_mm(&self) -> f64 {
         self.yield_force_kn() / self.k0_kn_per_mm()
     }
+
+    /// Post-yield stiffness over initial stiffness `α`.
+    pub fn post_yield_ratio(&self) -> f64 {
+        match self.0 {
+            Kind::Bilinear {
+                post_yield_ratio, ..
+            }
+            | Kind::BoucWen {
+                post_yield_ratio, ..
+            } => post_yield_ratio,
+        }
+    }
+
+    /// Bouc–Wen's `[n, β, γ]` (`None`: bilinear). With [`Self::k0_kn_per_mm`],
+    /// [`Self::yield_force_kn`] and [`Self::post_yield_ratio`] they rebuild the law exactly (the
+    /// firmware's build script compiles a structure file's laws in this way).
+    pub fn bouc_wen_shape(&self) -> Option<[f64; 3]> {
+        match self.0 {
+            Kind::Bilinear { .. } => None,
+            Kind::BoucWen {
+                exponent,
+                beta,
+                gamma,
+                ..
+            } => Some([exponent, beta, gamma]),
+        }
+    }
 }
 
 /// A story: its law and its small state (last drift and the law's internal variable).

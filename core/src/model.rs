@@ -8,11 +8,14 @@
 use crate::compensator::{
     Ats, AtsConfig, AtsParams, Compensator, Lead, LeadAdaptParams, LeadParams, LEAD_TAPS,
 };
-use crate::control::{Analytical, FeModel};
+use crate::control::{Analytical, FeModel, StructureFe, StructureNl, StructureSpec};
+use crate::hysteresis::Law;
+use crate::metamodel::{DeltaArx, DeltaArxParams};
 use crate::metamodel::{
     Lr, LrParams, Lrx, LrxParams, ModelError, Rnn, RnnParams, RnnScaling, RnnWeights,
 };
 use crate::params::{Prototype, DT_S};
+use crate::structure_n::{StructureN, MAX_DOF};
 
 /// The analytical part of a run (and its compensator), with raw weights borrowed as a model file
 /// stores them.
@@ -56,6 +59,25 @@ pub enum ModelSpec<'a> {
         /// The delay the ATS starts from, s.
         expected_delay_s: f64,
     },
+    // ---- structure files (issues 15, 16); no compensator.
+    /// Finite elements (Chang) of a linear N-DOF structure file's numerical part.
+    StructureFe {
+        /// The structure (no story laws).
+        structure: StructureSpec<'a>,
+    },
+    /// Finite elements (Chang) of a yielding structure file's numerical part.
+    StructureNl {
+        /// The structure (one story law per DOF).
+        structure: StructureSpec<'a>,
+    },
+    /// The structure metamodel (`rths train meta`).
+    StructureMeta {
+        /// Coefficients, [`crate::metamodel::DELTA_ARX_COEFFS`], order of
+        /// [`crate::metamodel::delta_features`].
+        theta: &'a [f64],
+        /// The force correction's stiffness, kN/mm.
+        k_corr_kn_per_mm: f64,
+    },
 }
 
 /// A [`ModelSpec`] whose weights passed validation.
@@ -76,6 +98,13 @@ pub enum Model {
         /// The delay the ATS starts from, s.
         expected_delay_s: f64,
     },
+    // ---- structure files (issues 15, 16).
+    /// A linear N-DOF numerical part and its specimen's DOF.
+    StructureFe(StructureN, usize),
+    /// A yielding numerical part, its specimen's DOF and its story laws (the first N).
+    StructureNl(StructureN, usize, [Law; MAX_DOF]),
+    /// The structure metamodel.
+    StructureMeta(DeltaArxParams),
 }
 
 impl ModelSpec<'_> {
@@ -105,6 +134,23 @@ impl ModelSpec<'_> {
             }
             ModelSpec::Fe => Model::Fe,
             ModelSpec::FeAts { expected_delay_s } => Model::FeAts { expected_delay_s },
+            ModelSpec::StructureFe { structure } => {
+                // Built once to refuse a structure the integrator cannot step (singular D).
+                structure.linear(DT_S)?;
+                Model::StructureFe(structure.numerical()?, structure.specimen_dof)
+            }
+            ModelSpec::StructureNl { structure } => {
+                structure.yielding(DT_S)?;
+                Model::StructureNl(
+                    structure.numerical()?,
+                    structure.specimen_dof,
+                    structure.story_laws()?,
+                )
+            }
+            ModelSpec::StructureMeta {
+                theta,
+                k_corr_kn_per_mm,
+            } => Model::StructureMeta(DeltaArxParams::from_slice(theta, k_corr_kn_per_mm)?),
         })
     }
 }
@@ -123,6 +169,15 @@ impl Model {
             Model::Lrx(p, lead) => Ok(lrx_parts(p, lead)),
             Model::Fe => fe_parts(proto, dt_s, None),
             Model::FeAts { expected_delay_s } => fe_parts(proto, dt_s, Some(expected_delay_s)),
+            Model::StructureFe(m, dof) => Ok((
+                Analytical::StructureFe(StructureFe::new(m, dof, dt_s)?),
+                Compensator::None,
+            )),
+            Model::StructureNl(m, dof, laws) => Ok((
+                Analytical::StructureNl(StructureNl::build(m, &laws, dof, dt_s)?),
+                Compensator::None,
+            )),
+            Model::StructureMeta(p) => Ok(meta_parts(p)),
         }
     }
 }
@@ -206,7 +261,30 @@ pub fn assemble(
         ModelSpec::Lrx { .. } => spec.validate()?.assemble(proto, dt_s),
         ModelSpec::Fe => fe_parts(proto, dt_s, None),
         ModelSpec::FeAts { expected_delay_s } => fe_parts(proto, dt_s, Some(expected_delay_s)),
+        // Built in place, not through `Model` (stack, as above).
+        ModelSpec::StructureFe { structure } => Ok((
+            Analytical::StructureFe(structure.linear(dt_s)?),
+            Compensator::None,
+        )),
+        ModelSpec::StructureNl { structure } => Ok((
+            Analytical::StructureNl(structure.yielding(dt_s)?),
+            Compensator::None,
+        )),
+        ModelSpec::StructureMeta {
+            theta,
+            k_corr_kn_per_mm,
+        } => Ok(meta_parts(DeltaArxParams::from_slice(
+            theta,
+            k_corr_kn_per_mm,
+        )?)),
     }
+}
+
+fn meta_parts(p: DeltaArxParams) -> (Analytical, Compensator) {
+    (
+        Analytical::StructureMeta(DeltaArx::new(p)),
+        Compensator::None,
+    )
 }
 
 #[cfg(test)]

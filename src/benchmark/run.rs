@@ -247,8 +247,6 @@ pub fn run(cfg: &RunConfig) -> anyhow::Result<RunResult> {
         ControllerKind::MetaAts => Some(trained(cfg.case, &structure)?),
         _ => None,
     };
-    let (_, k_e_nominal, _) = structure.specimen();
-    let k_corr = META_FORCE_CORRECTION * k_e_nominal;
     let mut ats = match cfg.controller {
         ControllerKind::Fe => None,
         ControllerKind::FeAts | ControllerKind::MetaAts => Some(Ats::new(
@@ -290,7 +288,8 @@ pub fn run(cfg: &RunConfig) -> anyhow::Result<RunResult> {
                 h.target_mm.push(d_k);
                 // Toward the force the specimen would have at the model's own displacement
                 // (LRX's correction; stiffness from the structure file, see META_FORCE_CORRECTION).
-                m.step(a, f_m + k_corr * (d_k - x_m))
+                // A refused (non-finite) step is a divergence, caught below.
+                m.predict(a, x_m, f_m).unwrap_or(f64::NAN)
             }
             None => {
                 h.target_mm.push(integ.disp()[dof]);

@@ -1,5 +1,6 @@
 //! Metamodel inference (docs/design.md §5): the linear-regression (LR) model of the paper's Eq. 6 with a bias,
-//! a basic Elman RNN, and the specimen-faithful LRX, one file each (`lr.rs`, `rnn.rs`, `lrx.rs`). Training
+//! a basic Elman RNN, and the specimen-faithful LRX, one file each (`lr.rs`, `rnn.rs`, `lrx.rs`), and the structure
+//! metamodel of an N-DOF numerical substructure (`delta_arx.rs`). Training
 //! lives on the host; this is the `no_std`, allocation-free inference the firmware runs at 2048 Hz.
 //!
 //! Units of every feature: ground acceleration ü_g in mm/s², measured brace deformation x_fb in mm
@@ -14,10 +15,12 @@
 pub use crate::filter::InputError;
 use crate::params::ParamError;
 
+mod delta_arx;
 mod lr;
 mod lrx;
 mod rnn;
 
+pub use delta_arx::*;
 pub use lr::*;
 pub use lrx::*;
 pub use rnn::*;

@@ -1,0 +1,285 @@
+//! The analytical parts of a structure-file test: an N-DOF numerical substructure (linear, or with
+//! yielding stories) integrated by Chang's explicit method, fed the measured specimen force at the
+//! specimen's DOF and giving the target displacement there (docs/benchmark.md, docs/nonlinear.md).
+//! The structure metamodel of the same substructure is [`crate::metamodel::DeltaArx`].
+//!
+//! Each step is the vRTHS benchmark loop's (`src/benchmark/run.rs`): at tick 0 the structure is at
+//! rest under `ü_g(0)` (the initial condition); at tick k > 0 the step completes with `ü_g(k)` and
+//! the measured force as the specimen's restoring force at its DOF; the target is the next
+//! displacement at that DOF. A non-finite input is refused before it touches the state.
+
+use crate::hysteresis::Law;
+use crate::params::ParamError;
+use crate::structure_n::{ChangN, StructureN, MAX_DOF};
+use crate::structure_nl::NonlinearFrame;
+
+/// An N-DOF structure as a structure file describes its numerical part, raw (row-major `dofs ×
+/// dofs` matrices; validated by [`Self::linear`] and [`Self::yielding`]). Firmware keeps one in a
+/// `const` over its generated `&'static` arrays.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StructureSpec<'a> {
+    /// DOFs, 1..=[`MAX_DOF`].
+    pub dofs: usize,
+    /// Numerical mass, kN·s²/mm.
+    pub mass: &'a [f64],
+    /// Numerical damping, kN·s/mm.
+    pub damping: &'a [f64],
+    /// Numerical linear stiffness, kN/mm (zero for a yielding frame: its stories carry it).
+    pub stiffness: &'a [f64],
+    /// Whole-structure initial stiffness (Chang's coefficients), kN/mm.
+    pub initial_stiffness: &'a [f64],
+    /// Whole-structure `M·ι`, kN·s²/mm.
+    pub ground_mass: &'a [f64],
+    /// The specimen's DOF, 0-based.
+    pub specimen_dof: usize,
+    /// The stories' laws from the ground up (empty: linear).
+    pub laws: &'a [StoryLawSpec],
+}
+
+/// A story's hysteresis law, raw: [`Law::bilinear`] or, with `bouc_wen = Some([n, β, γ])`,
+/// [`Law::bouc_wen`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StoryLawSpec {
+    /// Initial stiffness, kN/mm.
+    pub k0_kn_per_mm: f64,
+    /// Yield force, kN.
+    pub yield_force_kn: f64,
+    /// Post-yield stiffness ratio.
+    pub post_yield_ratio: f64,
+    /// Bouc–Wen's `[n, β, γ]`; `None`: bilinear.
+    pub bouc_wen: Option<[f64; 3]>,
+}
+
+impl StoryLawSpec {
+    /// The raw form of a validated law (rebuilt exactly by [`Self::validate`]).
+    pub fn of(law: &Law) -> Self {
+        Self {
+            k0_kn_per_mm: law.k0_kn_per_mm(),
+            yield_force_kn: law.yield_force_kn(),
+            post_yield_ratio: law.post_yield_ratio(),
+            bouc_wen: law.bouc_wen_shape(),
+        }
+    }
+
+    /// The validated law.
+    pub fn validate(&self) -> Result<Law, ParamError> {
+        match self.bouc_wen {
+            None => Law::bilinear(
+                self.k0_kn_per_mm,
+                self.yield_force_kn,
+                self.post_yield_ratio,
+            ),
+            Some([n, beta, gamma]) => Law::bouc_wen(
+                self.k0_kn_per_mm,
+                self.yield_force_kn,
+                self.post_yield_ratio,
+                n,
+                beta,
+                gamma,
+            ),
+        }
+    }
+}
+
+impl StructureSpec<'_> {
+    /// The validated numerical substructure (the specimen's DOF checked against it).
+    pub fn numerical(&self) -> Result<StructureN, ParamError> {
+        let m = StructureN::new(
+            self.dofs,
+            self.mass,
+            self.damping,
+            self.stiffness,
+            self.initial_stiffness,
+            self.ground_mass,
+        )?;
+        if self.specimen_dof >= m.dofs() {
+            return Err(ParamError::OutOfRange(
+                "specimen DOF (beyond the structure)",
+            ));
+        }
+        Ok(m)
+    }
+
+    /// The validated story laws, one per DOF (entries past the DOFs repeat the first and are
+    /// unused).
+    pub fn story_laws(&self) -> Result<[Law; MAX_DOF], ParamError> {
+        if self.laws.len() != self.dofs {
+            return Err(ParamError::OutOfRange("one story law per DOF"));
+        }
+        let first = self
+            .laws
+            .first()
+            .ok_or(ParamError::OutOfRange("one story law per DOF"))?
+            .validate()?;
+        let mut laws = [first; MAX_DOF];
+        for (l, s) in laws.iter_mut().zip(self.laws) {
+            *l = s.validate()?;
+        }
+        Ok(laws)
+    }
+
+    /// The linear FE part at step `dt_s` (refused if the spec has story laws).
+    pub fn linear(&self, dt_s: f64) -> Result<StructureFe, ParamError> {
+        if !self.laws.is_empty() {
+            return Err(ParamError::OutOfRange(
+                "a yielding structure (story laws) as a linear one",
+            ));
+        }
+        StructureFe::new(self.numerical()?, self.specimen_dof, dt_s)
+    }
+
+    /// The yielding FE part at step `dt_s` (one law per DOF).
+    pub fn yielding(&self, dt_s: f64) -> Result<StructureNl, ParamError> {
+        StructureNl::build(
+            self.numerical()?,
+            &self.story_laws()?,
+            self.specimen_dof,
+            dt_s,
+        )
+    }
+}
+
+/// Refuse a non-finite ground acceleration or force (the state is not touched).
+fn finite_inputs(ag_mm_s2: f64, force_kn: f64) -> Result<(), super::StepError> {
+    if !ag_mm_s2.is_finite() {
+        Err(super::StepError::NonFiniteGroundAccel)
+    } else if !force_kn.is_finite() {
+        Err(super::StepError::NonFiniteOutput)
+    } else {
+        Ok(())
+    }
+}
+
+/// A linear N-DOF numerical substructure integrated by [`ChangN`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StructureFe {
+    chang: ChangN,
+    dof: usize,
+    started: bool,
+}
+
+impl StructureFe {
+    /// `model` at step `dt_s`, the specimen at `specimen_dof` (0-based), at rest.
+    pub fn new(model: StructureN, specimen_dof: usize, dt_s: f64) -> Result<Self, ParamError> {
+        if specimen_dof >= model.dofs() {
+            return Err(ParamError::OutOfRange(
+                "specimen DOF (beyond the structure)",
+            ));
+        }
+        Ok(Self {
+            chang: ChangN::new(model, dt_s)?,
+            dof: specimen_dof,
+            started: false,
+        })
+    }
+
+    /// The integrator (every floor's state).
+    pub fn chang(&self) -> &ChangN {
+        &self.chang
+    }
+
+    /// Tick k: complete step k with `ü_g(k)` and the specimen's measured force, return the target
+    /// displacement at the specimen's DOF for k+1, mm.
+    #[inline]
+    pub fn next_target(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
+        finite_inputs(ag_mm_s2, force_kn)?;
+        if self.started {
+            let mut r = [0.0; MAX_DOF];
+            if let Some(x) = r.get_mut(self.dof) {
+                *x = force_kn;
+            }
+            self.chang.advance(ag_mm_s2, &r);
+        } else {
+            self.chang.reset(ag_mm_s2);
+            self.started = true;
+        }
+        Ok(self
+            .chang
+            .next_displacement()
+            .get(self.dof)
+            .copied()
+            .unwrap_or(f64::NAN))
+    }
+
+    /// Back to rest.
+    pub fn reset(&mut self) {
+        self.chang.reset(0.0);
+        self.started = false;
+    }
+}
+
+/// A yielding N-story numerical substructure ([`NonlinearFrame`]: Chang, story forces evaluated
+/// once per step).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StructureNl {
+    frame: NonlinearFrame,
+    dof: usize,
+    started: bool,
+}
+
+impl StructureNl {
+    /// `frame`, the specimen at `specimen_dof` (0-based), at rest.
+    pub fn new(frame: NonlinearFrame, specimen_dof: usize) -> Result<Self, ParamError> {
+        if specimen_dof >= frame.dofs() {
+            return Err(ParamError::OutOfRange(
+                "specimen DOF (beyond the structure)",
+            ));
+        }
+        let mut s = Self {
+            frame,
+            dof: specimen_dof,
+            started: false,
+        };
+        s.reset();
+        Ok(s)
+    }
+
+    /// `model` with `laws` (the first `model.dofs()` are used) at step `dt_s`, the specimen at
+    /// `specimen_dof`.
+    pub fn build(
+        model: StructureN,
+        laws: &[Law; MAX_DOF],
+        specimen_dof: usize,
+        dt_s: f64,
+    ) -> Result<Self, ParamError> {
+        let n = model.dofs();
+        let frame = NonlinearFrame::new(model, laws.get(..n).unwrap_or(&[]), dt_s)?;
+        Self::new(frame, specimen_dof)
+    }
+
+    /// The frame (every floor's and story's state).
+    pub fn frame(&self) -> &NonlinearFrame {
+        &self.frame
+    }
+
+    /// As [`StructureFe::next_target`].
+    #[inline]
+    pub fn next_target(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
+        finite_inputs(ag_mm_s2, force_kn)?;
+        if self.started {
+            let mut r = [0.0; MAX_DOF];
+            if let Some(x) = r.get_mut(self.dof) {
+                *x = force_kn;
+            }
+            self.frame.advance(ag_mm_s2, &r);
+        } else {
+            self.frame.reset(ag_mm_s2);
+            self.started = true;
+        }
+        Ok(self
+            .frame
+            .next_displacement()
+            .get(self.dof)
+            .copied()
+            .unwrap_or(f64::NAN))
+    }
+
+    /// Back to rest, every story virgin.
+    pub fn reset(&mut self) {
+        self.frame.reset(0.0);
+        self.started = false;
+    }
+}
+
+#[cfg(test)]
+mod tests;
