@@ -5,9 +5,11 @@
 //! - [`model_file`]: the trained-model file schema, its reader and validator. The feature names it
 //!   checks are `rths_core`'s, the order the `no_std` inference takes its coefficients in.
 //! - [`structure_file`]: structure files (an N-DOF linear analytical part and its specimen).
+//! - [`structure_meta`]: a structure as the controller runs it, and the structure metamodel's file.
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
 pub mod model_file;
 pub mod motion;
 pub mod structure_file;
+pub mod structure_meta;

@@ -29,6 +29,9 @@ const COEFFS: usize = DELTA_ARX_COEFFS;
 /// structure file's nominal specimen stiffness).
 pub type Meta = DeltaArx;
 
+/// The records the training simulates (the benchmark does not score them).
+pub const TRAINING_RECORDS: [&str; 2] = ["northridge", "loma-prieta"];
+
 /// A smooth random force, kN: a sum of sines with random phases from 0.5 to 40 Hz.
 fn random_force(k: usize, dt_s: f64, amp_kn: f64, phases: &[(f64, f64)]) -> f64 {
     let t = k as f64 * dt_s;
@@ -59,7 +62,7 @@ pub fn train_at(structure: &Structure, intensity: f64, dt_s: f64) -> anyhow::Res
             .wrapping_add(1442695040888963407);
         (seed >> 11) as f64 / (1u64 << 53) as f64
     };
-    for name in ["northridge", "loma-prieta"] {
+    for name in TRAINING_RECORDS {
         let ag = GroundMotion::try_embedded(name)
             .with_context(|| format!("training record {name}"))?
             .scaled(intensity)

@@ -19,6 +19,9 @@ pub enum Kind {
     /// Specimen-faithful LRX: frame ARX with the measured force as an input, and a learned lead
     /// filter.
     Lrx,
+    /// The structure metamodel of a structure file's numerical part (`--structure`): a delta-form
+    /// ARX of order 6 at the specimen's DOF, constant cost per tick whatever N is.
+    Meta,
 }
 
 /// RNN initialization.
@@ -109,6 +112,12 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// `meta`: the structure file whose numerical part the metamodel stands for.
+    #[arg(long, value_name = "FILE")]
+    pub structure: Option<PathBuf>,
+    /// `meta`: the controller rate it runs at, Hz (2048 or 4096; default: this build's).
+    #[arg(long, value_name = "HZ")]
+    pub rate: Option<u32>,
     /// Output model file (JSON).
     #[arg(long)]
     pub out: PathBuf,
@@ -230,6 +239,9 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
 
 /// Run `rths train`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.kind == Kind::Meta {
+        return train_meta(&args);
+    }
     let prototype = Prototype::paper();
     let k_b = prototype.brace_axial_stiffness_kn_per_mm();
     let motion = match &args.motion {
@@ -337,10 +349,57 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             rnn::model_file(&t, &cfg, motion_name, response.len())
         }
         Kind::Lrx => return train_lrx(&args),
+        Kind::Meta => return train_meta(&args),
     };
     file.training.records = response.len();
     file.save(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
     println!("wrote {}", args.out.display());
+    Ok(())
+}
+
+/// `rths train meta`: the benchmark's metamodel training ([`crate::benchmark::meta`]) on any
+/// structure file, at the rate asked, into a structure-metamodel file
+/// ([`rths_files::structure_meta`]: the structure's name and checksum, so a model trained for
+/// another structure is refused).
+fn train_meta(args: &Args) -> anyhow::Result<()> {
+    use rths_files::structure_meta::{MetaFile, MetaTraining};
+    let path = args
+        .structure
+        .as_ref()
+        .context("`rths train meta` needs --structure FILE")?;
+    let structure = rths_files::structure_file::Structure::load(path)?;
+    let rate = args.rate.unwrap_or(rths_core::params::CONTROL_RATE_HZ);
+    anyhow::ensure!(
+        rths_core::params::CONTROL_RATES_HZ.contains(&rate),
+        "--rate must be one of {:?} Hz, got {rate}",
+        rths_core::params::CONTROL_RATES_HZ
+    );
+    let dt_s = rths_core::params::dt_s(rate);
+    let intensity = crate::benchmark::DEFAULT_INTENSITY;
+    let meta = crate::benchmark::meta::train_at(&structure, intensity, dt_s)?;
+    let file = MetaFile::new(
+        &structure,
+        meta.params(),
+        dt_s,
+        MetaTraining {
+            records: crate::benchmark::meta::TRAINING_RECORDS
+                .iter()
+                .map(|r| r.to_string())
+                .collect(),
+            intensity,
+            method: "svd-least-squares (column-scaled), delta-form ARX".into(),
+            force_correction_ratio: crate::benchmark::run::META_FORCE_CORRECTION,
+        },
+    );
+    std::fs::write(&args.out, file.to_json()?)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    println!(
+        "structure metamodel of {} ({} DOFs, specimen at DOF {}) at {rate} Hz: wrote {}",
+        structure.name(),
+        structure.dofs(),
+        structure.specimen_dof() + 1,
+        args.out.display()
+    );
     Ok(())
 }
