@@ -1,11 +1,13 @@
 //! Cost of one step of the nonlinear N-story frame (`NonlinearFrame::advance`: Chang's step with
 //! every story's hysteresis evaluated) for N = 1, 3, 8, bilinear and Bouc–Wen, beside the linear
-//! `ChangN` step of the same building, ns per tick (`docs/nonlinear.md`).
+//! `ChangN` step of the same building, and the structure metamodel's step (`DeltaArx`, whose
+//! cost does not depend on N), ns per tick (`docs/nonlinear.md`, `docs/benchmark.md`).
 
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use rths_core::hysteresis::Law;
+use rths_core::metamodel::{DeltaArx, DeltaArxParams, DELTA_ARX_COEFFS};
 use rths_core::structure::{LinearStructure, ShearBuilding, Vector};
 use rths_core::structure_n::{ChangN, StructureN, MAX_DOF};
 use rths_core::structure_nl::NonlinearFrame;
@@ -80,6 +82,24 @@ fn step(c: &mut Criterion) {
             })
         });
     }
+    // The structure metamodel: nothing in its step depends on N (the same histories and
+    // coefficients for any structure), so one row stands for N = 1, 3, 8.
+    let ag = |k: u32| 400.0 * (f64::from(k % 64) - 32.0);
+    // The metamodel's cost is that of its fixed order: any stable coefficients measure it
+    // (a trained model's are no cheaper or dearer: the same 18 multiply-adds).
+    let mut theta = [0.0; DELTA_ARX_COEFFS];
+    theta[1] = 0.9;
+    theta[6] = 1e-9;
+    theta[12] = -1e-6;
+    let mut meta = DeltaArx::new(DeltaArxParams::from_slice(&theta, 1.0).expect("valid"));
+    let mut k = 0u32;
+    g.bench_function("meta_any_n", |b| {
+        b.iter(|| {
+            k = k.wrapping_add(1);
+            let x = meta.current_mm();
+            black_box(meta.predict(black_box(ag(k)), black_box(x), black_box(0.01 * x)))
+        })
+    });
     g.finish();
 }
 

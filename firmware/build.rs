@@ -9,6 +9,18 @@
 //! - The El Centro record `../data/ground_motions/IELC180.AT2` (values in g), embedded as f64 exactly
 //!   as the host parses it.
 //!
+//! - With feature `structure-fe`, `structure-nl` or `structure-meta`: `RTHS_STRUCTURE=path`, a
+//!   structure file (`data/structures/`), whose numerical part the controller integrates (linear,
+//!   or with its yielding stories) or, with `structure-meta`, `RTHS_STRUCTURE_MODEL=path`, its
+//!   structure metamodel (`rths train meta --structure path --rate R`), refused if trained for
+//!   another structure (name and checksum) or rate.
+//! - With feature `budget-structures`: the budget's structures, FE linear, FE yielding and the
+//!   metamodel for N = 1, 3, 8: `RTHS_BUDGET_LINEAR`, `RTHS_BUDGET_YIELDING` (three structure files
+//!   each, comma-separated; default `paper-frame,vrths-case1,shear8` and
+//!   `paper-frame-yielding,shear3-yielding,shear8-yielding` in `data/structures/`) and
+//!   `RTHS_BUDGET_METAS` (the linear ones' metamodels at this build's rate, required: `budget.sh`
+//!   trains them).
+//!
 //! The files are read by the host's own readers (`rths-files`): a model file is checked exactly as
 //! `rths check-model` checks it (feature names included), the record parsed as `rths analyze` parses
 //! it. A bad file fails the build with a message naming the file and the problem.
@@ -23,6 +35,8 @@ use std::path::{Path, PathBuf};
 use rths_core::params::{dt_s, CONTROL_RATES_HZ};
 use rths_files::model_file::{ModelFile, ModelKind};
 use rths_files::motion::parse_at2;
+use rths_files::structure_file::Structure;
+use rths_files::structure_meta::{MetaFile, StructureArrays};
 
 fn fail(msg: String) -> ! {
     eprintln!("error: {msg}");
@@ -438,6 +452,221 @@ fn fault(out: &mut String) {
     }
 }
 
+/// A structure file, read and validated by the host's reader.
+fn load_structure(path: &Path) -> Structure {
+    println!("cargo:rerun-if-changed={}", path.display());
+    Structure::load(path).unwrap_or_else(|e| fail(format!("{}: {e}", path.display())))
+}
+
+/// A structure metamodel file checked against `structure` at this build's rate.
+fn load_meta(path: &Path, structure: &Structure) -> rths_core::metamodel::DeltaArxParams {
+    println!("cargo:rerun-if-changed={}", path.display());
+    MetaFile::load(path)
+        .and_then(|m| m.check(structure, dt_s(rate_hz())))
+        .unwrap_or_else(|e| fail(format!("{}: {e}", path.display())))
+}
+
+/// The numerical part of `structure` as a `StructureSpec` expression (linear, or yielding).
+fn structure_spec(structure: &Structure, yielding: bool, path: &Path) -> String {
+    let a = if yielding {
+        StructureArrays::yielding(structure, dt_s(rate_hz()))
+    } else {
+        StructureArrays::linear(structure)
+    }
+    .unwrap_or_else(|e| fail(format!("{}: {e}", path.display())));
+    // The controller refuses what its integrator cannot step: so does the build.
+    let spec = a.spec();
+    let built = if yielding {
+        spec.yielding(dt_s(rate_hz())).map(|_| ())
+    } else {
+        spec.linear(dt_s(rate_hz())).map(|_| ())
+    };
+    if let Err(e) = built {
+        fail(format!("{}: {e}", path.display()));
+    }
+    let mut laws = String::from("&[");
+    for l in &a.laws {
+        let bw = match l.bouc_wen {
+            Some(v) => format!("Some({})", array(&v)),
+            None => "None".into(),
+        };
+        let _ = write!(
+            laws,
+            "rths_core::control::StoryLawSpec {{ k0_kn_per_mm: {}, yield_force_kn: {}, \
+             post_yield_ratio: {}, bouc_wen: {bw} }},",
+            lit(l.k0_kn_per_mm),
+            lit(l.yield_force_kn),
+            lit(l.post_yield_ratio)
+        );
+    }
+    laws.push(']');
+    format!(
+        "rths_core::control::StructureSpec {{ dofs: {}, mass: &{}, damping: &{}, stiffness: &{}, \
+         initial_stiffness: &{}, ground_mass: &{}, specimen_dof: {}, laws: {laws} }}",
+        a.dofs,
+        array(&a.mass),
+        array(&a.damping),
+        array(&a.stiffness),
+        array(&a.initial_stiffness),
+        array(&a.ground_mass),
+        a.specimen_dof
+    )
+}
+
+/// The `ModelSpec` of one structure path: `fe`, `nl` or `meta`.
+fn structure_model_spec(path: &Path, kind: &str, meta: Option<&Path>) -> String {
+    let s = load_structure(path);
+    match kind {
+        "fe" => format!(
+            "rths_core::model::ModelSpec::StructureFe {{ structure: {} }}",
+            structure_spec(&s, false, path)
+        ),
+        "nl" => format!(
+            "rths_core::model::ModelSpec::StructureNl {{ structure: {} }}",
+            structure_spec(&s, true, path)
+        ),
+        _ => {
+            let m = meta.unwrap_or_else(|| fail(format!("{}: no metamodel file", path.display())));
+            let p = load_meta(m, &s);
+            format!(
+                "rths_core::model::ModelSpec::StructureMeta {{ theta: &{}, k_corr_kn_per_mm: {} }}",
+                array(p.theta()),
+                lit(p.k_corr_kn_per_mm())
+            )
+        }
+    }
+}
+
+/// A build that runs one structure (`structure-fe`, `structure-nl`, `structure-meta`).
+fn structure(out: &mut String, kind: &str) {
+    println!("cargo:rerun-if-env-changed=RTHS_STRUCTURE");
+    println!("cargo:rerun-if-env-changed=RTHS_STRUCTURE_MODEL");
+    let path = std::env::var_os("RTHS_STRUCTURE")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            fail(
+                "a structure build needs RTHS_STRUCTURE=path (a structure file, data/structures/)"
+                    .into(),
+            )
+        });
+    let meta = std::env::var_os("RTHS_STRUCTURE_MODEL").map(PathBuf::from);
+    if kind == "meta" && meta.is_none() {
+        fail(format!(
+            "structure-meta needs RTHS_STRUCTURE_MODEL=path: train it with `cargo run --release \
+             --features sim -- train meta --structure {} --rate {} --out M.json`",
+            path.display(),
+            rate_hz()
+        ));
+    }
+    let spec = structure_model_spec(&path, kind, meta.as_deref());
+    let _ = writeln!(out, "/// The structure (and model) compiled in.");
+    let _ = writeln!(
+        out,
+        "pub const STRUCTURE_SPEC: rths_core::model::ModelSpec<'static> = {spec};"
+    );
+    let source = match &meta {
+        Some(m) if kind == "meta" => format!("{} ({})", path.display(), m.display()),
+        _ => path.display().to_string(),
+    };
+    let _ = writeln!(out, "/// The model file compiled in.");
+    let _ = writeln!(out, "pub const MODEL_SOURCE: &str = {source:?};");
+}
+
+/// A comma-separated list of three files from `var`, or the defaults in `dir`.
+fn three(var: &str, dir: &Path, default: [&str; 3]) -> Vec<PathBuf> {
+    println!("cargo:rerun-if-env-changed={var}");
+    let v: Vec<PathBuf> = match std::env::var(var) {
+        Ok(list) => list.split(',').map(PathBuf::from).collect(),
+        Err(_) => default
+            .iter()
+            .map(|n| dir.join(format!("{n}.json")))
+            .collect(),
+    };
+    if v.len() != 3 {
+        fail(format!("{var}: three files (N = 1, 3, 8), got {}", v.len()));
+    }
+    v
+}
+
+/// The budget build (`budget-structures`): the nine controllers it steps.
+fn budget_structures(out: &mut String, root: &Path) {
+    let dir = root.join("data/structures");
+    let linear = three(
+        "RTHS_BUDGET_LINEAR",
+        &dir,
+        ["paper-frame", "vrths-case1", "shear8"],
+    );
+    let yielding = three(
+        "RTHS_BUDGET_YIELDING",
+        &dir,
+        ["paper-frame-yielding", "shear3-yielding", "shear8-yielding"],
+    );
+    println!("cargo:rerun-if-env-changed=RTHS_BUDGET_METAS");
+    let metas: Vec<PathBuf> = std::env::var("RTHS_BUDGET_METAS")
+        .unwrap_or_else(|_| {
+            fail(format!(
+                "budget-structures needs RTHS_BUDGET_METAS=m1,m3,m8: the metamodels of {} at {} Hz \
+                 (`rths train meta --structure FILE --rate {}`; budget.sh trains them)",
+                linear
+                    .iter()
+                    .map(|p| p.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                rate_hz(),
+                rate_hz()
+            ))
+        })
+        .split(',')
+        .map(PathBuf::from)
+        .collect();
+    if metas.len() != 3 {
+        fail(format!(
+            "RTHS_BUDGET_METAS: three files, got {}",
+            metas.len()
+        ));
+    }
+    let mut rows = String::new();
+    for (kind, files) in [("fe", &linear), ("nl", &yielding), ("meta", &linear)] {
+        for (i, path) in files.iter().enumerate() {
+            let s = load_structure(path);
+            let spec = structure_model_spec(path, kind, metas.get(i).map(PathBuf::as_path));
+            let path_name = match kind {
+                "fe" => "structure-fe",
+                "nl" => "structure-nl",
+                _ => "structure-meta",
+            };
+            // The specimen's stiffness: the budget's ideal rig holds it (analytical.rs).
+            let (_, k_e, _) = s.specimen();
+            // One constant spec per row, assembled by its own function: `assemble` is folded to
+            // that spec's arm (its generic form inlined holds every arm's parts on the stack).
+            let id = rows.matches("BudgetRow").count();
+            let _ = writeln!(
+                out,
+                "const BUDGET_SPEC_{id}: rths_core::model::ModelSpec<'static> = {spec};"
+            );
+            let _ = writeln!(
+                rows,
+                "    crate::analytical::BudgetRow {{ path: {path_name:?}, structure: {:?}, dofs: {}, \
+                 specimen_kn_per_mm: {}, build: || rths_core::model::assemble(&BUDGET_SPEC_{id}, \
+                 rths_core::params::Prototype::paper(), rths_core::params::DT_S) }},",
+                s.name(),
+                s.dofs(),
+                lit(k_e)
+            );
+        }
+    }
+    let _ = writeln!(out, "/// The budget's nine controllers.");
+    let _ = writeln!(
+        out,
+        "pub const BUDGET_ROWS: [crate::analytical::BudgetRow; 9] = [\n{rows}];"
+    );
+    let _ = writeln!(out, "/// The model file compiled in.");
+    let _ = writeln!(
+        out,
+        "pub const MODEL_SOURCE: &str = \"budget: FE linear, FE yielding, metamodel; N = 1, 3, 8\";"
+    );
+}
+
 fn main() {
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap_or_default());
     let root = manifest
@@ -472,7 +701,17 @@ fn main() {
     } else {
         root.join("memory.x")
     };
-    let mem = read(&mem_file);
+    let mut mem = read(&mem_file);
+    if std::env::var_os("CARGO_FEATURE_BUDGET_STRUCTURES").is_some() {
+        // The structure budget builds its nine controllers one after the other on the stack
+        // (each ~45 KB with its compensator's storage, twice while one is assembled): on the
+        // emulated M7 it maps 512 KiB of the MPS2's 4 MiB SSRAM2/3. The controllers themselves
+        // are unchanged; a structure build (`structure-*`) keeps the board's 128 KiB.
+        if !mps2 {
+            fail("budget-structures runs on the emulated Cortex-M7 (board-mps2-an500)".into());
+        }
+        mem = mem.replace("LENGTH = 128K", "LENGTH = 512K");
+    }
     std::fs::write(out_dir.join("memory.x"), mem)
         .unwrap_or_else(|e| fail(format!("cannot write memory.x: {e}")));
     println!("cargo:rustc-link-search={}", out_dir.display());
@@ -481,7 +720,19 @@ fn main() {
     let rnn_on = std::env::var_os("CARGO_FEATURE_MODEL_RNN").is_some();
     let fe_on = std::env::var_os("CARGO_FEATURE_FE_ATS").is_some();
     let lrx_on = std::env::var_os("CARGO_FEATURE_MODEL_LRX").is_some();
-    if rnn_on {
+    let structure_kind = [
+        ("CARGO_FEATURE_STRUCTURE_FE", "fe"),
+        ("CARGO_FEATURE_STRUCTURE_NL", "nl"),
+        ("CARGO_FEATURE_STRUCTURE_META", "meta"),
+    ]
+    .into_iter()
+    .find(|(f, _)| std::env::var_os(f).is_some())
+    .map(|(_, k)| k);
+    if std::env::var_os("CARGO_FEATURE_BUDGET_STRUCTURES").is_some() {
+        budget_structures(&mut gen, &root);
+    } else if let Some(kind) = structure_kind {
+        structure(&mut gen, kind);
+    } else if rnn_on {
         rnn(&mut gen, &root);
     } else if fe_on {
         gen.push_str("/// The model compiled in.\npub const MODEL_SOURCE: &str = \"finite elements (Chang) + ATS\";\n");

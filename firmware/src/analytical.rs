@@ -1,5 +1,7 @@
 //! The controller of this build: its analytical part, chosen by feature (exactly one of
-//! `model-lr`, `model-rnn`, `fe-ats`, `model-lrx`), fed from the generated `gen` constants.
+//! `model-lr`, `model-rnn`, `fe-ats`, `model-lrx`, the structure-file parts `structure-fe`,
+//! `structure-nl`, `structure-meta` (`RTHS_STRUCTURE`, build.rs), or `budget-structures`, the
+//! structure budget run), fed from the generated `gen` constants.
 
 use rths_core::control::{ControlConfig, Controller, FeedbackSource};
 use rths_core::model::{assemble, ModelSpec};
@@ -11,12 +13,33 @@ const _: () = assert!(
         + cfg!(feature = "model-rnn") as u8
         + cfg!(feature = "fe-ats") as u8
         + cfg!(feature = "model-lrx") as u8
+        + cfg!(feature = "structure-fe") as u8
+        + cfg!(feature = "structure-nl") as u8
+        + cfg!(feature = "structure-meta") as u8
+        + cfg!(feature = "budget-structures") as u8
         == 1,
-    "enable exactly one analytical part: `model-lr`, `model-rnn`, `fe-ats` or `model-lrx`"
+    "enable exactly one analytical part: `model-lr`, `model-rnn`, `fe-ats`, `model-lrx`, \
+     `structure-fe`, `structure-nl`, `structure-meta` or `budget-structures`"
 );
 
+/// A structure-file part (or the structure budget) is built.
+const STRUCTURE: bool = cfg!(any(
+    feature = "structure-fe",
+    feature = "structure-nl",
+    feature = "structure-meta",
+    feature = "budget-structures"
+));
+
 /// The scenario's name (the RNN's adds its hidden size, [`SCENARIO_SUFFIX`]).
-pub const SCENARIO_PREFIX: &str = if cfg!(feature = "model-rnn") {
+pub const SCENARIO_PREFIX: &str = if cfg!(feature = "structure-fe") {
+    "structure-fe"
+} else if cfg!(feature = "structure-nl") {
+    "structure-nl"
+} else if cfg!(feature = "structure-meta") {
+    "structure-meta"
+} else if cfg!(feature = "budget-structures") {
+    "budget-structures"
+} else if cfg!(feature = "model-rnn") {
     "rnn-online-"
 } else if cfg!(feature = "fe-ats") {
     "fe-online-ats"
@@ -33,8 +56,11 @@ pub const SCENARIO_SUFFIX: Option<usize> = Some(crate::gen::RNN_HIDDEN);
 #[cfg(not(feature = "model-rnn"))]
 pub const SCENARIO_SUFFIX: Option<usize> = None;
 
-/// The kind of this build's analytical part (the link's status reports it).
-pub const MODEL_KIND: rths_link::ModelKind = if cfg!(feature = "model-rnn") {
+/// The kind of this build's analytical part (the link's status reports it). The link has no
+/// structure-file kind yet: those builds report the finite-element kind.
+pub const MODEL_KIND: rths_link::ModelKind = if STRUCTURE {
+    rths_link::ModelKind::FeAts
+} else if cfg!(feature = "model-rnn") {
     rths_link::ModelKind::Rnn
 } else if cfg!(feature = "fe-ats") {
     rths_link::ModelKind::FeAts
@@ -95,6 +121,16 @@ const SPEC: ModelSpec<'static> = ModelSpec::Rnn {
 const SPEC: ModelSpec<'static> = ModelSpec::FeAts {
     expected_delay_s: rths_core::params::PAPER_DELAY_STEPS as f64 * DT_S,
 };
+/// This build's analytical part: the structure file (and metamodel) `RTHS_STRUCTURE` named.
+#[cfg(any(
+    feature = "structure-fe",
+    feature = "structure-nl",
+    feature = "structure-meta"
+))]
+const SPEC: ModelSpec<'static> = crate::gen::STRUCTURE_SPEC;
+/// The budget build's app controller (never ticked: `init` runs [`structure_budget`] and exits).
+#[cfg(feature = "budget-structures")]
+const SPEC: ModelSpec<'static> = ModelSpec::Fe;
 /// This build's analytical part as a model file would describe it (the compiled-in `gen` arrays).
 #[cfg(feature = "model-lrx")]
 const SPEC: ModelSpec<'static> = ModelSpec::Lrx {
@@ -138,4 +174,151 @@ pub fn faults() -> rths_hal_sim::FaultPlan {
         },
         None => FaultPlan::none(),
     }
+}
+
+/// One controller of the structure budget (build.rs generates the nine of `gen::BUDGET_ROWS`).
+#[cfg(feature = "budget-structures")]
+pub struct BudgetRow {
+    /// The budget path: `structure-fe`, `structure-nl` or `structure-meta`.
+    pub path: &'static str,
+    /// The structure file's name.
+    pub structure: &'static str,
+    /// Its DOFs.
+    pub dofs: usize,
+    /// The specimen's stiffness, kN/mm (the ideal rig holds it).
+    pub specimen_kn_per_mm: f64,
+    /// Its analytical part and compensator, assembled by core from the row's constant spec.
+    pub build: fn() -> Result<
+        (
+            rths_core::control::Analytical,
+            rths_core::compensator::Compensator,
+        ),
+        rths_core::metamodel::ModelError,
+    >,
+}
+
+/// Prototype displacement over specimen displacement in the structure budget: the structures'
+/// floors move tens of mm under El Centro ×1, the actuator a tenth of it (inside the supervisor's
+/// stroke, velocity and force limits, so every controller stays `Running` the whole record).
+#[cfg(feature = "budget-structures")]
+const BUDGET_DISP_SCALE: f64 = 10.0;
+
+/// One controller tick, out of line: the counter's two readings sit around one opaque call the
+/// compiler cannot move work across.
+#[cfg(feature = "budget-structures")]
+#[inline(never)]
+fn budget_tick(
+    c: &mut Controller,
+    ag_mm_s2: f64,
+    s: rths_core::hal::Sample,
+) -> rths_core::control::TickOutput {
+    c.tick(ag_mm_s2, Ok(s), false)
+}
+
+/// The structure budget: each of the nine controllers of `gen::BUDGET_ROWS` (FE linear, FE
+/// yielding and the structure metamodel for N = 1, 3, 8) runs the whole record (`ag_mm_s2(k)`,
+/// `ticks`) from rest, one after the other, on an ideal rig: the measured displacement is the
+/// command in force, the measured force the structure file's linear specimen at it (the plant does
+/// not change the instruction count of these controllers: no branch depends on it). Counted per
+/// tick: `Controller::tick` (feedback, the analytical part, the supervisor), less the counter's
+/// overhead. Prints one `STRUCTURE {...}` line per controller, then ends the emulation (success:
+/// every controller stayed `Running` the whole record). Declared `()` so that `init`'s code after
+/// the call stays reachable to the compiler in this build.
+#[cfg(feature = "budget-structures")]
+pub fn structure_budget<C: rths_app::board::InstrCounter>(
+    counter: &C,
+    overhead_instr: u32,
+    ag_mm_s2: impl Fn(u32) -> f64,
+    ticks: u32,
+) {
+    use rths_app::board::Board as _;
+    let mut all_ok = true;
+    for row in crate::gen::BUDGET_ROWS.iter() {
+        all_ok &= budget_row(row, counter, overhead_instr, &ag_mm_s2, ticks);
+    }
+    crate::B::exit(all_ok)
+}
+
+/// One row of [`structure_budget`]: its controller, run and reported. Out of line: inlined into
+/// the loop over the nine rows, the compiler unrolled it and gave each row's ~12 KB controller
+/// its own stack slot (a 111 KB frame, past the RAM).
+#[cfg(feature = "budget-structures")]
+#[inline(never)]
+fn budget_row<C: rths_app::board::InstrCounter>(
+    row: &BudgetRow,
+    counter: &C,
+    overhead_instr: u32,
+    ag_mm_s2: &impl Fn(u32) -> f64,
+    ticks: u32,
+) -> bool {
+    use core::fmt::Write as _;
+    use rths_app::board::Board as _;
+    use rths_core::params::FORCE_SCALE;
+    use rths_core::supervisor::State;
+    let Ok(scale) = SpecimenScale::new(BUDGET_DISP_SCALE, FORCE_SCALE) else {
+        crate::die("budget scale");
+    };
+    let Ok(cfg) = ControlConfig::new(
+        Prototype::paper(),
+        scale,
+        FeedbackSource::Measured,
+        Limits::paper_actuator(),
+    ) else {
+        crate::die("budget control config");
+    };
+    let Ok((analytical, compensator)) = (row.build)() else {
+        crate::die("the budget's structure would not assemble");
+    };
+    let mut c = Controller::new(cfg, analytical, compensator);
+    let started = {
+        let s = c.supervisor_mut();
+        s.arm().is_ok() && s.start().is_ok()
+    };
+    let (mut min, mut max, mut sum, mut n) = (u32::MAX, 0u32, 0u64, 0u32);
+    // FNV-1a of the commands' bits: the stream a host run of the same controller must match.
+    let mut fnv: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut state = c.supervisor().state();
+    for k in 0..ticks {
+        let x = c.supervisor().output_mm();
+        let f_proto = row.specimen_kn_per_mm * scale.prototype_disp_mm(x);
+        let sample = rths_core::hal::Sample {
+            disp_mm: x,
+            force_kn: f_proto / FORCE_SCALE,
+        };
+        let ag = ag_mm_s2(k);
+        let t0 = counter.now();
+        let out = budget_tick(&mut c, ag, sample);
+        let t1 = counter.now();
+        let instr = counter.instructions(t0, t1).saturating_sub(overhead_instr);
+        state = out.state;
+        if state != State::Running {
+            break;
+        }
+        min = min.min(instr);
+        max = max.max(instr);
+        sum = sum.saturating_add(u64::from(instr));
+        n = n.saturating_add(1);
+        for b in out.command_mm.to_bits().to_le_bytes() {
+            fnv = (fnv ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    let ok = started && state == State::Running && n == ticks;
+    let mean = if n > 0 { sum as f64 / n as f64 } else { 0.0 };
+    let mut l = heapless::String::<320>::new();
+    let _ = write!(
+        l,
+        "STRUCTURE {{\"path\":\"{}\",\"structure\":\"{}\",\"n\":{},\"ticks\":{},\"running\":{},\
+         \"command_fnv\":\"{:016x}\",\"instr_per_tick\":{{\"min\":{},\"mean\":{:.1},\"max\":{}}}}}",
+        row.path,
+        row.structure,
+        row.dofs,
+        n,
+        ok,
+        fnv,
+        if n > 0 { min } else { 0 },
+        mean,
+        max
+    );
+    crate::B::host_line(&l);
+    ok
 }

@@ -260,6 +260,14 @@ mod app {
         #[cfg(feature = "fault-inject")]
         parts.rig.inject(analytical::faults());
         let store = motion::store();
+        // The structure budget runs here and ends the emulation.
+        #[cfg(feature = "budget-structures")]
+        analytical::structure_budget(
+            &parts.counter,
+            rths_app::board::Calibration::counter_overhead_instr(&parts.calibration),
+            |k| store.accel_mm_s2(k),
+            store.ticks(),
+        );
         let ag0 = store.accel_mm_s2(0);
         <<B as Board>::Harness as Harness<<B as Board>::Rig>>::reset(&mut parts.harness, ag0);
         let (ctl, model_checksum) = match analytical::controller() {
