@@ -22,6 +22,12 @@
 # RNN-10 overruns the M4's tick (software f64): the stm32f407 refuses to build it (compile-time) and
 # its qemu-netduinoplus2 row is marked "fits": false.
 #
+# The structure budget (issues 15, 16): one build (`budget-structures`, emulated M7, 4096 Hz) steps
+# nine controllers, FE linear, FE yielding and the structure metamodel for N = 1, 3, 8, through the
+# whole record in one QEMU run, one `STRUCTURE` line each ("structure_rows" in the JSON). Checks:
+# each within 10 % of the 4096 Hz tick at 480 MHz; the metamodel cheaper than the FE for N ≥ 3, and
+# its cost independent of N (max within 10 % of the N = 1 one); no panic reachable from its tick.
+#
 #   ./budget.sh          the human-readable table (needs qemu-system-arm)
 #   ./budget.sh --json   one JSON object {"rows": [...], ...} on stdout (progress on stderr)
 set -euo pipefail
@@ -214,6 +220,56 @@ for rate in $RATES; do
   done
 done
 
+# The structure budget: the metamodels of the three linear structures trained at 4096 Hz, one M7
+# build, one QEMU run.
+STRUCT_ROWS=()
+structures() {
+  local dir=$PWD/../data/structures metas=() s line path name n min mean max pct fits=true p
+  for s in paper-frame vrths-case1 shear8; do
+    (cd .. && cargo run --release --quiet --features rate-4096 -- train meta --rate 4096 \
+      --structure "$dir/$s.json" --out "$M4096/meta-$s.json" >&2)
+    metas+=("$M4096/meta-$s.json")
+  done
+  say "building qemu-mps2-an500 budget-structures at 4096 Hz"
+  RTHS_BUDGET_METAS=$(IFS=,; echo "${metas[*]}") cargo build-m7 --quiet --no-default-features \
+    --features board-mps2-an500,budget-structures,rate-4096 >&2
+  cp target/m7/thumbv7em-none-eabihf/release/rths-firmware "$OUT/qemu-mps2-an500-structures-4096.elf"
+  p=$(panics "$OUT/qemu-mps2-an500-structures-4096.elf" cortex-m7 budget_tick)
+  if [ "$p" != 0 ]; then say "FAIL: structure budget: a panic is reachable from its tick"; fail=1; fi
+  say "running qemu-mps2-an500 budget-structures at 4096 Hz in QEMU"
+  local out
+  if ! out=$(cd "$(mktemp -d)" && $M7_RUNNER "$OLDPWD/$OUT/qemu-mps2-an500-structures-4096.elf"); then
+    say "FAIL: the structure budget run failed (a controller left Running):"; say "$out"; fail=1
+  fi
+  declare -A FE_MAX META_MAX
+  while read -r line; do
+    path=$(sed -n 's/.*"path":"\([^"]*\)".*/\1/p' <<<"$line")
+    name=$(sed -n 's/.*"structure":"\([^"]*\)".*/\1/p' <<<"$line")
+    fnv=$(sed -n 's/.*"command_fnv":"\([^"]*\)".*/\1/p' <<<"$line")
+    n=$(field "$line" n)
+    ip=$(sed -n 's/.*"instr_per_tick":{\([^}]*\)}.*/\1/p' <<<"$line")
+    min=$(field "$ip" min); mean=$(field "$ip" mean); max=$(field "$ip" max)
+    pct=$(awk -v m="$max" -v c="$CPI" 'BEGIN { printf "%.2f", 100 * m * c * 4096 / 480000000 }')
+    fits=true
+    if awk -v p="$pct" -v l="$LIMIT_PCT" 'BEGIN { exit !(p > l) }'; then
+      fits=false; say "FAIL: structure budget $path $name: $pct% of the tick (budget $LIMIT_PCT%)"; fail=1
+    fi
+    [ "$path" = structure-fe ] && FE_MAX[$n]=$max
+    [ "$path" = structure-meta ] && META_MAX[$n]=$max
+    STRUCT_ROWS+=("$path|$name|$n|$min|$mean|$max|$pct|$fits|$fnv")
+  done < <(grep '^STRUCTURE ' <<<"$out")
+  if [ "${#STRUCT_ROWS[@]}" != 9 ]; then say "FAIL: structure budget: ${#STRUCT_ROWS[@]} rows, 9 expected"; fail=1; fi
+  for n in 3 8; do
+    if [ "${META_MAX[$n]:-0}" -ge "${FE_MAX[$n]:-0}" ]; then
+      say "FAIL: structure budget: the metamodel (${META_MAX[$n]:-?}) is not cheaper than the FE (${FE_MAX[$n]:-?}) at N = $n"; fail=1
+    fi
+    if awk -v a="${META_MAX[$n]:-0}" -v b="${META_MAX[1]:-0}" 'BEGIN { exit !(a > 1.1 * b) }'; then
+      say "FAIL: structure budget: the metamodel's cost grows with N (${META_MAX[1]:-?} at N = 1, ${META_MAX[$n]} at N = $n)"; fail=1
+    fi
+  done
+}
+structures
+
 if [ "$JSON" = 1 ]; then
   printf '{"cycles_per_instr":%s,"budget_pct":%s,"rows":[' "$CPI" "$LIMIT_PCT"
   sep=
@@ -230,7 +286,15 @@ if [ "$JSON" = 1 ]; then
     printf '%s{"board":"stm32f407","core":"cortex-m4","rate_hz":%s,"path":"%s","reason":"overruns the Cortex-M4 tick (f64 in software): refused at compile time"}' "$sep" "$rate" "$path"
     sep=,
   done
-  printf ']}\n'
+  printf '],"structure_rows":['
+  sep=
+  for row in "${STRUCT_ROWS[@]}"; do
+    IFS='|' read -r path name n min mean max pct fits fnv <<<"$row"
+    printf '%s\n{"board":"qemu-mps2-an500","core":"cortex-m7","rate_hz":4096,"clock_hz":480000000,"path":"%s","structure":"%s","dofs":%s,"instr_min":%s,"instr_mean":%s,"instr_max":%s,"pct_tick":%s,"fits":%s,"command_fnv":"%s"}' \
+      "$sep" "$path" "$name" "$n" "$min" "$mean" "$max" "$pct" "$fits" "$fnv"
+    sep=,
+  done
+  printf '\n]}\n'
 else
   printf '\n%-19s %-9s %5s %-7s %7s %8s %7s %6s %7s %7s %6s  %s\n' board core rate path max mean "% tick" stack flash ram panics "instructions from"
   for row in "${ROWS[@]}"; do
@@ -240,6 +304,12 @@ else
   echo "(% of the tick at the board's clock, 168 MHz M4 / 480 MHz M7, $CPI cycles per instruction assumed;"
   echo " budget: $LIMIT_PCT% for LR and LRX on the M4 and every path on the M7; LR ≤ $M4_LR_MAX_INSTR (M4) / ≤ $M7_LR_MAX_INSTR (M7)"
   echo " instructions; flash ≤ $((FLASH_MAX / 1024)) KiB, static RAM ≤ $((RAM_MAX / 1024)) KiB; stack = measured high-water, bytes)"
+  printf '\nstructure budget (qemu-mps2-an500, Cortex-M7, 4096 Hz; Controller::tick on an ideal rig, whole record)\n'
+  printf '%-15s %-21s %3s %7s %8s %7s %7s\n' path structure N min mean max "% tick"
+  for row in "${STRUCT_ROWS[@]}"; do
+    IFS='|' read -r path name n min mean max pct fits fnv <<<"$row"
+    printf '%-15s %-21s %3s %7s %8s %7s %6s%%\n' "$path" "$name" "$n" "$min" "$mean" "$max" "$pct"
+  done
 fi
 
 if [ "$fail" = 1 ]; then
