@@ -1,0 +1,116 @@
+//! The firmware's structure budget (`firmware/budget.sh`, `budget-structures`) rerun on the host:
+//! the same nine controllers (FE linear, FE yielding, structure metamodel; N = 1, 3, 8), the same
+//! El Centro ticks at 4096 Hz, the same ideal rig, and the same FNV-1a checksum of each command
+//! stream. The expected checksums are the emulated Cortex-M7's (`STRUCTURE` lines of its QEMU run,
+//! docs/firmware.md#the-structure-budget): host and firmware step these controllers bit for bit.
+
+use rths::benchmark::meta::train_at;
+use rths_core::control::{ControlConfig, Controller, FeedbackSource};
+use rths_core::hal::Sample;
+use rths_core::model::{assemble, ModelSpec};
+use rths_core::params::{dt_s, Prototype, SpecimenScale, FORCE_SCALE};
+use rths_core::supervisor::{Limits, State};
+use rths_files::motion::GroundMotion;
+use rths_files::structure_file::Structure;
+use rths_files::structure_meta::StructureArrays;
+
+/// The firmware's record length at 4096 Hz (its `RECORD_TICKS`).
+const TICKS: usize = 163_800;
+/// The budget's prototype-to-actuator displacement scale (`firmware/src/analytical.rs`).
+const DISP_SCALE: f64 = 10.0;
+
+fn structure(name: &str) -> Structure {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("data/structures")
+        .join(format!("{name}.json"));
+    Structure::load(&path).unwrap()
+}
+
+/// FNV-1a of the command stream's bits, as the firmware computes it.
+fn run(spec: &ModelSpec<'_>, k_e: f64, ag: &[f64]) -> u64 {
+    let dt = dt_s(4096);
+    let scale = SpecimenScale::new(DISP_SCALE, FORCE_SCALE).unwrap();
+    let cfg = ControlConfig::new(
+        Prototype::paper(),
+        scale,
+        FeedbackSource::Measured,
+        Limits::paper_actuator(),
+    )
+    .unwrap();
+    let (a, c) = assemble(spec, Prototype::paper(), dt).unwrap();
+    let mut ctl = Controller::new(cfg, a, c);
+    ctl.supervisor_mut().arm().unwrap();
+    ctl.supervisor_mut().start().unwrap();
+    let mut fnv: u64 = 0xcbf2_9ce4_8422_2325;
+    for &g in &ag[..TICKS] {
+        let x = ctl.supervisor().output_mm();
+        let f_proto = k_e * scale.prototype_disp_mm(x);
+        let out = ctl.tick(
+            g,
+            Ok(Sample {
+                disp_mm: x,
+                force_kn: f_proto / FORCE_SCALE,
+            }),
+            false,
+        );
+        assert_eq!(out.state, State::Running);
+        for b in out.command_mm.to_bits().to_le_bytes() {
+            fnv = (fnv ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    fnv
+}
+
+#[test]
+fn the_host_steps_the_structure_budget_as_the_m7_does() {
+    let dt = dt_s(4096);
+    let ag = GroundMotion::try_el_centro().unwrap().resample_mm_s2(dt);
+    assert!(ag.len() >= TICKS);
+    let cases: [(&str, &str, u64); 9] = [
+        ("fe", "paper-frame", 0x93aa19d5b021bff6),
+        ("fe", "vrths-case1", 0xe6553a72110da023),
+        ("fe", "shear8", 0xeb26b80c088b0d63),
+        ("nl", "paper-frame-yielding", 0x9e9c43e881fda878),
+        ("nl", "shear3-yielding", 0x7491f1cc3dac81f6),
+        ("nl", "shear8-yielding", 0x8d945f562c63e798),
+        ("meta", "paper-frame", 0x41c5b851e3265ce3),
+        ("meta", "vrths-case1", 0x511c3a1c7356b7bb),
+        ("meta", "shear8", 0x31766306ed5277f0),
+    ];
+    for (kind, name, expected) in cases {
+        let s = structure(name);
+        let k_e = s.specimen().1;
+        let fnv = match kind {
+            "fe" => {
+                let a = StructureArrays::linear(&s).unwrap();
+                run(
+                    &ModelSpec::StructureFe {
+                        structure: a.spec(),
+                    },
+                    k_e,
+                    &ag,
+                )
+            }
+            "nl" => {
+                let a = StructureArrays::yielding(&s, dt).unwrap();
+                run(
+                    &ModelSpec::StructureNl {
+                        structure: a.spec(),
+                    },
+                    k_e,
+                    &ag,
+                )
+            }
+            _ => {
+                let m = train_at(&s, rths::benchmark::DEFAULT_INTENSITY, dt).unwrap();
+                let p = m.params();
+                let spec = ModelSpec::StructureMeta {
+                    theta: p.theta(),
+                    k_corr_kn_per_mm: p.k_corr_kn_per_mm(),
+                };
+                run(&spec, k_e, &ag)
+            }
+        };
+        assert_eq!(fnv, expected, "{kind} {name}: {fnv:016x}");
+    }
+}
