@@ -290,3 +290,32 @@ proptest! {
         prop_assert_eq!(a, before);
     }
 }
+
+#[test]
+fn validated_models_assemble_the_same_parts() {
+    let th = theta();
+    for spec in [
+        ModelSpec::StructureFe {
+            structure: linear_spec(),
+        },
+        ModelSpec::StructureNl {
+            structure: yielding_spec(),
+        },
+        ModelSpec::StructureMeta {
+            theta: &th,
+            k_corr_kn_per_mm: 50.0,
+        },
+    ] {
+        let direct = assemble(&spec, Prototype::paper(), DT_S).unwrap();
+        let via_model = spec
+            .validate()
+            .unwrap()
+            .assemble(Prototype::paper(), DT_S)
+            .unwrap();
+        assert_eq!(direct, via_model);
+    }
+    let bad = ModelSpec::StructureFe {
+        structure: yielding_spec(),
+    };
+    assert!(bad.validate().is_err());
+}
