@@ -339,6 +339,21 @@ fn whole_grid_is_stable() {
     }
 }
 
+/// The identified controller over the grid: stable on every plant and J4 ≤ 8 % on every perturbed
+/// one (measured max 5.09 %); its nominal J4 misses 4 % on Morgan Hill (docs/benchmark.md).
+/// `cargo test --features sim --test benchmark -- --ignored` (about a minute more).
+#[test]
+#[ignore]
+fn identified_grid_is_stable() {
+    let g = rths::benchmark::grid::run_grid(ControllerKind::MetaId, 0.4, 20).unwrap();
+    println!("{}", g.table());
+    for c in &g.cells {
+        assert!(c.nominal.is_some(), "case {} {}", c.case, c.record);
+        assert_eq!(c.perturbed_unstable, 0, "case {} {}", c.case, c.record);
+        assert!(c.perturbed_max_j4_pct.is_some_and(|j4| j4 <= 6.0));
+    }
+}
+
 fn grid_meets_the_goals(controller: ControllerKind) {
     let g = rths::benchmark::grid::run_grid(controller, 0.4, 20).unwrap();
     println!("{}", g.table());

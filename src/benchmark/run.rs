@@ -354,7 +354,8 @@ pub fn run_on(
     };
     let (_, k_e_nominal, _) = structure.specimen();
     // The force correction's stiffness: the identified specimen's for meta-id (measured data
-    // only), the disclosed half of the nominal for meta-ats.
+    // only; why the full one, docs/benchmark.md "The force correction"), the disclosed half of
+    // the nominal for meta-ats.
     let k_corr = match &identification {
         Some(id) => id.specimen.stiffness_kn_per_mm,
         None => META_FORCE_CORRECTION * k_e_nominal,
