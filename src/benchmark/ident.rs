@@ -1,4 +1,5 @@
-//! The identified compensation of the benchmark's `*-id` controllers (the compensation of
+//! The benchmark's converters ([`Converters`], what every run reads and commands through) and the
+//! identified compensation of the benchmark's `*-id` controllers (the compensation of
 //! `rths identify`, docs/identify.md): before a run the lab identifies the rig it has (the nominal
 //! plant or the perturbed draw) with `rths identify`'s procedure at the benchmark's 4096 Hz,
 //! through the benchmark's 18-bit converters only ([`Converters`]). From that record alone come the
@@ -31,6 +32,7 @@ pub struct Converters {
     rig: VirtualRig,
     stroke_mm: f64,
     capacity_kn: f64,
+    force_clipped: bool,
 }
 
 impl Converters {
@@ -41,6 +43,7 @@ impl Converters {
             rig,
             stroke_mm,
             capacity_kn: ACTUATOR_CAPACITY_N * 1e-3,
+            force_clipped: false,
         }
     }
 
@@ -48,12 +51,23 @@ impl Converters {
     pub fn advance_tick(&mut self) {
         self.rig.advance_tick();
     }
+
+    /// The plant's true (noise-free) displacement, mm: evaluation only.
+    pub fn true_disp_mm(&self) -> f64 {
+        self.rig.true_disp_mm()
+    }
+
+    /// Whether the last force reading was beyond the load cell's ±8900 N range (clipped).
+    pub fn force_clipped(&self) -> bool {
+        self.force_clipped
+    }
 }
 
 impl Daq for Converters {
     type Error = SimError;
     fn read(&mut self) -> Result<Sample, SimError> {
         let s = self.rig.read()?;
+        self.force_clipped = s.force_kn.abs() >= self.capacity_kn;
         Ok(Sample {
             disp_mm: quantize_bits(s.disp_mm, self.stroke_mm, CONVERTER_BITS),
             force_kn: quantize_bits(s.force_kn, self.capacity_kn, CONVERTER_BITS),
@@ -92,11 +106,15 @@ pub fn lead_adapt_ticks() -> f64 {
     crate::train::lrx::RIG_LEAD_ADAPT_TICKS * rths_core::params::DT_S / DT_S
 }
 
-/// Identify the rig of `plant` through the benchmark's converters at 4096 Hz (uncached).
-pub fn identify_plant(plant: PlantDraw) -> anyhow::Result<RigIdentification> {
+/// Identify the rig of `plant` holding a specimen of `specimen_kn_per_mm` through the benchmark's
+/// converters at 4096 Hz (uncached).
+pub fn identify_plant(
+    plant: PlantDraw,
+    specimen_kn_per_mm: f64,
+) -> anyhow::Result<RigIdentification> {
     let start = std::time::Instant::now();
     let cfg = IdentifyConfig::at_tick(DT_S);
-    let mut rig = Converters::new(VirtualRig::new(plant_params(plant)?));
+    let mut rig = Converters::new(VirtualRig::new(plant_params(plant, specimen_kn_per_mm)?));
     // The paper actuator's limits with their per-tick steps at 2048 Hz: at 4096 Hz the per-tick
     // plausibility check (1.5 × 322 mm/s × Δt = 0.118 mm) is 4.3σ of the difference of two
     // readings of the benchmark's displacement sensor (σ 0.016 mm): ~4 false trips expected in a
@@ -126,19 +144,25 @@ pub fn identify_plant(plant: PlantDraw) -> anyhow::Result<RigIdentification> {
 
 type Slot = Arc<OnceLock<Result<Arc<RigIdentification>, String>>>;
 
-/// The identification of `plant`, done once per process and plant draw (parallel runs on the same
-/// draw wait for the one that identifies).
-pub fn identified(plant: PlantDraw) -> anyhow::Result<Arc<RigIdentification>> {
-    static CACHE: OnceLock<Mutex<HashMap<PlantDraw, Slot>>> = OnceLock::new();
+/// The identification of `plant` holding a specimen of `specimen_kn_per_mm`, done once per process
+/// and rig (plant draw and specimen; parallel runs on the same rig wait for the one that
+/// identifies).
+pub fn identified(
+    plant: PlantDraw,
+    specimen_kn_per_mm: f64,
+) -> anyhow::Result<Arc<RigIdentification>> {
+    static CACHE: OnceLock<Mutex<HashMap<(PlantDraw, u64), Slot>>> = OnceLock::new();
     let slot: Slot = {
         let mut map = CACHE
             .get_or_init(Default::default)
             .lock()
             .map_err(|_| anyhow::anyhow!("identification cache poisoned"))?;
-        map.entry(plant).or_default().clone()
+        map.entry((plant, specimen_kn_per_mm.to_bits()))
+            .or_default()
+            .clone()
     };
     slot.get_or_init(|| {
-        identify_plant(plant)
+        identify_plant(plant, specimen_kn_per_mm)
             .map(Arc::new)
             .map_err(|e| format!("{e:#}"))
     })

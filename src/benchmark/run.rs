@@ -18,16 +18,12 @@ use rths_core::metrics::{benchmark_criteria, normalized_std_error_pct, Benchmark
 use rths_core::structure::{LinearStructure, Mat};
 use rths_core::structure_n::{ChangN, MAX_DOF};
 use rths_files::structure_file::{Structure, SI_TO_MM_KN};
-use rths_hal_sim::params::BENCHMARK_SPECIMEN_STIFFNESS_N_PER_M;
-use rths_hal_sim::rig::quantize_bits;
 use rths_hal_sim::{PlantParams, Preset, RigConfig, Sensors, VirtualRig};
 
 use crate::motion::GroundMotion;
 
-use super::{
-    noise_sigma, Record, ACTUATOR_CAPACITY_N, CONVERTER_BITS, DISP_NOISE_POWER_M2, DT_S,
-    FORCE_NOISE_POWER_N2,
-};
+use super::ident::Converters;
+use super::{noise_sigma, Record, DISP_NOISE_POWER_M2, DT_S, FORCE_NOISE_POWER_N2};
 
 /// The controllers the benchmark can run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -147,20 +143,20 @@ pub struct RunResult {
     pub j2_noise_free_pct: Option<f64>,
 }
 
-/// The benchmark plant of a run at 4096 Hz: its specimen, its noise (quantization is done by
-/// [`run`] at 18 bits).
-pub fn plant_params(plant: PlantDraw) -> anyhow::Result<PlantParams> {
-    rig_config(plant)
+/// The benchmark plant of a run at 4096 Hz holding a specimen of stiffness `specimen_kn_per_mm`
+/// (the structure file's; the benchmark's mass and damping ratio), its noise (quantization at 18
+/// bits is the [`Converters`]').
+pub fn plant_params(plant: PlantDraw, specimen_kn_per_mm: f64) -> anyhow::Result<PlantParams> {
+    rig_config(plant, specimen_kn_per_mm)
         .build()
         .map_err(|e| anyhow::anyhow!("benchmark plant: {e}"))
 }
 
 /// The configuration of [`plant_params`].
-pub fn rig_config(plant: PlantDraw) -> RigConfig {
+pub fn rig_config(plant: PlantDraw, specimen_kn_per_mm: f64) -> RigConfig {
     let mut cfg = RigConfig::new(Preset::Benchmark);
     cfg.dt_s = DT_S;
-    // N/m → kN/mm.
-    cfg.specimen_stiffness_kn_per_mm = BENCHMARK_SPECIMEN_STIFFNESS_N_PER_M * 1e-6;
+    cfg.specimen_stiffness_kn_per_mm = specimen_kn_per_mm;
     cfg.sensors = Sensors {
         disp_noise_mm: noise_sigma(DISP_NOISE_POWER_M2, DT_S) * 1e3,
         force_noise_kn: noise_sigma(FORCE_NOISE_POWER_N2, DT_S) * 1e-3,
@@ -189,7 +185,7 @@ pub fn nominal_delay_s(structure: &Structure) -> anyhow::Result<f64> {
         .or(f.first())
         .copied()
         .context("the structure has no natural frequency")?;
-    Ok(plant_params(PlantDraw::Nominal)?.phase_delay_s(f_hz))
+    Ok(plant_params(PlantDraw::Nominal, structure.specimen().1)?.phase_delay_s(f_hz))
 }
 
 /// The reference: the whole structure with the specimen the plant actually holds (its drawn
@@ -340,16 +336,18 @@ pub fn run_on(
     check_intensity(cfg.intensity)?;
     check_record(motion)?;
     let ag = motion.scaled(cfg.intensity).resample_mm_s2(DT_S);
-    let params = plant_params(cfg.plant)?;
+    // The rig holds the file's specimen (for the four cases, the benchmark's own).
+    let (_, k_e_file, _) = structure.specimen();
+    let params = plant_params(cfg.plant, k_e_file)?;
     let reference = reference(structure, &params, &ag)?;
-    let mut rig = VirtualRig::new(params);
+    let mut rig = Converters::new(VirtualRig::new(params));
     let mut integ = ChangN::new(structure.numerical()?, DT_S).context("numerical substructure")?;
     let mut meta = match cfg.controller.uses_metamodel() {
         true => Some(trained(cfg.case, structure)?),
         false => None,
     };
     let identification = match cfg.controller.identifies() {
-        true => Some(super::ident::identified(cfg.plant)?),
+        true => Some(super::ident::identified(cfg.plant, k_e_file)?),
         false => None,
     };
     let (_, k_e_nominal, _) = structure.specimen();
@@ -369,7 +367,6 @@ pub fn run_on(
     };
     let mut lead = identification.as_ref().map(|id| Lead::new(id.lead));
     let stroke_mm = params.stroke_mm();
-    let capacity_kn = ACTUATOR_CAPACITY_N * 1e-3;
     let dof = structure.specimen_dof();
     let dofs = structure.dofs();
     let n = ag.len();
@@ -381,9 +378,8 @@ pub fn run_on(
     let mut clipped_force_ticks = 0;
     for (k, &a) in ag.iter().enumerate() {
         let s = rig.read().map_err(|e| anyhow::anyhow!("rig: {e}"))?;
-        let x_m = quantize_bits(s.disp_mm, stroke_mm, CONVERTER_BITS);
-        let f_m = quantize_bits(s.force_kn, capacity_kn, CONVERTER_BITS);
-        if s.force_kn.abs() >= capacity_kn {
+        let (x_m, f_m) = (s.disp_mm, s.force_kn);
+        if rig.force_clipped() {
             clipped_force_ticks += 1;
         }
         if k == 0 {
@@ -430,7 +426,7 @@ pub fn run_on(
             ));
             break;
         }
-        rig.command(quantize_bits(u, stroke_mm, CONVERTER_BITS))
+        rig.command(u)
             .map_err(|e| anyhow::anyhow!("actuator: {e}"))?;
         rig.advance_tick();
     }

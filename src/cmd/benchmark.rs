@@ -219,24 +219,32 @@ fn print_single(r: &RunResult) {
     }
     match (&r.criteria, &r.unstable) {
         (Some(j), _) => {
+            // The specimen's floor and the two others J6-J9 are on (floors 1; 2, 3 for the cases).
+            let d = r.specimen_dof + 1;
+            let others: Vec<String> = (1..=r.history.floors_mm.len())
+                .filter(|&f| f != d)
+                .take(2)
+                .map(|f| f.to_string())
+                .collect();
+            let others = others.join(", ");
             println!("J1 {:.2} ms (delay)", j.j1_ms);
             println!(
-                "J2 {:.2} %  J3 {:.2} %  (tracking, floor 1)",
+                "J2 {:.2} %  J3 {:.2} %  (tracking, floor {d})",
                 j.j2_pct, j.j3_pct
             );
             if let Some(j2) = r.j2_noise_free_pct {
                 println!("   J2 of the noise-free displacement {j2:.2} % (evaluation only)");
             }
             println!(
-                "J4 {:.2} %  J5 {:.2} %  (floor 1 vs reference)",
+                "J4 {:.2} %  J5 {:.2} %  (floor {d} vs reference)",
                 j.j4_pct, j.j5_pct
             );
             println!(
-                "J6 {:.2} %  J7 {:.2} %  (floors 2, 3 vs reference)",
+                "J6 {:.2} %  J7 {:.2} %  (floors {others} vs reference)",
                 j.j6_pct, j.j7_pct
             );
             println!(
-                "J8 {:.2} %  J9 {:.2} %  (floors 2, 3 peak vs reference)",
+                "J8 {:.2} %  J9 {:.2} %  (floors {others} peak vs reference)",
                 j.j8_pct, j.j9_pct
             );
         }
