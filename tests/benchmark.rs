@@ -1,5 +1,6 @@
 //! The vRTHS benchmark: structure files (shipped ones agree with their sources; bad ones are refused
-//! with the reason), the N-DOF path on the paper's frame, and benchmark runs (stable, finite J's).
+//! with the reason), the N-DOF path on the paper's frame, records that do not match, benchmark runs
+//! (stable, finite J's), a 5-story file under the benchmark plant, and the identified controller.
 
 use std::path::Path;
 

@@ -119,7 +119,10 @@ pub fn identify_plant(
     // plausibility check (1.5 × 322 mm/s × Δt = 0.118 mm) is 4.3σ of the difference of two
     // readings of the benchmark's displacement sensor (σ 0.016 mm): ~4 false trips expected in a
     // 56 s identification (the perturbed plant of seed 8 tripped at 39.4 s). At 2048 Hz steps it
-    // is 0.236 mm (10σ). The excitation keeps itself under 100 mm/s by its own rate limiter.
+    // is 0.236 mm (10σ). The price: the command-velocity check and the ramps are doubled too
+    // (644 mm/s, above the actuator's 338.84): the excitation's own 100 mm/s rate limiter is what
+    // keeps the command slow. The proper fix, a plausibility step that knows the sensor's noise,
+    // belongs to the core's supervisor (not changed here).
     let limits = Limits::paper_actuator();
     let o = identify_rig_with_limits(&mut rig, &cfg, limits, Converters::advance_tick)
         .map_err(|e| anyhow::anyhow!("identification of the {plant:?} plant: {e}"))?;
