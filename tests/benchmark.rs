@@ -1,10 +1,12 @@
 //! The vRTHS benchmark: structure files (shipped ones agree with their sources; bad ones are refused
-//! with the reason), the N-DOF path on the paper's frame, and benchmark runs (stable, finite J's).
+//! with the reason), the N-DOF path on the paper's frame, records that do not match, benchmark runs
+//! (stable, finite J's), a 5-story file under the benchmark plant, and the identified controller.
 
 use std::path::Path;
 
-use rths::benchmark::run::{run, ControllerKind, PlantDraw, RunConfig};
+use rths::benchmark::run::{check_record, run, run_on, ControllerKind, PlantDraw, RunConfig};
 use rths::benchmark::{case_structure, Record};
+use rths::cmd::benchmark::history_columns;
 use rths_core::integrator::{Chang, ExplicitIntegrator};
 use rths_core::params::{Prototype, DT_S};
 use rths_core::structure::{LinearStructure, Vector};
@@ -150,6 +152,125 @@ fn bad_structure_files_are_refused_with_the_reason() {
     let bad = "time_s,accel_g\n0,0\n0.02,0.1\n0.05,0.2\n0.07,0.1\n";
     let e = parse_csv(bad, "bad").unwrap_err().to_string();
     assert!(e.contains("line 4"), "{e}");
+    // Damping that feeds energy in, and a specimen stiffer than the structure at its DOF.
+    let e = refusal(&case1_with(|v| {
+        v["matrices"]["damping"] = serde_json::json!([[1, 0, 0], [0, -1, 0], [0, 0, 1]])
+    }));
+    assert!(e.contains("damping is not positive semi-definite"), "{e}");
+    let e = refusal(&case1_with(|v| v["specimen"]["stiffness"] = 1.0e9.into()));
+    assert!(
+        e.contains("numerical stiffness (whole stiffness minus the specimen's) is not positive semi-definite"),
+        "{e}"
+    );
+}
+
+/// A CSV record at `dt_s` lasting `duration_s`.
+fn csv_record(dt_s: f64, duration_s: f64) -> String {
+    let n = (duration_s / dt_s).round() as usize;
+    let mut s = String::from("time_s,accel_g\n");
+    for k in 0..=n {
+        let t = k as f64 * dt_s;
+        s.push_str(&format!(
+            "{t},{}\n",
+            0.1 * (2.0 * std::f64::consts::PI * 2.0 * t).sin()
+        ));
+    }
+    s
+}
+
+#[test]
+fn records_that_do_not_match_the_benchmark_are_refused() {
+    // Rate: finer than the benchmark's 4096 Hz tick.
+    let fine = parse_csv(&csv_record(1.0 / 8192.0, 3.0), "fine").unwrap();
+    let e = check_record(&fine).unwrap_err().to_string();
+    assert!(
+        e.contains("8192.0 Hz, above the benchmark's 4096 Hz"),
+        "{e}"
+    );
+    // Length: shorter than 2 s.
+    let short = parse_csv(&csv_record(0.01, 1.0), "short").unwrap();
+    let e = check_record(&short).unwrap_err().to_string();
+    assert!(e.contains("1.000 s long"), "{e}");
+    // At the benchmark's rate, 3 s: accepted.
+    check_record(&parse_csv(&csv_record(1.0 / 4096.0, 3.0), "ok").unwrap()).unwrap();
+    // And a run refuses it before anything runs.
+    let cfg = RunConfig {
+        case: 0,
+        record: Record::ElCentro,
+        intensity: 0.4,
+        plant: PlantDraw::Nominal,
+        controller: ControllerKind::FeAts,
+    };
+    let e = run_on(&case_structure(1).unwrap(), &short, &cfg)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("1.000 s long"), "{e}");
+}
+
+/// A 5-story shear building with the specimen on floor 2: the N-DOF path of `--structure`
+/// (numerical part, reference, history columns, J's) on a structure that is not the benchmark's.
+#[test]
+fn a_five_story_structure_file_runs_under_the_benchmark_plant() {
+    let json = serde_json::json!({"format": "rths-structure", "version": 1, "name": "shear5",
+        "units": "si", "stories": {"floor_mass": [2000.0, 1800.0, 1800.0, 1600.0, 1500.0],
+        "story_stiffness": [16.0e6, 14.0e6, 12.0e6, 10.0e6, 8.0e6], "damping_ratio": 0.02},
+        "specimen": {"dof": 2, "mass": 29.13, "stiffness": 1.19e6, "damping_ratio": 0.0097}});
+    let s = Structure::from_json(&json.to_string()).unwrap();
+    assert_eq!((s.dofs(), s.specimen_dof()), (5, 1));
+    let cfg = RunConfig {
+        case: 0,
+        record: Record::ElCentro,
+        intensity: 0.4,
+        plant: PlantDraw::Nominal,
+        controller: ControllerKind::FeAts,
+    };
+    let r = run_on(&s, &Record::ElCentro.motion().unwrap(), &cfg).unwrap();
+    assert!(r.unstable.is_none(), "{:?}", r.unstable);
+    let h = &r.history;
+    assert_eq!((h.floors_mm.len(), h.reference_mm.len()), (5, 5));
+    assert!(h.reference_mm.iter().all(|f| f.len() == h.time_s.len()));
+    // Stiff enough that the specimen's force stays inside the load cell's ±8900 N.
+    assert_eq!(r.clipped_force_ticks, 0);
+    let j = r.criteria.unwrap();
+    println!("{j:?}");
+    assert!(j.as_array().iter().all(|v| v.is_finite()), "{j:?}");
+    // The measured floor 2 follows the reference (measured: J4 2.48 %, J6/J7 1.04/0.97 %).
+    assert!(j.j4_pct < 3.0 && j.j6_pct < 1.5 && j.j7_pct < 1.5, "{j:?}");
+    assert_eq!(
+        history_columns(5, 1).join(","),
+        "time_s,x2_mm,target2_mm,x1_mm,x3_mm,x4_mm,x5_mm,r1_mm,r2_mm,r3_mm,r4_mm,r5_mm"
+    );
+    // The benchmark's own 3 stories keep the columns.
+    assert_eq!(
+        history_columns(3, 0).join(","),
+        "time_s,x1_mm,target1_mm,x2_mm,x3_mm,r1_mm,r2_mm,r3_mm"
+    );
+}
+
+/// The identified controller: the rig identified at 4096 Hz through the converters (lead, its
+/// online correction, the specimen's stiffness for the force correction), then the metamodel.
+#[test]
+fn the_identified_metamodel_meets_j4_on_case_1_el_centro() {
+    let r = run(&RunConfig {
+        case: 1,
+        record: Record::ElCentro,
+        intensity: 0.4,
+        plant: PlantDraw::Nominal,
+        controller: ControllerKind::MetaId,
+    })
+    .unwrap();
+    assert!(r.unstable.is_none(), "{:?}", r.unstable);
+    let id = r.identification.as_ref().unwrap();
+    // The identified specimen (measured data only) against the benchmark's 1.19 kN/mm, 29.13 kg.
+    let k = id.specimen.stiffness_kn_per_mm;
+    assert!((k - 1.19).abs() < 0.01 * 1.19, "{k}");
+    assert!((id.specimen.mass_kn_s2_per_mm - 29.13e-6).abs() < 0.05 * 29.13e-6);
+    assert_eq!(r.force_correction_kn_per_mm, Some(k));
+    let j = r.criteria.unwrap();
+    println!("{j:?}");
+    // Measured: J4 3.33 %, J6/J7 2.93/2.84 % (docs/benchmark.md); the goal is J4 ≤ 4 %.
+    assert!(j.j4_pct < 3.6, "{j:?}");
+    assert!(j.j6_pct < 3.3 && j.j7_pct < 3.3, "{j:?}");
 }
 
 #[test]
@@ -216,6 +337,21 @@ fn bad_benchmark_arguments_are_refused() {
 fn whole_grid_is_stable() {
     for controller in [ControllerKind::FeAts, ControllerKind::MetaAts] {
         grid_meets_the_goals(controller);
+    }
+}
+
+/// The identified controller over the grid: stable on every plant and J4 ≤ 8 % on every perturbed
+/// one (measured max 5.09 %); its nominal J4 misses 4 % on Morgan Hill (docs/benchmark.md).
+/// `cargo test --features sim --test benchmark -- --ignored` (about a minute more).
+#[test]
+#[ignore]
+fn identified_grid_is_stable() {
+    let g = rths::benchmark::grid::run_grid(ControllerKind::MetaId, 0.4, 20).unwrap();
+    println!("{}", g.table());
+    for c in &g.cells {
+        assert!(c.nominal.is_some(), "case {} {}", c.case, c.record);
+        assert_eq!(c.perturbed_unstable, 0, "case {} {}", c.case, c.record);
+        assert!(c.perturbed_max_j4_pct.is_some_and(|j4| j4 <= 6.0));
     }
 }
 

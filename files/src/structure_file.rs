@@ -255,6 +255,17 @@ pub enum StructureFileError {
         /// The matrix.
         what: &'static str,
     },
+    /// A matrix that must not feed energy in has a negative eigenvalue.
+    #[error(
+        "{what} is not positive semi-definite: eigenvalue {eigenvalue:e} < 0 (it would feed \
+         energy into the structure)"
+    )]
+    NotPositiveSemiDefinite {
+        /// The matrix.
+        what: &'static str,
+        /// Its smallest eigenvalue.
+        eigenvalue: f64,
+    },
     /// The specimen's DOF does not exist.
     #[error("the specimen is on DOF {dof}, but the structure has DOFs 1..={dofs}")]
     SpecimenDof {
@@ -422,6 +433,22 @@ fn positive_definite(a: &DMatrix<f64>, what: &'static str) -> Result<(), Structu
     }
 }
 
+/// Smallest eigenvalue of the symmetric part at least `−SYMMETRY_TOLERANCE·max|a|` (round-off of
+/// a singular but semi-definite matrix, e.g. a numerical part whose only stiffness at a DOF was the
+/// specimen's, stays accepted).
+fn positive_semi_definite(a: &DMatrix<f64>, what: &'static str) -> Result<(), StructureFileError> {
+    let sym = (a + a.transpose()) * 0.5;
+    let lowest = sym.symmetric_eigenvalues().min();
+    if lowest >= -SYMMETRY_TOLERANCE * a.amax() {
+        Ok(())
+    } else {
+        Err(StructureFileError::NotPositiveSemiDefinite {
+            what,
+            eigenvalue: lowest,
+        })
+    }
+}
+
 fn non_negative(v: f64, what: &'static str) -> Result<f64, StructureFileError> {
     if !v.is_finite() {
         Err(StructureFileError::Specimen {
@@ -522,6 +549,7 @@ impl StructureFile {
         symmetric(&damping, "damping")?;
         positive_definite(&mass, "mass")?;
         positive_definite(&stiffness, "stiffness")?;
+        positive_semi_definite(&damping, "damping")?;
         let n = mass.nrows();
         let sp = &self.specimen;
         if sp.dof == 0 || sp.dof > n {
@@ -560,8 +588,18 @@ impl StructureFile {
             specimen_damping: c_e,
             story_laws: laws,
         };
-        let (m_n, _, _) = s.numerical_matrices();
+        let (m_n, k_n, c_n) = s.numerical_matrices();
         positive_definite(&m_n, "numerical mass (whole mass minus the specimen's)")?;
+        // A specimen stiffer (or more damped) than the structure at its DOF would leave the
+        // numerical part a negative spring (dashpot): no structure splits that way.
+        positive_semi_definite(
+            &k_n,
+            "numerical stiffness (whole stiffness minus the specimen's)",
+        )?;
+        positive_semi_definite(
+            &c_n,
+            "numerical damping (whole damping minus the specimen's)",
+        )?;
         Ok(s)
     }
 }

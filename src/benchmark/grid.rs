@@ -1,9 +1,12 @@
 //! The benchmark's grid: every case × record, on the nominal plant and on `PERTURBED_PLANTS`
 //! perturbed ones, run on every core (rayon), summarized in the benchmark's table.
 
+use std::sync::Arc;
+
 use rayon::prelude::*;
 use rths_core::metrics::BenchmarkCriteria;
 
+use super::ident::RigIdentification;
 use super::run::{run, ControllerKind, PlantDraw, RunConfig};
 use super::Record;
 
@@ -37,6 +40,12 @@ pub struct Grid {
     pub perturbed_plants: u64,
     /// Cells, case-major.
     pub cells: Vec<Cell>,
+    /// The `*-id` controllers: the rig identifications' total wall-clock time, s (one per plant
+    /// draw, shared by every case × record on it; run in parallel with the grid's runs).
+    pub identification_s: Option<f64>,
+    /// The `*-id` controllers: the identified specimen stiffness over the plant draws, kN/mm
+    /// [min, max].
+    pub identified_stiffness_kn_per_mm: Option<[f64; 2]>,
 }
 
 /// Run the grid (`perturbed` plants per cell, seeds 1..=perturbed) on every core.
@@ -62,10 +71,43 @@ pub fn run_grid(
         }
     }
     // Keep only the figures: the histories of 252 runs would not fit comfortably in memory.
-    let results: Vec<(RunConfig, Option<BenchmarkCriteria>, Option<f64>)> = configs
+    type Kept = (
+        (RunConfig, Option<BenchmarkCriteria>, Option<f64>),
+        Option<Arc<RigIdentification>>,
+    );
+    let kept: Vec<Kept> = configs
         .par_iter()
-        .map(|c| run(c).map(|r| (r.config, r.criteria, r.j2_noise_free_pct)))
+        .map(|c| {
+            run(c).map(|r| {
+                (
+                    (r.config, r.criteria, r.j2_noise_free_pct),
+                    r.identification,
+                )
+            })
+        })
         .collect::<anyhow::Result<_>>()?;
+    // One identification per plant draw (the cache hands every run of a draw the same one).
+    let mut ids: Vec<(PlantDraw, Arc<RigIdentification>)> = Vec::new();
+    for ((c, _, _), id) in &kept {
+        if let Some(id) = id {
+            if !ids.iter().any(|(p, _)| *p == c.plant) {
+                ids.push((c.plant, id.clone()));
+            }
+        }
+    }
+    let identification_s = (!ids.is_empty()).then(|| ids.iter().map(|(_, i)| i.wall_s).sum());
+    let stiffness: Vec<f64> = ids
+        .iter()
+        .map(|(_, i)| i.specimen.stiffness_kn_per_mm)
+        .collect();
+    let identified_stiffness_kn_per_mm = (!stiffness.is_empty()).then(|| {
+        [
+            stiffness.iter().copied().fold(f64::INFINITY, f64::min),
+            stiffness.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        ]
+    });
+    let results: Vec<(RunConfig, Option<BenchmarkCriteria>, Option<f64>)> =
+        kept.into_iter().map(|(r, _)| r).collect();
     let mut cells = Vec::new();
     for case in 1..=4u8 {
         for record in Record::ALL {
@@ -102,6 +144,8 @@ pub fn run_grid(
         intensity,
         perturbed_plants: perturbed,
         cells,
+        identification_s,
+        identified_stiffness_kn_per_mm,
     })
 }
 
@@ -136,6 +180,15 @@ impl Grid {
                 opt(c.perturbed_max_j4_pct),
                 opt(c.perturbed_mean_j4_pct),
                 c.perturbed_unstable
+            ));
+        }
+        if let (Some(t), Some([lo, hi])) =
+            (self.identification_s, self.identified_stiffness_kn_per_mm)
+        {
+            s.push_str(&format!(
+                "\n{} rig identifications (one per plant draw): {t:.1} s of compute in all; \
+                 identified specimen stiffness {lo:.4}..{hi:.4} kN/mm\n",
+                self.perturbed_plants + 1
             ));
         }
         s

@@ -10,6 +10,7 @@
 //! command works from any directory; the same files are in the repository's `data/`.
 
 pub mod grid;
+pub mod ident;
 pub mod meta;
 pub mod run;
 

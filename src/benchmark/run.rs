@@ -11,21 +11,20 @@
 use std::sync::OnceLock;
 
 use anyhow::Context;
-use rths_core::compensator::{Ats, AtsConfig, AtsParams};
+use rths_core::compensator::{Ats, AtsConfig, AtsParams, Lead};
 use rths_core::hal::{Actuator, Daq};
 use rths_core::integrator::Newmark;
+use rths_core::metamodel::{DeltaArx, DeltaArxParams};
 use rths_core::metrics::{benchmark_criteria, normalized_std_error_pct, BenchmarkCriteria};
 use rths_core::structure::{LinearStructure, Mat};
 use rths_core::structure_n::{ChangN, MAX_DOF};
 use rths_files::structure_file::{Structure, SI_TO_MM_KN};
-use rths_hal_sim::params::BENCHMARK_SPECIMEN_STIFFNESS_N_PER_M;
-use rths_hal_sim::rig::quantize_bits;
 use rths_hal_sim::{PlantParams, Preset, RigConfig, Sensors, VirtualRig};
 
-use super::{
-    noise_sigma, Record, ACTUATOR_CAPACITY_N, CONVERTER_BITS, DISP_NOISE_POWER_M2, DT_S,
-    FORCE_NOISE_POWER_N2,
-};
+use crate::motion::GroundMotion;
+
+use super::ident::Converters;
+use super::{noise_sigma, Record, DISP_NOISE_POWER_M2, DT_S, FORCE_NOISE_POWER_N2};
 
 /// The controllers the benchmark can run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -38,6 +37,12 @@ pub enum ControllerKind {
     /// The fixed-order metamodel of the numerical substructure ([`super::meta`]), force
     /// correction, ATS.
     MetaAts,
+    /// Chang's method with the rig's identified lead filter and its online gain-and-delay
+    /// correction ([`super::ident`]).
+    FeId,
+    /// The metamodel with the force correction from the identified specimen, the identified lead
+    /// filter and its online correction.
+    MetaId,
 }
 
 impl ControllerKind {
@@ -47,12 +52,24 @@ impl ControllerKind {
             ControllerKind::Fe => "fe",
             ControllerKind::FeAts => "fe-ats",
             ControllerKind::MetaAts => "meta-ats",
+            ControllerKind::FeId => "fe-id",
+            ControllerKind::MetaId => "meta-id",
         }
+    }
+
+    /// Whether it runs on the metamodel (else on Chang's method).
+    pub fn uses_metamodel(self) -> bool {
+        matches!(self, ControllerKind::MetaAts | ControllerKind::MetaId)
+    }
+
+    /// Whether it identifies the rig before the run.
+    pub fn identifies(self) -> bool {
+        matches!(self, ControllerKind::FeId | ControllerKind::MetaId)
     }
 }
 
 /// The plant of a run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum PlantDraw {
     /// The nominal benchmark plant (sensor noise seed 0).
@@ -106,19 +123,41 @@ pub struct RunResult {
     pub history: History,
     /// The ATS coefficients at the end `[a0, a1 (s), a2 (s²)]` (fe-ats).
     pub ats_coefficients: Option<[f64; 3]>,
+    /// The rig's identification (the `*-id` controllers).
+    pub identification: Option<std::sync::Arc<super::ident::RigIdentification>>,
+    /// The lead's online correction at the end `[gain, delay (s)]` (the `*-id` controllers).
+    pub lead_adaptation: Option<[f64; 2]>,
+    /// The force-correction stiffness used, kN/mm (metamodel controllers).
+    pub force_correction_kn_per_mm: Option<f64>,
     /// The drawn specimen stiffness, N/m (evaluation only).
     pub specimen_stiffness_n_per_m: f64,
+    /// The structure's name (the case file's or the `--structure` file's).
+    pub structure_name: String,
+    /// The specimen's DOF, 0-based.
+    pub specimen_dof: usize,
+    /// Ticks at which the load cell read at the end of its ±8900 N range (clipped: the force fed
+    /// back is wrong there; a structure file whose specimen moves more than ~7.5 mm does this).
+    pub clipped_force_ticks: usize,
+    /// The record's name.
+    pub record_name: String,
     /// J2 of the true (noise-free) displacement, %: how much of J2 is sensor noise (evaluation only).
     pub j2_noise_free_pct: Option<f64>,
 }
 
-/// The benchmark plant of a run at 4096 Hz: its specimen, its noise (quantization is done by
-/// [`run`] at 18 bits).
-pub fn plant_params(plant: PlantDraw) -> anyhow::Result<PlantParams> {
+/// The benchmark plant of a run at 4096 Hz holding a specimen of stiffness `specimen_kn_per_mm`
+/// (the structure file's; the benchmark's mass and damping ratio), its noise (quantization at 18
+/// bits is the [`Converters`]').
+pub fn plant_params(plant: PlantDraw, specimen_kn_per_mm: f64) -> anyhow::Result<PlantParams> {
+    rig_config(plant, specimen_kn_per_mm)
+        .build()
+        .map_err(|e| anyhow::anyhow!("benchmark plant: {e}"))
+}
+
+/// The configuration of [`plant_params`].
+pub fn rig_config(plant: PlantDraw, specimen_kn_per_mm: f64) -> RigConfig {
     let mut cfg = RigConfig::new(Preset::Benchmark);
     cfg.dt_s = DT_S;
-    // N/m → kN/mm.
-    cfg.specimen_stiffness_kn_per_mm = BENCHMARK_SPECIMEN_STIFFNESS_N_PER_M * 1e-6;
+    cfg.specimen_stiffness_kn_per_mm = specimen_kn_per_mm;
     cfg.sensors = Sensors {
         disp_noise_mm: noise_sigma(DISP_NOISE_POWER_M2, DT_S) * 1e3,
         force_noise_kn: noise_sigma(FORCE_NOISE_POWER_N2, DT_S) * 1e-3,
@@ -131,8 +170,7 @@ pub fn plant_params(plant: PlantDraw) -> anyhow::Result<PlantParams> {
             cfg.seed = seed;
         }
     }
-    cfg.build()
-        .map_err(|e| anyhow::anyhow!("benchmark plant: {e}"))
+    cfg
 }
 
 /// The ATS's starting delay: the nominal plant's phase delay at the structure's second mode (the
@@ -148,25 +186,40 @@ pub fn nominal_delay_s(structure: &Structure) -> anyhow::Result<f64> {
         .or(f.first())
         .copied()
         .context("the structure has no natural frequency")?;
-    Ok(plant_params(PlantDraw::Nominal)?.phase_delay_s(f_hz))
+    Ok(plant_params(PlantDraw::Nominal, structure.specimen().1)?.phase_delay_s(f_hz))
 }
 
-/// The reference: the whole 3-story structure with the specimen the plant actually holds (its drawn
+/// The reference: the whole structure with the specimen the plant actually holds (its drawn
 /// stiffness and damping in place of the nominal ones the numerical part subtracted), linear,
-/// Newmark average acceleration. Evaluation only: the controller never sees this.
+/// Newmark average acceleration; one history per floor. Evaluation only: the controller never sees
+/// this. Any N in 1..=[`MAX_DOF`] (the core's integrator is sized at compile time: one instance per N).
 pub fn reference(
     structure: &Structure,
     plant: &PlantParams,
     ag_mm_s2: &[f64],
-) -> anyhow::Result<[Vec<f64>; 3]> {
-    if structure.dofs() != 3 {
-        anyhow::bail!(
-            "the benchmark's reference is a 3-story frame; {} has {} DOFs",
-            structure.name(),
-            structure.dofs()
-        );
+) -> anyhow::Result<Vec<Vec<f64>>> {
+    match structure.dofs() {
+        1 => reference_n::<1>(structure, plant, ag_mm_s2),
+        2 => reference_n::<2>(structure, plant, ag_mm_s2),
+        3 => reference_n::<3>(structure, plant, ag_mm_s2),
+        4 => reference_n::<4>(structure, plant, ag_mm_s2),
+        5 => reference_n::<5>(structure, plant, ag_mm_s2),
+        6 => reference_n::<6>(structure, plant, ag_mm_s2),
+        7 => reference_n::<7>(structure, plant, ag_mm_s2),
+        8 => reference_n::<8>(structure, plant, ag_mm_s2),
+        n => anyhow::bail!(
+            "the benchmark's reference takes 1..={MAX_DOF} DOFs; {} has {n}",
+            structure.name()
+        ),
     }
-    let m = |a: &nalgebra::DMatrix<f64>| Mat::<3>::from_fn(|i, j| a[(i, j)]);
+}
+
+fn reference_n<const N: usize>(
+    structure: &Structure,
+    plant: &PlantParams,
+    ag_mm_s2: &[f64],
+) -> anyhow::Result<Vec<Vec<f64>>> {
+    let m = |a: &nalgebra::DMatrix<f64>| Mat::<N>::from_fn(|i, j| a[(i, j)]);
     let (_, k_e, c_e) = structure.specimen();
     let d = structure.specimen_dof();
     let (mut k, mut c) = (m(structure.stiffness()), m(structure.damping()));
@@ -176,10 +229,7 @@ pub fn reference(
     let model =
         LinearStructure::new(m(structure.mass()), c, k, k).context("reference structure")?;
     let mut nm = Newmark::new(model, DT_S).context("reference integrator")?;
-    let mut out: [Vec<f64>; 3] = Default::default();
-    for o in out.iter_mut() {
-        o.reserve(ag_mm_s2.len());
-    }
+    let mut out: Vec<Vec<f64>> = (0..N).map(|_| Vec::with_capacity(ag_mm_s2.len())).collect();
     for (k, &ag) in ag_mm_s2.iter().enumerate() {
         let d = if k == 0 {
             nm.reset(ag);
@@ -209,9 +259,10 @@ fn trained(case: u8, structure: &Structure) -> anyhow::Result<super::meta::Meta>
         OnceLock::new(),
         OnceLock::new(),
     ];
-    let slot = TRAINED
-        .get(usize::from(case).wrapping_sub(1))
-        .context("benchmark case out of range")?;
+    // Case 0 (a structure file): trained for it, not cached.
+    let Some(slot) = TRAINED.get(usize::from(case).wrapping_sub(1)) else {
+        return super::meta::train(structure, super::DEFAULT_INTENSITY);
+    };
     if let Some(m) = slot.get() {
         return Ok(m.clone());
     }
@@ -221,12 +272,7 @@ fn trained(case: u8, structure: &Structure) -> anyhow::Result<super::meta::Meta>
 
 /// Run one benchmark case.
 pub fn run(cfg: &RunConfig) -> anyhow::Result<RunResult> {
-    if !(cfg.intensity.is_finite() && cfg.intensity > 0.0) {
-        anyhow::bail!(
-            "--intensity must be a positive number, got {}",
-            cfg.intensity
-        );
-    }
+    check_intensity(cfg.intensity)?;
     let structure = super::case_structure(cfg.case)?;
     if structure.dofs() != 3 || structure.specimen_dof() != 0 {
         anyhow::bail!(
@@ -234,39 +280,114 @@ pub fn run(cfg: &RunConfig) -> anyhow::Result<RunResult> {
             cfg.case
         );
     }
-    let ag = cfg
-        .record
-        .motion()?
-        .scaled(cfg.intensity)
-        .resample_mm_s2(DT_S);
-    let params = plant_params(cfg.plant)?;
-    let reference = reference(&structure, &params, &ag)?;
-    let mut rig = VirtualRig::new(params);
+    run_on(&structure, &cfg.record.motion()?, cfg)
+}
+
+fn check_intensity(intensity: f64) -> anyhow::Result<()> {
+    if !(intensity.is_finite() && intensity > 0.0) {
+        anyhow::bail!("--intensity must be a positive number, got {intensity}");
+    }
+    Ok(())
+}
+
+/// Shortest record the benchmark runs, s: the J's are standard deviations over the run, and the
+/// compensators adapt over their ~1 s windows.
+pub const MIN_RECORD_S: f64 = 2.0;
+
+/// Longest record the benchmark runs, s (the histories of one run are kept in memory).
+pub const MAX_RECORD_S: f64 = 600.0;
+
+/// Whether a ground-motion record matches the benchmark: a uniform step (the CSV reader refuses
+/// any other, with its line) no finer than the benchmark's 4096 Hz tick (a finer record would be
+/// decimated by the linear interpolation, its content above 2048 Hz lost unseen), and a duration
+/// in [[`MIN_RECORD_S`], [`MAX_RECORD_S`]].
+pub fn check_record(motion: &GroundMotion) -> anyhow::Result<()> {
+    motion
+        .validate()
+        .with_context(|| format!("record {}", motion.name))?;
+    let rate_hz = 1.0 / motion.dt_s;
+    if motion.dt_s < DT_S * (1.0 - 1e-9) {
+        anyhow::bail!(
+            "record {}: sampled at {rate_hz:.1} Hz, above the benchmark's {} Hz: the 4096 Hz \
+             interpolation would drop samples (resample it to 4096 Hz or below)",
+            motion.name,
+            super::RATE_HZ
+        );
+    }
+    let duration_s = motion.duration_s();
+    if !(MIN_RECORD_S..=MAX_RECORD_S).contains(&duration_s) {
+        anyhow::bail!(
+            "record {}: {duration_s:.3} s long; the benchmark runs records of \
+             {MIN_RECORD_S}..={MAX_RECORD_S} s",
+            motion.name
+        );
+    }
+    Ok(())
+}
+
+/// Run the benchmark on any structure file (N ≤ 8 DOFs, the specimen on its DOF, validated by
+/// `rths-files`) under the benchmark plant, with `motion` as the record (`cfg.record` and
+/// `cfg.case` only label the run; case 0: not one of the four cases, the metamodel is trained for
+/// this structure and not cached).
+pub fn run_on(
+    structure: &Structure,
+    motion: &GroundMotion,
+    cfg: &RunConfig,
+) -> anyhow::Result<RunResult> {
+    check_intensity(cfg.intensity)?;
+    check_record(motion)?;
+    let ag = motion.scaled(cfg.intensity).resample_mm_s2(DT_S);
+    // The rig holds the file's specimen (for the four cases, the benchmark's own).
+    let (_, k_e_file, _) = structure.specimen();
+    let params = plant_params(cfg.plant, k_e_file)?;
+    let reference = reference(structure, &params, &ag)?;
+    let mut rig = Converters::new(VirtualRig::new(params));
     let mut integ = ChangN::new(structure.numerical()?, DT_S).context("numerical substructure")?;
-    let mut meta = match cfg.controller {
-        ControllerKind::MetaAts => Some(trained(cfg.case, &structure)?),
-        _ => None,
+    let mut meta = match cfg.controller.uses_metamodel() {
+        true => Some(trained(cfg.case, structure)?),
+        false => None,
     };
+    let identification = match cfg.controller.identifies() {
+        true => Some(super::ident::identified(cfg.plant, k_e_file)?),
+        false => None,
+    };
+    let (_, k_e_nominal, _) = structure.specimen();
+    // The force correction's stiffness: the identified specimen's for meta-id (measured data
+    // only; why the full one, docs/benchmark.md "The force correction"), the disclosed half of
+    // the nominal for meta-ats (trained in).
+    let k_corr = match &identification {
+        Some(id) => id.specimen.stiffness_kn_per_mm,
+        None => META_FORCE_CORRECTION * k_e_nominal,
+    };
+    if let (Some(m), Some(_)) = (meta.as_mut(), &identification) {
+        let params = DeltaArxParams::from_slice(m.params().theta(), k_corr)
+            .context("the metamodel with the identified force correction")?;
+        *m = DeltaArx::new(params);
+    }
     let mut ats = match cfg.controller {
-        ControllerKind::Fe => None,
+        ControllerKind::Fe | ControllerKind::FeId | ControllerKind::MetaId => None,
         ControllerKind::FeAts | ControllerKind::MetaAts => Some(Ats::new(
-            AtsParams::new(AtsConfig::paper(DT_S, nominal_delay_s(&structure)?))
+            AtsParams::new(AtsConfig::paper(DT_S, nominal_delay_s(structure)?))
                 .context("ATS parameters")?,
         )),
     };
+    let mut lead = identification.as_ref().map(|id| Lead::new(id.lead));
     let stroke_mm = params.stroke_mm();
-    let capacity_kn = ACTUATOR_CAPACITY_N * 1e-3;
     let dof = structure.specimen_dof();
+    let dofs = structure.dofs();
     let n = ag.len();
     let mut h = History {
-        floors_mm: (0..3).map(|_| Vec::with_capacity(n)).collect(),
+        floors_mm: (0..dofs).map(|_| Vec::with_capacity(n)).collect(),
         ..History::default()
     };
     let mut unstable = None;
+    let mut clipped_force_ticks = 0;
     for (k, &a) in ag.iter().enumerate() {
         let s = rig.read().map_err(|e| anyhow::anyhow!("rig: {e}"))?;
-        let x_m = quantize_bits(s.disp_mm, stroke_mm, CONVERTER_BITS);
-        let f_m = quantize_bits(s.force_kn, capacity_kn, CONVERTER_BITS);
+        let (x_m, f_m) = (s.disp_mm, s.force_kn);
+        if rig.force_clipped() {
+            clipped_force_ticks += 1;
+        }
         if k == 0 {
             integ.reset(a);
         } else {
@@ -277,7 +398,7 @@ pub fn run(cfg: &RunConfig) -> anyhow::Result<RunResult> {
         h.time_s.push(k as f64 * DT_S);
         h.measured_mm.push(x_m);
         h.true_disp_mm.push(rig.true_disp_mm());
-        // The upper floors: the numerical model under the measured force (for the metamodel, a
+        // The other floors: the numerical model under the measured force (for the metamodel, a
         // reconstruction beside the loop, not the command's path).
         for (f, x) in h.floors_mm.iter_mut().zip(integ.disp()) {
             f.push(*x);
@@ -287,7 +408,7 @@ pub fn run(cfg: &RunConfig) -> anyhow::Result<RunResult> {
                 let d_k = m.current_mm();
                 h.target_mm.push(d_k);
                 // Toward the force the specimen would have at the model's own displacement
-                // (LRX's correction; stiffness from the structure file, see META_FORCE_CORRECTION).
+                // (LRX's correction, docs/design.md §5.3; its stiffness is in the model's params).
                 // A refused (non-finite) step is a divergence, caught below.
                 m.predict(a, x_m, f_m).unwrap_or(f64::NAN)
             }
@@ -296,11 +417,14 @@ pub fn run(cfg: &RunConfig) -> anyhow::Result<RunResult> {
                 integ.next_displacement()[dof]
             }
         };
-        let u = match ats.as_mut() {
-            Some(c) => c
+        let u = match (ats.as_mut(), lead.as_mut()) {
+            (Some(c), _) => c
                 .compensate(next, x_m)
                 .map_err(|e| anyhow::anyhow!("ATS: {e:?}"))?,
-            None => next,
+            (None, Some(l)) => l
+                .step(next, x_m)
+                .map_err(|e| anyhow::anyhow!("lead: {e:?}"))?,
+            (None, None) => next,
         };
         if !u.is_finite() || u.abs() >= stroke_mm || x_m.abs() >= stroke_mm {
             unstable = Some(format!(
@@ -309,28 +433,20 @@ pub fn run(cfg: &RunConfig) -> anyhow::Result<RunResult> {
             ));
             break;
         }
-        rig.command(quantize_bits(u, stroke_mm, CONVERTER_BITS))
+        rig.command(u)
             .map_err(|e| anyhow::anyhow!("actuator: {e}"))?;
         rig.advance_tick();
     }
     let ticks = h.time_s.len();
     h.reference_mm = reference
+        .into_iter()
         .map(|mut r| {
             r.truncate(ticks);
             r
         })
-        .into();
+        .collect();
     let criteria = if unstable.is_none() {
-        Some(
-            benchmark_criteria(
-                &h.measured_mm,
-                &h.target_mm,
-                [&h.floors_mm[1], &h.floors_mm[2]],
-                [&h.reference_mm[0], &h.reference_mm[1], &h.reference_mm[2]],
-                DT_S,
-            )
-            .map_err(|e| anyhow::anyhow!("J1-J9: {e}"))?,
-        )
+        Some(criteria(&h, dof)?)
     } else {
         None
     };
@@ -348,6 +464,39 @@ pub fn run(cfg: &RunConfig) -> anyhow::Result<RunResult> {
         unstable,
         history: h,
         ats_coefficients: ats.map(|a| a.coefficients()),
+        lead_adaptation: lead.map(|l| {
+            let st = l.adaptation_state();
+            [f64::from(st.gain), f64::from(st.delay_ticks) * DT_S]
+        }),
+        identification,
+        force_correction_kn_per_mm: cfg.controller.uses_metamodel().then_some(k_corr),
         specimen_stiffness_n_per_m: params.specimen_stiffness_n_per_m(),
+        structure_name: structure.name().to_string(),
+        specimen_dof: dof,
+        clipped_force_ticks,
+        record_name: motion.name.clone(),
     })
+}
+
+/// J1-J9: J1-J5 on the specimen's DOF, J6-J9 on the first two other floors in order (floors 2 and
+/// 3 of the benchmark's frame); NaN where the structure has fewer.
+fn criteria(h: &History, dof: usize) -> anyhow::Result<BenchmarkCriteria> {
+    let others: Vec<usize> = (0..h.floors_mm.len()).filter(|&j| j != dof).collect();
+    let pick = |i: usize| others.get(i).copied().unwrap_or(dof);
+    let (a, b) = (pick(0), pick(1));
+    let mut j = benchmark_criteria(
+        &h.measured_mm,
+        &h.target_mm,
+        [&h.floors_mm[a], &h.floors_mm[b]],
+        [&h.reference_mm[dof], &h.reference_mm[a], &h.reference_mm[b]],
+        DT_S,
+    )
+    .map_err(|e| anyhow::anyhow!("J1-J9: {e}"))?;
+    if others.is_empty() {
+        (j.j6_pct, j.j8_pct) = (f64::NAN, f64::NAN);
+    }
+    if others.len() < 2 {
+        (j.j7_pct, j.j9_pct) = (f64::NAN, f64::NAN);
+    }
+    Ok(j)
 }

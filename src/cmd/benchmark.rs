@@ -8,7 +8,9 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use crate::benchmark::grid::run_grid;
-use crate::benchmark::run::{run as run_one, ControllerKind, PlantDraw, RunConfig, RunResult};
+use crate::benchmark::run::{
+    run as run_one, run_on, ControllerKind, PlantDraw, RunConfig, RunResult,
+};
 use crate::benchmark::{Record, DEFAULT_INTENSITY, PERTURBED_PLANTS};
 use crate::plot::{self, Panel};
 
@@ -18,9 +20,22 @@ pub struct Args {
     /// Partitioning case, 1..4 (with --record; neither: the whole grid).
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=4))]
     pub case: Option<u8>,
-    /// Ground-motion record (with --case).
+    /// Ground-motion record (with --case or --structure).
     #[arg(long, value_enum)]
     pub record: Option<Record>,
+    /// Run this structure file (N ≤ 8 DOFs, the specimen on its DOF) instead of a case, with
+    /// --record or --record-file.
+    #[arg(long, value_name = "FILE", conflicts_with = "case")]
+    pub structure: Option<PathBuf>,
+    /// A two-column CSV record `time_s,accel_g` (with --structure): uniform step no finer than
+    /// 1/4096 s, 2..=600 s long.
+    #[arg(
+        long,
+        value_name = "CSV",
+        requires = "structure",
+        conflicts_with = "record"
+    )]
+    pub record_file: Option<PathBuf>,
     /// Factor on the ground acceleration.
     #[arg(long, default_value_t = DEFAULT_INTENSITY)]
     pub intensity: f64,
@@ -44,6 +59,9 @@ pub struct Args {
 
 /// Run `rths benchmark`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(path) = &args.structure {
+        return structure_run(&args, path);
+    }
     match (args.case, args.record) {
         (Some(case), Some(record)) => single(&args, case, record),
         (None, None) => grid(&args),
@@ -51,33 +69,63 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 }
 
-fn single(args: &Args, case: u8, record: Record) -> anyhow::Result<()> {
-    let plant = match (args.perturbed, args.seed) {
+fn plant_of(args: &Args) -> anyhow::Result<PlantDraw> {
+    Ok(match (args.perturbed, args.seed) {
         (None, None) => PlantDraw::Nominal,
         (Some(_), Some(seed)) | (None, Some(seed)) => PlantDraw::Perturbed(seed),
         (Some(n), None) => {
             anyhow::bail!("--perturbed {n} on one run needs --seed S (the plant to draw)")
         }
+    })
+}
+
+/// `--structure FILE`: one run of a structure file under the benchmark plant.
+fn structure_run(args: &Args, path: &Path) -> anyhow::Result<()> {
+    let structure = rths_files::structure_file::Structure::load(path)
+        .with_context(|| format!("structure file {}", path.display()))?;
+    let (record, motion) = match (&args.record_file, args.record) {
+        (Some(csv), None) => (
+            Record::ElCentro,
+            crate::motion::GroundMotion::from_path(csv)
+                .with_context(|| format!("record {}", csv.display()))?,
+        ),
+        (None, Some(r)) => (r, r.motion()?),
+        _ => anyhow::bail!("--structure needs --record NAME or --record-file CSV"),
     };
+    let cfg = RunConfig {
+        // Not one of the four cases: the label 0, and the metamodel is trained for this file.
+        case: 0,
+        record,
+        intensity: args.intensity,
+        plant: plant_of(args)?,
+        controller: args.controller,
+    };
+    finish_single(args, &run_on(&structure, &motion, &cfg)?)
+}
+
+fn single(args: &Args, case: u8, record: Record) -> anyhow::Result<()> {
     let cfg = RunConfig {
         case,
         record,
         intensity: args.intensity,
-        plant,
+        plant: plant_of(args)?,
         controller: args.controller,
     };
-    let r = run_one(&cfg)?;
+    finish_single(args, &run_one(&cfg)?)
+}
+
+fn finish_single(args: &Args, r: &RunResult) -> anyhow::Result<()> {
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&single_json(&r))?);
+        println!("{}", serde_json::to_string_pretty(&single_json(r))?);
     } else {
-        print_single(&r);
+        print_single(r);
     }
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         let csv = dir.join("history.csv");
-        write_history(&r, &csv)?;
+        write_history(r, &csv)?;
         let png = dir.join("benchmark.png");
-        draw(&r, &png)?;
+        draw(r, &png)?;
         if !args.json {
             println!("wrote {} and {}", csv.display(), png.display());
         }
@@ -91,14 +139,25 @@ fn single(args: &Args, case: u8, record: Record) -> anyhow::Result<()> {
 fn single_json(r: &RunResult) -> serde_json::Value {
     serde_json::json!({
         "case": r.config.case,
-        "record": r.config.record,
+        "structure": r.structure_name,
+        "record": r.record_name,
         "intensity": r.config.intensity,
         "plant": r.config.plant,
         "controller": r.config.controller,
         "specimen_stiffness_n_per_m": r.specimen_stiffness_n_per_m,
         "ticks": r.history.time_s.len(),
+        "clipped_force_ticks": r.clipped_force_ticks,
         "unstable": r.unstable,
         "ats_coefficients": r.ats_coefficients,
+        "lead_adaptation": r.lead_adaptation.map(|[g, d]| serde_json::json!({"gain": g, "delay_s": d})),
+        "force_correction_kn_per_mm": r.force_correction_kn_per_mm,
+        "identification": r.identification.as_ref().map(|id| serde_json::json!({
+            "delay_s": id.delay_s, "gain": id.gain, "lead_residual_pct": id.lead_residual_pct,
+            "specimen_stiffness_kn_per_mm": id.specimen.stiffness_kn_per_mm,
+            "specimen_damping_kn_s_per_mm": id.specimen.damping_kn_s_per_mm,
+            "specimen_mass_kn_s2_per_mm": id.specimen.mass_kn_s2_per_mm,
+            "specimen_r2": id.specimen.r2, "wall_s": id.wall_s,
+        })),
         "j2_noise_free_pct": r.j2_noise_free_pct,
         "criteria": r.criteria.map(|j| serde_json::json!({
             "j1_ms": j.j1_ms, "j2_pct": j.j2_pct, "j3_pct": j.j3_pct, "j4_pct": j.j4_pct,
@@ -111,9 +170,9 @@ fn single_json(r: &RunResult) -> serde_json::Value {
 fn print_single(r: &RunResult) {
     let c = &r.config;
     println!(
-        "vRTHS benchmark: case {}, {} ×{}, {:?} plant (k_e {:.0} N/m), controller {}, {} ticks at 4096 Hz",
-        c.case,
-        c.record,
+        "vRTHS benchmark: {}, {} ×{}, {:?} plant (k_e {:.0} N/m), controller {}, {} ticks at 4096 Hz",
+        r.structure_name,
+        r.record_name,
         c.intensity,
         c.plant,
         r.specimen_stiffness_n_per_m,
@@ -128,26 +187,64 @@ fn print_single(r: &RunResult) {
             a[2]
         );
     }
+    if let Some(id) = &r.identification {
+        println!(
+            "identified rig: delay {:.2} ms, gain {:.4}, lead residual {:.1} %, specimen k {:.4} kN/mm \
+             c {:.3e} kN·s/mm m {:.3e} kN·s²/mm (R² {:.4}); {:.1} s to identify",
+            id.delay_s * 1e3,
+            id.gain,
+            id.lead_residual_pct,
+            id.specimen.stiffness_kn_per_mm,
+            id.specimen.damping_kn_s_per_mm,
+            id.specimen.mass_kn_s2_per_mm,
+            id.specimen.r2,
+            id.wall_s
+        );
+    }
+    if let Some([g, d]) = r.lead_adaptation {
+        println!(
+            "lead correction at the end: gain {g:.4}, delay {:.3} ms",
+            d * 1e3
+        );
+    }
+    if r.clipped_force_ticks > 0 {
+        println!(
+            "WARNING: the load cell clipped at its ±8900 N range on {} ticks: the force fed back \
+             is wrong there (the specimen moves more than the benchmark's actuator can load)",
+            r.clipped_force_ticks
+        );
+    }
+    if let Some(k) = r.force_correction_kn_per_mm {
+        println!("force correction stiffness {k:.4} kN/mm");
+    }
     match (&r.criteria, &r.unstable) {
         (Some(j), _) => {
+            // The specimen's floor and the two others J6-J9 are on (floors 1; 2, 3 for the cases).
+            let d = r.specimen_dof + 1;
+            let others: Vec<String> = (1..=r.history.floors_mm.len())
+                .filter(|&f| f != d)
+                .take(2)
+                .map(|f| f.to_string())
+                .collect();
+            let others = others.join(", ");
             println!("J1 {:.2} ms (delay)", j.j1_ms);
             println!(
-                "J2 {:.2} %  J3 {:.2} %  (tracking, floor 1)",
+                "J2 {:.2} %  J3 {:.2} %  (tracking, floor {d})",
                 j.j2_pct, j.j3_pct
             );
             if let Some(j2) = r.j2_noise_free_pct {
                 println!("   J2 of the noise-free displacement {j2:.2} % (evaluation only)");
             }
             println!(
-                "J4 {:.2} %  J5 {:.2} %  (floor 1 vs reference)",
+                "J4 {:.2} %  J5 {:.2} %  (floor {d} vs reference)",
                 j.j4_pct, j.j5_pct
             );
             println!(
-                "J6 {:.2} %  J7 {:.2} %  (floors 2, 3 vs reference)",
+                "J6 {:.2} %  J7 {:.2} %  (floors {others} vs reference)",
                 j.j6_pct, j.j7_pct
             );
             println!(
-                "J8 {:.2} %  J9 {:.2} %  (floors 2, 3 peak vs reference)",
+                "J8 {:.2} %  J9 {:.2} %  (floors {others} peak vs reference)",
                 j.j8_pct, j.j9_pct
             );
         }
@@ -156,27 +253,42 @@ fn print_single(r: &RunResult) {
     }
 }
 
+/// The columns of `history.csv` for `dofs` floors with the specimen on floor `dof` (0-based):
+/// time, the measured specimen floor and its target, the other (numerical) floors in order, the
+/// reference floors 1..N, each named by its floor. With the specimen on floor 1 this is
+/// `time_s,x1_mm,target1_mm,x2_mm..xN_mm,r1_mm..rN_mm`: for the benchmark's 3 stories
 /// `time_s,x1_mm,target1_mm,x2_mm,x3_mm,r1_mm,r2_mm,r3_mm`.
+pub fn history_columns(dofs: usize, dof: usize) -> Vec<String> {
+    let mut c = vec![
+        "time_s".to_string(),
+        format!("x{}_mm", dof + 1),
+        format!("target{}_mm", dof + 1),
+    ];
+    c.extend(
+        (0..dofs)
+            .filter(|&j| j != dof)
+            .map(|j| format!("x{}_mm", j + 1)),
+    );
+    c.extend((1..=dofs).map(|j| format!("r{j}_mm")));
+    c
+}
+
+/// Write [`history_columns`] of a run.
 fn write_history(r: &RunResult, path: &Path) -> anyhow::Result<()> {
     let h = &r.history;
+    let (dofs, dof) = (h.floors_mm.len(), r.specimen_dof);
+    let others: Vec<usize> = (0..dofs).filter(|&j| j != dof).collect();
     let file =
         std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
     let mut w = std::io::BufWriter::new(file);
-    writeln!(w, "time_s,x1_mm,target1_mm,x2_mm,x3_mm,r1_mm,r2_mm,r3_mm")?;
+    writeln!(w, "{}", history_columns(dofs, dof).join(","))?;
     for k in 0..h.time_s.len() {
         let v = |s: &Vec<f64>| s.get(k).copied().unwrap_or(f64::NAN);
-        writeln!(
-            w,
-            "{},{},{},{},{},{},{},{}",
-            h.time_s[k],
-            h.measured_mm[k],
-            h.target_mm[k],
-            v(&h.floors_mm[1]),
-            v(&h.floors_mm[2]),
-            v(&h.reference_mm[0]),
-            v(&h.reference_mm[1]),
-            v(&h.reference_mm[2]),
-        )?;
+        let mut row = vec![h.time_s[k], h.measured_mm[k], h.target_mm[k]];
+        row.extend(others.iter().map(|&j| v(&h.floors_mm[j])));
+        row.extend(h.reference_mm.iter().map(v));
+        let line: Vec<String> = row.iter().map(|x| x.to_string()).collect();
+        writeln!(w, "{}", line.join(","))?;
     }
     w.flush()?;
     Ok(())
@@ -188,44 +300,39 @@ fn draw(r: &RunResult, path: &Path) -> anyhow::Result<()> {
     let c = &r.config;
     let title = match &r.criteria {
         Some(j) => format!(
-            "vRTHS case {}, {} x{}, {}: J4 {:.2} %, J6 {:.2} %, J7 {:.2} %",
-            c.case,
-            c.record,
+            "vRTHS {}, {} x{}, {}: J4 {:.2} %, J6 {:.2} %, J7 {:.2} %",
+            r.structure_name,
+            r.record_name,
             c.intensity,
             c.controller.name(),
             j.j4_pct,
             j.j6_pct,
             j.j7_pct
         ),
-        None => format!("vRTHS case {}, {}: unstable", c.case, c.record),
+        None => format!("vRTHS {}, {}: unstable", r.structure_name, r.record_name),
     };
-    plot::stacked_time_series(
-        path,
-        &title,
-        &[
+    // Every floor, the specimen's measured, the others numerical.
+    let panels: Vec<Panel> = h
+        .floors_mm
+        .iter()
+        .zip(&h.reference_mm)
+        .enumerate()
+        .map(|(j, (x, reference))| {
+            let (label, values) = if j == r.specimen_dof {
+                ("measured", &h.measured_mm)
+            } else {
+                ("numerical", x)
+            };
             floor(
-                "Floor 1 (mm)",
+                &format!("Floor {} (mm)", j + 1),
                 &h.time_s,
-                &h.reference_mm[0],
-                "measured",
-                &h.measured_mm,
-            ),
-            floor(
-                "Floor 2 (mm)",
-                &h.time_s,
-                &h.reference_mm[1],
-                "numerical",
-                &h.floors_mm[1],
-            ),
-            floor(
-                "Floor 3 (mm)",
-                &h.time_s,
-                &h.reference_mm[2],
-                "numerical",
-                &h.floors_mm[2],
-            ),
-        ],
-    )
+                reference,
+                label,
+                values,
+            )
+        })
+        .collect();
+    plot::stacked_time_series(path, &title, &panels)
 }
 
 fn floor<'a>(

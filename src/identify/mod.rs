@@ -22,6 +22,7 @@ pub mod figure;
 pub mod rig_file;
 pub mod runner;
 
+use rths_core::compensator::LEAD_MAX_STRIDE;
 use rths_core::params::DT_S;
 use rths_core::supervisor::Limits;
 use rths_hal_sim::{FaultPlan, RigConfig, VirtualRig};
@@ -70,15 +71,28 @@ impl Default for IdentifyConfig {
     /// NRMSE 2.38% on `benchmark` and 0.70% on `unr-compact` against 2.46% and 0.71% at stride 6);
     /// and a 30 Hz stiffness low-pass (1.5× the band: the band passes, the noise above does not).
     fn default() -> Self {
-        Self {
-            excitation: ExcitationConfig::new(DT_S),
-            lead_stride: 8,
-            stiffness_cutoff_hz: 30.0,
-        }
+        Self::at_tick(DT_S)
     }
 }
 
 impl IdentifyConfig {
+    /// The defaults at another tick `dt_s` (e.g. the vRTHS benchmark's 4096 Hz): the same
+    /// excitation in seconds and hertz, the lead's span kept in seconds as far as
+    /// [`LEAD_MAX_STRIDE`] allows (at 4096 Hz stride 8 spans 13.7 ms, not 27 ms: the residual
+    /// delay is left to the lead's online correction). At the controller's tick this is
+    /// [`IdentifyConfig::default`], bit for bit.
+    pub fn at_tick(dt_s: f64) -> Self {
+        // 8 ticks at the controller's tick, in seconds, rounded to whole ticks of dt_s.
+        let stride = (8.0 * DT_S / dt_s)
+            .round()
+            .clamp(1.0, LEAD_MAX_STRIDE as f64) as usize;
+        Self {
+            excitation: ExcitationConfig::new(dt_s),
+            lead_stride: stride,
+            stiffness_cutoff_hz: 30.0,
+        }
+    }
+
     /// What the estimators need to know of an excitation.
     pub fn design(&self, e: &Excitation) -> Design {
         Design {
@@ -103,7 +117,8 @@ pub struct Outcome {
     pub identification: Identification,
 }
 
-/// Identify on any rig: generate, run under the paper actuator's limits, estimate.
+/// Identify on any rig: generate, run under the paper actuator's limits at the excitation's tick
+/// ([`limits_at`]), estimate.
 pub fn identify_rig<R, F>(
     rig: &mut R,
     cfg: &IdentifyConfig,
@@ -113,8 +128,22 @@ where
     R: rths_core::hal::Daq + rths_core::hal::Actuator,
     F: FnMut(&mut R),
 {
+    identify_rig_with_limits(rig, cfg, limits_at(cfg.excitation.dt_s)?, next_tick)
+}
+
+/// [`identify_rig`] under the given supervisor limits.
+pub fn identify_rig_with_limits<R, F>(
+    rig: &mut R,
+    cfg: &IdentifyConfig,
+    limits: Limits,
+    next_tick: F,
+) -> Result<Outcome, IdentifyError>
+where
+    R: rths_core::hal::Daq + rths_core::hal::Actuator,
+    F: FnMut(&mut R),
+{
     let excitation = excitation::generate(&cfg.excitation)?;
-    let record = runner::run(rig, &excitation, Limits::paper_actuator(), next_tick)?;
+    let record = runner::run(rig, &excitation, limits, next_tick)?;
     let sig = Signals {
         dt_s: record.dt_s,
         command_mm: &record.command_mm,
@@ -127,6 +156,29 @@ where
         record,
         identification,
     })
+}
+
+/// The paper actuator's limits ([`Limits::paper_actuator`]) with their per-tick steps at `dt_s`
+/// (the limits are rates; their steps scale with the tick). At the controller's tick, exactly
+/// [`Limits::paper_actuator`].
+pub fn limits_at(dt_s: f64) -> Result<Limits, IdentifyError> {
+    let p = Limits::paper_actuator();
+    if dt_s == DT_S {
+        return Ok(p);
+    }
+    // The sensor timeout and overrun counts stay in ticks (8 and 4, as the paper actuator's).
+    Limits::new(
+        p.stroke_mm(),
+        p.velocity_mm_s(),
+        p.force_kn(),
+        8,
+        4,
+        p.fault_ramp_rate_mm_s(),
+        p.end_ramp_rate_mm_s(),
+        dt_s,
+    )
+    .and_then(|l| l.with_following_error_mm(p.following_error_mm()))
+    .map_err(|e| IdentifyError::Setting(format!("supervisor limits at dt {dt_s} s: {e:?}")))
 }
 
 /// Identify on the virtual rig of `rig` with `faults`; its clock is `advance_tick`, nothing else of

@@ -30,8 +30,8 @@ pub struct Record {
     pub actuator_errors: usize,
 }
 
-/// Longest fault ramp waited for after a trip, ticks (60 s: any ramp of the stroke at 20 mm/s).
-const MAX_RAMP_TICKS: usize = 60 * 2048;
+/// Longest fault ramp waited for after a trip, s (any ramp of the stroke at 20 mm/s).
+const MAX_RAMP_S: f64 = 60.0;
 
 /// Run the excitation on `rig`, calling `next_tick` after each command (on the virtual rig: advance
 /// the plant; on a board: wait for the tick). Returns the record, or [`IdentifyError::Tripped`] if
@@ -48,6 +48,7 @@ where
     F: FnMut(&mut R),
 {
     let dt_s = excitation.config.dt_s;
+    let max_ramp_ticks = (MAX_RAMP_S / dt_s).round() as usize;
     let n = excitation.command_mm.len();
     let mut rec = Record {
         dt_s,
@@ -93,7 +94,7 @@ where
     if trip.is_none() {
         // The excitation ends at 0: the ramp-down is immediate; a trip during it still counts.
         let _ = sup.finish();
-        for _ in 0..MAX_RAMP_TICKS {
+        for _ in 0..max_ramp_ticks {
             match sup.state() {
                 State::Done => break,
                 State::Fault(reason) => {
@@ -112,7 +113,7 @@ where
     }
     if let Some((reason, time_s)) = trip {
         // Drive the supervisor's fault ramp to rest (it ignores the request while faulted).
-        for _ in 0..MAX_RAMP_TICKS {
+        for _ in 0..max_ramp_ticks {
             if sup.at_rest() {
                 break;
             }
