@@ -17,30 +17,45 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-/// The LRX build with the link (`--no-default-features --features board-qemu,model-lrx,link`): the
-/// build that takes an uploaded LRX model (the LR build refuses one: `Unsupported`).
+/// The LRX build with the link and the identification (`--no-default-features --features
+/// board-qemu,model-lrx,identify`): the build that takes an uploaded LRX model (the LR build
+/// refuses one: `Unsupported`) and can identify (`identify` = `link` + the excitation's tables).
 fn lrx_link_elf() -> PathBuf {
     static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
-    ELF.get_or_init(build_lrx_link_elf).clone()
+    ELF.get_or_init(|| {
+        build_elf(
+            &[
+                "--no-default-features",
+                "--features",
+                "board-qemu,model-lrx,identify",
+            ],
+            None,
+            "rths-firmware-e2e.elf",
+        )
+    })
+    .clone()
 }
 
-fn build_lrx_link_elf() -> PathBuf {
-    let status = Command::new(env!("CARGO"))
-        .current_dir(firmware_dir())
-        .args([
-            "build",
-            "--release",
-            "--no-default-features",
-            "--features",
-            "board-qemu,model-lrx,link",
-        ])
-        .env_remove("CARGO_TARGET_DIR")
-        .env_remove("RTHS_FAULT")
-        .status()
-        .unwrap();
-    assert!(status.success(), "firmware build failed");
+/// Build the firmware with `args` (and the `fault-inject` plan `fault`) and copy its ELF to `name`;
+/// one build at a time (they share the firmware's target directory and its output path).
+fn build_elf(args: &[&str], fault: Option<&str>, name: &str) -> PathBuf {
+    static BUILD: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _one = BUILD.lock().unwrap_or_else(|e| e.into_inner());
+    let mut cmd = Command::new(env!("CARGO"));
+    cmd.current_dir(firmware_dir())
+        .args(["build", "--release"])
+        .args(args)
+        .env_remove("CARGO_TARGET_DIR");
+    match fault {
+        Some(f) => cmd.env("RTHS_FAULT", f),
+        None => cmd.env_remove("RTHS_FAULT"),
+    };
+    assert!(
+        cmd.status().unwrap().success(),
+        "firmware build {args:?} failed"
+    );
     let elf = firmware_dir().join("target/thumbv7em-none-eabihf/release/rths-firmware");
-    let dest = Path::new(env!("CARGO_TARGET_TMPDIR")).join("rths-firmware-e2e.elf");
+    let dest = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
     std::fs::copy(&elf, &dest).unwrap();
     dest
 }
@@ -131,7 +146,7 @@ fn identify_train_upload_run_and_report_through_the_board() {
         board["actuator"]["delay_ms"], board["actuator"]["gain"], board["specimen_fit"]
     );
 
-    // 2. Train LRX for that rig (the lead filter from the rig file).
+    // 2. Train LRX for that rig (the lead filter and the specimen's dynamics from the rig file).
     let t = Instant::now();
     rths(
         d,
@@ -140,50 +155,84 @@ fn identify_train_upload_run_and_report_through_the_board() {
         ],
     );
     println!("train lrx --rig: {:.1} s", t.elapsed().as_secs_f64());
+    // The LRX upload carries the model's 20 values (coefficients, k_corr, k_adapt, lead weights,
+    // stride), not yet a rig-trained model's lead adaptation and specimen mass and damping (issue
+    // 13's rig-compensation upload): the device keeps its compiled-in ones (none). Both sides run
+    // the model as uploaded, without them.
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("lrx.json")).unwrap()).unwrap();
+    let lrx = m["lrx"].as_object_mut().unwrap();
+    for extra in [
+        "lead_adapt_ticks",
+        "specimen_mass_kn_s2_per_mm",
+        "specimen_damping_kn_s_per_mm",
+    ] {
+        assert!(lrx.remove(extra).is_some(), "{extra}");
+    }
+    std::fs::write(d.join("lrx-up.json"), m.to_string()).unwrap();
 
-    // 3. Upload the model and a CSV record the firmware does not have compiled in, run, record.
-    let motion = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/vrths_benchmark/morgan.csv");
-    let motion = motion.to_str().unwrap();
+    // 3. Upload the model and a CSV record the firmware does not have compiled in, run, record:
+    // the first 10 s of the benchmark's Morgan Hill record (2001 samples at 0.005 s; its strong
+    // motion starts within them).
+    let morgan = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("data/vrths_benchmark/morgan.csv"),
+    )
+    .unwrap();
+    let head: Vec<&str> = morgan.lines().take(1 + 2001).collect();
+    std::fs::write(d.join("morgan-10s.csv"), head.join("\n") + "\n").unwrap();
+    let motion = "morgan-10s.csv";
     let scale = "0.5";
     let t = Instant::now();
     rths(
         d,
         &[
-            "link", "--qemu", elf, "run", "--model", "lrx.json", "--motion", motion, "--scale",
-            scale, "--out", "run.csv",
+            "link",
+            "--qemu",
+            elf,
+            "run",
+            "--model",
+            "lrx-up.json",
+            "--motion",
+            motion,
+            "--scale",
+            scale,
+            "--out",
+            "run.csv",
         ],
     );
     println!("run through the board: {:.1} s", t.elapsed().as_secs_f64());
 
-    // 4. The commands, bit for bit, against `rths simulate` of the same rig, record and model.
-    let sim_dir = d.join("sim");
-    let sim_args = [
-        "simulate",
-        "--scenario",
-        "lrx-online",
-        "--model",
-        "lrx.json",
-        "--motion",
-        motion,
-        "--scale",
-        scale,
-        "--rig",
-        "rig.json",
-        "--json",
-        "--out",
-        sim_dir.to_str().unwrap(),
-    ];
-    let sim = json(&rths(d, &sim_args));
+    // 4. The commands, bit for bit, against the host simulation of the same rig (the emulated
+    // board's plant: unr-compact, linear, seed 1), record (as the CSV file reads back), scale and
+    // model: what `rths simulate` runs (its history.csv rounds to 1e-6 mm, so compare in process).
+    use rths::scenario::{self, ScenarioId, ScenarioSetup};
     let rec = rths::link_host::read_recording(&std::fs::read_to_string(d.join("run.csv")).unwrap())
         .unwrap();
     assert_eq!(rec.header.get("scenario"), Some("lrx-online"));
-    let hist = std::fs::read_to_string(sim_dir.join("history.csv")).unwrap();
-    let mut lines = hist.lines().filter(|l| !l.starts_with('#'));
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = header.iter().position(|h| *h == "command_mm").unwrap();
-    let host_cmd: Vec<f64> = lines
-        .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
-        .collect();
+    let model = rths::model_file::ModelFile::load(&d.join("lrx-up.json")).unwrap();
+    let ag = rths::motion::GroundMotion::from_path(&d.join(motion))
+        .unwrap()
+        .scaled(0.5)
+        .resample_mm_s2(rths_core::params::DT_S);
+    let reference = rths::study::reference_mm(&ag, 1.0).unwrap();
+    let host = scenario::run(&ScenarioSetup {
+        id: ScenarioId::LrxOnline,
+        ground_accel_mm_s2: &ag,
+        reference_mm: &reference,
+        rig: scenario::rig_config(
+            rths_hal_sim::Preset::UnrCompact,
+            rths_hal_sim::Specimen::Linear,
+            1.0,
+            1,
+        ),
+        stiffness_factor: 1.0,
+        lr: None,
+        rnn: None,
+        lrx: Some(rths::models::lrx_params(&model).unwrap()),
+        delay_steps: model.delay_steps,
+    })
+    .unwrap();
+    let host_cmd = &host.history.command_mm;
     assert!(
         rec.rows.len() + 1 >= host_cmd.len(),
         "{} rows",
@@ -194,8 +243,23 @@ fn identify_train_upload_run_and_report_through_the_board() {
         assert_eq!(row.command_mm.to_bits(), h.to_bits(), "tick {}", row.tick);
         identical += 1;
     }
-    println!("{identical} commands bit-identical to `rths simulate`");
-    assert_eq!(identical, host_cmd.len() - 1);
+    println!("{identical} commands bit-identical to the host simulation");
+    assert_eq!(identical, ag.len() - 1);
+    let sim_args = [
+        "simulate",
+        "--scenario",
+        "lrx-online",
+        "--model",
+        "lrx-up.json",
+        "--motion",
+        motion,
+        "--scale",
+        scale,
+        "--rig",
+        "rig.json",
+        "--json",
+    ];
+    let sim = json(&rths(d, &sim_args));
 
     // 5. The report's figures equal the simulation's.
     let rep = json(&rths(d, &["report", "run.csv", "--json"]));
@@ -239,4 +303,38 @@ fn an_identification_is_refused_while_armed_and_nothing_is_written() {
         .unwrap();
     assert!(!out.status.success());
     assert!(!dir.path().join("rig.json").exists());
+}
+
+/// A NaN on the displacement sensor 5 s into the identification (`fault-inject`, `nan-disp@5`): the
+/// device's supervisor trips and ramps to rest, the host reports the fault and writes nothing.
+#[test]
+fn a_nan_during_an_identification_trips_and_nothing_is_written() {
+    if qemu_missing("link e2e test") {
+        return;
+    }
+    let elf = build_elf(
+        &["--features", "identify,fault-inject"],
+        Some("nan-disp@5"),
+        "rths-firmware-e2e-nan.elf",
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let t = Instant::now();
+    let out = Command::new(env!("CARGO_BIN_EXE_rths"))
+        .args(["link", "--qemu"])
+        .arg(&elf)
+        .args(["identify", "--out", "rig.json"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    println!("{text}({:.1} s)", t.elapsed().as_secs_f64());
+    assert!(!out.status.success());
+    assert!(text.contains("fault-NonFiniteSample"), "{text}");
+    assert!(text.contains("nothing written"), "{text}");
+    assert!(!dir.path().join("rig.json").exists());
+    assert!(!dir.path().join("rig.png").exists());
 }

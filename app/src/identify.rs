@@ -32,14 +32,10 @@ pub struct FlashTables {
 /// f64 number `i` of little-endian `bytes` (NaN past the end: the supervisor then trips, nothing
 /// moves).
 fn le_f64(bytes: &[u8], i: usize) -> f64 {
-    let mut b = [0u8; 8];
-    match i.checked_mul(8).and_then(|s| bytes.get(s..s + 8)) {
-        Some(s) => {
-            b.copy_from_slice(s);
-            f64::from_le_bytes(b)
-        }
-        None => f64::NAN,
-    }
+    i.checked_mul(8)
+        .and_then(|s| bytes.get(s..s.checked_add(8)?))
+        .and_then(|s| <[u8; 8]>::try_from(s).ok())
+        .map_or(f64::NAN, f64::from_le_bytes)
 }
 
 impl FlashTables {

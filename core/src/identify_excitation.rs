@@ -399,7 +399,11 @@ impl Schedule {
 
     /// Index of the unit period played at tick `t`.
     pub fn unit_index(&self, t: usize) -> usize {
-        (t + self.offset) % self.period_ticks
+        // checked_rem: no division-by-zero panic path in the firmware's control task (`new`
+        // refuses a period of 0 ticks).
+        t.wrapping_add(self.offset)
+            .checked_rem(self.period_ticks)
+            .unwrap_or(0)
     }
 
     /// The wanted command at tick `t` (before the slew limiter); 0 from the last tick on.

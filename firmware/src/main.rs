@@ -99,7 +99,7 @@ static RUN_ENDED: AtomicBool = AtomicBool::new(false);
 /// `link`: an identification is under way (`rths link ... identify`): the control task plays the
 /// excitation instead of the record (set by `link_rx`, cleared by `control` at its end).
 static IDENTIFYING: AtomicBool = AtomicBool::new(false);
-/// The identification excitation's tables, in flash (`build.rs`; empty without `link`).
+/// The identification excitation's tables, in flash (`build.rs`; empty without `identify`).
 static EXCITATION: rths_app::identify::FlashTables = rths_app::identify::FlashTables::new(
     gen::EXCITATION_UNIT,
     gen::EXCITATION_RAMP,
