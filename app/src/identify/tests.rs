@@ -191,3 +191,81 @@ fn refusals() {
         "running"
     );
 }
+
+#[test]
+fn the_link_request_starts_an_identification_and_numbers_its_samples() {
+    use crate::link::{handle, Effect, Rearm, Session};
+    use crate::record::RecordStore;
+    use crate::Run;
+    use rths_link::{DeviceMsg, HostMsg, ModelKind, Request};
+    let mut ctl = controller();
+    let mut run = Run::new();
+    let mut store = RecordStore::new(&[0.0, 0.1, 0.0], 0.01, 41, &mut []);
+    let msg = HostMsg::Identify { amplitude_mm: 2.0 };
+    // A build without the tables refuses.
+    let mut s = Session::new(0, true, Rearm::OncePerPowerUp, ModelKind::Lr);
+    let (a, e) = handle(msg, &mut ctl, &mut run, &mut store, &mut s, false);
+    assert_eq!(
+        a,
+        DeviceMsg::Nack(Request::Identify, NackReason::Unsupported)
+    );
+    assert_eq!(e, Effect::None);
+    // The emulated plant after its run refuses.
+    let mut s = s.with_excitation(tables());
+    let (a, _) = handle(msg, &mut ctl, &mut run, &mut store, &mut s, true);
+    assert_eq!(
+        a,
+        DeviceMsg::Nack(Request::Identify, NackReason::Unsupported)
+    );
+    // Accepted: the supervisor runs, the stream is the identification's, from seq 0.
+    let (a, e) = handle(msg, &mut ctl, &mut run, &mut store, &mut s, false);
+    assert_eq!(a, DeviceMsg::Ack(Request::Identify));
+    assert!(matches!(e, Effect::Identify(_)));
+    assert!(s.identifying);
+    assert_eq!(ctl.supervisor().state(), State::Running);
+    let r = Record {
+        tick: 0,
+        command_mm: 0.25,
+        target_mm: 0.25,
+        measured_mm: 0.125,
+        force_kn: 0.5,
+        state: State::Running,
+    };
+    for seq in 0..3 {
+        match s.telemetry(&r) {
+            Some(DeviceMsg::IdentifySample(t)) => {
+                assert_eq!(t.seq, seq);
+                assert_eq!(
+                    (t.command_mm, t.measured_mm, t.force_kn),
+                    (0.25, 0.125, 0.5)
+                );
+            }
+            m => panic!("{m:?}"),
+        }
+    }
+    // A second one, and an arm, while it runs: refused.
+    let (a, _) = handle(msg, &mut ctl, &mut run, &mut store, &mut s, false);
+    assert_eq!(a, DeviceMsg::Nack(Request::Identify, NackReason::Busy));
+    let (a, _) = handle(
+        HostMsg::Arm { telemetry_every: 1 },
+        &mut ctl,
+        &mut run,
+        &mut store,
+        &mut s,
+        false,
+    );
+    assert!(matches!(a, DeviceMsg::Nack(Request::Arm, _)), "{a:?}");
+    let id = Identification {
+        ticks: 3,
+        ..Identification::new()
+    };
+    assert_eq!(
+        s.identify_ended(&id),
+        DeviceMsg::IdentifyEnded {
+            state: rths_link::RunState::Idle,
+            ticks: 3,
+            samples_sent: 3,
+            samples_dropped: 0
+        }
+    );
+}
