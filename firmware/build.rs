@@ -665,6 +665,45 @@ fn budget_structures(out: &mut String, root: &Path) {
         out,
         "pub const MODEL_SOURCE: &str = \"budget: FE linear, FE yielding, metamodel; N = 1, 3, 8\";"
     );
+/// The identification excitation's tables (`identify` builds; `rths link ... identify`): one period of
+/// the unit multisine and the ramp's cosines, computed by rths-core with std's cosines exactly as
+/// `rths identify` computes them, written as little-endian f64 for `include_bytes!` (flash), with
+/// the unit period's stats. Without `identify`: empty tables (the device refuses to identify,
+/// `Unsupported`).
+fn excitation(out: &mut String, out_dir: &Path) {
+    use rths_core::identify_excitation::{ExcitationConfig, StdTables};
+    let (unit, ramp, peak, rate) = if std::env::var_os("CARGO_FEATURE_IDENTIFY").is_some() {
+        let t = StdTables::new(&ExcitationConfig::new(dt_s(rate_hz())))
+            .unwrap_or_else(|e| fail(format!("identification excitation: {e}")));
+        (t.unit, t.ramp_cos, t.stats.peak, t.stats.peak_rate_per_s)
+    } else {
+        (Vec::new(), Vec::new(), 0.0, 0.0)
+    };
+    for (name, v) in [
+        ("excitation_unit.bin", &unit),
+        ("excitation_ramp.bin", &ramp),
+    ] {
+        let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        std::fs::write(out_dir.join(name), bytes)
+            .unwrap_or_else(|e| fail(format!("cannot write {name}: {e}")));
+    }
+    let _ = writeln!(
+        out,
+        "/// One period of the identification's unit multisine (f64 LE)."
+    );
+    let _ = writeln!(
+        out,
+        "pub static EXCITATION_UNIT: &[u8] = include_bytes!(concat!(env!(\"OUT_DIR\"), \"/excitation_unit.bin\"));"
+    );
+    let _ = writeln!(out, "/// The ramps' cosines (f64 LE).");
+    let _ = writeln!(
+        out,
+        "pub static EXCITATION_RAMP: &[u8] = include_bytes!(concat!(env!(\"OUT_DIR\"), \"/excitation_ramp.bin\"));"
+    );
+    let _ = writeln!(out, "/// The unit period's peak and peak rate, 1/s.");
+    let _ = writeln!(out, "pub const EXCITATION_PEAK: f64 = {};", lit(peak));
+    let _ = writeln!(out, "/// The unit period's peak rate, 1/s.");
+    let _ = writeln!(out, "pub const EXCITATION_PEAK_RATE: f64 = {};", lit(rate));
 }
 
 fn main() {
@@ -742,6 +781,7 @@ fn main() {
         lr(&mut gen, &root);
     }
     motion(&mut gen, &root);
+    excitation(&mut gen, &out_dir);
     // Only a fault-inject build has a fault plan (and the simulated rig its constants name).
     if std::env::var_os("CARGO_FEATURE_FAULT_INJECT").is_some() {
         fault(&mut gen);

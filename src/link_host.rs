@@ -490,6 +490,92 @@ impl Link {
     }
 }
 
+/// What an identification through the board streamed back (`rths link ... identify`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct IdentifyStream {
+    /// Command at each tick, mm (after the device's supervisor).
+    pub command_mm: Vec<f64>,
+    /// Measured displacement at each tick, mm.
+    pub measured_mm: Vec<f64>,
+    /// Measured force at each tick, kN.
+    pub force_kn: Vec<f64>,
+    /// Gaps in the sequence numbers (each one also reported as it happens).
+    pub gaps: Vec<Gap>,
+    /// Samples missing in total.
+    pub missing: u32,
+    /// Frames that failed COBS, CRC or decoding on the host side.
+    pub bad_frames: u32,
+    /// The device's `IdentifyEnded`: final state, ticks, samples sent, samples its queue dropped.
+    pub end: (RunState, u32, u32, u32),
+}
+
+impl IdentifyStream {
+    /// Every sample arrived: no gap, no bad frame, the device sent all its ticks and dropped none.
+    pub fn complete(&self) -> bool {
+        let (_, ticks, sent, dropped) = self.end;
+        self.gaps.is_empty()
+            && self.bad_frames == 0
+            && dropped == 0
+            && sent == ticks
+            && sent as usize == self.command_mm.len()
+    }
+}
+
+impl Link {
+    /// Start an identification of peak `amplitude_mm` on the device and receive its samples until
+    /// its `IdentifyEnded` (or `idle` without any message). Gaps are reported on stderr as they are
+    /// found and in the result; the caller refuses an incomplete stream.
+    pub fn identify(
+        &mut self,
+        amplitude_mm: f64,
+        idle: Duration,
+    ) -> Result<IdentifyStream, LinkHostError> {
+        self.expect_ack(&HostMsg::Identify { amplitude_mm })?;
+        let bad0 = self.bad_frames;
+        let mut seq = SeqCheck::new();
+        let (mut command_mm, mut measured_mm, mut force_kn) = (Vec::new(), Vec::new(), Vec::new());
+        let mut gaps = Vec::new();
+        let end = loop {
+            match self.recv(idle) {
+                Ok(DeviceMsg::IdentifySample(t)) => {
+                    if let Err(g) = seq.observe(t.seq) {
+                        eprintln!(
+                            "warning: identification gap: expected sample {}, got {} ({} missing)",
+                            g.expected,
+                            g.got,
+                            g.got.wrapping_sub(g.expected)
+                        );
+                        gaps.push(g);
+                    }
+                    command_mm.push(t.command_mm);
+                    measured_mm.push(t.measured_mm);
+                    force_kn.push(t.force_kn);
+                }
+                Ok(DeviceMsg::IdentifyEnded {
+                    state,
+                    ticks,
+                    samples_sent,
+                    samples_dropped,
+                }) => break (state, ticks, samples_sent, samples_dropped),
+                Ok(_) => {}
+                Err(LinkHostError::Timeout(..)) => {
+                    return Err(LinkHostError::Timeout(idle, "identification samples"))
+                }
+                Err(e) => return Err(e),
+            }
+        };
+        Ok(IdentifyStream {
+            command_mm,
+            measured_mm,
+            force_kn,
+            gaps,
+            missing: seq.missing(),
+            bad_frames: self.bad_frames - bad0,
+            end,
+        })
+    }
+}
+
 /// The upload message of an LR model file (validated here too: kind, 6 coefficients, finite).
 pub fn upload_message(model: &ModelFile) -> Result<HostMsg, LinkHostError> {
     if model.kind != ModelKind::Lr {

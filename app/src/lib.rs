@@ -7,6 +7,7 @@
 //! - [`run`]: the run's statistics, updated once per tick.
 //! - [`report`]: the `CALIB` and `RESULT` lines of the emulated board.
 //! - [`link`]: the command link's request handling and telemetry stream.
+//! - [`identify`]: identification through the board: the excitation played by the control task.
 //! - [`model_upload`]: chunked model uploads (LRX), validated on the device.
 //! - [`record`]: the ground-motion record in force (compiled in or uploaded) and upload validation.
 //!
@@ -17,6 +18,7 @@
 
 pub mod board;
 pub mod control;
+pub mod identify;
 pub mod link;
 pub mod model_upload;
 pub mod record;

@@ -5,11 +5,12 @@ use rths_core::control::{Analytical, Controller};
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_core::supervisor::{Limits, State, Supervisor};
 use rths_link::{
-    DeviceMsg, HostMsg, LinkLoss, ModelKind, NackReason, RunState, Status, Telemetry,
-    LINK_TIMEOUT_TICKS, LR_COEFFS,
+    DeviceMsg, HostMsg, IdentifySample, LinkLoss, ModelKind, NackReason, RunState, Status,
+    Telemetry, LINK_TIMEOUT_TICKS, LR_COEFFS,
 };
 
 use crate::board::LinkPort;
+use crate::identify::{FlashTables, Identification};
 use crate::model_upload::ModelStaging;
 use crate::record::RecordStore;
 use crate::{Record, Run};
@@ -128,6 +129,10 @@ pub struct Session {
     pub link_loss: LinkLoss,
     /// The arming host's token (0: none, anyone may start).
     pub owner: u32,
+    /// The identification excitation's tables (`None`: this build cannot identify).
+    pub excitation: Option<FlashTables>,
+    /// The stream is an identification's ([`DeviceMsg::IdentifySample`]), not a run's.
+    pub identifying: bool,
 }
 
 impl Session {
@@ -144,7 +149,15 @@ impl Session {
             model_upload: ModelStaging::new(),
             link_loss: LinkLoss::Complete,
             owner: 0,
+            excitation: None,
+            identifying: false,
         }
+    }
+
+    /// This session with the identification excitation's tables (`rths link ... identify`).
+    pub fn with_excitation(mut self, tables: FlashTables) -> Self {
+        self.excitation = Some(tables);
+        self
     }
 
     /// The telemetry message of `r`, numbered, or `None` if decimation skips it.
@@ -155,6 +168,14 @@ impl Session {
         }
         let seq = self.seq;
         self.seq = self.seq.wrapping_add(1);
+        if self.identifying {
+            return Some(DeviceMsg::IdentifySample(IdentifySample {
+                seq,
+                command_mm: r.command_mm,
+                measured_mm: r.measured_mm,
+                force_kn: r.force_kn,
+            }));
+        }
         Some(DeviceMsg::Telemetry(Telemetry {
             seq,
             tick: r.tick,
@@ -164,6 +185,16 @@ impl Session {
             measured_mm: r.measured_mm,
             force_kn: r.force_kn,
         }))
+    }
+
+    /// The message that closes an identification's stream.
+    pub fn identify_ended(&self, id: &Identification) -> DeviceMsg {
+        DeviceMsg::IdentifyEnded {
+            state: run_state(id.state),
+            ticks: id.ticks,
+            samples_sent: self.seq,
+            samples_dropped: id.dropped,
+        }
     }
 
     /// The message that closes a run's stream.
@@ -178,12 +209,15 @@ impl Session {
 }
 
 /// What a handled request asks of the firmware besides its answer.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Effect {
     /// Nothing.
     None,
     /// The run started: play the record from tick 0.
     Started,
+    /// The identification started (the supervisor is running): play this excitation from tick 0
+    /// (`crate::identify::Identification::start`) before the control task's next tick.
+    Identify(rths_core::identify_excitation::Player),
 }
 
 /// Handle one request: its answer (always exactly one) and its effect. `finished`: the emulated
@@ -272,6 +306,7 @@ pub fn handle(
             ctl.supervisor_mut().abort();
             Ok(Effect::None)
         }
+        HostMsg::Identify { amplitude_mm } => identify_request(ctl, run, s, finished, amplitude_mm),
     };
     match result {
         Ok(e) => (DeviceMsg::Ack(req), e),
@@ -303,12 +338,39 @@ fn arm_request(
         return Err(NackReason::OutOfRange);
     }
     arm(ctl, run, s.rearm, finished)?;
+    s.identifying = false;
     s.every = u32::from(telemetry_every);
     s.seq = 0;
     s.link_loss = on_link_loss;
     s.owner = owner;
     run.restart();
     Ok(Effect::None)
+}
+
+/// Start an identification (`HostMsg::Identify`): the build must have the excitation's tables; at
+/// rest; the emulated plant only before its run (it plays once per power-up); a real rig armed at
+/// its measured position. The stream restarts at `seq` 0, every tick.
+fn identify_request(
+    ctl: &mut Controller,
+    run: &mut Run,
+    s: &mut Session,
+    finished: bool,
+    amplitude_mm: f64,
+) -> Result<Effect, NackReason> {
+    let tables = s.excitation.ok_or(NackReason::Unsupported)?;
+    let at_measured = match s.rearm {
+        Rearm::OncePerPowerUp => None,
+        Rearm::AtMeasured => Some(run.last_disp_mm),
+    };
+    let may_arm = !(finished && s.rearm == Rearm::OncePerPowerUp);
+    let player = crate::identify::begin(ctl, &tables, amplitude_mm, may_arm, at_measured)?;
+    s.identifying = true;
+    s.every = 1;
+    s.seq = 0;
+    s.link_loss = LinkLoss::Complete;
+    s.owner = 0;
+    run.restart();
+    Ok(Effect::Identify(player))
 }
 
 /// The host counts as lost: the run's policy is [`LinkLoss::RampDown`] and no valid frame came

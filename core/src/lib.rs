@@ -17,6 +17,7 @@ pub mod control;
 pub mod filter;
 pub mod hal;
 pub mod hysteresis;
+pub mod identify_excitation;
 pub mod integrator;
 pub mod metamodel;
 pub mod metrics;

@@ -96,6 +96,16 @@ static FINISHED: AtomicBool = AtomicBool::new(false);
 static RECORD_END: AtomicBool = AtomicBool::new(false);
 /// `link`: the run ended; `telemetry` sends `RunEnded` after its last record.
 static RUN_ENDED: AtomicBool = AtomicBool::new(false);
+/// `link`: an identification is under way (`rths link ... identify`): the control task plays the
+/// excitation instead of the record (set by `link_rx`, cleared by `control` at its end).
+static IDENTIFYING: AtomicBool = AtomicBool::new(false);
+/// The identification excitation's tables, in flash (`build.rs`; empty without `identify`).
+static EXCITATION: rths_app::identify::FlashTables = rths_app::identify::FlashTables::new(
+    gen::EXCITATION_UNIT,
+    gen::EXCITATION_RAMP,
+    gen::EXCITATION_PEAK,
+    gen::EXCITATION_PEAK_RATE,
+);
 /// `link`: the control task's free-running tick count (the clock of the host's silence).
 #[cfg(feature = "link")]
 static TICK_COUNT: AtomicU32 = AtomicU32::new(0);
@@ -225,6 +235,8 @@ mod app {
         link: Link,
         /// The ground-motion record in force (compiled in or uploaded) and the upload in progress.
         store: RecordStore<'static>,
+        /// `link`: the identification in progress.
+        ident: rths_app::identify::Identification,
     }
 
     #[local]
@@ -308,9 +320,11 @@ mod app {
                             rths_app::link::Rearm::AtMeasured
                         },
                         analytical::MODEL_KIND,
-                    ),
+                    )
+                    .with_excitation(EXCITATION),
                 },
                 store,
+                ident: rths_app::identify::Identification::new(),
             },
             Local {
                 rig: parts.rig,
@@ -343,12 +357,44 @@ mod app {
     /// (82 031 cycles at 168 MHz). The controller's work (measured) must fit in 10% of it; the whole
     /// task, harness and plant included, must end before the next update, else the next tick is told
     /// it overran, which the run counts and the supervisor sees (4 in a row trip it).
-    #[task(binds = TIM2, priority = 3, shared = [ctl, timer, run, store],
+    #[task(binds = TIM2, priority = 3, shared = [ctl, timer, run, store, ident],
            local = [rig, counter, estop, harness, producer, ag, overhead_instr, watchdog,
                     k: u32 = 0, overrun: bool = false, watching: bool = false])]
     fn control(mut cx: control::Context) {
         cx.shared.timer.lock(TickTimer::clear);
         feed_watchdog(cx.local.watchdog, cx.local.watching);
+        if IDENTIFYING.load(Ordering::Acquire) {
+            // An identification (`rths link ... identify`): the excitation instead of the record,
+            // through the supervisor as in a test; the plant (emulated boards) moves with it.
+            #[cfg(feature = "link")]
+            let _ = link_silent();
+            if EStop::asserted(cx.local.estop) {
+                cx.shared.ctl.lock(|c| c.supervisor_mut().emergency_stop());
+            }
+            let overrun = *cx.local.overrun;
+            let rig = cx.local.rig;
+            let producer = cx.local.producer;
+            let ctl = &mut cx.shared.ctl;
+            let tick = cx.shared.ident.lock(|id| {
+                ctl.lock(|c| {
+                    rths_app::identify::identify_step(id, c, rig, producer, &EXCITATION, overrun)
+                })
+            });
+            if tick.ticked {
+                let _ = Harness::after_tick(cx.local.harness, rig, 0, false, 0.0, f64::NAN);
+            }
+            if tick.ended {
+                IDENTIFYING.store(false, Ordering::Release);
+                if B::EMULATED_PLANT {
+                    // The emulated plant has run: it plays once per power-up.
+                    FINISHED.store(true, Ordering::Release);
+                }
+                RUN_ENDED.store(true, Ordering::Release);
+            }
+            rtic::pend(TELEMETRY_IRQ);
+            *cx.local.overrun = cx.shared.timer.lock(|t| TickTimer::pending(t));
+            return;
+        }
         let running = RUNNING.load(Ordering::Acquire);
         // The emulated plant moves only during its run (it must match the host simulation's).
         if !running && B::EMULATED_PLANT {
@@ -533,7 +579,7 @@ mod app {
     /// Drains the telemetry queue at the lowest priority. With `link` it streams every `every`-th
     /// record to the host, numbered, and after the run's last record `RunEnded`; without, it logs
     /// one record per second of test time.
-    #[task(binds = USART3, priority = 1, shared = [link, run], local = [consumer])]
+    #[task(binds = USART3, priority = 1, shared = [link, run, ident], local = [consumer])]
     fn telemetry(mut cx: telemetry::Context) {
         use rths_app::link::send;
         let consumer = cx.local.consumer;
@@ -562,9 +608,21 @@ mod app {
         });
         if RUN_ENDED.swap(false, Ordering::AcqRel) {
             let run = cx.shared.run.lock(|r| *r);
-            cx.shared
-                .link
-                .lock(|l| send(&mut l.port, &l.session.run_ended(&run)));
+            let id = cx.shared.ident.lock(|i| *i);
+            cx.shared.link.lock(|l| {
+                // Records queued after the drain above (before the end was seen) go first.
+                while let Some(r) = consumer.dequeue() {
+                    if let Some(m) = l.session.telemetry(&r) {
+                        send(&mut l.port, &m);
+                    }
+                }
+                let end = if l.session.identifying {
+                    l.session.identify_ended(&id)
+                } else {
+                    l.session.run_ended(&run)
+                };
+                send(&mut l.port, &end);
+            });
         }
     }
 
@@ -584,7 +642,7 @@ mod app {
     /// `link`: the host's requests, one answer each (the link UART's receive interrupt, lowest
     /// priority).
     #[cfg(feature = "link")]
-    #[task(binds = USART2, priority = 1, shared = [ctl, run, link, store], local = [reader])]
+    #[task(binds = USART2, priority = 1, shared = [ctl, run, link, store, ident], local = [reader])]
     fn link_rx(mut cx: link_rx::Context) {
         use rths_app::board::LinkPort;
         use rths_app::link::{handle, send, Effect};
@@ -605,9 +663,23 @@ mod app {
             let ctl = &mut cx.shared.ctl;
             let run = &mut cx.shared.run;
             let store = &mut cx.shared.store;
+            let ident = &mut cx.shared.ident;
             let (answer, effect) = cx.shared.link.lock(|l| {
                 ctl.lock(|c| {
-                    run.lock(|r| store.lock(|st| handle(msg, c, r, st, &mut l.session, finished)))
+                    run.lock(|r| {
+                        store.lock(|st| {
+                            ident.lock(|id| {
+                                let (a, e) = handle(msg, c, r, st, &mut l.session, finished);
+                                if let Effect::Identify(player) = e {
+                                    // Under the controller's lock: the control task's next tick
+                                    // is the identification's first.
+                                    id.start(player);
+                                    IDENTIFYING.store(true, Ordering::Release);
+                                }
+                                (a, e)
+                            })
+                        })
+                    })
                 })
             });
             let ramp = cx
@@ -615,6 +687,9 @@ mod app {
                 .link
                 .lock(|l| l.session.link_loss == rths_link::LinkLoss::RampDown);
             LINK_LOSS_RAMP.store(ramp, Ordering::Release);
+            if let Effect::Identify(_) = effect {
+                defmt::info!("link: identifying");
+            }
             if effect == Effect::Started {
                 defmt::info!("link: running");
                 RUNNING.store(true, Ordering::Release);

@@ -233,6 +233,15 @@ pub enum HostMsg {
     },
     /// All chunks sent: check, build the model and make it the one in force (at rest only).
     ModelCommit,
+    // ---- identification through the board (issue 13, item 2) ----
+    /// Characterize the rig: at rest, arm the supervisor as for a test (limits in force, faults
+    /// trip and ramp down) and play the identification excitation (`rths_core::identify_excitation`,
+    /// its defaults with this amplitude) from the control task, streaming every tick as an
+    /// [`IdentifySample`] and ending with [`DeviceMsg::IdentifyEnded`].
+    Identify {
+        /// Peak command, mm (at most `rths_core::identify_excitation::MAX_AMPLITUDE_MM`).
+        amplitude_mm: f64,
+    },
 }
 
 /// Which request an answer is about.
@@ -262,6 +271,9 @@ pub enum Request {
     ModelChunk,
     /// [`HostMsg::ModelCommit`].
     ModelCommit,
+    // ---- identification through the board ----
+    /// [`HostMsg::Identify`].
+    Identify,
 }
 
 impl HostMsg {
@@ -280,6 +292,7 @@ impl HostMsg {
             Self::ModelBegin { .. } => Request::ModelBegin,
             Self::ModelChunk { .. } => Request::ModelChunk,
             Self::ModelCommit => Request::ModelCommit,
+            Self::Identify { .. } => Request::Identify,
         }
     }
 }
@@ -461,6 +474,36 @@ pub enum DeviceMsg {
         /// Records the device's queue dropped.
         records_dropped: u32,
     },
+    // ---- identification through the board ----
+    /// One tick of an identification.
+    IdentifySample(IdentifySample),
+    /// The identification is over: the excitation played to its end and the supervisor `Done`,
+    /// or a fault tripped and the command came to rest.
+    IdentifyEnded {
+        /// Final supervisor state (`Done`, or the fault).
+        state: RunState,
+        /// Ticks run (= samples recorded).
+        ticks: u32,
+        /// Samples sent (the last `seq` + 1).
+        samples_sent: u32,
+        /// Samples the device's queue dropped.
+        samples_dropped: u32,
+    },
+}
+
+/// What the controller saw at one tick of an identification: 32 bytes on the wire (postcard: tag,
+/// `seq` as a 3-byte varint, three f64; CRC, COBS, delimiter), so 2048 ticks/s need 655 kbit/s, 71%
+/// of a 921 600-baud UART: the device streams every tick and buffers nothing.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct IdentifySample {
+    /// Sample number = tick of the identification, from 0, no gaps.
+    pub seq: u32,
+    /// Command sent at this tick (after the supervisor), mm.
+    pub command_mm: f64,
+    /// Measured displacement read at this tick (before the command), mm (NaN on a DAQ error).
+    pub measured_mm: f64,
+    /// Measured force read at this tick, kN (NaN on a DAQ error).
+    pub force_kn: f64,
 }
 
 /// A framing or decoding failure.

@@ -95,6 +95,7 @@ fn any_host() -> impl Strategy<Value = HostMsg> {
                 values: v.try_into().unwrap(),
             }),
         Just(HostMsg::ModelCommit),
+        any_f64().prop_map(|amplitude_mm| HostMsg::Identify { amplitude_mm }),
     ]
 }
 
@@ -201,6 +202,20 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
             ticks: u[0],
             records_sent: u[1],
             records_dropped: u[2],
+        }),
+        (any::<u32>(), prop::array::uniform3(any_f64())).prop_map(|(seq, v)| {
+            DeviceMsg::IdentifySample(IdentifySample {
+                seq,
+                command_mm: v[0],
+                measured_mm: v[1],
+                force_kn: v[2],
+            })
+        }),
+        (any_state(), any::<[u32; 3]>()).prop_map(|(state, u)| DeviceMsg::IdentifyEnded {
+            state,
+            ticks: u[0],
+            samples_sent: u[1],
+            samples_dropped: u[2],
         }),
     ]
 }
@@ -495,4 +510,20 @@ fn lrx_values_order_and_their_checksum() {
     let mut w = v;
     w[19] = 4.0;
     assert_ne!(model_values_checksum(ModelKind::Lrx, &w, 28), c);
+}
+
+#[test]
+fn an_identification_sample_is_32_bytes_on_the_wire() {
+    // 56 s at 2048 Hz (or 4096 Hz): seq < 2^21, a 3-byte varint; the stream rate in `IdentifySample`'s
+    // docs follows from this size.
+    let mut buf = [0u8; MAX_FRAME + 1];
+    let worst = DeviceMsg::IdentifySample(IdentifySample {
+        seq: (1 << 21) - 1,
+        command_mm: -2.5,
+        measured_mm: f64::MAX,
+        force_kn: -f64::MAX,
+    });
+    let n = encode(&worst, &mut buf).unwrap();
+    assert_eq!(n, 32, "{n}");
+    assert!(same(&round_trip(&worst), &worst));
 }

@@ -128,6 +128,7 @@ pub fn rig_file(args: &Args, cfg: &IdentifyConfig, o: &Outcome) -> RigFile {
         provenance: Provenance {
             rths_version: env!("CARGO_PKG_VERSION").into(),
             command_line: std::env::args().collect::<Vec<_>>().join(" "),
+            device: None,
         },
     }
 }
@@ -150,7 +151,18 @@ pub fn run_with_faults(args: &Args, faults: FaultPlan) -> anyhow::Result<RigFile
     rig.uncertainty = args.uncertainty;
     let o = identify::identify_virtual(&rig, faults, &cfg)
         .context("identification refused, nothing written")?;
-    let file = rig_file(args, &cfg, &o);
+    write_outputs(args, &cfg, &o, rig_file(args, &cfg, &o))
+}
+
+/// Validate and write the rig file `file` of outcome `o` and its figure (`args.out`, `args.plot`),
+/// the file last; print the summary. Shared by `rths identify` and `rths link ... identify`.
+pub fn write_outputs(
+    args: &Args,
+    cfg: &IdentifyConfig,
+    o: &Outcome,
+    file: RigFile,
+) -> anyhow::Result<RigFile> {
+    let f = args.specimen_stiffness_factor;
     // Validate (and serialize) before touching the disk: a file that exists passed every check.
     let text = file.to_json().context("rig file")?;
     let plot = args

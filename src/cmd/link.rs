@@ -117,6 +117,27 @@ pub enum LinkCommand {
         #[arg(long, default_value_t = 30.0)]
         idle_timeout_s: f64,
     },
+    /// Characterize the rig through the board: the device plays the identification excitation
+    /// (supervisor armed as in a test) and streams every tick back; the host estimates as `rths
+    /// identify` does and writes the same rig file (refused, nothing written, on a lost sample or
+    /// a trip).
+    Identify {
+        /// The rig file to write (only if every sample arrived and every check passed).
+        #[arg(long, value_name = "RIG.json")]
+        out: PathBuf,
+        /// The figure (default: the rig file's name with `.png`).
+        #[arg(long, value_name = "PNG")]
+        figure: Option<PathBuf>,
+        /// Peak excitation, mm (at most 2.54, 10% of the stroke).
+        #[arg(long, default_value_t = 2.0, value_name = "MM")]
+        amplitude_mm: f64,
+        /// Lead-filter tap spacing, ticks (1..=8).
+        #[arg(long, default_value_t = 8)]
+        lead_stride: usize,
+        /// Give up after this long without a message, s.
+        #[arg(long, default_value_t = 30.0)]
+        idle_timeout_s: f64,
+    },
 }
 
 /// Record to `out` (no header); fails (after writing the file) if anything was lost.
@@ -352,6 +373,28 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             )?;
             report(&s, &out)?;
         }
+        LinkCommand::Identify {
+            out,
+            figure,
+            amplitude_mm,
+            lead_stride,
+            idle_timeout_s,
+        } => {
+            let to = match (&a.port, &a.tcp) {
+                (Some(p), _) => To::Serial(p.clone()),
+                (_, Some(t)) => To::Emulated(format!("tcp {t}")),
+                _ => To::Emulated("qemu".into()),
+            };
+            identify(
+                &mut link,
+                &to,
+                out,
+                figure,
+                amplitude_mm,
+                lead_stride,
+                Duration::from_secs_f64(idle_timeout_s),
+            )?;
+        }
     }
     if let Some(q) = qemu {
         let out = q.stdout();
@@ -446,4 +489,118 @@ fn tempfile_dir() -> anyhow::Result<PathBuf> {
     let d = std::env::temp_dir().join(format!("rths-link-qemu-{}", std::process::id()));
     std::fs::create_dir_all(&d)?;
     Ok(d)
+}
+
+/// Which rig a link drives.
+enum To {
+    /// A board on a serial port: a real rig (its rig file's board is `link`).
+    Serial(String),
+    /// An emulated board (QEMU): its plant is `boards/emulated`'s virtual rig, the `unr-compact`
+    /// preset with a linear specimen and noise seed 1, so its rig file is that virtual rig's
+    /// (board `virtual`): `rths simulate` and `rths train lrx` accept it for the same plant.
+    Emulated(String),
+}
+
+/// `rths link ... identify`: the device plays the excitation and streams its samples; the host's
+/// `rths identify` estimation (`identify::estimate`) makes the rig file. Nothing is written unless
+/// every sample arrived, the supervisor ended `Done` and every check passed.
+fn identify(
+    link: &mut Link,
+    to: &To,
+    out: PathBuf,
+    figure: Option<PathBuf>,
+    amplitude_mm: f64,
+    lead_stride: usize,
+    idle: Duration,
+) -> anyhow::Result<()> {
+    use crate::cmd::identify as host;
+    use crate::identify::{estimate, excitation, runner::Record, Outcome, Signals};
+    let args = host::Args {
+        preset: crate::cmd::plant::PresetArg::UnrCompact,
+        seed: 1,
+        uncertainty: false,
+        specimen: crate::cmd::plant::SpecimenArg::Linear,
+        specimen_stiffness_factor: 1.0,
+        amplitude_mm,
+        lead_stride,
+        out,
+        plot: figure,
+    };
+    let cfg = host::config(&args)?;
+    // The same excitation the device plays (rths-core's, its tables computed alike): its design
+    // (analysed window, lines) for the estimators and its figures for the rig file.
+    let exc = excitation::generate(&cfg.excitation).context("excitation")?;
+    let st = link.status()?;
+    println!(
+        "identifying through the board: {} s of excitation at {:.0} Hz, peak {:.2} mm",
+        cfg.excitation.duration_s(),
+        1.0 / cfg.excitation.dt_s,
+        exc.peak_mm
+    );
+    let s = link.identify(amplitude_mm, idle)?;
+    let (state, ticks, sent, dropped) = s.end;
+    println!(
+        "identification ended: {} after {ticks} ticks; device sent {sent} samples, its queue \
+         dropped {dropped}; received {}",
+        link_host::state_name(state),
+        s.command_mm.len()
+    );
+    if !s.complete() {
+        anyhow::bail!(
+            "identification refused, nothing written: samples lost ({} gap(s), {} missing, {} \
+             bad frame(s), {dropped} dropped by the device, {} of {ticks} received)",
+            s.gaps.len(),
+            s.missing,
+            s.bad_frames,
+            s.command_mm.len()
+        );
+    }
+    if state != rths_link::RunState::Done {
+        anyhow::bail!(
+            "identification refused, nothing written: the device's supervisor ended in {} \
+             (excitation stopped, actuator ramped to rest)",
+            link_host::state_name(state)
+        );
+    }
+    let daq_errors = s.measured_mm.iter().filter(|v| !v.is_finite()).count();
+    let record = Record {
+        dt_s: cfg.excitation.dt_s,
+        command_mm: s.command_mm,
+        measured_mm: s.measured_mm,
+        force_kn: s.force_kn,
+        daq_errors,
+        actuator_errors: 0,
+    };
+    let sig = Signals {
+        dt_s: record.dt_s,
+        command_mm: &record.command_mm,
+        measured_mm: &record.measured_mm,
+        force_kn: &record.force_kn,
+    };
+    let identification = estimate::identify(sig, &cfg.design(&exc))
+        .context("identification refused, nothing written")?;
+    let o = Outcome {
+        excitation: exc,
+        record,
+        identification,
+    };
+    let mut file = host::rig_file(&args, &cfg, &o);
+    let how = match to {
+        To::Serial(p) => {
+            file.board = "link".into();
+            format!("serial {p}")
+        }
+        To::Emulated(l) => format!("emulated board ({l}; plant unr-compact, linear, seed 1)"),
+    };
+    file.provenance.device = Some(format!(
+        "rths link {how}: excitation played by the device's control task, {ticks} ticks \
+         streamed; firmware model {} checksum {:08x}, limits ±{:?} mm, {:?} mm/s, ±{:?} kN",
+        link_host::model_kind_name(st.model_kind),
+        st.model_checksum,
+        st.stroke_mm,
+        st.velocity_mm_s,
+        st.force_kn
+    ));
+    host::write_outputs(&args, &cfg, &o, file)?;
+    Ok(())
 }

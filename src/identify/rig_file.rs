@@ -95,6 +95,10 @@ pub struct Provenance {
     pub rths_version: String,
     /// The command line.
     pub command_line: String,
+    /// The device that played the excitation and measured the rig (`rths link ... identify`:
+    /// its link, build and model, and that the excitation ran on it); absent for `rths identify`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub device: Option<String>,
 }
 
 /// A whole rig file.

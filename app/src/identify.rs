@@ -1,0 +1,306 @@
+//! Identification on the device (`rths link ... identify`): at rest, the supervisor is armed and
+//! started exactly as for a test (the limits in force, faults trip and ramp down), and the control
+//! task plays the identification excitation tick by tick, without the host in the loop, reading the
+//! DAQ and writing the supervisor's command as the host's `rths identify` runner does. Every tick's
+//! command, displacement and force are queued for the link as an `IdentifySample`.
+//!
+//! The excitation is `rths_core::identify_excitation`'s: one period of the unit multisine and the
+//! ramp's cosines are tabulated by the firmware's build script with the same functions and the same
+//! cosines as the host (192 KiB of flash at 2048 Hz; 200 lines of f64 cosines per tick would not
+//! fit the Cortex-M4's tick, and the `libm` crate's cosines are not the host's to the bit), and
+//! [`Player`] applies the envelope, scale and slew limit per tick.
+
+use heapless::spsc::Producer;
+use rths_core::control::Controller;
+use rths_core::hal::{Actuator, Daq, Error};
+use rths_core::identify_excitation::{ExcitationConfig, Player, Schedule, Tables, UnitStats};
+use rths_core::params::DT_S;
+use rths_core::supervisor::State;
+use rths_link::NackReason;
+
+use crate::Record;
+
+/// The excitation's tables in flash (the firmware's build script writes them with rths-core's
+/// `StdTables`, as `rths identify` computes them): f64 little-endian, with the unit period's stats.
+#[derive(Debug, Clone, Copy)]
+pub struct FlashTables {
+    unit: &'static [u8],
+    ramp: &'static [u8],
+    stats: UnitStats,
+}
+
+/// f64 number `i` of little-endian `bytes` (NaN past the end: the supervisor then trips, nothing
+/// moves).
+fn le_f64(bytes: &[u8], i: usize) -> f64 {
+    i.checked_mul(8)
+        .and_then(|s| bytes.get(s..s.checked_add(8)?))
+        .and_then(|s| <[u8; 8]>::try_from(s).ok())
+        .map_or(f64::NAN, f64::from_le_bytes)
+}
+
+impl FlashTables {
+    /// The unit period `unit` and ramp table `ramp` (8 bytes per value) and the unit period's
+    /// [`UnitStats`] (computed with them at build time).
+    pub const fn new(
+        unit: &'static [u8],
+        ramp: &'static [u8],
+        peak: f64,
+        peak_rate_per_s: f64,
+    ) -> Self {
+        Self {
+            unit,
+            ramp,
+            stats: UnitStats {
+                peak,
+                peak_rate_per_s,
+            },
+        }
+    }
+
+    /// Samples in the period.
+    pub fn period_ticks(&self) -> usize {
+        self.unit.len() / 8
+    }
+
+    /// The schedule of the default excitation with peak `amplitude_mm` at the controller's tick.
+    pub fn schedule(&self, amplitude_mm: f64) -> Result<Schedule, NackReason> {
+        if !amplitude_mm.is_finite() {
+            return Err(NackReason::NotFinite);
+        }
+        let mut cfg = ExcitationConfig::new(DT_S);
+        cfg.amplitude_mm = amplitude_mm;
+        let n = self.period_ticks();
+        if n == 0 {
+            return Err(NackReason::Unsupported);
+        }
+        let s = Schedule::new(&cfg, n, self.stats).map_err(|_| NackReason::OutOfRange)?;
+        if cfg.period_ticks() != n || s.ramp_ticks() != self.ramp.len() / 8 {
+            // Tables built for another rate: refuse rather than play the wrong band.
+            return Err(NackReason::Rate);
+        }
+        Ok(s)
+    }
+}
+
+impl Tables for FlashTables {
+    fn unit(&self, i: usize) -> f64 {
+        le_f64(self.unit, i)
+    }
+    fn ramp_cos(&self, j: usize) -> f64 {
+        le_f64(self.ramp, j)
+    }
+}
+
+/// Where an identification is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// None in progress.
+    Idle,
+    /// Playing the excitation.
+    Excite,
+    /// The excitation ended: `finish()` given, ticking at 0 until `Done`.
+    Finish,
+    /// Tripped: ticking at 0 while the supervisor ramps to its safe position.
+    Settle,
+    /// Over (done or tripped and at rest).
+    Ended,
+}
+
+/// The identification in progress (a shared resource of the control and link tasks).
+#[derive(Debug, Clone, Copy)]
+pub struct Identification {
+    player: Option<Player>,
+    /// Where it is.
+    pub phase: Phase,
+    /// Ticks run (= samples queued or dropped).
+    pub ticks: u32,
+    /// Samples the full queue dropped.
+    pub dropped: u32,
+    /// The supervisor's state after the last tick.
+    pub state: State,
+}
+
+impl Default for Identification {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// What one identification tick did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IdentifyTick {
+    /// The DAQ was read and a command written (the plant moves one tick).
+    pub ticked: bool,
+    /// The identification is over (its last tick was the previous one, or this one ended it).
+    pub ended: bool,
+}
+
+impl Identification {
+    /// None in progress.
+    pub const fn new() -> Self {
+        Self {
+            player: None,
+            phase: Phase::Idle,
+            ticks: 0,
+            dropped: 0,
+            state: State::Idle,
+        }
+    }
+
+    /// Begin playing `player` (the supervisor is already running: [`begin`]).
+    pub fn start(&mut self, player: Player) {
+        *self = Self {
+            player: Some(player),
+            phase: Phase::Excite,
+            ..Self::new()
+        };
+    }
+
+    /// An identification is under way.
+    pub fn active(&self) -> bool {
+        matches!(self.phase, Phase::Excite | Phase::Finish | Phase::Settle)
+    }
+}
+
+/// Check that an identification may start, and arm and start the supervisor for it; the player
+/// to hand to [`Identification::start`]. At rest only (`Busy` otherwise); `may_arm`: the emulated
+/// plant has not run yet (`Unsupported` otherwise: it plays once per power-up); `at_measured`: a
+/// real rig, armed at `measured_mm` after any finished run.
+pub fn begin(
+    ctl: &mut Controller,
+    tables: &FlashTables,
+    amplitude_mm: f64,
+    may_arm: bool,
+    at_measured: Option<f64>,
+) -> Result<Player, NackReason> {
+    let schedule = tables.schedule(amplitude_mm)?;
+    if !ctl.supervisor().at_rest() {
+        return Err(NackReason::Busy);
+    }
+    if !may_arm {
+        return Err(NackReason::Unsupported);
+    }
+    match at_measured {
+        None => ctl
+            .supervisor_mut()
+            .arm()
+            .map_err(|_| NackReason::InvalidState)?,
+        Some(m) => {
+            if matches!(ctl.supervisor().state(), State::Done | State::Fault(_)) {
+                ctl.reset().map_err(|_| NackReason::Busy)?;
+            }
+            ctl.supervisor_mut()
+                .arm_at(m)
+                .map_err(|_| NackReason::InvalidState)?;
+        }
+    }
+    ctl.supervisor_mut()
+        .start()
+        .map_err(|_| NackReason::InvalidState)?;
+    Ok(Player::new(schedule))
+}
+
+/// One tick of an identification, as the host's runner (`rths identify`) does it: read the DAQ,
+/// `Supervisor::tick(excitation, sample, overrun)`, write the command, queue the sample. After the
+/// excitation: `finish()` and tick at 0 until `Done`; after a trip: tick at 0 until the fault ramp
+/// is at rest. The record's `target_mm` is the excitation's request.
+pub fn identify_step<D, A>(
+    id: &mut Identification,
+    ctl: &mut Controller,
+    daq_act: &mut D,
+    producer: &mut Producer<'_, Record>,
+    tables: &FlashTables,
+    overrun: bool,
+) -> IdentifyTick
+where
+    D: Daq<Error = A> + Actuator<Error = A>,
+    A: Error,
+{
+    let idle = IdentifyTick {
+        ticked: false,
+        ended: false,
+    };
+    // Before the tick: is there one to run?
+    let requested = match id.phase {
+        Phase::Idle => return idle,
+        Phase::Ended => {
+            return IdentifyTick {
+                ticked: false,
+                ended: true,
+            }
+        }
+        // Past the end (cannot happen: `Finish` follows the last tick) a NaN trips the supervisor.
+        Phase::Excite => id
+            .player
+            .as_mut()
+            .and_then(|p| p.next(tables))
+            .unwrap_or(f64::NAN),
+        Phase::Finish => match ctl.supervisor().state() {
+            State::Done => return end(id, ctl),
+            State::Fault(_) => {
+                id.phase = Phase::Settle;
+                if ctl.supervisor().at_rest() {
+                    return end(id, ctl);
+                }
+                0.0
+            }
+            _ => 0.0,
+        },
+        Phase::Settle => {
+            if ctl.supervisor().at_rest() {
+                return end(id, ctl);
+            }
+            0.0
+        }
+    };
+    let sample = daq_act.read().map_err(|e| e.kind());
+    let d = ctl.supervisor_mut().tick(requested, sample, overrun);
+    // The supervisor's command is finite and within the stroke (see `control_step`).
+    let _ = daq_act.command(d.command_mm);
+    let (m, f) = match sample {
+        Ok(s) => (s.disp_mm, s.force_kn),
+        Err(_) => (f64::NAN, f64::NAN),
+    };
+    let rec = Record {
+        tick: id.ticks,
+        command_mm: d.command_mm,
+        target_mm: requested,
+        measured_mm: m,
+        force_kn: f,
+        state: d.state,
+    };
+    if producer.enqueue(rec).is_err() {
+        id.dropped = id.dropped.saturating_add(1);
+    }
+    id.ticks = id.ticks.saturating_add(1);
+    id.state = d.state;
+    if let State::Fault(_) = d.state {
+        id.phase = Phase::Settle;
+    } else if id.phase == Phase::Excite {
+        let played = id
+            .player
+            .as_ref()
+            .is_none_or(|p| p.tick() >= p.schedule.ticks());
+        if played {
+            // The excitation ends at 0: the end ramp is immediate.
+            let _ = ctl.supervisor_mut().finish();
+            id.phase = Phase::Finish;
+        }
+    }
+    IdentifyTick {
+        ticked: true,
+        ended: false,
+    }
+}
+
+fn end(id: &mut Identification, ctl: &Controller) -> IdentifyTick {
+    id.phase = Phase::Ended;
+    id.state = ctl.supervisor().state();
+    IdentifyTick {
+        ticked: false,
+        ended: true,
+    }
+}
+
+#[cfg(test)]
+mod tests;
