@@ -665,6 +665,8 @@ fn budget_structures(out: &mut String, root: &Path) {
         out,
         "pub const MODEL_SOURCE: &str = \"budget: FE linear, FE yielding, metamodel; N = 1, 3, 8\";"
     );
+}
+
 /// The identification excitation's tables (`identify` builds; `rths link ... identify`): one period of
 /// the unit multisine and the ramp's cosines, computed by rths-core with std's cosines exactly as
 /// `rths identify` computes them, written as little-endian f64 for `include_bytes!` (flash), with
