@@ -24,6 +24,36 @@ use crate::params::{ParamError, Prototype, SpecimenScale};
 use crate::structure::{LinearStructure, Vector};
 use crate::supervisor::{Busy, Decision, Limits, State, Supervisor};
 
+/// Why a controller refused to replace its analytical part's or compensator's parameters (nothing
+/// changed).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReplaceError {
+    /// The supervisor is not at rest: parameters never change under a test.
+    Busy(Busy),
+    /// The controller's analytical part or compensator is not of the kind the parameters are for.
+    Kind,
+    /// The parameters failed the model's validation.
+    Model(crate::metamodel::ModelError),
+}
+
+impl From<Busy> for ReplaceError {
+    fn from(b: Busy) -> Self {
+        Self::Busy(b)
+    }
+}
+
+impl From<crate::metamodel::ModelError> for ReplaceError {
+    fn from(e: crate::metamodel::ModelError) -> Self {
+        Self::Model(e)
+    }
+}
+
+impl From<ParamError> for ReplaceError {
+    fn from(e: ParamError) -> Self {
+        Self::Model(e.into())
+    }
+}
+
 /// Longest feedback delay a controller can hold, ticks (the paper's is 28).
 pub const MAX_DELAY_STEPS: usize = 64;
 
@@ -326,6 +356,80 @@ impl Controller {
         self.compensator = Compensator::Lead(crate::compensator::Lead::new(lead));
         self.clear();
         Ok(())
+    }
+
+    /// Load new RNN weights into the RNN analytical part, in place (an upload: no ~9 kB value on
+    /// the stack), and start over; only at rest. Refused (busy, not an RNN, invalid weights):
+    /// nothing changes.
+    pub fn load_rnn(
+        &mut self,
+        weights: crate::metamodel::RnnWeights<'_>,
+        scaling: crate::metamodel::RnnScaling,
+    ) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        let Analytical::Rnn(m) = &mut self.analytical else {
+            return Err(ReplaceError::Kind);
+        };
+        m.load(weights, scaling)?;
+        self.start_over()
+    }
+
+    /// Start the ATS compensator from `initial` = [a0, a1 (s), a2 (s²)] (a rig's identified
+    /// values, within the ATS's bounds), in place, and start over; only at rest. Refused: nothing
+    /// changes.
+    pub fn set_ats_initial(&mut self, initial: [f64; 3]) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        let Compensator::Ats(a) = &mut self.compensator else {
+            return Err(ReplaceError::Kind);
+        };
+        a.set_initial(initial)?;
+        self.start_over()
+    }
+
+    /// Replace the LRX model's rig compensation: its lead filter `lead` and the specimen's moving
+    /// mass and damping `[kN·s²/mm, kN·s/mm]` removed from the measured force (the frame model is
+    /// kept), and start over; only at rest. Refused: nothing changes.
+    pub fn set_lrx_rig(
+        &mut self,
+        lead: crate::compensator::LeadParams,
+        [mass, damping]: [f64; 2],
+    ) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        let Analytical::Lrx(m) = &self.analytical else {
+            return Err(ReplaceError::Kind);
+        };
+        if !matches!(self.compensator, Compensator::Lead(_)) {
+            return Err(ReplaceError::Kind);
+        }
+        // The frame ARX runs at the controller's tick: its derivatives use that step.
+        let frame = m
+            .params()
+            .with_specimen_dynamics(mass, damping, crate::params::DT_S)?;
+        self.analytical = Analytical::Lrx(Lrx::new(frame));
+        self.compensator = Compensator::Lead(crate::compensator::Lead::new(lead));
+        self.start_over()
+    }
+
+    fn check_at_rest(&self) -> Result<(), Busy> {
+        if self.supervisor.at_rest() {
+            Ok(())
+        } else {
+            Err(Busy {
+                state: self.supervisor.state(),
+            })
+        }
+    }
+
+    /// After new parameters (at rest, checked): the supervisor back to idle, the state cleared.
+    fn start_over(&mut self) -> Result<(), ReplaceError> {
+        self.supervisor.reset()?;
+        self.clear();
+        Ok(())
+    }
+
+    /// The compensator.
+    pub fn compensator(&self) -> &Compensator {
+        &self.compensator
     }
 
     /// The supervisor (to arm, start, finish, abort, read counters).

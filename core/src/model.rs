@@ -142,6 +142,19 @@ fn lrx_params(
     if mass != 0.0 || damping != 0.0 {
         frame = frame.with_specimen_dynamics(mass, damping, DT_S)?;
     }
+    Ok((
+        frame,
+        lead_params(lead_weights, lead_stride, lead_adapt_ticks)?,
+    ))
+}
+
+/// The LRX model's lead filter (a model file's or a rig upload's `lead_weights`, `lead_stride`,
+/// `lead_adapt_ticks`), validated.
+pub fn lead_params(
+    lead_weights: &[f64],
+    lead_stride: usize,
+    lead_adapt_ticks: f64,
+) -> Result<LeadParams, ModelError> {
     let weights: [f64; LEAD_TAPS] = lead_weights.try_into().map_err(|_| ModelError::Shape {
         what: "LRX lead weights",
         expected: LEAD_TAPS,
@@ -153,10 +166,7 @@ fn lrx_params(
     } else {
         Some(LeadAdaptParams::new(lead_adapt_ticks)?)
     };
-    Ok((
-        frame,
-        LeadParams::new(weights, lead_stride)?.with_adaptation(adapt),
-    ))
+    Ok(LeadParams::new(weights, lead_stride)?.with_adaptation(adapt))
 }
 
 fn lr_parts(p: LrParams) -> (Analytical, Compensator) {

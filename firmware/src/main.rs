@@ -214,7 +214,7 @@ mod app {
     /// the port is idle.
     pub struct Link {
         port: <B as Board>::Link,
-        session: rths_app::link::Session,
+        session: rths_app::link::Session<'static>,
     }
 
     #[shared]
@@ -246,7 +246,8 @@ mod app {
         reader: rths_link::FrameReader<{ rths_link::MAX_FRAME }>,
     }
 
-    #[init(local = [queue: Queue<Record, QUEUE> = Queue::new()])]
+    #[init(local = [queue: Queue<Record, QUEUE> = Queue::new(),
+                    staging: [f64; analytical::STAGING] = [0.0; analytical::STAGING]])]
     fn init(cx: init::Context) -> (Shared, Local) {
         stack::paint();
         #[allow(unused_mut)] // `fault-inject` changes the rig
@@ -262,7 +263,10 @@ mod app {
         let store = motion::store();
         let ag0 = store.accel_mm_s2(0);
         <<B as Board>::Harness as Harness<<B as Board>::Rig>>::reset(&mut parts.harness, ag0);
-        let (ctl, model_checksum) = match analytical::controller() {
+        // The staging area lays out the compiled-in model's values for its checksum, then waits
+        // for uploads.
+        let staging: &'static mut [f64] = cx.local.staging;
+        let (ctl, model_checksum) = match analytical::controller(staging) {
             Ok(c) => c,
             Err(e) => die(e),
         };
@@ -300,7 +304,9 @@ mod app {
                             rths_app::link::Rearm::AtMeasured
                         },
                         analytical::MODEL_KIND,
-                    ),
+                        staging,
+                    )
+                    .with_build_id(analytical::build_id()),
                 },
                 store,
             },

@@ -350,6 +350,15 @@ impl Ats {
         self.state.reset(&self.params);
     }
 
+    /// Start from `initial` = [a0, a1 (s), a2 (s²)] from now on (a rig's identified values),
+    /// validated as [`AtsParams::with_initial`] does, and back to rest; in place (the ATS's state
+    /// is ~33 KiB). Refused: nothing changes.
+    pub fn set_initial(&mut self, initial: [f64; 3]) -> Result<(), ParamError> {
+        self.params = self.params.with_initial(initial)?;
+        self.reset();
+        Ok(())
+    }
+
     /// Current [a0, a1 (s), a2 (s²)].
     pub fn coefficients(&self) -> [f64; 3] {
         self.state.coeffs
