@@ -317,6 +317,65 @@ impl Controller {
         c
     }
 
+    /// A controller at rest with a placeholder analytical part (all-zero LR) and no compensator,
+    /// written into `slot` (e.g. a `static`), and returned there: the firmware then builds its
+    /// parts in place ([`crate::model::assemble_in`]) instead of moving a ~44 KiB value (the
+    /// ATS's 33 KiB) through the stack.
+    pub fn init_in(slot: &mut core::mem::MaybeUninit<Self>, config: ControlConfig) -> &mut Self {
+        slot.write(Self::new(
+            config,
+            Analytical::Lr(Lr::PARKED),
+            Compensator::None,
+        ))
+    }
+
+    /// Make the analytical part the LR model of `params` and drop any compensator, in place; only
+    /// at rest, then start over.
+    pub fn install_lr(&mut self, params: crate::metamodel::LrParams) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        self.analytical = Analytical::Lr(Lr::new(params));
+        self.compensator = Compensator::None;
+        self.start_over()
+    }
+
+    /// Make the analytical part an RNN of `weights` and `scaling` (validated first: refused,
+    /// nothing changes) and drop any compensator, built in place (the ~9 kB RNN is never a value
+    /// on the stack); only at rest, then start over.
+    pub fn install_rnn(
+        &mut self,
+        weights: crate::metamodel::RnnWeights<'_>,
+        scaling: crate::metamodel::RnnScaling,
+    ) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        crate::metamodel::RnnParams::check(&weights, &scaling)?;
+        self.analytical = Analytical::Rnn(Rnn::PARKED);
+        self.compensator = Compensator::None;
+        self.load_rnn(weights, scaling)
+    }
+
+    /// Make the analytical part the FE model `fe` with no compensator; only at rest, then start
+    /// over.
+    pub fn install_fe(&mut self, fe: FeModel) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        self.analytical = Analytical::Fe(fe);
+        self.compensator = Compensator::None;
+        self.start_over()
+    }
+
+    /// Make the compensator the ATS of `params`, built in place (its 33 KiB are never a value on
+    /// the stack); only at rest, then start over.
+    pub fn install_ats(
+        &mut self,
+        params: crate::compensator::AtsParams,
+    ) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        self.compensator = Compensator::Ats(crate::compensator::Ats::PARKED);
+        if let Compensator::Ats(a) = &mut self.compensator {
+            a.configure(params);
+        }
+        self.start_over()
+    }
+
     /// Back to rest: model, compensator and supervisor state cleared, parameters kept, the command
     /// held where it is (a reset never moves the actuator). Refused unless the supervisor is at rest
     /// (idle, done, or faulted with its ramp finished).

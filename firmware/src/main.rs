@@ -203,6 +203,7 @@ fn report(
 #[rtic::app(device = crate::board::pac, peripherals = true)]
 mod app {
     use super::*;
+    use core::mem::MaybeUninit;
     use heapless::spsc::{Consumer, Producer, Queue};
     use rths_app::board::{EStop, Harness, InstrCounter, TickTimer, Watchdog};
     use rths_app::record::RecordStore;
@@ -219,7 +220,8 @@ mod app {
 
     #[shared]
     struct Shared {
-        ctl: Controller,
+        /// The controller, where `init` built it (its `controller` local).
+        ctl: &'static mut Controller,
         timer: <B as Board>::Timer,
         run: Run,
         link: Link,
@@ -247,7 +249,8 @@ mod app {
     }
 
     #[init(local = [queue: Queue<Record, QUEUE> = Queue::new(),
-                    staging: [f64; analytical::STAGING] = [0.0; analytical::STAGING]])]
+                    staging: [f64; analytical::STAGING] = [0.0; analytical::STAGING],
+                    controller: MaybeUninit<Controller> = MaybeUninit::uninit()])]
     fn init(cx: init::Context) -> (Shared, Local) {
         stack::paint();
         #[allow(unused_mut)] // `fault-inject` changes the rig
@@ -266,7 +269,7 @@ mod app {
         // The staging area lays out the compiled-in model's values for its checksum, then waits
         // for uploads.
         let staging: &'static mut [f64] = cx.local.staging;
-        let (ctl, model_checksum) = match analytical::controller(staging) {
+        let (ctl, model_checksum) = match analytical::controller(cx.local.controller, staging) {
             Ok(c) => c,
             Err(e) => die(e),
         };

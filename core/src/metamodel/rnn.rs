@@ -93,7 +93,7 @@ impl RnnParams {
     }
 
     /// The checks of [`Self::new`]; the hidden size.
-    fn check(w: &RnnWeights<'_>, scaling: &RnnScaling) -> Result<usize, ModelError> {
+    pub(crate) fn check(w: &RnnWeights<'_>, scaling: &RnnScaling) -> Result<usize, ModelError> {
         let h = w.b_h.len();
         if h == 0 || h > RNN_MAX_HIDDEN {
             return Err(ModelError::HiddenSize(h));
@@ -215,6 +215,29 @@ pub struct Rnn {
 }
 
 impl Rnn {
+    /// Every byte zero (hidden size 0): not a usable model, a placeholder that reserves its ~9 kB
+    /// where it will live (a zero constant is written as a memset); [`Self::load`] makes it a
+    /// model.
+    pub const PARKED: Self = Self {
+        params: RnnParams {
+            hidden: 0,
+            w_ih: [0.0; RNN_INPUTS * RNN_MAX_HIDDEN],
+            w_hh: [0.0; RNN_MAX_HIDDEN * RNN_MAX_HIDDEN],
+            b_h: [0.0; RNN_MAX_HIDDEN],
+            w_ho: [0.0; RNN_MAX_HIDDEN],
+            b_o: 0.0,
+            scaling: RnnScaling {
+                input_mean: [0.0; RNN_INPUTS],
+                input_std: [0.0; RNN_INPUTS],
+                output_mean: 0.0,
+                output_std: 0.0,
+            },
+        },
+        state: RnnState {
+            hidden: [0.0; RNN_MAX_HIDDEN],
+        },
+    };
+
     /// A model with a zero hidden state.
     pub fn new(params: RnnParams) -> Self {
         Self {
