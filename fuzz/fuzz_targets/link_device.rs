@@ -66,10 +66,17 @@ fuzz_target!(|data: &[u8]| {
     ) else {
         return;
     };
-    // The first byte picks the build's kind and how it rearms.
-    let first = data.first().copied().unwrap_or(0);
-    let kind = [ModelKind::Lr, ModelKind::Lrx, ModelKind::Rnn, ModelKind::FeAts][usize::from(first % 4)];
-    let rearm = if first & 4 == 0 {
+    // The first byte picks the build's kind and how it rearms: 0-3 as the seeds were written (LR,
+    // LR, LRX, LRX; even: once per power-up, odd: at the measured position), 4-7 the RNN and FE +
+    // ATS builds.
+    let first = data.first().copied().unwrap_or(0) % 8;
+    let kind = match first / 2 {
+        0 => ModelKind::Lr,
+        1 => ModelKind::Lrx,
+        2 => ModelKind::Rnn,
+        _ => ModelKind::FeAts,
+    };
+    let rearm = if first % 2 == 0 {
         Rearm::OncePerPowerUp
     } else {
         Rearm::AtMeasured
