@@ -189,15 +189,8 @@ fn rnn_parts(v: &[f64]) -> Result<(RnnWeights<'_>, RnnScaling), NackReason> {
 /// `out`; the count written, `None` if `out` is too short. The host sends these; the compiled-in
 /// model's checksum is theirs.
 pub fn rnn_values(w: &RnnWeights<'_>, s: &RnnScaling, out: &mut [f64]) -> Option<usize> {
-    let tail = [
-        w.b_o,
-        s.input_mean[0],
-        s.input_mean[1],
-        s.input_std[0],
-        s.input_std[1],
-        s.output_mean,
-        s.output_std,
-    ];
+    let ([m0, m1], [s0, s1]) = (s.input_mean, s.input_std);
+    let tail = [w.b_o, m0, m1, s0, s1, s.output_mean, s.output_std];
     let mut n = 0;
     for x in w
         .w_ih

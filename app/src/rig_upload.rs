@@ -63,15 +63,19 @@ pub fn rig_of(ctl: &Controller) -> Option<(ModelKind, [f64; RIG_MAX_VALUES], usi
         (_, Compensator::Ats(a)) => {
             let mut v = [0.0; RIG_MAX_VALUES];
             let init = a.params().initial();
-            v.get_mut(..3)?.copy_from_slice(&init);
-            Some((ModelKind::FeAts, v, 3))
+            v.get_mut(..init.len())?.copy_from_slice(&init);
+            Some((ModelKind::FeAts, v, init.len()))
         }
         (Analytical::Lrx(m), Compensator::Lead(l)) => {
             let p = l.params();
             let adapt = p.adaptation().map_or(0.0, |a| a.ticks());
             let (mass, damping) = m.params().specimen_dynamics();
             let v = rths_link::rig_values(p.weights(), p.stride(), adapt, [mass, damping])?;
-            Some((ModelKind::Lrx, v, 12))
+            Some((
+                ModelKind::Lrx,
+                v,
+                rths_link::rig_value_count(ModelKind::Lrx)?,
+            ))
         }
         _ => None,
     }
