@@ -223,10 +223,12 @@ fn rnn(out: &mut String, root: &Path) {
         .map(PathBuf::from)
         .unwrap_or_else(|| default_model(root, "rnn-10"));
     println!("cargo:rerun-if-changed={}", path.display());
-    let (h, w_ih, w_hh, b_h, w_ho, b_o, in_mean, in_std, out_mean, out_std, dummy);
+    let (h, w_ih, w_hh, b_h, w_ho, b_o, in_mean, in_std, out_mean, out_std, dummy, delay);
     if path.exists() {
         let m = load_model(&path, ModelKind::Rnn);
         check_rate(&path, &m);
+        delay = u16::try_from(m.delay_steps)
+            .unwrap_or_else(|_| fail(format!("{}: delay_steps over 16 bits", path.display())));
         let r = m
             .rnn
             .unwrap_or_else(|| fail(format!("{}: no rnn section", path.display())));
@@ -255,7 +257,13 @@ fn rnn(out: &mut String, root: &Path) {
         out_mean = 0.0;
         out_std = 1e-3;
         dummy = true;
+        delay = 28;
     }
+    let _ = writeln!(
+        out,
+        "/// RNN feedback delay, ticks (the link checksum covers it)."
+    );
+    let _ = writeln!(out, "pub const RNN_DELAY_STEPS: u16 = {delay};");
     let _ = writeln!(out, "/// RNN hidden size.");
     let _ = writeln!(out, "pub const RNN_HIDDEN: usize = {h};");
     let _ = writeln!(out, "/// RNN W_ih, H×2 row-major.");

@@ -10,8 +10,8 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use rths_link::{
-    DeviceMsg, FrameReader, Gap, HostMsg, LinkError, ModelKind as WireModelKind, NackReason,
-    RecordSource, Request, RunState, SeqCheck, Status, Telemetry, LR_COEFFS, MAX_FRAME,
+    DeviceMsg, FrameReader, Gap, Holdings, HostMsg, LinkError, ModelKind as WireModelKind,
+    NackReason, RecordSource, Request, RunState, SeqCheck, Status, Telemetry, LR_COEFFS, MAX_FRAME,
     RECORD_CHUNK,
 };
 
@@ -285,6 +285,7 @@ impl Link {
             match m {
                 DeviceMsg::Ack(r) | DeviceMsg::Nack(r, _) if r == req => break m,
                 DeviceMsg::Status(_) if req == Request::Status => break m,
+                DeviceMsg::Holdings(_) if req == Request::Holdings => break m,
                 other => kept.push_back(other),
             }
         };
@@ -310,6 +311,28 @@ impl Link {
             DeviceMsg::Status(s) => Ok(s),
             other => Err(LinkHostError::Unexpected(Request::Status, other)),
         }
+    }
+
+    /// What the device holds besides its status: the model's and the rig compensation's origin and
+    /// checksums, the rate, the build's identity.
+    pub fn holdings(&mut self) -> Result<Holdings, LinkHostError> {
+        match self.request(&HostMsg::Holdings)? {
+            DeviceMsg::Holdings(h) => Ok(h),
+            other => Err(LinkHostError::Unexpected(Request::Holdings, other)),
+        }
+    }
+
+    /// Upload a rig compensation for a device whose analytical part is `kind` (the values of
+    /// [`rig_values`]); its checksum on success, the device's refusal (the compensation it had stays)
+    /// as [`LinkHostError::Refused`].
+    pub fn upload_rig(
+        &mut self,
+        kind: WireModelKind,
+        values: &[f64],
+    ) -> Result<u32, LinkHostError> {
+        let msg = rig_message(kind, values)?;
+        self.expect_ack(&msg)?;
+        Ok(rths_link::rig_checksum(kind, values))
     }
 
     /// Upload a model: an LR model in one `UploadLr`, another kind in chunks (`ModelBegin`, the
@@ -644,8 +667,8 @@ pub fn record_messages(
 
 /// The flat values of a model file for a chunked upload, and its wire kind: LRX in
 /// `rths_link::lrx_values`' order; an RNN as `w_ih` (row-major), `w_hh` (row-major), `b_h`, `w_ho`,
-/// `b_o`, `input_mean`, `input_std`, `output_mean`, `output_std` (no firmware build takes RNN uploads
-/// yet: the device refuses them `Unsupported`).
+/// `b_o`, `input_mean`, `input_std`, `output_mean`, `output_std` (`rths_link::rnn_value_count`'s
+/// order; only an RNN build of the same hidden size takes it, others refuse it).
 pub fn model_values(model: &ModelFile) -> Result<(WireModelKind, Vec<f64>), LinkHostError> {
     let missing = |what: &str| LinkHostError::Model(format!("no {what} section"));
     match model.kind {
@@ -711,6 +734,56 @@ pub fn model_messages(model: &ModelFile) -> Result<Vec<HostMsg>, LinkHostError> 
     }
     out.push(HostMsg::ModelCommit);
     Ok(out)
+}
+
+/// The rig compensation a rig file (`rths identify`) gives a device's analytical part `kind`, in
+/// `rths_link::rig_value_count`'s layout: FE + ATS: the ATS's identified initial [a0, a1, a2] (as
+/// `rths simulate fe-online-ats --rig` starts from); LRX: the identified lead filter, the lead's
+/// adaptation time constant `lead_adapt_ticks`, and the specimen's moving mass and damping at the
+/// prototype's scale (as `rths train lrx --rig` writes them into a model). Another kind has none.
+pub fn rig_values(
+    rig: &crate::identify::RigFile,
+    kind: WireModelKind,
+    lead_adapt_ticks: f64,
+) -> Result<Vec<f64>, LinkHostError> {
+    match kind {
+        WireModelKind::FeAts => Ok(rig.compensation.ats_initial.to_vec()),
+        WireModelKind::Lrx => {
+            let lead = rig
+                .lead_params()
+                .map_err(|e| LinkHostError::Model(format!("rig file: {e}")))?;
+            let dynamics = crate::train::lrx::prototype_dynamics(&rig.specimen_fit);
+            let v =
+                rths_link::rig_values(lead.weights(), lead.stride(), lead_adapt_ticks, dynamics)
+                    .ok_or_else(|| LinkHostError::Model("rig file: 8 lead weights".into()))?;
+            Ok(v.to_vec())
+        }
+        WireModelKind::Lr | WireModelKind::Rnn => Err(LinkHostError::Model(format!(
+            "the device runs {}, which has no rig compensation to upload",
+            model_kind_name(kind)
+        ))),
+    }
+}
+
+/// The `UploadRig` message of a rig compensation for `kind` (its values, one frame).
+pub fn rig_message(kind: WireModelKind, values: &[f64]) -> Result<HostMsg, LinkHostError> {
+    if values.len() > rths_link::RIG_MAX_VALUES {
+        return Err(LinkHostError::Model(format!(
+            "{} rig values, a frame holds {}",
+            values.len(),
+            rths_link::RIG_MAX_VALUES
+        )));
+    }
+    let mut v = [0.0; RECORD_CHUNK];
+    v.get_mut(..values.len())
+        .ok_or_else(|| LinkHostError::Model("rig values".into()))?
+        .copy_from_slice(values);
+    Ok(HostMsg::UploadRig {
+        kind,
+        count: values.len() as u8,
+        values: v,
+        checksum: rths_link::rig_checksum(kind, values),
+    })
 }
 
 /// The name of a model kind as the device reports it.

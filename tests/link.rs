@@ -1003,3 +1003,299 @@ fn a_silent_host_ramps_the_run_down_when_armed_so() {
     }
     assert_eq!(rows.last().unwrap().command_mm, 0.0);
 }
+
+/// The RNN build with the link (`--no-default-features --features board-qemu,model-rnn,link`).
+fn rnn_link_elf() -> PathBuf {
+    static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    ELF.get_or_init(|| {
+        build_elf(
+            &[
+                "--no-default-features",
+                "--features",
+                "board-qemu,model-rnn,link",
+            ],
+            "rths-firmware-rnn-link.elf",
+        )
+    })
+    .clone()
+}
+
+/// The FE + ATS build with the link (`--no-default-features --features board-qemu,fe-ats,link`).
+fn fe_ats_link_elf() -> PathBuf {
+    static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    ELF.get_or_init(|| {
+        build_elf(
+            &[
+                "--no-default-features",
+                "--features",
+                "board-qemu,fe-ats,link",
+            ],
+            "rths-firmware-fe-ats-link.elf",
+        )
+    })
+    .clone()
+}
+
+fn shipped_model(name: &str) -> ModelFile {
+    ModelFile::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("data/models")
+            .join(name),
+    )
+    .unwrap()
+}
+
+/// The `ModelBegin` checksum of a chunked model upload.
+fn chunked_checksum(m: &ModelFile) -> u32 {
+    match rths::link_host::model_messages(m).unwrap()[0] {
+        HostMsg::ModelBegin { checksum, .. } => checksum,
+        _ => unreachable!(),
+    }
+}
+
+/// The commands of a recorded run equal the host simulation's, bit for bit, for every tick of
+/// the record; the run's stack figure from its RESULT line.
+fn assert_bit_identical(rows: &[Row], host: &ScenarioRun, ticks: usize, what: &str) {
+    let mut identical = 0;
+    for (row, hs) in rows.iter().zip(&host.history.command_mm[1..]) {
+        assert_eq!(
+            row.command_mm.to_bits(),
+            hs.to_bits(),
+            "{what}: tick {}",
+            row.tick
+        );
+        identical += 1;
+    }
+    println!("{what}: {identical} commands bit-identical to the host");
+    assert_eq!(identical, ticks - 1, "{what}");
+}
+
+/// Record the armed-and-started run to `csv`; its rows (no telemetry lost).
+fn record_run(link: &mut rths::link_host::Link, csv: &Path) -> Vec<Row> {
+    let summary = rths::cmd::link::record_csv(link, csv, Duration::from_secs(120)).unwrap();
+    assert!(summary.complete(), "lost telemetry: {summary:?}");
+    read_csv(csv)
+}
+
+/// The shipped rnn-10.json uploaded in chunks to the RNN build (validated on the device against
+/// its compiled hidden size, loaded in place) runs El Centro exactly as the host simulates the
+/// compiled-in model; bad RNN uploads (another hidden size, a NaN, a duplicated chunk, a truncated
+/// upload, a corrupted value, another kind, under a test) are refused with their reason and the
+/// device's holdings stay as they were.
+#[test]
+fn an_rnn_uploaded_in_chunks_runs_as_the_compiled_in_one_and_bad_ones_are_refused() {
+    if qemu_missing("link test") {
+        return;
+    }
+    let shipped = shipped_model("rnn-10.json");
+    let dir = tempfile::tempdir().unwrap();
+    let mut q = Qemu::start(&rnn_link_elf(), dir.path()).unwrap();
+    let link = &mut q.link;
+    link.timeout = Duration::from_secs(20);
+    let h0 = link.holdings().unwrap();
+    assert_eq!(h0.model_kind, rths_link::ModelKind::Rnn);
+    assert_eq!(h0.model_source, rths_link::RecordSource::Compiled);
+    assert_eq!(
+        h0.model_checksum,
+        chunked_checksum(&shipped),
+        "the compiled-in rnn-10.json"
+    );
+    assert_eq!(h0.rig_checksum, 0, "an RNN has no rig compensation");
+    assert_eq!(h0.rate_hz, rths_core::params::CONTROL_RATE_HZ);
+    assert_ne!(h0.build_id, 0);
+
+    // Another hidden size than the build's; another kind.
+    match link.upload(&shipped_model("rnn-5.json")) {
+        Err(LinkHostError::Refused(Request::ModelBegin, NackReason::Shape)) => {}
+        r => panic!("expected Shape, got {r:?}"),
+    }
+    match link.upload(&shipped_model("lrx.json")) {
+        Err(LinkHostError::Refused(Request::ModelBegin, NackReason::Unsupported)) => {}
+        r => panic!("expected Unsupported, got {r:?}"),
+    }
+    // No rig compensation in this build.
+    match link.upload_rig(rths_link::ModelKind::Rnn, &[1.0]) {
+        Err(LinkHostError::Refused(Request::UploadRig, NackReason::Unsupported)) => {}
+        r => panic!("expected Unsupported, got {r:?}"),
+    }
+    let msgs = rths::link_host::model_messages(&shipped).unwrap();
+    let n = msgs.len();
+    // A NaN in a chunk.
+    let mut nan = msgs.clone();
+    if let HostMsg::ModelChunk { values, .. } = &mut nan[3] {
+        values[5] = f64::NAN;
+    }
+    for m in &nan[..3] {
+        assert_eq!(refusal(link, m), None);
+    }
+    assert_eq!(refusal(link, &nan[3]), Some(NackReason::NotFinite));
+    // A duplicated chunk, then a reordered one.
+    for m in &msgs[..3] {
+        assert_eq!(refusal(link, m), None);
+    }
+    assert_eq!(refusal(link, &msgs[2]), Some(NackReason::Sequence));
+    assert_eq!(refusal(link, &msgs[0]), None);
+    assert_eq!(refusal(link, &msgs[2]), Some(NackReason::Sequence));
+    // Truncated: the commit before the last chunk.
+    for m in &msgs[..n - 2] {
+        assert_eq!(refusal(link, m), None);
+    }
+    assert_eq!(refusal(link, &msgs[n - 1]), Some(NackReason::Incomplete));
+    // A value corrupted in transit (its frame intact): the end-to-end checksum.
+    let mut bad = msgs.clone();
+    if let HostMsg::ModelChunk { values, .. } = &mut bad[4] {
+        values[0] += 1e-9;
+    }
+    for m in &bad[..n - 1] {
+        assert_eq!(refusal(link, m), None);
+    }
+    assert_eq!(refusal(link, &bad[n - 1]), Some(NackReason::Checksum));
+    assert_eq!(link.holdings().unwrap(), h0, "nothing changed");
+
+    // The shipped model: accepted, reported as uploaded with the same checksum.
+    assert_eq!(link.upload(&shipped).unwrap(), h0.model_checksum);
+    let h1 = link.holdings().unwrap();
+    assert_eq!(
+        (h1.model_source, h1.model_checksum),
+        (rths_link::RecordSource::Uploaded, h0.model_checksum)
+    );
+    link.arm(1).unwrap();
+    link.start().unwrap();
+    // Under a test: refused, busy.
+    assert_eq!(refusal(link, &msgs[0]), Some(NackReason::Busy));
+    let rows = record_run(link, &dir.path().join("run.csv"));
+
+    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let reference = study::reference_mm(&ag, 1.0).unwrap();
+    let mut st = setup(ScenarioId::RnnOnline(10), &ag, &reference, &[0.0; 6]);
+    st.lr = None;
+    st.rnn = Some(rths::models::rnn_params(&shipped).unwrap());
+    st.delay_steps = shipped.delay_steps;
+    let host = scenario::run(&st).unwrap();
+    assert_bit_identical(
+        &rows,
+        &host,
+        ag.len(),
+        "rnn-online-10, uploaded rnn-10.json",
+    );
+    let out = q.stdout();
+    let line = out
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("RESULT "))
+        .unwrap();
+    let r: serde_json::Value = serde_json::from_str(line).unwrap();
+    assert_eq!(r["end_state"], "done");
+    println!(
+        "RNN-10 link build with an uploaded model: stack {} of {} bytes",
+        r["stack_bytes"], r["stack_avail_bytes"]
+    );
+}
+
+/// A rig file's ATS start (`rths identify` on the emulated board's plant) uploaded to the FE + ATS
+/// build runs El Centro exactly as `rths simulate fe-online-ats --rig` does on the host; bad rig
+/// uploads (a NaN, outside the ATS's bounds, a wrong count, another kind, a corrupted value, under
+/// a test) are refused with their reason and the compensation in force stays.
+#[test]
+fn a_rig_compensation_uploaded_to_the_fe_ats_build_runs_as_the_host_simulates_it() {
+    if qemu_missing("link test") {
+        return;
+    }
+    use rths::cmd::identify::{run_with_faults, Args};
+    use rths::cmd::plant::{PresetArg, SpecimenArg};
+    use rths_core::compensator::{AtsConfig, AtsParams};
+    use rths_link::ModelKind as K;
+    let dir = tempfile::tempdir().unwrap();
+    // The emulated board's plant: unr-compact, linear specimen, seed 1.
+    let a = Args {
+        preset: PresetArg::UnrCompact,
+        seed: 1,
+        uncertainty: false,
+        specimen: SpecimenArg::Linear,
+        specimen_stiffness_factor: 1.0,
+        amplitude_mm: 2.0,
+        lead_stride: 8,
+        out: dir.path().join("rig.json"),
+        plot: None,
+    };
+    let rig = run_with_faults(&a, rths_hal_sim::FaultPlan::none()).unwrap();
+    let initial = rig.compensation.ats_initial;
+    let values = rths::link_host::rig_values(&rig, K::FeAts, 0.0).unwrap();
+    assert_eq!(values, initial);
+
+    let mut q = Qemu::start(&fe_ats_link_elf(), dir.path()).unwrap();
+    let link = &mut q.link;
+    link.timeout = Duration::from_secs(20);
+    let h0 = link.holdings().unwrap();
+    assert_eq!(h0.model_kind, K::FeAts);
+    let paper = AtsParams::new(AtsConfig::paper(DT_S, PAPER_DELAY_STEPS as f64 * DT_S))
+        .unwrap()
+        .initial();
+    assert_ne!(
+        initial, paper,
+        "the rig's start differs from the compiled-in one"
+    );
+    assert_eq!(
+        (h0.rig_source, h0.rig_checksum),
+        (
+            rths_link::RecordSource::Compiled,
+            rths_link::rig_checksum(K::FeAts, &paper)
+        ),
+        "the compiled-in ATS start"
+    );
+    let refused = |link: &mut rths::link_host::Link, kind, v: &[f64]| match link.upload_rig(kind, v)
+    {
+        Err(LinkHostError::Refused(Request::UploadRig, why)) => why,
+        r => panic!("{v:?}: expected a refusal, got {r:?}"),
+    };
+    assert_eq!(
+        refused(link, K::FeAts, &[f64::NAN, initial[1], initial[2]]),
+        NackReason::NotFinite
+    );
+    assert_eq!(
+        refused(link, K::FeAts, &[1e6, initial[1], initial[2]]),
+        NackReason::OutOfRange
+    );
+    assert_eq!(refused(link, K::FeAts, &initial[..2]), NackReason::Shape);
+    assert_eq!(refused(link, K::Lrx, &[0.0; 12]), NackReason::Unsupported);
+    let mut corrupted = rths::link_host::rig_message(K::FeAts, &initial).unwrap();
+    if let HostMsg::UploadRig { values, .. } = &mut corrupted {
+        values[1] *= 1.5;
+    }
+    assert_eq!(refusal(link, &corrupted), Some(NackReason::Checksum));
+    assert_eq!(link.holdings().unwrap(), h0, "nothing changed");
+
+    let c = link.upload_rig(K::FeAts, &values).unwrap();
+    let h1 = link.holdings().unwrap();
+    assert_eq!(
+        (h1.rig_source, h1.rig_checksum),
+        (rths_link::RecordSource::Uploaded, c)
+    );
+    link.arm(1).unwrap();
+    link.start().unwrap();
+    assert_eq!(refused(link, K::FeAts, &paper), NackReason::Busy);
+    let rows = record_run(link, &dir.path().join("run.csv"));
+
+    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let reference = study::reference_mm(&ag, 1.0).unwrap();
+    let st = setup(ScenarioId::FeOnlineAts, &ag, &reference, &[0.0; 6]);
+    let host = scenario::run_with_ats_start(&st, Some(initial)).unwrap();
+    assert_bit_identical(
+        &rows,
+        &host,
+        ag.len(),
+        "fe-online-ats, uploaded rig ATS start",
+    );
+    let out = q.stdout();
+    let line = out
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("RESULT "))
+        .unwrap();
+    let r: serde_json::Value = serde_json::from_str(line).unwrap();
+    assert_eq!(r["end_state"], "done");
+    println!(
+        "FE+ATS link build with an uploaded rig: stack {} of {} bytes",
+        r["stack_bytes"], r["stack_avail_bytes"]
+    );
+}

@@ -9,6 +9,9 @@
 //! - [`link`]: the command link's request handling and telemetry stream.
 //! - [`identify`]: identification through the board: the excitation played by the control task.
 //! - [`model_upload`]: chunked model uploads (LRX), validated on the device.
+//! - [`model_upload`]: chunked model uploads (LRX, RNN), validated on the device; [`chunks`]: the
+//!   chunk bookkeeping it shares with [`record`].
+//! - [`rig_upload`]: the rig compensation upload (LRX lead and specimen dynamics, ATS start).
 //! - [`record`]: the ground-motion record in force (compiled in or uploaded) and upload validation.
 //!
 //! The firmware binary (`firmware/src/main.rs`) is the RTIC shell around these.
@@ -17,12 +20,14 @@
 #![forbid(unsafe_code)]
 
 pub mod board;
+pub mod chunks;
 pub mod control;
 pub mod identify;
 pub mod link;
 pub mod model_upload;
 pub mod record;
 pub mod report;
+pub mod rig_upload;
 pub mod run;
 
 pub use control::{control_step, Record};

@@ -5,8 +5,8 @@ use rths_core::control::{Analytical, Controller};
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_core::supervisor::{Limits, State, Supervisor};
 use rths_link::{
-    DeviceMsg, HostMsg, IdentifySample, LinkLoss, ModelKind, NackReason, RunState, Status,
-    Telemetry, LINK_TIMEOUT_TICKS, LR_COEFFS,
+    DeviceMsg, Holdings, HostMsg, IdentifySample, LinkLoss, ModelKind, NackReason, RecordSource,
+    RunState, Status, Telemetry, LINK_TIMEOUT_TICKS, LR_COEFFS,
 };
 
 use crate::board::LinkPort;
@@ -107,8 +107,8 @@ pub enum Rearm {
 }
 
 /// The link's side of a session: the telemetry stream's numbering and the model in force.
-#[derive(Debug, Clone, Copy)]
-pub struct Session {
+#[derive(Debug)]
+pub struct Session<'a> {
     /// Telemetry decimation (≥ 1): every `every`-th record is sent.
     pub every: u32,
     /// Next telemetry sequence number (= records sent in this run).
@@ -124,7 +124,7 @@ pub struct Session {
     /// The kind of the analytical part (reported in the status).
     pub model_kind: ModelKind,
     /// A chunked model upload in progress.
-    pub model_upload: ModelStaging,
+    pub model_upload: ModelStaging<'a>,
     /// What the run in progress does if the host falls silent (chosen at arm time).
     pub link_loss: LinkLoss,
     /// The arming host's token (0: none, anyone may start).
@@ -133,11 +133,24 @@ pub struct Session {
     pub excitation: Option<FlashTables>,
     /// The stream is an identification's ([`DeviceMsg::IdentifySample`]), not a run's.
     pub identifying: bool,
+    /// The model in force is the compiled-in one or an upload.
+    pub model_source: RecordSource,
+    /// The rig compensation in force is the compiled-in one or an upload.
+    pub rig_source: RecordSource,
+    /// The firmware build's identity (reported in [`Holdings`]).
+    pub build_id: u32,
 }
 
-impl Session {
-    /// A session with the compiled-in model of `model_checksum`, of kind `model_kind`.
-    pub fn new(model_checksum: u32, upload_lr: bool, rearm: Rearm, model_kind: ModelKind) -> Self {
+impl<'a> Session<'a> {
+    /// A session with the compiled-in model of `model_checksum`, of kind `model_kind`; chunked
+    /// model uploads are staged in `staging` (sized for the build's kind, empty: none).
+    pub fn new(
+        model_checksum: u32,
+        upload_lr: bool,
+        rearm: Rearm,
+        model_kind: ModelKind,
+        staging: &'a mut [f64],
+    ) -> Self {
         Self {
             every: 1,
             seq: 0,
@@ -146,11 +159,14 @@ impl Session {
             upload_lr,
             rearm,
             model_kind,
-            model_upload: ModelStaging::new(),
+            model_upload: ModelStaging::new(staging),
             link_loss: LinkLoss::Complete,
             owner: 0,
             excitation: None,
             identifying: false,
+            model_source: RecordSource::Compiled,
+            rig_source: RecordSource::Compiled,
+            build_id: 0,
         }
     }
 
@@ -158,6 +174,11 @@ impl Session {
     pub fn with_excitation(mut self, tables: FlashTables) -> Self {
         self.excitation = Some(tables);
         self
+    }
+
+    /// The same session, reporting `build_id` as the firmware build's identity.
+    pub fn with_build_id(self, build_id: u32) -> Self {
+        Self { build_id, ..self }
     }
 
     /// The telemetry message of `r`, numbered, or `None` if decimation skips it.
@@ -229,7 +250,7 @@ pub fn handle(
     ctl: &mut Controller,
     run: &mut Run,
     store: &mut RecordStore<'_>,
-    s: &mut Session,
+    s: &mut Session<'_>,
     finished: bool,
 ) -> (DeviceMsg, Effect) {
     let req = msg.request();
@@ -254,18 +275,48 @@ pub fn handle(
             values,
             delay_steps,
             checksum,
-        } => s
-            .model_upload
-            .begin(kind, values, delay_steps, checksum, s.model_kind, at_rest)
-            .map(|()| Effect::None),
+        } => {
+            let rnn_hidden = match ctl.analytical() {
+                Analytical::Rnn(m) => m.params().hidden(),
+                _ => 0,
+            };
+            s.model_upload
+                .begin(
+                    kind,
+                    values,
+                    delay_steps,
+                    checksum,
+                    s.model_kind,
+                    rnn_hidden,
+                    at_rest,
+                )
+                .map(|()| Effect::None)
+        }
         HostMsg::ModelChunk { seq, count, values } => s
             .model_upload
             .chunk(seq, count, &values, at_rest)
             .map(|()| Effect::None),
         HostMsg::ModelCommit => s.model_upload.commit(ctl, at_rest).map(|crc| {
             s.model_checksum = crc;
+            s.model_source = RecordSource::Uploaded;
+            // A model upload brings its own lead filter (LRX): the rig's is replaced too.
+            if s.model_kind == ModelKind::Lrx {
+                s.rig_source = RecordSource::Uploaded;
+            }
             Effect::None
         }),
+        HostMsg::Holdings => return (DeviceMsg::Holdings(holdings(ctl, s)), Effect::None),
+        HostMsg::UploadRig {
+            kind,
+            count,
+            values,
+            checksum,
+        } => crate::rig_upload::upload_rig(ctl, s.model_kind, kind, count, &values, checksum).map(
+            |_| {
+                s.rig_source = RecordSource::Uploaded;
+                Effect::None
+            },
+        ),
         HostMsg::UploadLr {
             features,
             theta,
@@ -275,6 +326,7 @@ pub fn handle(
             if s.upload_lr {
                 upload_lr(ctl, features, &theta, delay_steps, checksum).map(|crc| {
                     s.model_checksum = crc;
+                    s.model_source = RecordSource::Uploaded;
                     Effect::None
                 })
             } else {
@@ -315,7 +367,7 @@ pub fn handle(
 }
 
 /// Start the armed test; a test armed with an owner token starts only for that token.
-fn start(ctl: &mut Controller, s: &Session, owner: u32) -> Result<Effect, NackReason> {
+fn start(ctl: &mut Controller, s: &Session<'_>, owner: u32) -> Result<Effect, NackReason> {
     if s.owner != 0 && owner != s.owner && ctl.supervisor().state() == State::Armed {
         return Err(NackReason::NotOwner);
     }
@@ -328,7 +380,7 @@ fn start(ctl: &mut Controller, s: &Session, owner: u32) -> Result<Effect, NackRe
 fn arm_request(
     ctl: &mut Controller,
     run: &mut Run,
-    s: &mut Session,
+    s: &mut Session<'_>,
     finished: bool,
     telemetry_every: u16,
     on_link_loss: LinkLoss,
@@ -402,7 +454,7 @@ fn arm(ctl: &mut Controller, run: &Run, rearm: Rearm, finished: bool) -> Result<
 }
 
 /// The status answer.
-pub fn status(ctl: &Controller, s: &Session, run: &Run, store: &RecordStore<'_>) -> Status {
+pub fn status(ctl: &Controller, s: &Session<'_>, run: &Run, store: &RecordStore<'_>) -> Status {
     let sup = ctl.supervisor();
     let l = sup.limits();
     Status {
@@ -418,6 +470,19 @@ pub fn status(ctl: &Controller, s: &Session, run: &Run, store: &RecordStore<'_>)
         model_kind: s.model_kind,
         record: store.info(),
         record_capacity: store.capacity(),
+    }
+}
+
+/// The holdings answer: the model's and the rig compensation's origin and checksums, the build.
+pub fn holdings(ctl: &Controller, s: &Session<'_>) -> Holdings {
+    Holdings {
+        model_kind: s.model_kind,
+        model_source: s.model_source,
+        model_checksum: s.model_checksum,
+        rig_source: s.rig_source,
+        rig_checksum: crate::rig_upload::rig_checksum_of(ctl),
+        rate_hz: rths_core::params::CONTROL_RATE_HZ,
+        build_id: s.build_id,
     }
 }
 

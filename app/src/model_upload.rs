@@ -1,17 +1,22 @@
-//! Chunked model uploads (a model of more values than one frame holds: LRX), validated on the
+//! Chunked model uploads (a model of more values than one frame holds: LRX, RNN), validated on the
 //! device as the values arrive (order, count, finiteness) and at the commit (end-to-end checksum,
 //! then the model's own checks as `rths_core::model::assemble` makes them); refused whole, the model
-//! in force kept. The values wait in a small staging area of the link's session.
+//! in force kept. The values wait in the build's staging area (sized for its own kind); an RNN is
+//! loaded into the controller in place (`Controller::load_rnn`: no ~9 kB value on the stack).
 
 use rths_core::compensator::{LeadParams, LEAD_TAPS};
-use rths_core::control::Controller;
-use rths_core::metamodel::LrxParams;
-use rths_link::{ModelKind, NackReason, LRX_VALUES, MODEL_MAX_VALUES, RECORD_CHUNK};
+use rths_core::control::{Controller, ReplaceError};
+use rths_core::metamodel::{LrxParams, RnnScaling, RnnWeights, RNN_INPUTS};
+use rths_link::{ModelKind, NackReason, LRX_VALUES, RECORD_CHUNK};
 
-/// The model upload in progress, if any.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct ModelStaging {
+use crate::chunks::Chunks;
+
+/// The model upload in progress, if any, and the staging area its values wait in (the build's:
+/// large enough for its own kind, e.g. [`rths_link::rnn_value_count`] of its RNN's hidden size).
+#[derive(Debug)]
+pub struct ModelStaging<'a> {
     staged: Option<Staged>,
+    area: &'a mut [f64],
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -20,25 +25,24 @@ struct Staged {
     count: usize,
     delay_steps: u16,
     checksum: u32,
-    next_seq: u32,
-    written: usize,
-    values: [f64; MODEL_MAX_VALUES],
+    chunks: Chunks,
 }
 
-/// The values a kind's upload has; `None` for a kind that cannot be uploaded in chunks.
-pub fn values_of(kind: ModelKind) -> Option<usize> {
+/// The values a `kind` upload has for a build whose RNN has `rnn_hidden` units (0: no RNN);
+/// `None` for a kind that cannot be uploaded in chunks (an LR goes in one `UploadLr`; the FE
+/// model has no weights).
+pub fn values_of(kind: ModelKind, rnn_hidden: usize) -> Option<usize> {
     match kind {
         ModelKind::Lrx => Some(LRX_VALUES),
-        // An RNN's weights (up to 1159 values at 32 units) and its 9 kB parts are not staged on
-        // the device; the FE model has no weights to upload.
+        ModelKind::Rnn if rnn_hidden > 0 => Some(rths_link::rnn_value_count(rnn_hidden)),
         ModelKind::Rnn | ModelKind::FeAts | ModelKind::Lr => None,
     }
 }
 
-impl ModelStaging {
-    /// Nothing staged.
-    pub const fn new() -> Self {
-        Self { staged: None }
+impl<'a> ModelStaging<'a> {
+    /// Nothing staged; uploads wait in `area`.
+    pub fn new(area: &'a mut [f64]) -> Self {
+        Self { staged: None, area }
     }
 
     /// An upload is in progress.
@@ -46,8 +50,11 @@ impl ModelStaging {
         self.staged.is_some()
     }
 
-    /// Begin an upload of a `kind` model of `values` values (`build`: the kind this firmware runs;
-    /// another kind is refused `Unsupported`). Replaces an upload in progress.
+    /// Begin an upload of a `kind` model of `values` values (`build`: the kind this firmware runs,
+    /// `rnn_hidden`: its RNN's hidden size, 0 without one; another kind is refused `Unsupported`,
+    /// another count `Shape`, more than the staging area holds `TooLong`). Replaces an upload in
+    /// progress.
+    #[allow(clippy::too_many_arguments)] // the fields of `HostMsg::ModelBegin` and the build's
     pub fn begin(
         &mut self,
         kind: ModelKind,
@@ -55,26 +62,28 @@ impl ModelStaging {
         delay_steps: u16,
         checksum: u32,
         build: ModelKind,
+        rnn_hidden: usize,
         at_rest: bool,
     ) -> Result<(), NackReason> {
         if !at_rest {
             return Err(NackReason::Busy);
         }
-        let expected = values_of(kind).ok_or(NackReason::Unsupported)?;
         if kind != build {
             return Err(NackReason::Unsupported);
         }
-        if usize::from(values) != expected || expected > MODEL_MAX_VALUES {
+        let expected = values_of(kind, rnn_hidden).ok_or(NackReason::Unsupported)?;
+        if usize::from(values) != expected {
             return Err(NackReason::Shape);
+        }
+        if expected > self.area.len() {
+            return Err(NackReason::TooLong);
         }
         self.staged = Some(Staged {
             kind,
             count: expected,
             delay_steps,
             checksum,
-            next_seq: 0,
-            written: 0,
-            values: [0.0; MODEL_MAX_VALUES],
+            chunks: Chunks::new(expected),
         });
         Ok(())
     }
@@ -93,23 +102,13 @@ impl ModelStaging {
         let Some(mut st) = self.staged.take() else {
             return Err(NackReason::Sequence);
         };
-        if seq != st.next_seq {
-            return Err(NackReason::Sequence);
-        }
-        let n = usize::from(count);
-        if n == 0 || n > RECORD_CHUNK || n > st.count - st.written {
-            return Err(NackReason::Incomplete);
-        }
-        let vals = values.get(..n).ok_or(NackReason::Incomplete)?;
-        if vals.iter().any(|v| !v.is_finite()) {
-            return Err(NackReason::NotFinite);
-        }
-        st.values
-            .get_mut(st.written..st.written + n)
-            .ok_or(NackReason::Incomplete)?
+        let vals = st.chunks.check(seq, count, values)?;
+        let at = st.chunks.written();
+        self.area
+            .get_mut(at..at + vals.len())
+            .ok_or(NackReason::TooLong)?
             .copy_from_slice(vals);
-        st.written += n;
-        st.next_seq = st.next_seq.wrapping_add(1);
+        st.chunks.advance(vals.len());
         self.staged = Some(st);
         Ok(())
     }
@@ -117,27 +116,117 @@ impl ModelStaging {
     /// Check the upload and swap the model into `ctl` (analytical part and compensator, whole).
     /// Returns its checksum. Refused: the upload is dropped, the model in force stays.
     ///
-    /// Out of line: the new parts are built (in place, `Controller::set_lrx`) only when an upload
-    /// is committed, and whatever frame that takes is not reserved for every request.
+    /// Out of line: the new parts are built (in place, `Controller::set_lrx`, `load_rnn`) only when
+    /// an upload is committed, and whatever frame that takes is not reserved for every request.
     #[inline(never)]
     pub fn commit(&mut self, ctl: &mut Controller, at_rest: bool) -> Result<u32, NackReason> {
         if !at_rest {
             return Err(NackReason::Busy);
         }
         let st = self.staged.take().ok_or(NackReason::Sequence)?;
-        if st.written != st.count {
+        if !st.chunks.complete() {
             return Err(NackReason::Incomplete);
         }
-        let v = st.values.get(..st.count).ok_or(NackReason::Shape)?;
+        let v = self.area.get(..st.count).ok_or(NackReason::Shape)?;
         if rths_link::model_values_checksum(st.kind, v, st.delay_steps) != st.checksum {
             return Err(NackReason::Checksum);
         }
-        if st.kind != ModelKind::Lrx {
-            return Err(NackReason::Unsupported);
+        match st.kind {
+            ModelKind::Lrx => {
+                let (frame, lead) = lrx_parts(v)?;
+                ctl.set_lrx(frame, lead).map_err(|_| NackReason::Busy)?;
+            }
+            ModelKind::Rnn => {
+                let (weights, scaling) = rnn_parts(v)?;
+                ctl.load_rnn(weights, scaling).map_err(replace_nack)?;
+            }
+            ModelKind::Lr | ModelKind::FeAts => return Err(NackReason::Unsupported),
         }
-        let (frame, lead) = lrx_parts(v)?;
-        ctl.set_lrx(frame, lead).map_err(|_| NackReason::Busy)?;
         Ok(st.checksum)
+    }
+}
+
+/// The link's reason for a controller's refusal to take new parameters.
+pub fn replace_nack(e: ReplaceError) -> NackReason {
+    match e {
+        ReplaceError::Busy(_) => NackReason::Busy,
+        ReplaceError::Kind => NackReason::Unsupported,
+        ReplaceError::Model(_) => NackReason::OutOfRange,
+    }
+}
+
+/// The RNN weights and scaling of an upload's values (`rths_link::rnn_value_count`'s order), as
+/// slices of them; the hidden size is the count's.
+fn rnn_parts(v: &[f64]) -> Result<(RnnWeights<'_>, RnnScaling), NackReason> {
+    let h = rths_link::rnn_hidden_of(v.len()).ok_or(NackReason::Shape)?;
+    let (w_ih, rest) = v
+        .split_at_checked(h * RNN_INPUTS)
+        .ok_or(NackReason::Shape)?;
+    let (w_hh, rest) = rest.split_at_checked(h * h).ok_or(NackReason::Shape)?;
+    let (b_h, rest) = rest.split_at_checked(h).ok_or(NackReason::Shape)?;
+    let (w_ho, rest) = rest.split_at_checked(h).ok_or(NackReason::Shape)?;
+    let &[b_o, m0, m1, s0, s1, out_mean, out_std] = rest else {
+        return Err(NackReason::Shape);
+    };
+    Ok((
+        RnnWeights {
+            w_ih,
+            w_hh,
+            b_h,
+            w_ho,
+            b_o,
+        },
+        RnnScaling {
+            input_mean: [m0, m1],
+            input_std: [s0, s1],
+            output_mean: out_mean,
+            output_std: out_std,
+        },
+    ))
+}
+
+/// The flat values of an RNN's weights and scaling (`rths_link::rnn_value_count`'s order), into
+/// `out`; the count written, `None` if `out` is too short. The host sends these; the compiled-in
+/// model's checksum is theirs.
+pub fn rnn_values(w: &RnnWeights<'_>, s: &RnnScaling, out: &mut [f64]) -> Option<usize> {
+    let ([m0, m1], [s0, s1]) = (s.input_mean, s.input_std);
+    let tail = [w.b_o, m0, m1, s0, s1, s.output_mean, s.output_std];
+    let mut n = 0;
+    for x in w
+        .w_ih
+        .iter()
+        .chain(w.w_hh)
+        .chain(w.b_h)
+        .chain(w.w_ho)
+        .chain(&tail)
+    {
+        *out.get_mut(n)? = *x;
+        n += 1;
+    }
+    Some(n)
+}
+
+/// The link checksum of a compiled-in RNN (what the status reports until an upload, and what an
+/// upload of the same model file reports), its values laid out in `scratch`; 0 if it is too short.
+pub fn rnn_checksum(
+    w: &RnnWeights<'_>,
+    s: &RnnScaling,
+    delay_steps: u16,
+    scratch: &mut [f64],
+) -> u32 {
+    match rnn_values(w, s, scratch).and_then(|n| scratch.get(..n)) {
+        Some(v) => rths_link::model_values_checksum(ModelKind::Rnn, v, delay_steps),
+        None => 0,
+    }
+}
+
+/// The lead stride of an upload's value: a whole number of ticks in 1..=64 (the lead's own check
+/// then bounds it further).
+pub(crate) fn stride_of(x: f64) -> Result<usize, NackReason> {
+    if (1.0..=64.0).contains(&x) && libm::floor(x) == x {
+        Ok(x as usize)
+    } else {
+        Err(NackReason::OutOfRange)
     }
 }
 
@@ -145,10 +234,7 @@ impl ModelStaging {
 /// validated by core's own checks (shapes, finiteness, ranges); the stride must be a whole number
 /// of ticks.
 fn lrx_parts(v: &[f64]) -> Result<(LrxParams, LeadParams), NackReason> {
-    let stride = *v.get(19).ok_or(NackReason::Shape)?;
-    if !((1.0..=64.0).contains(&stride) && libm::floor(stride) == stride) {
-        return Err(NackReason::OutOfRange);
-    }
+    let stride = stride_of(*v.get(19).ok_or(NackReason::Shape)?)?;
     let frame = LrxParams::from_slice(
         v.get(..9).ok_or(NackReason::Shape)?,
         *v.get(9).ok_or(NackReason::Shape)?,
@@ -159,7 +245,7 @@ fn lrx_parts(v: &[f64]) -> Result<(LrxParams, LeadParams), NackReason> {
         .get(11..19)
         .and_then(|w| w.try_into().ok())
         .ok_or(NackReason::Shape)?;
-    let lead = LeadParams::new(weights, stride as usize).map_err(|_| NackReason::OutOfRange)?;
+    let lead = LeadParams::new(weights, stride).map_err(|_| NackReason::OutOfRange)?;
     Ok((frame, lead))
 }
 

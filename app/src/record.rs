@@ -5,6 +5,7 @@
 //! commit succeeds: the buffer is split in two halves, the new record is written into the half the
 //! active one does not use.
 
+use crate::chunks::Chunks;
 use rths_core::motion::Record;
 use rths_core::params::DT_S;
 use rths_link::{
@@ -21,10 +22,8 @@ struct Staging {
     dt_s: f64,
     scale: f64,
     checksum: u32,
-    /// Next chunk number expected.
-    next_seq: u32,
-    /// Samples received so far.
-    written: u32,
+    /// Chunk order and count.
+    chunks: Chunks,
     digest: RecordDigest,
 }
 
@@ -136,8 +135,7 @@ impl<'a> RecordStore<'a> {
             dt_s,
             scale,
             checksum,
-            next_seq: 0,
-            written: 0,
+            chunks: Chunks::new(samples as usize),
             digest: RecordDigest::new(),
         });
         Ok(())
@@ -158,28 +156,17 @@ impl<'a> RecordStore<'a> {
         let Some(mut st) = self.staging.take() else {
             return Err(NackReason::Sequence);
         };
-        if seq != st.next_seq {
-            return Err(NackReason::Sequence);
-        }
-        let n = usize::from(count);
-        let left = st.samples - st.written;
-        if n == 0 || n > RECORD_CHUNK || n as u32 > left {
-            return Err(NackReason::Incomplete);
-        }
-        let vals = values.get(..n).ok_or(NackReason::Incomplete)?;
-        if vals.iter().any(|v| !v.is_finite()) {
-            return Err(NackReason::NotFinite);
-        }
+        let vals = st.chunks.check(seq, count, values)?;
+        let n = vals.len();
         let cap = self.buf.len() / 2;
-        let start = st.half * cap + st.written as usize;
+        let start = st.half * cap + st.chunks.written();
         let dest = self
             .buf
             .get_mut(start..start + n)
             .ok_or(NackReason::TooLong)?;
         dest.copy_from_slice(vals);
         st.digest.update(vals);
-        st.written += n as u32;
-        st.next_seq = st.next_seq.wrapping_add(1);
+        st.chunks.advance(n);
         self.staging = Some(st);
         Ok(())
     }
@@ -193,7 +180,7 @@ impl<'a> RecordStore<'a> {
         let Some(st) = self.staging.take() else {
             return Err(NackReason::Sequence);
         };
-        if st.written != st.samples {
+        if !st.chunks.complete() {
             return Err(NackReason::Incomplete);
         }
         if st.digest.finalize(st.dt_s) != st.checksum {

@@ -24,6 +24,36 @@ use crate::params::{ParamError, Prototype, SpecimenScale};
 use crate::structure::{LinearStructure, Vector};
 use crate::supervisor::{Busy, Decision, Limits, State, Supervisor};
 
+/// Why a controller refused to replace its analytical part's or compensator's parameters (nothing
+/// changed).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReplaceError {
+    /// The supervisor is not at rest: parameters never change under a test.
+    Busy(Busy),
+    /// The controller's analytical part or compensator is not of the kind the parameters are for.
+    Kind,
+    /// The parameters failed the model's validation.
+    Model(crate::metamodel::ModelError),
+}
+
+impl From<Busy> for ReplaceError {
+    fn from(b: Busy) -> Self {
+        Self::Busy(b)
+    }
+}
+
+impl From<crate::metamodel::ModelError> for ReplaceError {
+    fn from(e: crate::metamodel::ModelError) -> Self {
+        Self::Model(e)
+    }
+}
+
+impl From<ParamError> for ReplaceError {
+    fn from(e: ParamError) -> Self {
+        Self::Model(e.into())
+    }
+}
+
 /// Longest feedback delay a controller can hold, ticks (the paper's is 28).
 pub const MAX_DELAY_STEPS: usize = 64;
 
@@ -305,6 +335,74 @@ impl Controller {
         c
     }
 
+    /// A controller at rest with a placeholder analytical part (all-zero LR) and no compensator,
+    /// written into `slot` (e.g. a `static`), and returned there: the firmware then builds its
+    /// parts in place ([`crate::model::assemble_in`]) instead of moving a ~44 KiB value (the
+    /// ATS's 33 KiB) through the stack.
+    pub fn init_in(slot: &mut core::mem::MaybeUninit<Self>, config: ControlConfig) -> &mut Self {
+        slot.write(Self::new(
+            config,
+            Analytical::Lr(Lr::PARKED),
+            Compensator::None,
+        ))
+    }
+
+    /// Make the analytical part the LR model of `params` and drop any compensator, in place; only
+    /// at rest, then start over.
+    pub fn install_lr(&mut self, params: crate::metamodel::LrParams) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        self.analytical = Analytical::Lr(Lr::new(params));
+        self.compensator = Compensator::None;
+        self.start_over()
+    }
+
+    /// Make the analytical part an RNN of `weights` and `scaling` (validated first: refused,
+    /// nothing changes) and drop any compensator, built in place (the ~9 kB RNN is never a value
+    /// on the stack); only at rest, then start over.
+    pub fn install_rnn(
+        &mut self,
+        weights: crate::metamodel::RnnWeights<'_>,
+        scaling: crate::metamodel::RnnScaling,
+    ) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        crate::metamodel::RnnParams::check(&weights, &scaling)?;
+        self.analytical = Analytical::Rnn(Rnn::PARKED);
+        self.compensator = Compensator::None;
+        self.load_rnn(weights, scaling)
+    }
+
+    /// Make the analytical part the FE model `fe` with no compensator; only at rest, then start
+    /// over.
+    pub fn install_fe(&mut self, fe: FeModel) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        self.analytical = Analytical::Fe(fe);
+        self.compensator = Compensator::None;
+        self.start_over()
+    }
+
+    /// Make the analytical part `analytical` with no compensator (the structure-file parts, a few
+    /// KiB: built by value); only at rest, then start over.
+    pub fn install_plain(&mut self, analytical: Analytical) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        self.analytical = analytical;
+        self.compensator = Compensator::None;
+        self.start_over()
+    }
+
+    /// Make the compensator the ATS of `params`, built in place (its 33 KiB are never a value on
+    /// the stack); only at rest, then start over.
+    pub fn install_ats(
+        &mut self,
+        params: crate::compensator::AtsParams,
+    ) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        self.compensator = Compensator::Ats(crate::compensator::Ats::PARKED);
+        if let Compensator::Ats(a) = &mut self.compensator {
+            a.configure(params);
+        }
+        self.start_over()
+    }
+
     /// Back to rest: model, compensator and supervisor state cleared, parameters kept, the command
     /// held where it is (a reset never moves the actuator). Refused unless the supervisor is at rest
     /// (idle, done, or faulted with its ramp finished).
@@ -344,6 +442,80 @@ impl Controller {
         self.compensator = Compensator::Lead(crate::compensator::Lead::new(lead));
         self.clear();
         Ok(())
+    }
+
+    /// Load new RNN weights into the RNN analytical part, in place (an upload: no ~9 kB value on
+    /// the stack), and start over; only at rest. Refused (busy, not an RNN, invalid weights):
+    /// nothing changes.
+    pub fn load_rnn(
+        &mut self,
+        weights: crate::metamodel::RnnWeights<'_>,
+        scaling: crate::metamodel::RnnScaling,
+    ) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        let Analytical::Rnn(m) = &mut self.analytical else {
+            return Err(ReplaceError::Kind);
+        };
+        m.load(weights, scaling)?;
+        self.start_over()
+    }
+
+    /// Start the ATS compensator from `initial` = [a0, a1 (s), a2 (s²)] (a rig's identified
+    /// values, within the ATS's bounds), in place, and start over; only at rest. Refused: nothing
+    /// changes.
+    pub fn set_ats_initial(&mut self, initial: [f64; 3]) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        let Compensator::Ats(a) = &mut self.compensator else {
+            return Err(ReplaceError::Kind);
+        };
+        a.set_initial(initial)?;
+        self.start_over()
+    }
+
+    /// Replace the LRX model's rig compensation: its lead filter `lead` and the specimen's moving
+    /// mass and damping `[kN·s²/mm, kN·s/mm]` removed from the measured force (the frame model is
+    /// kept), and start over; only at rest. Refused: nothing changes.
+    pub fn set_lrx_rig(
+        &mut self,
+        lead: crate::compensator::LeadParams,
+        [mass, damping]: [f64; 2],
+    ) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        let Analytical::Lrx(m) = &self.analytical else {
+            return Err(ReplaceError::Kind);
+        };
+        if !matches!(self.compensator, Compensator::Lead(_)) {
+            return Err(ReplaceError::Kind);
+        }
+        // The frame ARX runs at the controller's tick: its derivatives use that step.
+        let frame = m
+            .params()
+            .with_specimen_dynamics(mass, damping, crate::params::DT_S)?;
+        self.analytical = Analytical::Lrx(Lrx::new(frame));
+        self.compensator = Compensator::Lead(crate::compensator::Lead::new(lead));
+        self.start_over()
+    }
+
+    fn check_at_rest(&self) -> Result<(), Busy> {
+        if self.supervisor.at_rest() {
+            Ok(())
+        } else {
+            Err(Busy {
+                state: self.supervisor.state(),
+            })
+        }
+    }
+
+    /// After new parameters (at rest, checked): the supervisor back to idle, the state cleared.
+    fn start_over(&mut self) -> Result<(), ReplaceError> {
+        self.supervisor.reset()?;
+        self.clear();
+        Ok(())
+    }
+
+    /// The compensator.
+    pub fn compensator(&self) -> &Compensator {
+        &self.compensator
     }
 
     /// The supervisor (to arm, start, finish, abort, read counters).

@@ -60,6 +60,15 @@ struct Biquad {
 }
 
 impl Biquad {
+    /// All coefficients zero (a placeholder, see [`ButterworthParams::PARKED`]).
+    const ZERO: Self = Self {
+        b0: 0.0,
+        b1: 0.0,
+        b2: 0.0,
+        a1: 0.0,
+        a2: 0.0,
+    };
+
     /// |H(e^{jθ})| of this section at normalized angular frequency θ (rad/sample).
     fn magnitude(&self, theta: f64) -> f64 {
         let (c1, s1) = (cos(theta), sin(theta));
@@ -82,6 +91,15 @@ pub struct ButterworthParams {
 }
 
 impl ButterworthParams {
+    /// All zero: not a filter, a placeholder that lets a compensator be reserved in place (all
+    /// zero bytes, so a static of it costs no flash) before [`Self::new`]'s design replaces it.
+    pub(crate) const PARKED: Self = Self {
+        order: 0,
+        cutoff_hz: 0.0,
+        sample_rate_hz: 0.0,
+        sections: [Biquad::ZERO; MAX_SECTIONS],
+    };
+
     /// Design an `order`-th order low-pass (even, 2..=[`MAX_ORDER`]) with −3.01 dB at `cutoff_hz`,
     /// for a sample rate `sample_rate_hz`. Requires `0 < cutoff_hz < sample_rate_hz / 2`.
     pub fn new(order: usize, cutoff_hz: f64, sample_rate_hz: f64) -> Result<Self, ParamError> {
@@ -165,6 +183,12 @@ pub struct Butterworth {
 }
 
 impl Butterworth {
+    /// The [`ButterworthParams::PARKED`] placeholder at rest.
+    pub(crate) const PARKED: Self = Self {
+        params: ButterworthParams::PARKED,
+        state: [[0.0; 2]; MAX_SECTIONS],
+    };
+
     /// A filter at rest (all state zero).
     pub fn new(params: ButterworthParams) -> Self {
         Self {

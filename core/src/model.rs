@@ -8,7 +8,9 @@
 use crate::compensator::{
     Ats, AtsConfig, AtsParams, Compensator, Lead, LeadAdaptParams, LeadParams, LEAD_TAPS,
 };
-use crate::control::{Analytical, FeModel, StructureFe, StructureNl, StructureSpec};
+use crate::control::{
+    Analytical, Controller, FeModel, ReplaceError, StructureFe, StructureNl, StructureSpec,
+};
 use crate::hysteresis::Law;
 use crate::metamodel::{DeltaArx, DeltaArxParams};
 use crate::metamodel::{
@@ -197,6 +199,19 @@ fn lrx_params(
     if mass != 0.0 || damping != 0.0 {
         frame = frame.with_specimen_dynamics(mass, damping, DT_S)?;
     }
+    Ok((
+        frame,
+        lead_params(lead_weights, lead_stride, lead_adapt_ticks)?,
+    ))
+}
+
+/// The LRX model's lead filter (a model file's or a rig upload's `lead_weights`, `lead_stride`,
+/// `lead_adapt_ticks`), validated.
+pub fn lead_params(
+    lead_weights: &[f64],
+    lead_stride: usize,
+    lead_adapt_ticks: f64,
+) -> Result<LeadParams, ModelError> {
     let weights: [f64; LEAD_TAPS] = lead_weights.try_into().map_err(|_| ModelError::Shape {
         what: "LRX lead weights",
         expected: LEAD_TAPS,
@@ -208,10 +223,7 @@ fn lrx_params(
     } else {
         Some(LeadAdaptParams::new(lead_adapt_ticks)?)
     };
-    Ok((
-        frame,
-        LeadParams::new(weights, lead_stride)?.with_adaptation(adapt),
-    ))
+    Ok(LeadParams::new(weights, lead_stride)?.with_adaptation(adapt))
 }
 
 fn lr_parts(p: LrParams) -> (Analytical, Compensator) {
@@ -287,6 +299,59 @@ fn meta_parts(p: DeltaArxParams) -> (Analytical, Compensator) {
     )
 }
 
+/// Validate `spec` and build its analytical part and compensator into `ctl` in place (a
+/// controller from [`Controller::init_in`]): the same controller as
+/// `Controller::new(config, assemble(spec, proto, dt_s))`, without the ~44 KiB of parts ever being
+/// a value on the stack (the firmware's start-up). Refused: `ctl`'s parts are unspecified (a
+/// start-up failure).
+pub fn assemble_in(
+    ctl: &mut Controller,
+    spec: &ModelSpec<'_>,
+    proto: Prototype,
+    dt_s: f64,
+) -> Result<(), ReplaceError> {
+    match *spec {
+        ModelSpec::Lr { theta } => ctl.install_lr(LrParams::from_slice(theta)?),
+        ModelSpec::Rnn { weights, scaling } => ctl.install_rnn(weights, scaling),
+        ModelSpec::Lrx {
+            coeffs,
+            k_corr_kn_per_mm,
+            k_adapt_ticks,
+            lead_weights,
+            lead_stride,
+            lead_adapt_ticks,
+            specimen_dynamics,
+        } => {
+            let (frame, lead) = lrx_params(
+                coeffs,
+                [k_corr_kn_per_mm, k_adapt_ticks],
+                lead_weights,
+                lead_stride,
+                lead_adapt_ticks,
+                specimen_dynamics,
+            )?;
+            ctl.set_lrx(frame, lead)?;
+            Ok(())
+        }
+        ModelSpec::Fe => ctl.install_fe(FeModel::new(proto, dt_s)?),
+        ModelSpec::FeAts { expected_delay_s } => {
+            let ats = AtsParams::new(AtsConfig::paper(dt_s, expected_delay_s))?;
+            ctl.install_fe(FeModel::new(proto, dt_s)?)?;
+            ctl.install_ats(ats)
+        }
+        ModelSpec::StructureFe { structure } => {
+            ctl.install_plain(Analytical::StructureFe(structure.linear(dt_s)?))
+        }
+        ModelSpec::StructureNl { structure } => {
+            ctl.install_plain(Analytical::StructureNl(structure.yielding(dt_s)?))
+        }
+        ModelSpec::StructureMeta {
+            theta,
+            k_corr_kn_per_mm,
+        } => ctl.install_plain(meta_parts(DeltaArxParams::from_slice(theta, k_corr_kn_per_mm)?).0),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -340,6 +405,93 @@ mod tests {
         let (a, c) = assemble(&rnn, p, DT_S)?;
         assert!(matches!((a, c), (Analytical::Rnn(_), Compensator::None)));
         Ok(())
+    }
+
+    /// `assemble_in` builds exactly the parts `Controller::new` gets from `assemble`, for every
+    /// kind, and they run the same.
+    #[test]
+    fn assemble_in_builds_the_same_controller_in_place() {
+        use crate::control::{ControlConfig, FeedbackSource};
+        use crate::hal::Sample;
+        use crate::params::SpecimenScale;
+        use crate::supervisor::Limits;
+        let p = Prototype::paper();
+        let cfg = ControlConfig::new(
+            p,
+            SpecimenScale::default(),
+            FeedbackSource::Measured,
+            Limits::paper_actuator(),
+        )
+        .unwrap();
+        let lead = [1.2, -0.2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let coeffs = [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.9, -0.9, 0.0];
+        let w = [0.1, -0.2, 0.3, 0.05];
+        let specs = [
+            LR,
+            ModelSpec::Lrx {
+                coeffs: &coeffs,
+                k_corr_kn_per_mm: 12.0,
+                k_adapt_ticks: 4096.0,
+                lead_weights: &lead,
+                lead_stride: 2,
+                lead_adapt_ticks: 4096.0,
+                specimen_dynamics: [1e-5, 2e-3],
+            },
+            ModelSpec::Rnn {
+                weights: RnnWeights {
+                    w_ih: &w,
+                    w_hh: &w,
+                    b_h: &w[..2],
+                    w_ho: &w[2..],
+                    b_o: 0.1,
+                },
+                scaling: RnnScaling {
+                    input_mean: [0.5, -0.5],
+                    input_std: [100.0, 10.0],
+                    output_mean: 0.0,
+                    output_std: 2.0,
+                },
+            },
+            ModelSpec::Fe,
+            ModelSpec::FeAts {
+                expected_delay_s: 28.0 * DT_S,
+            },
+        ];
+        for spec in &specs {
+            let (a, c) = assemble(spec, p, DT_S).unwrap();
+            let mut by_value = Controller::new(cfg, a, c);
+            let mut slot = core::mem::MaybeUninit::uninit();
+            let in_place = Controller::init_in(&mut slot, cfg);
+            assemble_in(in_place, spec, p, DT_S).unwrap();
+            assert_eq!(in_place.analytical(), by_value.analytical(), "{spec:?}");
+            assert_eq!(in_place.compensator(), by_value.compensator(), "{spec:?}");
+            for ctl in [&mut by_value, &mut *in_place] {
+                ctl.supervisor_mut().arm().unwrap();
+                ctl.supervisor_mut().start().unwrap();
+            }
+            for k in 0..400 {
+                let ag = 1000.0 * libm::sin(k as f64 * 0.05);
+                let s = Sample {
+                    disp_mm: 0.01 * libm::sin(k as f64 * 0.05),
+                    force_kn: 0.2 * libm::cos(k as f64 * 0.05),
+                };
+                let x = by_value.tick(ag, Ok(s), false);
+                let y = in_place.tick(ag, Ok(s), false);
+                let bits = |o: crate::control::TickOutput| {
+                    (
+                        [o.command_mm, o.target_mm, o.requested_mm].map(f64::to_bits),
+                        o.state,
+                        o.sample_held,
+                    )
+                };
+                assert_eq!(bits(x), bits(y), "{spec:?} tick {k}");
+            }
+        }
+        // Refused: bad weights.
+        let mut slot = core::mem::MaybeUninit::uninit();
+        let ctl = Controller::init_in(&mut slot, cfg);
+        let bad = ModelSpec::Lr { theta: &[0.0; 5] };
+        assert!(assemble_in(ctl, &bad, p, DT_S).is_err());
     }
 
     #[test]

@@ -3,8 +3,10 @@
 //! `structure-nl`, `structure-meta` (`RTHS_STRUCTURE`, build.rs), or `budget-structures`, the
 //! structure budget run), fed from the generated `gen` constants.
 
+use core::mem::MaybeUninit;
+
 use rths_core::control::{ControlConfig, Controller, FeedbackSource};
-use rths_core::model::{assemble, ModelSpec};
+use rths_core::model::{assemble_in, ModelSpec};
 use rths_core::params::{Prototype, SpecimenScale, DT_S};
 use rths_core::supervisor::Limits;
 
@@ -76,8 +78,64 @@ pub const MODEL_KIND: rths_link::ModelKind = if STRUCTURE {
 /// `Unsupported`, as they refuse every kind they do not run.
 pub const UPLOAD_LR: bool = cfg!(feature = "model-lr");
 
-/// The controller, and the link checksum of its compiled-in LR model (0 for another part).
-pub fn controller() -> Result<(Controller, u32), &'static str> {
+/// Values of this build's staging area for chunked model uploads (its own kind's count; 0 without
+/// the link or a chunked kind).
+pub const STAGING: usize = if !cfg!(feature = "link") {
+    0
+} else {
+    kind_values()
+};
+
+#[cfg(feature = "model-rnn")]
+const fn kind_values() -> usize {
+    rths_link::rnn_value_count(crate::gen::RNN_HIDDEN)
+}
+#[cfg(feature = "model-lrx")]
+const fn kind_values() -> usize {
+    rths_link::LRX_VALUES
+}
+#[cfg(not(any(feature = "model-rnn", feature = "model-lrx")))]
+const fn kind_values() -> usize {
+    0
+}
+
+/// The firmware build's identity: CRC-32 of its description (package version, board, analytical
+/// part, rate, compiled-in model's source), the same for two identical builds.
+pub fn build_id() -> u32 {
+    let board = if cfg!(feature = "board-qemu") {
+        "qemu-netduinoplus2"
+    } else if cfg!(feature = "board-mps2-an500") {
+        "qemu-mps2-an500"
+    } else if cfg!(feature = "board-stm32f4") {
+        "stm32f407"
+    } else {
+        "stm32h743"
+    };
+    let mut d = rths_link::MODEL_CRC.digest();
+    for part in [
+        env!("CARGO_PKG_VERSION"),
+        board,
+        SCENARIO_PREFIX,
+        crate::gen::MODEL_SOURCE,
+    ] {
+        d.update(part.as_bytes());
+        d.update(&[0]);
+    }
+    d.update(&(SCENARIO_SUFFIX.unwrap_or(0) as u32).to_le_bytes());
+    d.update(&rths_core::params::CONTROL_RATE_HZ.to_le_bytes());
+    d.update(&[u8::from(cfg!(feature = "link"))]);
+    d.finalize()
+}
+
+/// The controller, built in place in `slot` (an `init` local, a static): RTIC's resources hold a
+/// reference to it, and its parts are built where they live (`rths_core::model::assemble_in`), so
+/// the ~44 KiB controller (the ATS's 33 KiB, the RNN's 9 kB) is never a value on the stack. Also
+/// the link checksum of its compiled-in model (0 for the FE model, and for an RNN if `scratch`
+/// cannot hold its values).
+pub fn controller(
+    slot: &'static mut MaybeUninit<Controller>,
+    scratch: &mut [f64],
+) -> Result<(&'static mut Controller, u32), &'static str> {
     let proto = Prototype::paper()
         .with_brace_factor(1.0)
         .map_err(|_| "prototype")?;
@@ -88,10 +146,10 @@ pub fn controller() -> Result<(Controller, u32), &'static str> {
         Limits::paper_actuator(),
     )
     .map_err(|_| "control config")?;
-    // Assembled by core, as the host scenarios are.
-    let (analytical, compensator) =
-        assemble(&SPEC, Prototype::paper(), DT_S).map_err(|_| "compiled-in model")?;
-    Ok((Controller::new(cfg, analytical, compensator), checksum()))
+    let ctl = Controller::init_in(slot, cfg);
+    // Assembled by core, as the host scenarios are (`assemble`: the same parts, by value).
+    assemble_in(ctl, &SPEC, Prototype::paper(), DT_S).map_err(|_| "compiled-in model")?;
+    Ok((ctl, checksum(scratch)))
 }
 
 /// This build's analytical part as a model file would describe it (the compiled-in `gen` arrays).
@@ -143,9 +201,19 @@ const SPEC: ModelSpec<'static> = ModelSpec::Lrx {
     specimen_dynamics: crate::gen::LRX_SPECIMEN_DYNAMICS,
 };
 
-/// The link checksum of the compiled-in model: an LR or LRX model's (what an upload of the same
-/// model file reports), else 0.
-fn checksum() -> u32 {
+/// The link checksum of the compiled-in model: an LR, LRX or RNN model's (what an upload of the
+/// same model file reports; an RNN's values are laid out in `scratch`), else 0.
+fn checksum(scratch: &mut [f64]) -> u32 {
+    let _ = &scratch;
+    #[cfg(feature = "model-rnn")]
+    if let ModelSpec::Rnn { weights, scaling } = SPEC {
+        return rths_app::model_upload::rnn_checksum(
+            &weights,
+            &scaling,
+            crate::gen::RNN_DELAY_STEPS,
+            scratch,
+        );
+    }
     #[cfg(feature = "model-lr")]
     return rths_app::link::compiled_model_checksum(&crate::gen::LR_THETA);
     #[cfg(feature = "model-lrx")]

@@ -213,6 +213,7 @@ fn report(
 #[rtic::app(device = crate::board::pac, peripherals = true)]
 mod app {
     use super::*;
+    use core::mem::MaybeUninit;
     use heapless::spsc::{Consumer, Producer, Queue};
     use rths_app::board::{EStop, Harness, InstrCounter, TickTimer, Watchdog};
     use rths_app::record::RecordStore;
@@ -224,12 +225,13 @@ mod app {
     /// the port is idle.
     pub struct Link {
         port: <B as Board>::Link,
-        session: rths_app::link::Session,
+        session: rths_app::link::Session<'static>,
     }
 
     #[shared]
     struct Shared {
-        ctl: Controller,
+        /// The controller, where `init` built it (its `controller` local).
+        ctl: &'static mut Controller,
         timer: <B as Board>::Timer,
         run: Run,
         link: Link,
@@ -258,7 +260,9 @@ mod app {
         reader: rths_link::FrameReader<{ rths_link::MAX_FRAME }>,
     }
 
-    #[init(local = [queue: Queue<Record, QUEUE> = Queue::new()])]
+    #[init(local = [queue: Queue<Record, QUEUE> = Queue::new(),
+                    staging: [f64; analytical::STAGING] = [0.0; analytical::STAGING],
+                    controller: MaybeUninit<Controller> = MaybeUninit::uninit()])]
     fn init(cx: init::Context) -> (Shared, Local) {
         stack::paint();
         #[allow(unused_mut)] // `fault-inject` changes the rig
@@ -282,7 +286,10 @@ mod app {
         );
         let ag0 = store.accel_mm_s2(0);
         <<B as Board>::Harness as Harness<<B as Board>::Rig>>::reset(&mut parts.harness, ag0);
-        let (ctl, model_checksum) = match analytical::controller() {
+        // The staging area lays out the compiled-in model's values for its checksum, then waits
+        // for uploads.
+        let staging: &'static mut [f64] = cx.local.staging;
+        let (ctl, model_checksum) = match analytical::controller(cx.local.controller, staging) {
             Ok(c) => c,
             Err(e) => die(e),
         };
@@ -320,8 +327,10 @@ mod app {
                             rths_app::link::Rearm::AtMeasured
                         },
                         analytical::MODEL_KIND,
+                        staging,
                     )
-                    .with_excitation(EXCITATION),
+                    .with_excitation(EXCITATION)
+                    .with_build_id(analytical::build_id()),
                 },
                 store,
                 ident: rths_app::identify::Identification::new(),

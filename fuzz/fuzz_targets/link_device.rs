@@ -1,7 +1,10 @@
 //! Arbitrary bytes on the device's link: frames are decoded (or counted bad) and every request is
 //! handled against a controller and a record store, as the firmware's `link_rx` does. Never a
 //! panic; the record in force changes only on an acknowledged `RecordCommit`, the model checksum
-//! only on an acknowledged `UploadLr` or `ModelCommit`, and the device answers every request once.
+//! only on an acknowledged `UploadLr` or `ModelCommit`, the rig compensation only on an
+//! acknowledged `UploadRig` or `ModelCommit`, and the device answers every request once. The first
+//! byte picks the build (LR, LRX, RNN-2 or FE + ATS, and how it rearms), so the chunked RNN upload
+//! and both rig layouts are reached.
 //! An `Identify` (the session has the excitation's tables) is acknowledged only from rest, and
 //! then leaves the supervisor running and the stream an identification's.
 #![no_main]
@@ -10,14 +13,52 @@ use rths_app::identify::FlashTables;
 use rths_app::link::{handle, Effect, Rearm, Session};
 use rths_app::record::RecordStore;
 use rths_app::Run;
-use rths_core::compensator::Compensator;
-use rths_core::control::{Analytical, ControlConfig, Controller, FeedbackSource};
-use rths_core::metamodel::{Lr, LrParams};
-use rths_core::params::{Prototype, SpecimenScale};
+use rths_core::control::{ControlConfig, Controller, FeedbackSource};
+use rths_core::metamodel::{RnnScaling, RnnWeights};
+use rths_core::model::{assemble, ModelSpec};
+use rths_core::params::{Prototype, SpecimenScale, DT_S};
 use rths_core::supervisor::Limits;
 use rths_link::{DeviceMsg, FrameReader, HostMsg, ModelKind, Request, MAX_FRAME};
 
 const COMPILED: [f64; 4] = [0.0, 0.01, -0.02, 0.0];
+const THETA: [f64; 6] = [0.0, 0.5, 0.1, 0.0, 0.0, 0.0];
+const COEFFS: [f64; 9] = [0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.9, -0.9, 0.0];
+const LEAD: [f64; 8] = [1.2, -0.2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+const W4: [f64; 4] = [0.1, -0.2, 0.3, 0.05];
+
+/// The build's analytical part (a 2-unit RNN: its upload is 15 values, two chunks).
+fn spec(kind: ModelKind) -> ModelSpec<'static> {
+    match kind {
+        ModelKind::Lr => ModelSpec::Lr { theta: &THETA },
+        ModelKind::Lrx => ModelSpec::Lrx {
+            coeffs: &COEFFS,
+            k_corr_kn_per_mm: 12.0,
+            k_adapt_ticks: 0.0,
+            lead_weights: &LEAD,
+            lead_stride: 2,
+            lead_adapt_ticks: 0.0,
+            specimen_dynamics: [0.0; 2],
+        },
+        ModelKind::Rnn => ModelSpec::Rnn {
+            weights: RnnWeights {
+                w_ih: &W4,
+                w_hh: &W4,
+                b_h: &[0.0, 0.1],
+                w_ho: &[1.0, -1.0],
+                b_o: 0.0,
+            },
+            scaling: RnnScaling {
+                input_mean: [0.0; 2],
+                input_std: [1.0; 2],
+                output_mean: 0.0,
+                output_std: 1.0,
+            },
+        },
+        ModelKind::FeAts => ModelSpec::FeAts {
+            expected_delay_s: 28.0 * DT_S,
+        },
+    }
+}
 
 /// The default excitation's tables, as the firmware's build script writes them (once per process).
 fn tables() -> FlashTables {
@@ -53,19 +94,35 @@ fuzz_target!(|data: &[u8]| {
     ) else {
         return;
     };
-    let Ok(lr) = LrParams::new([0.0, 0.5, 0.1, 0.0, 0.0, 0.0]) else {
+    // The first byte picks the build's kind and how it rearms: 0-3 as the seeds were written (LR,
+    // LR, LRX, LRX; even: once per power-up, odd: at the measured position), 4-7 the RNN and FE +
+    // ATS builds.
+    let first = data.first().copied().unwrap_or(0) % 8;
+    let kind = match first / 2 {
+        0 => ModelKind::Lr,
+        1 => ModelKind::Lrx,
+        2 => ModelKind::Rnn,
+        _ => ModelKind::FeAts,
+    };
+    let rearm = if first % 2 == 0 {
+        Rearm::OncePerPowerUp
+    } else {
+        Rearm::AtMeasured
+    };
+    let Ok((analytical, compensator)) = assemble(&spec(kind), Prototype::paper(), DT_S) else {
         return;
     };
-    let mut ctl = Controller::new(cfg, Analytical::Lr(Lr::new(lr)), Compensator::None);
+    let mut ctl = Controller::new(cfg, analytical, compensator);
     let mut run = Run::new();
-    // The first byte picks the build's kind (LR or LRX) and how it rearms.
-    let (kind, rearm) = match data.first().copied().unwrap_or(0) % 4 {
-        0 => (ModelKind::Lr, Rearm::OncePerPowerUp),
-        1 => (ModelKind::Lr, Rearm::AtMeasured),
-        2 => (ModelKind::Lrx, Rearm::OncePerPowerUp),
-        _ => (ModelKind::Lrx, Rearm::AtMeasured),
-    };
-    let mut s = Session::new(0x1234_5678, true, rearm, kind).with_excitation(tables());
+    let mut staging = [0.0f64; 32];
+    let mut s = Session::new(
+        0x1234_5678,
+        kind == ModelKind::Lr,
+        rearm,
+        kind,
+        &mut staging,
+    )
+    .with_excitation(tables());
     let mut buf = [0.0f64; 64];
     let mut store = RecordStore::new(&COMPILED, 0.01, 31, &mut buf);
     let mut reader = FrameReader::<MAX_FRAME>::new();
@@ -80,11 +137,16 @@ fuzz_target!(|data: &[u8]| {
         };
         let (record0, model0) = (store.info(), s.model_checksum);
         let at_rest = ctl.supervisor().at_rest();
+        let rig0 = rths_app::rig_upload::rig_checksum_of(&ctl);
         let (answer, effect) = handle(msg, &mut ctl, &mut run, &mut store, &mut s, false);
         let req = msg.request();
         match answer {
             DeviceMsg::Ack(r) | DeviceMsg::Nack(r, _) => assert_eq!(r, req),
             DeviceMsg::Status(_) => assert_eq!(req, Request::Status),
+            DeviceMsg::Holdings(h) => {
+                assert_eq!(req, Request::Holdings);
+                assert_eq!(h.model_checksum, s.model_checksum);
+            }
             other => panic!("{other:?} answers {req:?}"),
         }
         let acked = matches!(answer, DeviceMsg::Ack(_));
@@ -104,6 +166,13 @@ fuzz_target!(|data: &[u8]| {
             );
         } else {
             assert!(!matches!(effect, Effect::Identify(_)));
+        }
+        if !(acked && matches!(req, Request::UploadRig | Request::ModelCommit)) {
+            assert_eq!(
+                rths_app::rig_upload::rig_checksum_of(&ctl),
+                rig0,
+                "{req:?} changed the rig compensation"
+            );
         }
         for k in 0..store.ticks().min(64) {
             assert!(store.accel_mm_s2(k).is_finite());

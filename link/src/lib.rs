@@ -56,8 +56,23 @@ pub fn model_checksum(theta: &[f64; LR_COEFFS], delay_steps: u16) -> u32 {
 /// the adaptation time constant, 8 lead-filter weights, the lead stride.
 pub const LRX_VALUES: usize = 20;
 
-/// Most values a chunked model upload may have (the device's staging area).
+/// Most values a chunked upload of an LRX model may have (the device's staging area for it; an RNN
+/// is staged in its build's own area, [`rnn_value_count`] of its hidden size).
 pub const MODEL_MAX_VALUES: usize = 32;
+
+/// Values of an RNN model upload of `hidden` units ([`ModelKind::Rnn`]), in this order: `w_ih`
+/// (hidden × 2, row-major), `w_hh` (hidden × hidden, row-major), `b_h` (hidden), `w_ho` (hidden),
+/// `b_o`, the input means (2) and standard deviations (2), the output mean and standard deviation.
+/// The device takes only its build's hidden size (its compiled capacity).
+pub const fn rnn_value_count(hidden: usize) -> usize {
+    hidden * 2 + hidden * hidden + hidden + hidden + 1 + 2 + 2 + 2
+}
+
+/// The hidden size of an RNN upload of `values` values ([`rnn_value_count`]'s inverse), if any.
+pub fn rnn_hidden_of(values: usize) -> Option<usize> {
+    // values = h² + 4h + 7: the positive root, checked exactly.
+    (1..=64).find(|h| rnn_value_count(*h) == values)
+}
 
 /// An LRX model as the flat list of values a chunked upload sends, in this order: `coeffs` (9),
 /// `k_corr_kn_per_mm`, `k_adapt_ticks`, `lead_weights` (8), `lead_stride` (as f64). `None` if a
@@ -242,6 +257,21 @@ pub enum HostMsg {
         /// Peak command, mm (at most `rths_core::identify_excitation::MAX_AMPLITUDE_MM`).
         amplitude_mm: f64,
     },
+    /// Answer with [`DeviceMsg::Holdings`]: what the device holds besides the [`Status`].
+    Holdings,
+    /// Replace the rig compensation the build's controller uses (whole, or not at all; at rest
+    /// only): the values of [`rig_values`]' layout for `kind`.
+    UploadRig {
+        /// The build's analytical kind the values are for ([`ModelKind::Lrx`] or
+        /// [`ModelKind::FeAts`]; another is refused `Unsupported`).
+        kind: ModelKind,
+        /// Values used in `values` (the kind's [`rig_value_count`]).
+        count: u8,
+        /// The values (the first `count`).
+        values: [f64; RECORD_CHUNK],
+        /// [`rig_checksum`] of the kind and the first `count` values.
+        checksum: u32,
+    },
 }
 
 /// Which request an answer is about.
@@ -274,6 +304,10 @@ pub enum Request {
     // ---- identification through the board ----
     /// [`HostMsg::Identify`].
     Identify,
+    /// [`HostMsg::Holdings`].
+    Holdings,
+    /// [`HostMsg::UploadRig`].
+    UploadRig,
 }
 
 impl HostMsg {
@@ -293,6 +327,8 @@ impl HostMsg {
             Self::ModelChunk { .. } => Request::ModelChunk,
             Self::ModelCommit => Request::ModelCommit,
             Self::Identify { .. } => Request::Identify,
+            Self::Holdings => Request::Holdings,
+            Self::UploadRig { .. } => Request::UploadRig,
         }
     }
 }
@@ -433,6 +469,72 @@ pub struct Status {
     pub record_capacity: u32,
 }
 
+/// What the device holds besides the [`Status`] (the model's and rig compensation's origin and
+/// checksums, the build): the answer to [`HostMsg::Holdings`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Holdings {
+    /// The analytical part's kind.
+    pub model_kind: ModelKind,
+    /// The model is the compiled-in one or an upload.
+    pub model_source: RecordSource,
+    /// The model's checksum ([`model_checksum`] for an LR, [`model_values_checksum`] for a chunked
+    /// kind; 0 for the FE model, which has no weights).
+    pub model_checksum: u32,
+    /// The rig compensation is the compiled-in default or an [`HostMsg::UploadRig`].
+    pub rig_source: RecordSource,
+    /// [`rig_checksum`] of the rig compensation in force (of the compiled-in values for a build
+    /// whose controller has one, else 0).
+    pub rig_checksum: u32,
+    /// The controller's tick rate, Hz.
+    pub rate_hz: u32,
+    /// The firmware build's identity: CRC-32 of its description (version, board, analytical part,
+    /// rate, model source), the same for two identical builds.
+    pub build_id: u32,
+}
+
+/// Most values a rig-compensation upload has (one frame).
+pub const RIG_MAX_VALUES: usize = RECORD_CHUNK;
+
+/// Values of the rig compensation of a build's analytical `kind` (`None`: its controller has none):
+/// [`ModelKind::FeAts`]: the ATS's initial [a0, a1 (s), a2 (s²)] (3); [`ModelKind::Lrx`]: the 8
+/// lead-filter weights, the lead stride (ticks, as f64), the lead's adaptation time constant
+/// (ticks, 0: fixed), the specimen's moving mass (kN·s²/mm) and damping (kN·s/mm) (12).
+pub fn rig_value_count(kind: ModelKind) -> Option<usize> {
+    match kind {
+        ModelKind::FeAts => Some(3),
+        ModelKind::Lrx => Some(12),
+        ModelKind::Lr | ModelKind::Rnn => None,
+    }
+}
+
+/// The LRX rig compensation as the flat values of [`rig_value_count`]'s layout; `None` if the lead
+/// has not 8 weights.
+pub fn rig_values(
+    lead_weights: &[f64],
+    lead_stride: usize,
+    lead_adapt_ticks: f64,
+    specimen_dynamics: [f64; 2],
+) -> Option<[f64; RIG_MAX_VALUES]> {
+    let mut v = [0.0; RIG_MAX_VALUES];
+    v.get_mut(..8)?
+        .copy_from_slice(lead_weights.get(..8).filter(|_| lead_weights.len() == 8)?);
+    *v.get_mut(8)? = lead_stride as f64;
+    *v.get_mut(9)? = lead_adapt_ticks;
+    v.get_mut(10..12)?.copy_from_slice(&specimen_dynamics);
+    Some(v)
+}
+
+/// The end-to-end checksum of a rig-compensation upload: CRC-32/ISO-HDLC of the kind's wire index
+/// (one byte), then the values' little-endian IEEE bytes in order.
+pub fn rig_checksum(kind: ModelKind, values: &[f64]) -> u32 {
+    let mut d = RECORD_CRC.digest();
+    d.update(&[kind as u8]);
+    for v in values {
+        d.update(&v.to_le_bytes());
+    }
+    d.finalize()
+}
+
 /// One telemetry record: what the controller did at `tick`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Telemetry {
@@ -489,6 +591,8 @@ pub enum DeviceMsg {
         /// Samples the device's queue dropped.
         samples_dropped: u32,
     },
+    /// The answer to [`HostMsg::Holdings`].
+    Holdings(Holdings),
 }
 
 /// What the controller saw at one tick of an identification: 32 bytes on the wire (postcard: tag,

@@ -96,6 +96,19 @@ fn any_host() -> impl Strategy<Value = HostMsg> {
             }),
         Just(HostMsg::ModelCommit),
         any_f64().prop_map(|amplitude_mm| HostMsg::Identify { amplitude_mm }),
+        Just(HostMsg::Holdings),
+        (
+            any_kind(),
+            any::<u8>(),
+            prop::collection::vec(any_f64(), RECORD_CHUNK),
+            any::<u32>()
+        )
+            .prop_map(|(kind, count, v, checksum)| HostMsg::UploadRig {
+                kind,
+                count,
+                values: v.try_into().unwrap(),
+                checksum,
+            }),
     ]
 }
 
@@ -139,6 +152,8 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
         Just(Request::ModelBegin),
         Just(Request::ModelChunk),
         Just(Request::ModelCommit),
+        Just(Request::Holdings),
+        Just(Request::UploadRig),
     ];
     let reason = prop_oneof![
         Just(NackReason::Shape),
@@ -217,6 +232,30 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
             samples_sent: u[1],
             samples_dropped: u[2],
         }),
+        (
+            any_kind(),
+            any_kind(),
+            any::<[u32; 4]>(),
+            any::<[bool; 2]>()
+        )
+            .prop_map(|(model_kind, _, u, b)| {
+                let src = |x: bool| {
+                    if x {
+                        RecordSource::Uploaded
+                    } else {
+                        RecordSource::Compiled
+                    }
+                };
+                DeviceMsg::Holdings(Holdings {
+                    model_kind,
+                    model_source: src(b[0]),
+                    model_checksum: u[0],
+                    rig_source: src(b[1]),
+                    rig_checksum: u[1],
+                    rate_hz: u[2],
+                    build_id: u[3],
+                })
+            }),
     ]
 }
 
@@ -526,4 +565,50 @@ fn an_identification_sample_is_32_bytes_on_the_wire() {
     let n = encode(&worst, &mut buf).unwrap();
     assert_eq!(n, 32, "{n}");
     assert!(same(&round_trip(&worst), &worst));
+}
+
+#[test]
+fn rig_values_layout_checksum_and_frame() {
+    let lead: [f64; 8] = core::array::from_fn(|i| 1.0 + i as f64);
+    let v = rig_values(&lead, 3, 4096.0, [0.5, 0.25]).unwrap();
+    assert_eq!(&v[..8], &lead);
+    assert_eq!(&v[8..12], &[3.0, 4096.0, 0.5, 0.25]);
+    assert!(rig_values(&lead[..7], 3, 0.0, [0.0; 2]).is_none());
+    assert_eq!(rig_value_count(ModelKind::Lrx), Some(12));
+    assert_eq!(rig_value_count(ModelKind::FeAts), Some(3));
+    assert_eq!(rig_value_count(ModelKind::Rnn), None);
+    let c = rig_checksum(ModelKind::Lrx, &v);
+    assert_ne!(rig_checksum(ModelKind::FeAts, &v), c, "the kind counts");
+    let mut w = v;
+    w[11] = 0.5;
+    assert_ne!(rig_checksum(ModelKind::Lrx, &w), c);
+    let mut buf = [0u8; MAX_FRAME + 1];
+    let m = HostMsg::UploadRig {
+        kind: ModelKind::FeAts,
+        count: u8::MAX,
+        values: [f64::MAX; RECORD_CHUNK],
+        checksum: u32::MAX,
+    };
+    let n = encode(&m, &mut buf).unwrap();
+    assert!(n <= MAX_FRAME + 1, "{n}");
+    let h = DeviceMsg::Holdings(Holdings {
+        model_kind: ModelKind::FeAts,
+        model_source: RecordSource::Uploaded,
+        model_checksum: u32::MAX,
+        rig_source: RecordSource::Uploaded,
+        rig_checksum: u32::MAX,
+        rate_hz: u32::MAX,
+        build_id: u32::MAX,
+    });
+    assert!(encode(&h, &mut buf).unwrap() <= MAX_FRAME + 1);
+}
+
+#[test]
+fn rnn_value_count_and_its_inverse() {
+    assert_eq!(rnn_value_count(10), 20 + 100 + 10 + 10 + 1 + 6);
+    for h in [1, 5, 10, 20, 32] {
+        assert_eq!(rnn_hidden_of(rnn_value_count(h)), Some(h));
+    }
+    assert_eq!(rnn_hidden_of(rnn_value_count(10) + 1), None);
+    assert!(rnn_value_count(32) <= usize::from(u16::MAX));
 }

@@ -40,13 +40,20 @@ pub struct Args {
 /// The link's requests.
 #[derive(Debug, Subcommand)]
 pub enum LinkCommand {
-    /// Print the device's state, model checksum, limits and counters.
-    Status,
-    /// Upload an LR model file and/or a ground-motion record (validated on the device; refused
-    /// whole, the old one kept).
-    #[command(group(clap::ArgGroup::new("what").required(true).multiple(true).args(["model", "motion"])))]
+    /// Print what the device holds and its state: the analytical part (kind, compiled in or
+    /// uploaded, checksum), the ground-motion record (source, length, checksum), the rig
+    /// compensation (checksum), the limits, the rate, the firmware build, and the counters.
+    Status {
+        /// One JSON object on stdout instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Upload a model file, a ground-motion record and/or a rig file's compensation (each validated
+    /// on the device; refused whole, the old one kept).
+    #[command(group(clap::ArgGroup::new("what").required(true).multiple(true).args(["model", "motion", "rig"])))]
     Upload {
-        /// The model file (`rths train lr` / `rths reproduce`'s lr.json).
+        /// The model file of the kind the firmware runs (`rths train lr|lrx|rnn`; LR, LRX, RNN of
+        /// the build's hidden size).
         #[arg(long)]
         model: Option<PathBuf>,
         /// A ground motion: an AT2/CSV file or an embedded record name.
@@ -55,6 +62,15 @@ pub enum LinkCommand {
         /// Multiplies the ground acceleration (applied here, before the upload).
         #[arg(long, default_value_t = 1.0, value_name = "S")]
         scale: f64,
+        /// A rig file (`rths identify`): the compensation the firmware's controller takes from it
+        /// (FE + ATS: the ATS's initial values; LRX: the lead filter and the specimen's mass and
+        /// damping). Sent after --model.
+        #[arg(long, value_name = "RIG.json")]
+        rig: Option<PathBuf>,
+        /// LRX with --rig: the lead's adaptation time constant, ticks (0: fixed), as `rths train
+        /// lrx --rig` defaults it.
+        #[arg(long, default_value_t = crate::train::lrx::RIG_LEAD_ADAPT_TICKS)]
+        lead_adapt_ticks: f64,
     },
     /// Set the stroke, velocity and force limits (at rest, command at 0 mm).
     Limits {
@@ -96,6 +112,10 @@ pub enum LinkCommand {
         /// Upload this model first.
         #[arg(long)]
         model: Option<PathBuf>,
+        /// Upload this rig file's compensation first (after --model; as `upload --rig`, with the
+        /// LRX lead's adaptation of `rths train lrx --rig`).
+        #[arg(long, value_name = "RIG.json")]
+        rig: Option<PathBuf>,
         /// Upload this ground motion first (an AT2/CSV file or an embedded record name); without
         /// it the device plays the record it holds.
         #[arg(long, value_name = "PATH|NAME")]
@@ -218,48 +238,27 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         link.wait_ready(timeout)?;
     }
     match a.command {
-        LinkCommand::Status => {
+        LinkCommand::Status { json } => {
             let s = link.status()?;
-            println!("state            {}", link_host::state_name(s.state));
-            println!("model checksum   {:08x}", s.model_checksum);
-            println!("tick             {}", s.tick);
-            println!(
-                "records sent     {} (dropped by the device: {})",
-                s.records_sent, s.records_dropped
-            );
-            println!(
-                "limits           ±{} mm, {} mm/s, ±{} kN",
-                s.stroke_mm, s.velocity_mm_s, s.force_kn
-            );
-            println!("bad frames       {}", s.bad_frames);
-            println!(
-                "model kind       {}",
-                link_host::model_kind_name(s.model_kind)
-            );
-            let r = s.record;
-            println!(
-                "record           {}: {} samples at {} s ({} ticks), scale {}, checksum {:08x}",
-                link_host::record_source_name(r.source),
-                r.samples,
-                r.dt_s,
-                r.ticks,
-                r.scale,
-                r.checksum
-            );
-            println!(
-                "record capacity  {} samples ({:.1} s at 0.01 s, {:.1} s at 0.02 s)",
-                s.record_capacity,
-                f64::from(s.record_capacity.saturating_sub(1)) * 0.01,
-                f64::from(s.record_capacity.saturating_sub(1)) * 0.02
-            );
+            let h = link.holdings()?;
+            if json {
+                println!("{}", status_json(&s, &h));
+            } else {
+                print_status(&s, &h);
+            }
         }
         LinkCommand::Upload {
             model,
             motion,
             scale,
+            rig,
+            lead_adapt_ticks,
         } => {
             if let Some(p) = model {
                 upload_model(&mut link, &p)?;
+            }
+            if let Some(p) = rig {
+                upload_rig(&mut link, &p, lead_adapt_ticks)?;
             }
             if let Some(spec) = motion {
                 upload_motion(&mut link, &spec, scale)?;
@@ -297,6 +296,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         LinkCommand::Run {
             model,
+            rig,
             motion,
             scale,
             telemetry_every,
@@ -308,6 +308,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             if let Some(p) = &model {
                 upload_model(&mut link, p)?;
                 h.set("model", p.display());
+            }
+            if let Some(p) = &rig {
+                let c = upload_rig(&mut link, p, crate::train::lrx::RIG_LEAD_ADAPT_TICKS)?;
+                h.set("rig", p.display());
+                h.set("rig_checksum", format!("{c:08x}"));
             }
             match &motion {
                 Some(spec) => {
@@ -434,6 +439,113 @@ fn scenario_of(kind: rths_link::ModelKind) -> &'static str {
         rths_link::ModelKind::Rnn => "rnn-online-10",
         rths_link::ModelKind::FeAts => "fe-online-ats",
     }
+}
+
+/// The status table of `rths link status`.
+fn print_status(s: &rths_link::Status, h: &rths_link::Holdings) {
+    println!("state            {}", link_host::state_name(s.state));
+    println!(
+        "model            {}, {}, checksum {:08x}",
+        link_host::model_kind_name(h.model_kind),
+        link_host::record_source_name(h.model_source),
+        h.model_checksum
+    );
+    let r = s.record;
+    println!(
+        "record           {}: {} samples at {} s ({:.2} s, {} ticks), scale {}, checksum {:08x}",
+        link_host::record_source_name(r.source),
+        r.samples,
+        r.dt_s,
+        f64::from(r.samples.saturating_sub(1)) * r.dt_s,
+        r.ticks,
+        r.scale,
+        r.checksum
+    );
+    println!(
+        "record capacity  {} samples ({:.1} s at 0.01 s, {:.1} s at 0.02 s)",
+        s.record_capacity,
+        f64::from(s.record_capacity.saturating_sub(1)) * 0.01,
+        f64::from(s.record_capacity.saturating_sub(1)) * 0.02
+    );
+    if h.rig_checksum == 0 {
+        println!("rig compensation none (this analytical part has none)");
+    } else {
+        println!(
+            "rig compensation {}, checksum {:08x}",
+            link_host::record_source_name(h.rig_source),
+            h.rig_checksum
+        );
+    }
+    println!(
+        "limits           ±{} mm, {} mm/s, ±{} kN",
+        s.stroke_mm, s.velocity_mm_s, s.force_kn
+    );
+    println!("rate             {} Hz", h.rate_hz);
+    println!("build            {:08x}", h.build_id);
+    println!("tick             {}", s.tick);
+    println!(
+        "records sent     {} (dropped by the device: {})",
+        s.records_sent, s.records_dropped
+    );
+    println!("bad frames       {}", s.bad_frames);
+}
+
+/// The JSON of `rths link status --json`.
+fn status_json(s: &rths_link::Status, h: &rths_link::Holdings) -> serde_json::Value {
+    let r = s.record;
+    let hex = |c: u32| format!("{c:08x}");
+    serde_json::json!({
+        "state": link_host::state_name(s.state),
+        "model": {
+            "kind": link_host::model_kind_name(h.model_kind),
+            "source": link_host::record_source_name(h.model_source),
+            "checksum": hex(h.model_checksum),
+        },
+        "record": {
+            "source": link_host::record_source_name(r.source),
+            "samples": r.samples,
+            "dt_s": r.dt_s,
+            "duration_s": f64::from(r.samples.saturating_sub(1)) * r.dt_s,
+            "ticks": r.ticks,
+            "scale": r.scale,
+            "checksum": hex(r.checksum),
+            "capacity_samples": s.record_capacity,
+        },
+        "rig": if h.rig_checksum == 0 {
+            serde_json::Value::Null
+        } else {
+            serde_json::json!({
+                "source": link_host::record_source_name(h.rig_source),
+                "checksum": hex(h.rig_checksum),
+            })
+        },
+        "limits": {
+            "stroke_mm": s.stroke_mm,
+            "velocity_mm_s": s.velocity_mm_s,
+            "force_kn": s.force_kn,
+        },
+        "rate_hz": h.rate_hz,
+        "build_id": hex(h.build_id),
+        "tick": s.tick,
+        "records_sent": s.records_sent,
+        "records_dropped": s.records_dropped,
+        "bad_frames": s.bad_frames,
+    })
+}
+
+/// Upload the compensation rig file `p` gives the device's analytical part; its checksum.
+fn upload_rig(link: &mut Link, p: &std::path::Path, lead_adapt_ticks: f64) -> anyhow::Result<u32> {
+    let rig =
+        crate::identify::RigFile::load(p).with_context(|| format!("rig file {}", p.display()))?;
+    let kind = link.status()?.model_kind;
+    let v = link_host::rig_values(&rig, kind, lead_adapt_ticks)?;
+    let c = link.upload_rig(kind, &v)?;
+    println!(
+        "uploaded the rig compensation of {} for {} (checksum {c:08x})",
+        p.display(),
+        link_host::model_kind_name(kind)
+    );
+    Ok(c)
 }
 
 fn upload_model(link: &mut Link, p: &std::path::Path) -> anyhow::Result<()> {

@@ -22,12 +22,13 @@ fn controller() -> Controller {
     Controller::new(cfg, Analytical::Lr(Lr::new(lr)), Compensator::None)
 }
 
-fn session(upload_lr: bool, rearm: Rearm) -> Session {
+fn session(upload_lr: bool, rearm: Rearm) -> Session<'static> {
     Session::new(
         compiled_model_checksum(&THETA),
         upload_lr,
         rearm,
         ModelKind::Lr,
+        &mut [],
     )
 }
 
@@ -508,4 +509,57 @@ fn the_link_loss_policy_is_chosen_at_arm_time() {
         u32::MAX - LINK_TIMEOUT_TICKS
     ));
     assert!(!link_lost(LinkLoss::Complete, 1_000_000, 0));
+}
+
+#[test]
+fn holdings_report_the_model_and_rig_origin_and_uploads_change_them() {
+    let mut ctl = controller();
+    let mut run = Run::new();
+    let mut s = session(true, Rearm::OncePerPowerUp).with_build_id(0xB111_D000);
+    let mut st = store();
+    let h = |ctl: &mut Controller, run: &mut Run, st: &mut RecordStore<'_>, s: &mut Session<'_>| {
+        match handle(HostMsg::Holdings, ctl, run, st, s, false).0 {
+            DeviceMsg::Holdings(h) => h,
+            other => panic!("{other:?}"),
+        }
+    };
+    let h0 = h(&mut ctl, &mut run, &mut st, &mut s);
+    assert_eq!(h0.model_kind, ModelKind::Lr);
+    assert_eq!(h0.model_source, RecordSource::Compiled);
+    assert_eq!(h0.model_checksum, compiled_model_checksum(&THETA));
+    assert_eq!(
+        (h0.rig_source, h0.rig_checksum),
+        (RecordSource::Compiled, 0)
+    );
+    assert_eq!(h0.rate_hz, rths_core::params::CONTROL_RATE_HZ);
+    assert_eq!(h0.build_id, 0xB111_D000);
+    // An LR build has no rig compensation: refused, nothing changes.
+    let rig = HostMsg::UploadRig {
+        kind: ModelKind::Lr,
+        count: 0,
+        values: [0.0; rths_link::RECORD_CHUNK],
+        checksum: rths_link::rig_checksum(ModelKind::Lr, &[]),
+    };
+    assert_eq!(
+        handle(rig, &mut ctl, &mut run, &mut st, &mut s, false).0,
+        DeviceMsg::Nack(Request::UploadRig, NackReason::Unsupported)
+    );
+    assert_eq!(h(&mut ctl, &mut run, &mut st, &mut s), h0);
+    let theta = [0.0, 0.4, 0.1, 0.0, 0.0, 0.0];
+    let checksum = rths_link::model_checksum(&theta, 28);
+    let up = HostMsg::UploadLr {
+        features: 6,
+        theta,
+        delay_steps: 28,
+        checksum,
+    };
+    assert_eq!(
+        handle(up, &mut ctl, &mut run, &mut st, &mut s, false).0,
+        DeviceMsg::Ack(Request::UploadLr)
+    );
+    let h1 = h(&mut ctl, &mut run, &mut st, &mut s);
+    assert_eq!(
+        (h1.model_source, h1.model_checksum),
+        (RecordSource::Uploaded, checksum)
+    );
 }

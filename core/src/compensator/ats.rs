@@ -254,6 +254,11 @@ pub(super) struct Normal {
 }
 
 impl Normal {
+    const ZERO: Self = Self {
+        a: [[0.0; 3]; 3],
+        b: [0.0; 3],
+    };
+
     pub(super) fn add(&mut self, phi: &[f64; 3], y: f64, sign: f64) {
         for (row, (bi, pi)) in self.a.iter_mut().zip(self.b.iter_mut().zip(phi)) {
             *bi += sign * pi * y;
@@ -332,6 +337,57 @@ pub struct Ats {
 }
 
 impl Ats {
+    /// Every byte zero: not a usable compensator, a placeholder that reserves its ~33 KiB where it
+    /// will live (a zero constant is written as a memset, no copy on the stack or in flash);
+    /// [`Self::configure`] makes it [`Self::new`]'s.
+    pub(crate) const PARKED: Self = Self {
+        params: AtsParams {
+            config: AtsConfig {
+                dt_s: 0.0,
+                expected_delay_s: 0.0,
+                lower: [0.0; 3],
+                upper: [0.0; 3],
+                max_step: [0.0; 3],
+                window: 0,
+                update_period: 0,
+                filter_order: 0,
+                filter_cutoff_hz: 0.0,
+                start_threshold_mm: 0.0,
+                max_condition: 0.0,
+                min_velocity_rms_mm_s: 0.0,
+            },
+            initial: [0.0; 3],
+            filter: ButterworthParams::PARKED,
+            min_det: 0.0,
+            min_vel_sq_sum: 0.0,
+        },
+        state: AtsState {
+            coeffs: [0.0; 3],
+            target_hist: [0.0; 2],
+            filt_x: Butterworth::PARKED,
+            filt_u: Butterworth::PARKED,
+            xf: Ring::new(),
+            uf: Ring::new(),
+            sums: Normal::ZERO,
+            shadow: Normal::ZERO,
+            shadow_count: 0,
+            count: 0,
+            since_update: 0,
+            adapting: false,
+            updates: 0,
+            skipped: 0,
+        },
+    };
+
+    /// Become `Self::new(params)` in place (a compensator built where it lives: no 33 KiB value
+    /// on the stack).
+    pub fn configure(&mut self, params: AtsParams) {
+        self.params = params;
+        self.state.filt_x = Butterworth::new(params.filter);
+        self.state.filt_u = Butterworth::new(params.filter);
+        self.state.reset(&self.params);
+    }
+
     /// A compensator at rest with the initial coefficients.
     pub fn new(params: AtsParams) -> Self {
         Self {
@@ -348,6 +404,15 @@ impl Ats {
     /// Back to rest.
     pub fn reset(&mut self) {
         self.state.reset(&self.params);
+    }
+
+    /// Start from `initial` = [a0, a1 (s), a2 (s²)] from now on (a rig's identified values),
+    /// validated as [`AtsParams::with_initial`] does, and back to rest; in place (the ATS's state
+    /// is ~33 KiB). Refused: nothing changes.
+    pub fn set_initial(&mut self, initial: [f64; 3]) -> Result<(), ParamError> {
+        self.params = self.params.with_initial(initial)?;
+        self.reset();
+        Ok(())
     }
 
     /// Current [a0, a1 (s), a2 (s²)].

@@ -79,6 +79,18 @@ pub struct Lr {
 }
 
 impl Lr {
+    /// All coefficients zero, at rest: the placeholder a controller is reserved with before its
+    /// analytical part is built in place (`Controller::init_in`).
+    pub const PARKED: Self = Self {
+        params: LrParams {
+            theta: [0.0; LR_COEFFS],
+        },
+        state: LrState {
+            pred_mm: 0.0,
+            prev_pred_mm: 0.0,
+        },
+    };
+
     /// A model at rest.
     pub fn new(params: LrParams) -> Self {
         Self {

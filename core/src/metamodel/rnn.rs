@@ -60,6 +60,40 @@ impl RnnParams {
     /// Validate shapes (hidden size H = `b_h.len()` in 1..=32; W_ih H×2, W_hh H×H, W_ho 1×H),
     /// finiteness of every weight and scale, and std > 0.
     pub fn new(w: RnnWeights<'_>, scaling: RnnScaling) -> Result<Self, ModelError> {
+        let h = Self::check(&w, &scaling)?;
+        let mut p = Self {
+            hidden: h,
+            w_ih: [0.0; RNN_INPUTS * RNN_MAX_HIDDEN],
+            w_hh: [0.0; RNN_MAX_HIDDEN * RNN_MAX_HIDDEN],
+            b_h: [0.0; RNN_MAX_HIDDEN],
+            w_ho: [0.0; RNN_MAX_HIDDEN],
+            b_o: w.b_o,
+            scaling,
+        };
+        p.w_ih.iter_mut().zip(w.w_ih).for_each(|(d, s)| *d = *s);
+        p.w_hh.iter_mut().zip(w.w_hh).for_each(|(d, s)| *d = *s);
+        p.b_h.iter_mut().zip(w.b_h).for_each(|(d, s)| *d = *s);
+        p.w_ho.iter_mut().zip(w.w_ho).for_each(|(d, s)| *d = *s);
+        Ok(p)
+    }
+
+    /// Replace these parameters with `w` and `scaling`, validated as [`Self::new`] does, in place
+    /// (no ~9 kB value on the stack: a device loads an uploaded RNN this way). Refused: nothing
+    /// changes. The result equals `Self::new(w, scaling)`.
+    pub fn assign(&mut self, w: RnnWeights<'_>, scaling: RnnScaling) -> Result<(), ModelError> {
+        let h = Self::check(&w, &scaling)?;
+        self.hidden = h;
+        fill(&mut self.w_ih, w.w_ih);
+        fill(&mut self.w_hh, w.w_hh);
+        fill(&mut self.b_h, w.b_h);
+        fill(&mut self.w_ho, w.w_ho);
+        self.b_o = w.b_o;
+        self.scaling = scaling;
+        Ok(())
+    }
+
+    /// The checks of [`Self::new`]; the hidden size.
+    pub(crate) fn check(w: &RnnWeights<'_>, scaling: &RnnScaling) -> Result<usize, ModelError> {
         let h = w.b_h.len();
         if h == 0 || h > RNN_MAX_HIDDEN {
             return Err(ModelError::HiddenSize(h));
@@ -78,21 +112,7 @@ impl RnnParams {
             crate::params::positive(s, "RNN input std")?;
         }
         crate::params::positive(scaling.output_std, "RNN output std")?;
-
-        let mut p = Self {
-            hidden: h,
-            w_ih: [0.0; RNN_INPUTS * RNN_MAX_HIDDEN],
-            w_hh: [0.0; RNN_MAX_HIDDEN * RNN_MAX_HIDDEN],
-            b_h: [0.0; RNN_MAX_HIDDEN],
-            w_ho: [0.0; RNN_MAX_HIDDEN],
-            b_o: w.b_o,
-            scaling,
-        };
-        p.w_ih.iter_mut().zip(w.w_ih).for_each(|(d, s)| *d = *s);
-        p.w_hh.iter_mut().zip(w.w_hh).for_each(|(d, s)| *d = *s);
-        p.b_h.iter_mut().zip(w.b_h).for_each(|(d, s)| *d = *s);
-        p.w_ho.iter_mut().zip(w.w_ho).for_each(|(d, s)| *d = *s);
-        Ok(p)
+        Ok(h)
     }
 
     /// Hidden size H.
@@ -117,6 +137,14 @@ impl RnnParams {
             w_ho: self.w_ho.get(..h).unwrap_or(&[]),
             b_o: self.b_o,
         }
+    }
+}
+
+/// `dest` = `src` followed by zeros (the capacity beyond the hidden size is zero, as `new` leaves it).
+fn fill(dest: &mut [f64], src: &[f64]) {
+    let mut it = src.iter();
+    for d in dest.iter_mut() {
+        *d = it.next().copied().unwrap_or(0.0);
     }
 }
 
@@ -187,6 +215,29 @@ pub struct Rnn {
 }
 
 impl Rnn {
+    /// Every byte zero (hidden size 0): not a usable model, a placeholder that reserves its ~9 kB
+    /// where it will live (a zero constant is written as a memset); [`Self::load`] makes it a
+    /// model.
+    pub const PARKED: Self = Self {
+        params: RnnParams {
+            hidden: 0,
+            w_ih: [0.0; RNN_INPUTS * RNN_MAX_HIDDEN],
+            w_hh: [0.0; RNN_MAX_HIDDEN * RNN_MAX_HIDDEN],
+            b_h: [0.0; RNN_MAX_HIDDEN],
+            w_ho: [0.0; RNN_MAX_HIDDEN],
+            b_o: 0.0,
+            scaling: RnnScaling {
+                input_mean: [0.0; RNN_INPUTS],
+                input_std: [0.0; RNN_INPUTS],
+                output_mean: 0.0,
+                output_std: 0.0,
+            },
+        },
+        state: RnnState {
+            hidden: [0.0; RNN_MAX_HIDDEN],
+        },
+    };
+
     /// A model with a zero hidden state.
     pub fn new(params: RnnParams) -> Self {
         Self {
@@ -208,6 +259,14 @@ impl Rnn {
     /// Zero hidden state.
     pub fn reset(&mut self) {
         self.state.reset();
+    }
+
+    /// Load new parameters in place ([`RnnParams::assign`]) and zero the state; refused: nothing
+    /// changes.
+    pub fn load(&mut self, w: RnnWeights<'_>, scaling: RnnScaling) -> Result<(), ModelError> {
+        self.params.assign(w, scaling)?;
+        self.reset();
+        Ok(())
     }
 
     /// One step: `h = tanh(W_ih·in_n + W_hh·h + b_h)`, `y = (W_ho·h + b_o)·std + mean`, in mm
