@@ -344,6 +344,12 @@ impl Link {
             for m in &msgs {
                 self.expect_ack(m)?;
             }
+            // A rig-trained LRX model's lead adaptation and specimen dynamics are not among its
+            // chunked values: they follow as the rig compensation they are, so the device runs the
+            // whole model (a refusal there leaves the model without them: an error, not a run).
+            if let Some(v) = lrx_rig_extras(model)? {
+                self.upload_rig(WireModelKind::Lrx, &v)?;
+            }
             return match msgs.first() {
                 Some(HostMsg::ModelBegin { checksum, .. }) => Ok(*checksum),
                 _ => Err(LinkHostError::Model("no model begin".into())),
@@ -701,6 +707,27 @@ pub fn model_values(model: &ModelFile) -> Result<(WireModelKind, Vec<f64>), Link
             "an LR model goes in one UploadLr".into(),
         )),
     }
+}
+
+/// The rig-compensation values that carry an LRX model's optional lead adaptation and specimen
+/// dynamics (`rths train lrx --rig`), in `rths_link::rig_values`' layout (0: absent, as the device
+/// reads them), or `None` for a model without them (or not LRX).
+pub fn lrx_rig_extras(model: &ModelFile) -> Result<Option<Vec<f64>>, LinkHostError> {
+    let Some(x) = model.lrx.as_ref().filter(|_| model.kind == ModelKind::Lrx) else {
+        return Ok(None);
+    };
+    let extras = [
+        x.lead_adapt_ticks,
+        x.specimen_mass_kn_s2_per_mm,
+        x.specimen_damping_kn_s_per_mm,
+    ];
+    if extras.iter().all(Option::is_none) {
+        return Ok(None);
+    }
+    let [adapt, mass, damping] = extras.map(|v| v.unwrap_or(0.0));
+    rths_link::rig_values(&x.lead_weights, x.lead_stride, adapt, [mass, damping])
+        .map(|v| Some(v.to_vec()))
+        .ok_or_else(|| LinkHostError::Model("lrx: 8 lead weights".into()))
 }
 
 /// The messages of a chunked model upload: `ModelBegin`, the chunks of [`RECORD_CHUNK`] values,

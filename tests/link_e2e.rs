@@ -155,21 +155,20 @@ fn identify_train_upload_run_and_report_through_the_board() {
         ],
     );
     println!("train lrx --rig: {:.1} s", t.elapsed().as_secs_f64());
-    // The LRX upload carries the model's 20 values (coefficients, k_corr, k_adapt, lead weights,
-    // stride), not yet a rig-trained model's lead adaptation and specimen mass and damping (issue
-    // 13's rig-compensation upload): the device keeps its compiled-in ones (none). Both sides run
-    // the model as uploaded, without them.
-    let mut m: serde_json::Value =
+    // The rig-trained model is uploaded whole: its 20 chunked values, then its lead adaptation and
+    // specimen mass and damping as the rig compensation (`Link::upload`).
+    let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("lrx.json")).unwrap()).unwrap();
-    let lrx = m["lrx"].as_object_mut().unwrap();
     for extra in [
         "lead_adapt_ticks",
         "specimen_mass_kn_s2_per_mm",
         "specimen_damping_kn_s_per_mm",
     ] {
-        assert!(lrx.remove(extra).is_some(), "{extra}");
+        assert!(
+            m["lrx"].get(extra).is_some(),
+            "a rig-trained model has {extra}"
+        );
     }
-    std::fs::write(d.join("lrx-up.json"), m.to_string()).unwrap();
 
     // 3. Upload the model and a CSV record the firmware does not have compiled in, run, record:
     // the first 10 s of the benchmark's Morgan Hill record (2001 samples at 0.005 s; its strong
@@ -186,18 +185,8 @@ fn identify_train_upload_run_and_report_through_the_board() {
     rths(
         d,
         &[
-            "link",
-            "--qemu",
-            elf,
-            "run",
-            "--model",
-            "lrx-up.json",
-            "--motion",
-            motion,
-            "--scale",
-            scale,
-            "--out",
-            "run.csv",
+            "link", "--qemu", elf, "run", "--model", "lrx.json", "--motion", motion, "--scale",
+            scale, "--out", "run.csv",
         ],
     );
     println!("run through the board: {:.1} s", t.elapsed().as_secs_f64());
@@ -209,7 +198,7 @@ fn identify_train_upload_run_and_report_through_the_board() {
     let rec = rths::link_host::read_recording(&std::fs::read_to_string(d.join("run.csv")).unwrap())
         .unwrap();
     assert_eq!(rec.header.get("scenario"), Some("lrx-online"));
-    let model = rths::model_file::ModelFile::load(&d.join("lrx-up.json")).unwrap();
+    let model = rths::model_file::ModelFile::load(&d.join("lrx.json")).unwrap();
     let ag = rths::motion::GroundMotion::from_path(&d.join(motion))
         .unwrap()
         .scaled(0.5)
@@ -250,7 +239,7 @@ fn identify_train_upload_run_and_report_through_the_board() {
         "--scenario",
         "lrx-online",
         "--model",
-        "lrx-up.json",
+        "lrx.json",
         "--motion",
         motion,
         "--scale",
