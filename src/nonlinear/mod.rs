@@ -4,6 +4,8 @@
 //! hysteresis plot (`rths analyze --structure`; docs/nonlinear.md).
 
 pub mod plot;
+pub mod scenario;
+pub mod study;
 
 use anyhow::Context;
 use rths_core::metrics::nrmse_pct;
