@@ -423,14 +423,15 @@ fn run_structure(
     print_figures(&report.report);
     let f = &report.figures;
     println!(
-        "peak ductility      {} (reference, all stories); specimen story {} reference, {} run",
+        "peak ductility      {} reference, {} run (all stories); specimen story {} reference",
         o(f.peak_ductility),
-        o(f.peak_ductility_specimen_story),
-        o(f.peak_ductility_model)
+        o(f.peak_ductility_model),
+        o(f.peak_ductility_specimen_story)
     );
     match f.residual_drift_mm {
         Some(r) => println!(
-            "residual drift      {:.4} mm reference, {:.4} mm run (error {} %)",
+            "residual drift      story {}: {:.4} mm reference, {:.4} mm run (error {} %)",
+            r.story,
             r.reference,
             r.model,
             o(f.residual_drift_error_pct)

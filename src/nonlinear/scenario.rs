@@ -33,7 +33,7 @@ use rths_core::model::Model;
 use rths_core::params::{
     Prototype, SpecimenScale, BRACE_AXIAL_STIFFNESS_KN_PER_MM, DT_S, PAPER_DELAY_STEPS,
 };
-use rths_core::structure_n::{ChangN, MAX_DOF};
+use rths_core::structure_n::{ChangN, Dofs, MAX_DOF};
 use rths_core::structure_nl::NonlinearFrame;
 use rths_core::supervisor::{Limits, State, Supervisor};
 use rths_files::structure_file::Structure;
@@ -119,6 +119,11 @@ pub trait StructureModel {
     fn step(&mut self, ground_accel_mm_s2: f64, specimen_force_kn: f64) -> Result<f64, StepError>;
     /// Back to rest.
     fn reset(&mut self);
+    /// Story drifts at the last completed step (after [`Self::step`] of tick k: at `d_k`), mm,
+    /// if the model has them (else the run is scored at the specimen's story alone).
+    fn story_drift_mm(&self) -> Option<Dofs> {
+        None
+    }
 }
 
 /// The finite elements of a structure file's numerical part: yielding stories ([`NonlinearFrame`])
@@ -197,6 +202,21 @@ impl StructureModel for StructureFe {
             FeIntegrator::Nonlinear(f) => f.reset(0.0),
         }
         self.started = false;
+    }
+
+    fn story_drift_mm(&self) -> Option<Dofs> {
+        Some(match &self.integ {
+            FeIntegrator::Linear(c) => {
+                let mut d = [0.0; MAX_DOF];
+                let mut below = 0.0;
+                for (di, xi) in d.iter_mut().zip(c.disp()).take(c.model().dofs()) {
+                    *di = xi - below;
+                    below = *xi;
+                }
+                d
+            }
+            FeIntegrator::Nonlinear(f) => f.story_drift_mm(),
+        })
     }
 }
 
@@ -346,6 +366,21 @@ pub struct StructureSeries {
     pub command_mm: Vec<f64>,
     /// Measured (empty for a pure run).
     pub measured_mm: Vec<f64>,
+    /// The model's story drifts at the target's step, `story_drift_mm[story][k]` (empty if the
+    /// model has none).
+    pub story_drift_mm: Vec<Vec<f64>>,
+}
+
+impl StructureSeries {
+    /// Record the model's story drifts (the structure's `n` stories), if it has them.
+    fn push_drifts(&mut self, model: &dyn StructureModel, n: usize) {
+        if let Some(d) = model.story_drift_mm() {
+            self.story_drift_mm.resize_with(n, Vec::new);
+            for (s, v) in self.story_drift_mm.iter_mut().zip(d) {
+                s.push(v);
+            }
+        }
+    }
 }
 
 /// The pure loop: `model` with the structure's linear specimen at the model's own displacement
@@ -357,15 +392,19 @@ pub fn run_pure(case: &StructureCase, model: &mut dyn StructureModel) -> (Struct
     let mut s = StructureSeries {
         target_mm: Vec::with_capacity(n),
         command_mm: Vec::with_capacity(n),
-        measured_mm: Vec::new(),
+        ..StructureSeries::default()
     };
+    let stories = case.structure.dofs();
     // d_k at the DOF: row k holds the target produced at tick k−1 (0 at rest).
     let mut d = 0.0;
     for (k, &ag) in case.ground_accel_mm_s2.iter().enumerate() {
         s.target_mm.push(d * case.cos_theta);
         s.command_mm.push(d * case.cos_theta);
         match model.step(ag, k_e * d) {
-            Ok(next) => d = next,
+            Ok(next) => {
+                d = next;
+                s.push_drifts(model, stories);
+            }
             Err(e) => return (s, Some((format!("{e:?}"), k as f64 * DT_S))),
         }
     }
@@ -396,7 +435,9 @@ pub fn run_hybrid(
         target_mm: Vec::with_capacity(n),
         command_mm: Vec::with_capacity(n),
         measured_mm: Vec::with_capacity(n),
+        story_drift_mm: Vec::new(),
     };
+    let stories = case.structure.dofs();
     let (mut command, mut target) = (0.0, 0.0);
     let mut last_good = Sample::default();
     let mut stop: Stop = None;
@@ -417,6 +458,7 @@ pub fn run_hybrid(
             requested = match model.step(ag, force) {
                 Ok(d) => {
                     next_target = d * case.cos_theta;
+                    s.push_drifts(model, stories);
                     compensator
                         .compensate(scale.specimen_disp_mm(next_target), last_good.disp_mm)
                         .unwrap_or(f64::NAN)
@@ -487,14 +529,18 @@ pub fn run_paper_scenario(
             } else {
                 Vec::new()
             },
+            story_drift_mm: Vec::new(),
         },
         stop,
     ))
 }
 
-/// Residual drift of the reference and of the model, mm (at the specimen's story).
+/// Residual drift of the reference and of the model at one story, mm.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct ResidualDrift {
+    /// The story (1-based): of the stories the model gives, the one with the largest reference
+    /// residual drift.
+    pub story: usize,
     /// The reference's.
     pub reference: f64,
     /// The run's (its target).
@@ -508,10 +554,11 @@ pub struct StructureFigures {
     pub peak_ductility: Option<f64>,
     /// Peak ductility of the reference at the specimen's story.
     pub peak_ductility_specimen_story: Option<f64>,
-    /// Peak ductility of the run's target at the specimen's story.
+    /// Peak ductility of the run over the stories its model gives (all for the FE; the
+    /// specimen's story from the target alone otherwise).
     pub peak_ductility_model: Option<f64>,
-    /// Residual drift at the specimen's story: the mean over the last
-    /// [`super::RESIDUAL_WINDOW_S`] of the free vibration.
+    /// Residual drift (the mean over the last [`super::RESIDUAL_WINDOW_S`] of the free
+    /// vibration) at the story of [`ResidualDrift::story`].
     pub residual_drift_mm: Option<ResidualDrift>,
     /// `|model − reference| / |reference|` of the residual drift, % (`null` when the reference
     /// has none).
@@ -550,9 +597,8 @@ pub fn score(
     );
     let r = &case.reference;
     let nonlinear = !r.yield_drift_mm.is_empty();
-    let uy = r.yield_drift_mm.first().copied();
     let dof = case.structure.specimen_dof();
-    let ref_story = |k: usize| r.story_drift_mm.get(dof).map_or(f64::NAN, |d| d[k]);
+    let uy = r.yield_drift_mm.get(dof).copied();
     let mut f = StructureFigures {
         peak_ductility: nonlinear.then(|| r.peak_ductility()),
         peak_ductility_specimen_story: None,
@@ -561,30 +607,50 @@ pub fn score(
         residual_drift_error_pct: None,
         startup_error_ratio: None,
     };
-    if let (true, Some(uy)) = (nonlinear && dof == 0, uy) {
+    if let Some(uy) = uy {
         f.peak_ductility_specimen_story =
-            r.story_drift_mm.first().map(|d| metrics::peak_abs(d) / uy);
+            r.story_drift_mm.get(dof).map(|d| metrics::peak_abs(d) / uy);
     }
     if stop.is_some() || series.target_mm.len() != case.reference_mm.len() {
         return StructureReport { report, figures: f };
     }
-    // The target in the specimen story's drift (the specimen sits on DOF 1 of a yielding file).
-    let model_story: Vec<f64> = series
-        .target_mm
-        .iter()
-        .map(|x| x / case.cos_theta)
-        .collect();
-    if let (true, Some(uy)) = (nonlinear && dof == 0, uy) {
-        f.peak_ductility_model = Some(metrics::peak_abs(&model_story) / uy);
+    // The run's stories: the model's own, else the target as the specimen's story (the
+    // specimen sits on DOF 1 of a yielding file).
+    let n = series.target_mm.len();
+    let model_stories: Vec<(usize, Vec<f64>)> = if !series.story_drift_mm.is_empty()
+        && series.story_drift_mm.iter().all(|d| d.len() == n)
+    {
+        series.story_drift_mm.iter().cloned().enumerate().collect()
+    } else {
+        let x = series
+            .target_mm
+            .iter()
+            .map(|x| x / case.cos_theta)
+            .collect();
+        vec![(dof, x)]
+    };
+    if nonlinear {
+        f.peak_ductility_model = model_stories
+            .iter()
+            .filter_map(|(i, d)| Some(metrics::peak_abs(d) / r.yield_drift_mm.get(*i)?))
+            .reduce(f64::max);
     }
-    let w = ((super::RESIDUAL_WINDOW_S / DT_S) as usize).max(1);
-    let n = model_story.len();
-    let mean = |x: &mut dyn Iterator<Item = f64>| x.sum::<f64>() / w.min(n).max(1) as f64;
-    let reference = mean(&mut (n.saturating_sub(w)..n).map(ref_story));
-    let model = mean(&mut model_story[n.saturating_sub(w)..].iter().copied());
-    f.residual_drift_mm = Some(ResidualDrift { reference, model });
-    f.residual_drift_error_pct =
-        (reference != 0.0).then(|| 100.0 * (model - reference).abs() / reference.abs());
+    let w = ((super::RESIDUAL_WINDOW_S / DT_S) as usize).clamp(1, n.max(1));
+    let tail_mean = |x: &[f64]| x[x.len().saturating_sub(w)..].iter().sum::<f64>() / w as f64;
+    f.residual_drift_mm = model_stories
+        .iter()
+        .filter_map(|(i, d)| {
+            Some(ResidualDrift {
+                story: i + 1,
+                reference: tail_mean(r.story_drift_mm.get(*i)?),
+                model: tail_mean(d),
+            })
+        })
+        .max_by(|a, b| a.reference.abs().total_cmp(&b.reference.abs()));
+    f.residual_drift_error_pct = f
+        .residual_drift_mm
+        .filter(|d| d.reference != 0.0)
+        .map(|d| 100.0 * (d.model - d.reference).abs() / d.reference.abs());
     let err: Vec<f64> = series
         .target_mm
         .iter()

@@ -439,7 +439,7 @@ pub fn goals(rows: &[StudyRow]) -> Vec<Goal> {
 pub fn markdown(r: &StudyReport) -> String {
     let o = |v: Option<f64>, d: usize| v.map_or("—".to_string(), |x| format!("{x:.d$}"));
     let mut s = String::from(
-        "| structure | record | scale | μ ref | elastic NRMSE % | scenario | NRMSE % | measured % | J4 % | μ run (story 1) | residual ref / run mm | residual err % | start-up | note |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| structure | record | scale | μ ref | elastic NRMSE % | scenario | NRMSE % | measured % | J4 % | μ run | residual story: ref / run mm | residual err % | start-up | note |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for row in &r.rows {
         for x in &row.runs {
@@ -477,8 +477,8 @@ pub fn markdown(r: &StudyReport) -> String {
                 o(x.report.j4_pct, 2),
                 o(f.peak_ductility_model, 2),
                 f.residual_drift_mm.map_or("—".to_string(), |d| format!(
-                    "{:.3} / {:.3}",
-                    d.reference, d.model
+                    "{}: {:.3} / {:.3}",
+                    d.story, d.reference, d.model
                 )),
                 o(res_err, 1),
                 o(f.startup_error_ratio, 2),
