@@ -340,9 +340,6 @@ fn run_structure(
     if args.drift != 0.0 {
         return Err(refuse("--drift"));
     }
-    if args.out.is_some() {
-        return Err(refuse("--out"));
-    }
     let sc = args.scenario;
     nl::check_applies(sc, &structure)?;
     let case = StructureCase::new(structure, ag)?;
@@ -381,7 +378,7 @@ fn run_structure(
         (SimScenario::NlOnline, None) => Some(shipped_lrx_lead()?),
         _ => None,
     };
-    let report = nl::run_scenario(
+    let (report, series) = nl::run_scenario(
         &case,
         sc,
         nl::ScenarioInputs {
@@ -395,6 +392,19 @@ fn run_structure(
             nl_model: None,
         },
     )?;
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let run = scenario::ScenarioRun {
+            report: report.report.clone(),
+            history: nl::history(&case, &series),
+        };
+        run.history.write_csv(&dir.join("history.csv"))?;
+        study::plot_run(
+            &run,
+            &dir.join(format!("{sc}.png")),
+            &format!("{sc} ({motion_label}, structure {name}, {})", preset.name()),
+        )?;
+    }
     let beyond_rig = if sc.uses_rig() {
         case.beyond_rig()
     } else {
@@ -442,6 +452,10 @@ fn run_structure(
         "start-up ratio      {} (RMS error first 2 s / after)",
         o(f.startup_error_ratio)
     );
+    if let Some(dir) = &args.out {
+        println!("wrote {}", dir.join("history.csv").display());
+        println!("wrote {}", dir.join(format!("{sc}.png")).display());
+    }
     Ok(())
 }
 

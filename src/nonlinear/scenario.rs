@@ -366,6 +366,8 @@ pub struct StructureSeries {
     pub command_mm: Vec<f64>,
     /// Measured (empty for a pure run).
     pub measured_mm: Vec<f64>,
+    /// Measured force on the specimen, kN, specimen scale (empty for a pure run).
+    pub measured_force_kn: Vec<f64>,
     /// The model's story drifts at the target's step, `story_drift_mm[story][k]` (empty if the
     /// model has none).
     pub story_drift_mm: Vec<Vec<f64>>,
@@ -435,6 +437,7 @@ pub fn run_hybrid(
         target_mm: Vec::with_capacity(n),
         command_mm: Vec::with_capacity(n),
         measured_mm: Vec::with_capacity(n),
+        measured_force_kn: Vec::with_capacity(n),
         story_drift_mm: Vec::new(),
     };
     let stories = case.structure.dofs();
@@ -443,7 +446,9 @@ pub fn run_hybrid(
     let mut stop: Stop = None;
     for (k, &ag) in case.ground_accel_mm_s2.iter().enumerate() {
         let sample = plant.read().map_err(|e| e.kind());
-        let measured = sample.as_ref().map_or(f64::NAN, |x| x.disp_mm);
+        let (measured, force) = sample
+            .as_ref()
+            .map_or((f64::NAN, f64::NAN), |x| (x.disp_mm, x.force_kn));
         if let Ok(x) = sample {
             if x.disp_mm.is_finite() && x.force_kn.is_finite() {
                 last_good = x;
@@ -452,6 +457,7 @@ pub fn run_hybrid(
         s.target_mm.push(target);
         s.command_mm.push(command);
         s.measured_mm.push(measured);
+        s.measured_force_kn.push(force);
         let (mut requested, mut next_target) = (sup.output_mm(), f64::NAN);
         if sup.state() == State::Running {
             let force = scale.prototype_force_kn(last_good.force_kn) * case.cos_theta;
@@ -526,6 +532,11 @@ pub fn run_paper_scenario(
             command_mm: h.command_mm,
             measured_mm: if setup.id.uses_rig() {
                 h.measured_mm
+            } else {
+                Vec::new()
+            },
+            measured_force_kn: if setup.id.uses_rig() {
+                h.measured_force_kn
             } else {
                 Vec::new()
             },
@@ -706,12 +717,12 @@ pub fn check_applies(sc: SimScenario, structure: &Structure) -> anyhow::Result<(
     )
 }
 
-/// Run scenario `sc` on `case` and score it.
+/// Run scenario `sc` on `case` and score it: its figures and its series.
 pub fn run_scenario(
     case: &StructureCase,
     sc: SimScenario,
     inputs: ScenarioInputs<'_>,
-) -> anyhow::Result<StructureReport> {
+) -> anyhow::Result<(StructureReport, StructureSeries)> {
     check_applies(sc, &case.structure)?;
     let rig = case.rig(inputs.preset, inputs.seed);
     let missing = || {
@@ -757,5 +768,26 @@ pub fn run_scenario(
             )?
         }
     };
-    Ok(score(case, sc, &series, stop))
+    Ok((score(case, sc, &series, stop), series))
+}
+
+/// A run's series as `rths simulate`'s history (time, ground acceleration, reference, target,
+/// command, measured displacement and force; NaN where the run has none), for its CSV and figure.
+pub fn history(case: &StructureCase, series: &StructureSeries) -> scenario::History {
+    let n = series.target_mm.len();
+    let or_nan = |v: &[f64]| -> Vec<f64> {
+        (0..n)
+            .map(|k| v.get(k).copied().unwrap_or(f64::NAN))
+            .collect()
+    };
+    scenario::History {
+        time_s: (0..n).map(|k| k as f64 * DT_S).collect(),
+        ground_accel_mm_s2: case.ground_accel_mm_s2[..n.min(case.ground_accel_mm_s2.len())]
+            .to_vec(),
+        reference_mm: case.reference_mm[..n.min(case.reference_mm.len())].to_vec(),
+        target_mm: series.target_mm.clone(),
+        command_mm: series.command_mm.clone(),
+        measured_mm: or_nan(&series.measured_mm),
+        measured_force_kn: or_nan(&series.measured_force_kn),
+    }
 }

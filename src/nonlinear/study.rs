@@ -255,10 +255,9 @@ fn row(
             delay_steps: cfg.delay_steps,
             nl_model: model.as_deref_mut().map(|m| m as &mut dyn StructureModel),
         };
-        runs.push(
-            nl::run_scenario(&case, sc, inputs)
-                .with_context(|| format!("{sc} on {} {record_name}", structure.name()))?,
-        );
+        let (report, _) = nl::run_scenario(&case, sc, inputs)
+            .with_context(|| format!("{sc} on {} {record_name}", structure.name()))?;
+        runs.push(report);
     }
     Ok(StudyRow {
         structure: structure.name().to_string(),
