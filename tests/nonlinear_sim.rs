@@ -249,3 +249,48 @@ fn a_small_study_scores_every_applicable_scenario() {
         .iter()
         .any(|g| g.scenario == "fe-online-ats" && g.met == Some(true)));
 }
+
+#[test]
+fn the_structure_loop_is_the_controllers_loop() {
+    use rths::nonlinear::scenario::{paper_ats, run_hybrid};
+    use rths::scenario::{self, ScenarioSetup};
+    // The paper's linear frame through the structure loop (ChangN of the file, the ATS, the
+    // supervisor, the same rig) against `rths simulate`'s fe-online-ats (the core controller with
+    // its SDOF FE): the same tick, so the same run up to the integrators' round-off.
+    let ag = study::record("el-centro").unwrap().resample_mm_s2(DT_S);
+    let s = Structure::load(&root("data/structures/paper-frame.json")).unwrap();
+    let case = StructureCase::new(s, &ag).unwrap();
+    assert!(case.paper);
+    let rig = case.rig(Preset::UnrCompact, 1);
+    let mut fe = StructureFe::new(&case.structure).unwrap();
+    let (mine, stop) = run_hybrid(&case, &mut fe, paper_ats(None).unwrap(), &rig).unwrap();
+    assert!(stop.is_none());
+    let reference = rths::study::reference_for(&ag, rths_hal_sim::Specimen::Linear, 1.0).unwrap();
+    let setup = ScenarioSetup {
+        id: ScenarioId::FeOnlineAts,
+        ground_accel_mm_s2: &ag,
+        reference_mm: &reference,
+        rig,
+        stiffness_factor: 1.0,
+        lr: None,
+        rnn: None,
+        delay_steps: 28,
+        lrx: None,
+    };
+    let (theirs, _) = scenario::simulate(&setup).unwrap();
+    let peak = rths_core::metrics::peak_abs(&theirs.target_mm);
+    let worst = |a: &[f64], b: &[f64]| {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max)
+    };
+    let n = ag.len();
+    let dt = worst(&mine.target_mm[..n], &theirs.target_mm);
+    let dm = worst(&mine.measured_mm[..n], &theirs.measured_mm);
+    let dc = worst(&mine.command_mm[..n], &theirs.command_mm);
+    assert!(
+        dt < 1e-6 * peak && dm < 1e-6 * peak && dc < 1e-6 * peak,
+        "target {dt}, measured {dm}, command {dc} mm (peak {peak})"
+    );
+}

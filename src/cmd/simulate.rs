@@ -317,10 +317,12 @@ struct StructureJson {
 fn run_structure(
     args: &Args,
     structure: Structure,
+    structure_json: &str,
     ag: &[f64],
     motion_label: &str,
     preset: Preset,
 ) -> anyhow::Result<()> {
+    let _ = structure_json;
     let name = structure.name().to_string();
     let refuse = |flag: &str| {
         anyhow::anyhow!(
@@ -485,14 +487,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let structure = match &args.structure {
         Some(p) => {
-            Some(Structure::load(p).with_context(|| format!("structure file {}", p.display()))?)
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("reading structure file {}", p.display()))?;
+            let s = Structure::from_json(&text)
+                .with_context(|| format!("structure file {}", p.display()))?;
+            Some((s, text))
         }
         None => None,
     };
     let id = match (args.scenario, structure) {
         // The paper's linear frame *is* the study's structure: the same run, bit for bit.
-        (SimScenario::Study(id), Some(s)) if is_paper_frame(&s) && s.story_laws().is_none() => id,
-        (_, Some(s)) => return run_structure(&args, s, &ag, &motion_label, preset),
+        (SimScenario::Study(id), Some((s, _)))
+            if is_paper_frame(&s) && s.story_laws().is_none() =>
+        {
+            id
+        }
+        (_, Some((s, text))) => return run_structure(&args, s, &text, &ag, &motion_label, preset),
         (SimScenario::Study(id), None) => id,
         (other, None) => anyhow::bail!(
             "{other} runs the learned model of a structure's numerical part: give --structure \
