@@ -322,7 +322,6 @@ fn run_structure(
     motion_label: &str,
     preset: Preset,
 ) -> anyhow::Result<()> {
-    let _ = structure_json;
     let name = structure.name().to_string();
     let refuse = |flag: &str| {
         anyhow::anyhow!(
@@ -380,6 +379,12 @@ fn run_structure(
         (SimScenario::NlOnline, None) => Some(shipped_lrx_lead()?),
         _ => None,
     };
+    let mut learned = match sc {
+        SimScenario::NlPure | SimScenario::NlOnline => Some(
+            crate::nonlinear::model::for_structure(args.model.as_deref(), &name, structure_json)?,
+        ),
+        _ => None,
+    };
     let (report, series) = nl::run_scenario(
         &case,
         sc,
@@ -391,7 +396,7 @@ fn run_structure(
             lr: models.as_ref().and_then(|m| m.lr),
             lrx: models.as_ref().and_then(|m| m.lrx),
             delay_steps: models.as_ref().map_or(PAPER_DELAY_STEPS, |m| m.delay),
-            nl_model: None,
+            nl_model: learned.as_mut().map(|m| m as &mut dyn nl::StructureModel),
         },
     )?;
     if let Some(dir) = &args.out {

@@ -16,10 +16,12 @@ use crate::params::ParamError;
 
 mod lr;
 mod lrx;
+mod modal_hyst;
 mod rnn;
 
 pub use lr::*;
 pub use lrx::*;
+pub use modal_hyst::*;
 pub use rnn::*;
 
 /// A model whose shape or values failed validation.
