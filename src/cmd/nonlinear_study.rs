@@ -7,8 +7,11 @@ use rths_files::structure_file::Structure;
 use rths_hal_sim::Preset;
 
 use crate::cmd::plant::PresetArg;
+use crate::nonlinear::model::{self, LearnedModel};
+use crate::nonlinear::scenario::StructureModel;
 use crate::nonlinear::study::{self, StudyConfig, RECORDS, TARGET_DUCTILITIES};
 use crate::scenario::ScenarioId;
+use rths_files::nl_model_file::NlModelFile;
 
 /// The shipped yielding structures, scored by default.
 const SHIPPED: [(&str, &str); 2] = [
@@ -29,6 +32,11 @@ pub struct Args {
     /// `data/structures/paper-frame-yielding.json` and `shear3-yielding.json`.
     #[arg(long, value_name = "FILE.json")]
     pub structure: Vec<PathBuf>,
+    /// Learned models (`rths train nonlinear`) for nl-pure / nl-online (repeatable), each for the
+    /// structure it names. Default: the shipped `data/models/nl-S.json` of each structure S,
+    /// where there is one.
+    #[arg(long, value_name = "M.json")]
+    pub model: Vec<PathBuf>,
     /// Scoring records (repeatable; embedded names, or `morgan` for the vRTHS benchmark's Morgan
     /// Hill). Default: el-centro, kobe, morgan.
     #[arg(long, value_name = "NAME")]
@@ -52,17 +60,44 @@ pub struct Args {
 
 /// Run `rths nonlinear-study`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let structures = if args.structure.is_empty() {
+    // Each structure with its file's text (a learned model is checked against its checksum).
+    let texts: Vec<(String, String)> = if args.structure.is_empty() {
         SHIPPED
             .iter()
-            .map(|(p, t)| Structure::from_json(t).with_context(|| format!("shipped {p}")))
-            .collect::<anyhow::Result<Vec<_>>>()?
+            .map(|(p, t)| (p.to_string(), t.to_string()))
+            .collect()
     } else {
         args.structure
             .iter()
-            .map(|p| Structure::load(p).with_context(|| format!("structure file {}", p.display())))
+            .map(|p| {
+                let t = std::fs::read_to_string(p)
+                    .with_context(|| format!("reading structure file {}", p.display()))?;
+                Ok((p.display().to_string(), t))
+            })
             .collect::<anyhow::Result<Vec<_>>>()?
     };
+    let structures = texts
+        .iter()
+        .map(|(p, t)| Structure::from_json(t).with_context(|| format!("structure file {p}")))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let files = args
+        .model
+        .iter()
+        .map(|p| {
+            NlModelFile::load(p)
+                .with_context(|| format!("model {}", p.display()))
+                .map(|f| (p.clone(), f))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    for (p, f) in &files {
+        if !structures.iter().any(|s| s.name() == f.structure.name) {
+            anyhow::bail!(
+                "model {} was trained for structure {}, which is not in this study",
+                p.display(),
+                f.structure.name
+            );
+        }
+    }
     for s in &structures {
         if s.story_laws().is_none() {
             anyhow::bail!(
@@ -93,10 +128,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let lr = crate::cmd::simulate::study_models(None, ScenarioId::LrOnline, preset, None)?;
     let lrx = crate::cmd::simulate::study_models(None, ScenarioId::LrxOnline, preset, None)?;
-    let no_model = |_: &Structure| Ok(None);
+    let text_of: Vec<(String, &str)> = structures
+        .iter()
+        .zip(&texts)
+        .map(|(s, (_, t))| (s.name().to_string(), t.as_str()))
+        .collect();
+    // A given model for the structure, else the shipped one, else none (its rows are skipped
+    // with the reason); a model for another version of the structure is refused.
+    let models = |s: &Structure| -> anyhow::Result<Option<Box<dyn StructureModel>>> {
+        let text = text_of
+            .iter()
+            .find(|(n, _)| n == s.name())
+            .map(|(_, t)| *t)
+            .unwrap_or_default();
+        if let Some((p, f)) = files.iter().find(|(_, f)| f.structure.name == s.name()) {
+            let m = LearnedModel::new(f, text)
+                .with_context(|| format!("model {} refused", p.display()))?;
+            return Ok(Some(Box::new(m)));
+        }
+        if model::SHIPPED.iter().any(|(n, _)| *n == s.name()) {
+            return Ok(Some(Box::new(model::for_structure(None, s.name(), text)?)));
+        }
+        Ok(None)
+    };
     let cfg = StudyConfig {
         structures,
-        models: &no_model,
+        models: &models,
         lr: lr.lr,
         lrx: lrx.lrx,
         delay_steps: lr.delay,

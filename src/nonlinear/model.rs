@@ -72,7 +72,7 @@ impl StructureModel for LearnedModel {
     }
 }
 
-/// The shipped learned models (`data/models/nl-NAME.json`, `rths train nonlinear`), by the name
+/// The shipped learned models (`data/models/nl-S.json`, `rths train nonlinear`), by the name
 /// of the structure they were trained for.
 pub const SHIPPED: [(&str, &str); 1] = [(
     "paper-frame-yielding",
