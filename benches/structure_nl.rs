@@ -7,6 +7,7 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use rths::motion::GroundMotion;
 use rths::train::nonlinear::modal::elastic_modes;
 use rths_core::hysteresis::Law;
 use rths_core::metamodel::{ModalHyst, ModalHystParams, ModalMode};
@@ -144,5 +145,60 @@ fn metamodel_step(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, step, metamodel_step);
+/// The FE numerical part of a shipped yielding structure and its modal-hysteretic model with every
+/// mode and the structure's own laws (a trained model has the same cost: the same laws, other
+/// numbers), both in the pure loop under El Centro × 2 (looped): the cost on a real record.
+fn shipped(c: &mut Criterion) {
+    let mut g = c.benchmark_group("nonlinear_shipped_tick");
+    let ag = GroundMotion::try_el_centro()
+        .expect("embedded record")
+        .scaled(2.0)
+        .resample_mm_s2(DT_S);
+    for file in ["paper-frame-yielding", "shear3-yielding"] {
+        let path = format!("{}/data/structures/{file}.json", env!("CARGO_MANIFEST_DIR"));
+        let s = rths_files::structure_file::Structure::load(std::path::Path::new(&path))
+            .expect("shipped structure");
+        let k_e = s.specimen().1;
+        let mut fe = s.nonlinear_numerical(DT_S).expect("nonlinear structure");
+        let mut k = 0usize;
+        g.bench_function(format!("fe_{file}"), |b| {
+            b.iter(|| {
+                k = (k + 1) % ag.len();
+                let mut r = [0.0; MAX_DOF];
+                r[0] = k_e * fe.next_displacement()[0];
+                fe.advance(black_box(ag[k]), black_box(&r));
+                black_box(fe.next_displacement()[0])
+            })
+        });
+        let n = s.dofs();
+        let modes = elastic_modes(&s, n).expect("modes");
+        let laws = s.story_laws().expect("yielding stories");
+        let mm: Vec<ModalMode> = (0..n)
+            .map(|j| ModalMode {
+                omega_rad_s: modes.omega_rad_s[j],
+                damping_ratio: modes.damping_ratio[j],
+                ground_participation: modes.ground_participation[j],
+            })
+            .collect();
+        let shape: Vec<f64> = modes.shape.iter().flatten().copied().collect();
+        let drift: Vec<f64> = modes.drift.iter().flatten().copied().collect();
+        let mut m = ModalHyst::new(
+            ModalHystParams::new(DT_S, &mm, &shape, 0, k_e, laws, &drift).expect("valid model"),
+        );
+        let mut k = 0usize;
+        let mut target = 0.0;
+        g.bench_function(format!("modal_{file}"), |b| {
+            b.iter(|| {
+                k = (k + 1) % ag.len();
+                target = m
+                    .step(black_box(ag[k]), black_box(k_e * target))
+                    .unwrap_or(0.0);
+                black_box(target)
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, step, metamodel_step, shipped);
 criterion_main!(benches);

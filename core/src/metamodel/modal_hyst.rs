@@ -341,10 +341,15 @@ impl ModalHyst {
                 *x = phi * unbalanced;
             }
         }
+        // The springs move on a copy of the ones in use, committed only if the step is finite.
+        let m = self.p.springs;
         let mut stories = self.stories;
-        for (s, row) in stories.iter_mut().zip(&self.p.drift) {
+        for (s, row) in stories.iter_mut().zip(&self.p.drift).take(m) {
             if let Some(s) = s {
-                let delta: f64 = row.iter().zip(&d1).take(r).map(|(a, b)| a * b).sum();
+                let mut delta = 0.0;
+                for (a, b) in row.iter().zip(&d1).take(r) {
+                    delta += a * b;
+                }
                 let h = s.update(delta) - s.law().k0_kn_per_mm() * delta;
                 for (x, dk) in rq.iter_mut().zip(row).take(r) {
                     *x += dk * h;
