@@ -1,13 +1,19 @@
 //! Cost of one step of the nonlinear N-story frame (`NonlinearFrame::advance`: Chang's step with
 //! every story's hysteresis evaluated) for N = 1, 3, 8, bilinear and Bouc–Wen, beside the linear
 //! `ChangN` step of the same building, and the structure metamodel's step (`DeltaArx`, whose
-//! cost does not depend on N), ns per tick (`docs/nonlinear.md`, `docs/benchmark.md`).
+//! cost does not depend on N), ns per tick (`docs/nonlinear.md`, `docs/benchmark.md`);
+//! and one step of the modal-hysteretic
+//! metamodel of the same building (every mode, one Bouc–Wen or bilinear spring per story:
+//! `ModalHyst::step`), the learned model's cost (`docs/nonlinear.md`).
 
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use rths::motion::GroundMotion;
+use rths::train::nonlinear::modal::elastic_modes;
 use rths_core::hysteresis::Law;
 use rths_core::metamodel::{DeltaArx, DeltaArxParams, DELTA_ARX_COEFFS};
+use rths_core::metamodel::{ModalHyst, ModalHystParams, ModalMode};
 use rths_core::structure::{LinearStructure, ShearBuilding, Vector};
 use rths_core::structure_n::{ChangN, StructureN, MAX_DOF};
 use rths_core::structure_nl::NonlinearFrame;
@@ -103,5 +109,117 @@ fn step(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, step);
+/// The modal-hysteretic model of the uniform N-story building (story 1 holding a specimen of
+/// `0.01` kN/mm, as the FE rows' external spring), every mode, one spring per story.
+fn modal_model(n: usize, law: &str) -> ModalHyst {
+    let json = format!(
+        r#"{{"format": "rths-structure", "version": 1, "name": "bench", "units": "mm-kn",
+            "stories": {{"floor_mass": {m:?}, "story_stiffness": {k:?}, "damping_ratio": 0.05}},
+            "specimen": {{"dof": 1, "mass": 0.0, "stiffness": 0.01, "damping": 0.0}}}}"#,
+        m = vec![1.0; n],
+        k = vec![K_STORY; n],
+    );
+    let s = rths_files::structure_file::Structure::from_json(&json).expect("valid structure");
+    let modes = elastic_modes(&s, n).expect("modes");
+    let laws: Vec<Law> = modes
+        .story_k0_kn_per_mm
+        .iter()
+        .map(|k0| match law {
+            "bilinear" => Law::bilinear(*k0, 5.0, 0.05),
+            _ => Law::bouc_wen(*k0, 5.0, 0.05, 2.0, 0.5, 0.5),
+        })
+        .collect::<Result<_, _>>()
+        .expect("valid laws");
+    let mm: Vec<ModalMode> = (0..n)
+        .map(|j| ModalMode {
+            omega_rad_s: modes.omega_rad_s[j],
+            damping_ratio: modes.damping_ratio[j],
+            ground_participation: modes.ground_participation[j],
+        })
+        .collect();
+    let shape: Vec<f64> = modes.shape.iter().flatten().copied().collect();
+    let drift: Vec<f64> = modes.drift.iter().flatten().copied().collect();
+    ModalHyst::new(
+        ModalHystParams::new(DT_S, &mm, &shape, 0, 0.01, &laws, &drift).expect("valid model"),
+    )
+}
+
+fn metamodel_step(c: &mut Criterion) {
+    let mut g = c.benchmark_group("nonlinear_metamodel_tick");
+    for n in [1, 3, 8] {
+        for law in ["bilinear", "bouc_wen"] {
+            let mut m = modal_model(n, law);
+            let ag = |k: u32| 400.0 * (f64::from(k % 64) - 32.0);
+            let mut k = 0u32;
+            let mut target = 0.0;
+            g.bench_function(format!("modal_{law}_n{n}"), |b| {
+                b.iter(|| {
+                    k = k.wrapping_add(1);
+                    target = m
+                        .step(black_box(ag(k)), black_box(0.01 * target))
+                        .unwrap_or(0.0);
+                    black_box(target)
+                })
+            });
+        }
+    }
+    g.finish();
+}
+
+/// The FE numerical part of a shipped yielding structure and its modal-hysteretic model with every
+/// mode and the structure's own laws (a trained model has the same cost: the same laws, other
+/// numbers), both in the pure loop under El Centro × 2 (looped): the cost on a real record.
+fn shipped(c: &mut Criterion) {
+    let mut g = c.benchmark_group("nonlinear_shipped_tick");
+    let ag = GroundMotion::try_el_centro()
+        .expect("embedded record")
+        .scaled(2.0)
+        .resample_mm_s2(DT_S);
+    for file in ["paper-frame-yielding", "shear3-yielding"] {
+        let path = format!("{}/data/structures/{file}.json", env!("CARGO_MANIFEST_DIR"));
+        let s = rths_files::structure_file::Structure::load(std::path::Path::new(&path))
+            .expect("shipped structure");
+        let k_e = s.specimen().1;
+        let mut fe = s.nonlinear_numerical(DT_S).expect("nonlinear structure");
+        let mut k = 0usize;
+        g.bench_function(format!("fe_{file}"), |b| {
+            b.iter(|| {
+                k = (k + 1) % ag.len();
+                let mut r = [0.0; MAX_DOF];
+                r[0] = k_e * fe.next_displacement()[0];
+                fe.advance(black_box(ag[k]), black_box(&r));
+                black_box(fe.next_displacement()[0])
+            })
+        });
+        let n = s.dofs();
+        let modes = elastic_modes(&s, n).expect("modes");
+        let laws = s.story_laws().expect("yielding stories");
+        let mm: Vec<ModalMode> = (0..n)
+            .map(|j| ModalMode {
+                omega_rad_s: modes.omega_rad_s[j],
+                damping_ratio: modes.damping_ratio[j],
+                ground_participation: modes.ground_participation[j],
+            })
+            .collect();
+        let shape: Vec<f64> = modes.shape.iter().flatten().copied().collect();
+        let drift: Vec<f64> = modes.drift.iter().flatten().copied().collect();
+        let mut m = ModalHyst::new(
+            ModalHystParams::new(DT_S, &mm, &shape, 0, k_e, laws, &drift).expect("valid model"),
+        );
+        let mut k = 0usize;
+        let mut target = 0.0;
+        g.bench_function(format!("modal_{file}"), |b| {
+            b.iter(|| {
+                k = (k + 1) % ag.len();
+                target = m
+                    .step(black_box(ag[k]), black_box(k_e * target))
+                    .unwrap_or(0.0);
+                black_box(target)
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, step, metamodel_step, shipped);
 criterion_main!(benches);

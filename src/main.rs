@@ -39,6 +39,8 @@ enum Command {
     Report(cmd::report::Args),
     /// The vRTHS benchmark problem: one case × record with J1-J9, or the whole grid's table.
     Benchmark(cmd::benchmark::Args),
+    /// Score the nonlinear scenarios on held-out records from elastic to past ductility 4.
+    NonlinearStudy(cmd::nonlinear_study::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -56,6 +58,7 @@ fn main() -> std::process::ExitCode {
         Command::Identify(a) => cmd::identify::run(a),
         Command::Robustness(a) => cmd::robustness::run(a),
         Command::Benchmark(a) => cmd::benchmark::run(a),
+        Command::NonlinearStudy(a) => cmd::nonlinear_study::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

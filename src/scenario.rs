@@ -623,8 +623,34 @@ struct Series<'a> {
 
 /// [`figures`] of the series alone.
 fn figures_of(id: ScenarioId, h: &Series<'_>, stop: Stop) -> ScenarioReport {
+    figures_named(id.to_string(), id.uses_rig(), h, stop)
+}
+
+/// The figures of a run of another scenario family (`rths simulate --structure`, docs/nonlinear.md)
+/// from its per-tick series: the same figures as [`figures`], under the name `id`; `measured_mm`
+/// is read only when `uses_rig` (the actuator took part).
+pub fn figures_of_series(
+    id: &str,
+    uses_rig: bool,
+    target_mm: &[f64],
+    command_mm: &[f64],
+    measured_mm: &[f64],
+    reference_mm: &[f64],
+    stop: Stop,
+) -> ScenarioReport {
+    let series = Series {
+        target_mm,
+        command_mm,
+        measured_mm,
+        reference_mm,
+    };
+    figures_named(id.to_string(), uses_rig, &series, stop)
+}
+
+/// [`figures_of`] under any name.
+fn figures_named(id: String, uses_rig: bool, h: &Series<'_>, stop: Stop) -> ScenarioReport {
     let mut r = ScenarioReport {
-        id: id.to_string(),
+        id,
         stable: stop.is_none(),
         stop_reason: stop.as_ref().map(|s| s.0.clone()),
         stop_time_s: stop.as_ref().map(|s| s.1),
@@ -645,7 +671,7 @@ fn figures_of(id: ScenarioId, h: &Series<'_>, stop: Stop) -> ScenarioReport {
     }
     r.nrmse_pct = metrics::nrmse_pct(h.target_mm, h.reference_mm).ok();
     r.peak_disp_mm = Some(metrics::peak_abs(h.command_mm));
-    if id.uses_rig() {
+    if uses_rig {
         r.nrmse_measured_pct = metrics::nrmse_pct(h.measured_mm, h.reference_mm).ok();
         let (m, c, t) = (h.measured_mm, h.command_mm, h.target_mm);
         // Without a compensator the command is the target: the figures against the target are

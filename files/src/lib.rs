@@ -4,6 +4,8 @@
 //! - [`motion`]: ground-motion records (PEER AT2 and two-column CSV), the four shipped records.
 //! - [`model_file`]: the trained-model file schema, its reader and validator. The feature names it
 //!   checks are `rths_core`'s, the order the `no_std` inference takes its coefficients in.
+//! - [`nl_model_file`]: model files of the nonlinear (modal-hysteretic) metamodel, tied to their
+//!   structure file by a checksum.
 //! - [`structure_file`]: structure files (an N-DOF linear analytical part and its specimen).
 //! - [`structure_meta`]: a structure as the controller runs it, and the structure metamodel's file.
 #![forbid(unsafe_code)]
@@ -11,5 +13,6 @@
 
 pub mod model_file;
 pub mod motion;
+pub mod nl_model_file;
 pub mod structure_file;
 pub mod structure_meta;

@@ -6,6 +6,7 @@ pub mod check_model;
 pub mod faults;
 pub mod identify;
 pub mod link;
+pub mod nonlinear_study;
 pub mod plant;
 pub mod report;
 pub mod reproduce;

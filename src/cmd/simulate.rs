@@ -3,7 +3,8 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use rths_core::params::DT_S;
+use rths_core::compensator::LeadAdaptParams;
+use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{BoucWen, Preset, RigConfig, Specimen};
 
 use crate::cmd::analyze::load_motion;
@@ -11,8 +12,12 @@ use crate::cmd::plant::{PresetArg, SpecimenArg};
 use crate::identify::RigFile;
 use crate::model_file::{ModelFile, ModelKind};
 use crate::models;
+use crate::nonlinear::scenario::{
+    self as nl, is_paper_frame, SimScenario, StructureCase, StructureReport,
+};
 use crate::scenario::{self, ScenarioId, ScenarioSetup};
 use crate::study::{self, PlantDraw, StudyJson};
+use rths_files::structure_file::Structure;
 
 /// The board of every `rths simulate` run: the plant is simulated on the host.
 const BOARD: &str = "virtual";
@@ -32,9 +37,16 @@ const DEFAULT_RNN: [(usize, &str); 3] = [
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Scenario: fe-pure, fe-offline, fe-online, fe-online-ats, lr-pure, lr-offline, lr-online,
-    /// rnn-pure-H, rnn-online-H, lrx-online.
+    /// rnn-pure-H, rnn-online-H, lrx-online; with --structure: nl-pure, nl-online, fe-pure,
+    /// fe-online-ats, lr-online, lrx-online.
     #[arg(long)]
-    pub scenario: ScenarioId,
+    pub scenario: SimScenario,
+    /// Structure file (`data/structures/`): run the scenario on this structure and judge it
+    /// against the structure's FE reference (the whole yielding structure for a file with a
+    /// `hysteresis` section, with 10 s of free vibration; docs/nonlinear.md). A file that is the
+    /// paper's linear frame runs exactly as without --structure.
+    #[arg(long, value_name = "FILE.json")]
+    pub structure: Option<PathBuf>,
     /// Ground motion: an AT2/CSV file or an embedded record name (default El Centro).
     #[arg(long, value_name = "PATH|NAME")]
     pub motion: Option<String>,
@@ -163,14 +175,18 @@ fn check_model_rig(
     Ok(())
 }
 
-fn load_model(args: &Args, kind: ModelKind) -> anyhow::Result<ModelFile> {
-    let file = match (&args.model, kind) {
+fn load_model(
+    model: Option<&std::path::Path>,
+    id: ScenarioId,
+    kind: ModelKind,
+) -> anyhow::Result<ModelFile> {
+    let file = match (model, kind) {
         (Some(p), _) => ModelFile::load(p).with_context(|| format!("model {}", p.display()))?,
         (None, ModelKind::Lr) => {
             ModelFile::from_json(DEFAULT_LR).context("the shipped data/models/lr.json")?
         }
         (None, ModelKind::Rnn) => {
-            let h = args.scenario.rnn_hidden().unwrap_or(10);
+            let h = id.rnn_hidden().unwrap_or(10);
             let text = DEFAULT_RNN
                 .iter()
                 .find(|(k, _)| *k == h)
@@ -207,51 +223,43 @@ pub fn print_figures(r: &crate::scenario::ScenarioReport) {
     println!("peak command        {} mm", o(r.peak_disp_mm));
 }
 
-/// Run `rths simulate`.
-pub fn run(args: Args) -> anyhow::Result<()> {
-    let f = args.specimen_stiffness_factor;
-    if !(f.is_finite() && f > 0.0) {
-        anyhow::bail!("--specimen-stiffness-factor must be a positive number, got {f}");
-    }
-    if !(args.scale.is_finite() && args.scale > 0.0) {
-        anyhow::bail!("--scale must be a positive number, got {}", args.scale);
-    }
-    let motion = load_motion(args.motion.as_deref())?;
-    let ag = motion.scaled(args.scale).resample_mm_s2(DT_S);
-    let motion_label = if args.scale == 1.0 {
-        motion.name.clone()
-    } else {
-        format!("{} × {}", motion.name, args.scale)
-    };
-    let preset = match args.preset {
-        PresetArg::Benchmark => Preset::Benchmark,
-        PresetArg::UnrCompact => Preset::UnrCompact,
-    };
-    let specimen = match args.specimen {
-        SpecimenArg::Linear => Specimen::Linear,
-        SpecimenArg::BoucWen => Specimen::BoucWen(BoucWen::default()),
-    };
-    let id = args.scenario;
-    let mut rig = scenario::rig_config(preset, specimen, f, args.seed);
-    rig.uncertainty = args.uncertainty;
-    rig.drift = rths_hal_sim::Drift::over(args.drift, ag.len() as u64);
-    let mut rig_checksum = None;
-    let mut ats_initial = None;
-    if let Some(path) = &args.rig {
-        let file = RigFile::load(path).with_context(|| format!("rig file {}", path.display()))?;
-        file.check(preset.name(), BOARD)
-            .with_context(|| format!("rig file {} refused", path.display()))?;
-        check_rig_plant(&file, &rig, f)
-            .with_context(|| format!("rig file {} refused", path.display()))?;
-        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-        rig_checksum = Some(crate::identify::rig_file::checksum_hex(&bytes));
-        if id == ScenarioId::FeOnlineAts {
-            ats_initial = Some(file.compensation.ats_initial);
-        }
-    }
+/// The metamodels a study scenario runs (none for the FE scenarios), from `--model` or shipped.
+pub struct StudyModels {
+    /// The LR model.
+    pub lr: Option<rths_core::metamodel::LrParams>,
+    /// The RNN model.
+    pub rnn: Option<rths_core::metamodel::RnnParams>,
+    /// The model file's feedback delay, ticks.
+    pub delay: usize,
+    /// The LR coefficients.
+    pub coeffs: Vec<f64>,
+    /// The LR condition number.
+    pub cond: Option<f64>,
+    /// The LRX model and its lead filter.
+    pub lrx: Option<(
+        rths_core::metamodel::LrxParams,
+        rths_core::compensator::LeadParams,
+    )>,
+}
+
+/// The lead filter of the shipped LRX model (`data/models/lrx.json`, fitted on this simulator's
+/// default rig): `nl-online`'s compensation without `--rig`.
+pub fn shipped_lrx_lead() -> anyhow::Result<rths_core::compensator::LeadParams> {
+    let m = ModelFile::from_json(DEFAULT_LRX).context("the shipped data/models/lrx.json")?;
+    Ok(models::lrx_params(&m)?.1)
+}
+
+/// Load and check the model of scenario `id` (`--model` or the shipped one), refused if it was
+/// trained for another rig (`check_model_rig`).
+pub fn study_models(
+    model: Option<&std::path::Path>,
+    id: ScenarioId,
+    preset: Preset,
+    rig_checksum: Option<&str>,
+) -> anyhow::Result<StudyModels> {
     let load = |kind: ModelKind| -> anyhow::Result<ModelFile> {
-        let m = load_model(&args, kind)?;
-        check_model_rig(&m, preset, rig_checksum.as_deref())?;
+        let m = load_model(model, id, kind)?;
+        check_model_rig(&m, preset, rig_checksum)?;
         Ok(m)
     };
     let (mut lr, mut rnn, mut delay, mut coeffs, mut cond) = (None, None, 28, Vec::new(), None);
@@ -279,6 +287,258 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         delay = m.delay_steps;
         rnn = Some(p);
     }
+    Ok(StudyModels {
+        lr,
+        rnn,
+        delay,
+        coeffs,
+        cond,
+        lrx,
+    })
+}
+
+/// The JSON of `rths simulate --structure` (a yielding or non-paper structure).
+#[derive(Debug, serde::Serialize)]
+struct StructureJson {
+    /// The structure file's name.
+    structure: String,
+    /// The record and its scale.
+    motion: String,
+    /// The run's figures (the study's, plus ductility, residual drift and start-up).
+    scenarios: Vec<StructureReport>,
+    /// Why the reference is beyond the actuator (stroke or velocity), if it is.
+    beyond_rig: Option<String>,
+    /// The ATS's initial [a0, a1 (s), a2 (s²)] taken from `--rig` (fe-online-ats only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ats_initial: Option<[f64; 3]>,
+}
+
+/// `rths simulate --structure FILE` for a structure that is not the paper's linear frame.
+fn run_structure(
+    args: &Args,
+    structure: Structure,
+    structure_json: &str,
+    ag: &[f64],
+    motion_label: &str,
+    preset: Preset,
+) -> anyhow::Result<()> {
+    let name = structure.name().to_string();
+    let refuse = |flag: &str| {
+        anyhow::anyhow!(
+            "{flag} is not supported with --structure (the structure file's specimen is linear \
+             and nominal; the reference is that structure)"
+        )
+    };
+    if args.uncertainty {
+        return Err(refuse("--uncertainty"));
+    }
+    if !matches!(args.specimen, SpecimenArg::Linear) {
+        return Err(refuse("--specimen bouc-wen"));
+    }
+    if args.specimen_stiffness_factor != 1.0 {
+        return Err(refuse("--specimen-stiffness-factor"));
+    }
+    if args.drift != 0.0 {
+        return Err(refuse("--drift"));
+    }
+    let sc = args.scenario;
+    nl::check_applies(sc, &structure)?;
+    let case = StructureCase::new(structure, ag)?;
+    let rig = case.rig(preset, args.seed);
+    let mut ats_initial = None;
+    let mut rig_checksum = None;
+    let mut rig_lead = None;
+    if let Some(path) = &args.rig {
+        let file = RigFile::load(path).with_context(|| format!("rig file {}", path.display()))?;
+        file.check(preset.name(), BOARD)
+            .with_context(|| format!("rig file {} refused", path.display()))?;
+        check_rig_plant(&file, &rig, case.rig_specimen_factor())
+            .with_context(|| format!("rig file {} refused", path.display()))?;
+        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        rig_checksum = Some(crate::identify::rig_file::checksum_hex(&bytes));
+        if sc == SimScenario::Study(ScenarioId::FeOnlineAts) {
+            ats_initial = Some(file.compensation.ats_initial);
+        }
+        rig_lead = Some(
+            file.lead_params()?
+                .with_adaptation(Some(LeadAdaptParams::new(
+                    crate::train::lrx::RIG_LEAD_ADAPT_TICKS,
+                )?)),
+        );
+    }
+    let models = match sc {
+        SimScenario::Study(id @ (ScenarioId::LrOnline | ScenarioId::LrxOnline)) => Some(
+            study_models(args.model.as_deref(), id, preset, rig_checksum.as_deref())?,
+        ),
+        _ => None,
+    };
+    // nl-online's lead: the rig file's identified one, else the shipped LRX's (fitted on this
+    // simulator's default rig).
+    let lead = match (sc, rig_lead) {
+        (SimScenario::NlOnline, Some(l)) => Some(l),
+        (SimScenario::NlOnline, None) => Some(shipped_lrx_lead()?),
+        _ => None,
+    };
+    let mut learned = match sc {
+        SimScenario::NlPure | SimScenario::NlOnline => Some(
+            crate::nonlinear::model::for_structure(args.model.as_deref(), &name, structure_json)?,
+        ),
+        _ => None,
+    };
+    let (report, series) = nl::run_scenario(
+        &case,
+        sc,
+        nl::ScenarioInputs {
+            preset,
+            seed: args.seed,
+            ats_initial,
+            lead,
+            lr: models.as_ref().and_then(|m| m.lr),
+            lrx: models.as_ref().and_then(|m| m.lrx),
+            delay_steps: models.as_ref().map_or(PAPER_DELAY_STEPS, |m| m.delay),
+            nl_model: learned.as_mut().map(|m| m as &mut dyn nl::StructureModel),
+        },
+    )?;
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let run = scenario::ScenarioRun {
+            report: report.report.clone(),
+            history: nl::history(&case, &series),
+        };
+        run.history.write_csv(&dir.join("history.csv"))?;
+        study::plot_run(
+            &run,
+            &dir.join(format!("{sc}.png")),
+            &format!("{sc} ({motion_label}, structure {name}, {})", preset.name()),
+        )?;
+    }
+    let beyond_rig = if sc.uses_rig() {
+        case.beyond_rig()
+    } else {
+        None
+    };
+    if args.json {
+        let json = StructureJson {
+            structure: name,
+            motion: motion_label.to_string(),
+            scenarios: vec![report],
+            beyond_rig,
+            ats_initial,
+        };
+        println!("{}", serde_json::to_string(&json)?);
+        return Ok(());
+    }
+    let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
+    println!(
+        "scenario            {sc} ({motion_label}, structure {name}, {}, seed {})",
+        preset.name(),
+        args.seed
+    );
+    if let Some(why) = &beyond_rig {
+        println!("beyond the rig      {why}");
+    }
+    print_figures(&report.report);
+    let f = &report.figures;
+    println!(
+        "peak ductility      {} reference, {} run (all stories); specimen story {} reference",
+        o(f.peak_ductility),
+        o(f.peak_ductility_model),
+        o(f.peak_ductility_specimen_story)
+    );
+    match f.residual_drift_mm {
+        Some(r) => println!(
+            "residual drift      story {}: {:.4} mm reference, {:.4} mm run (error {} %)",
+            r.story,
+            r.reference,
+            r.model,
+            o(f.residual_drift_error_pct)
+        ),
+        None => println!("residual drift      —"),
+    }
+    println!(
+        "start-up ratio      {} (RMS error first 2 s / after)",
+        o(f.startup_error_ratio)
+    );
+    if let Some(dir) = &args.out {
+        println!("wrote {}", dir.join("history.csv").display());
+        println!("wrote {}", dir.join(format!("{sc}.png")).display());
+    }
+    Ok(())
+}
+
+/// Run `rths simulate`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let f = args.specimen_stiffness_factor;
+    if !(f.is_finite() && f > 0.0) {
+        anyhow::bail!("--specimen-stiffness-factor must be a positive number, got {f}");
+    }
+    if !(args.scale.is_finite() && args.scale > 0.0) {
+        anyhow::bail!("--scale must be a positive number, got {}", args.scale);
+    }
+    let motion = load_motion(args.motion.as_deref())?;
+    let ag = motion.scaled(args.scale).resample_mm_s2(DT_S);
+    let motion_label = if args.scale == 1.0 {
+        motion.name.clone()
+    } else {
+        format!("{} × {}", motion.name, args.scale)
+    };
+    let preset = match args.preset {
+        PresetArg::Benchmark => Preset::Benchmark,
+        PresetArg::UnrCompact => Preset::UnrCompact,
+    };
+    let specimen = match args.specimen {
+        SpecimenArg::Linear => Specimen::Linear,
+        SpecimenArg::BoucWen => Specimen::BoucWen(BoucWen::default()),
+    };
+    let structure = match &args.structure {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("reading structure file {}", p.display()))?;
+            let s = Structure::from_json(&text)
+                .with_context(|| format!("structure file {}", p.display()))?;
+            Some((s, text))
+        }
+        None => None,
+    };
+    let id = match (args.scenario, structure) {
+        // The paper's linear frame *is* the study's structure: the same run, bit for bit.
+        (SimScenario::Study(id), Some((s, _)))
+            if is_paper_frame(&s) && s.story_laws().is_none() =>
+        {
+            id
+        }
+        (_, Some((s, text))) => return run_structure(&args, s, &text, &ag, &motion_label, preset),
+        (SimScenario::Study(id), None) => id,
+        (other, None) => anyhow::bail!(
+            "{other} runs the learned model of a structure's numerical part: give --structure \
+             FILE (a structure with yielding stories) and --model M.json"
+        ),
+    };
+    let mut rig = scenario::rig_config(preset, specimen, f, args.seed);
+    rig.uncertainty = args.uncertainty;
+    rig.drift = rths_hal_sim::Drift::over(args.drift, ag.len() as u64);
+    let mut rig_checksum = None;
+    let mut ats_initial = None;
+    if let Some(path) = &args.rig {
+        let file = RigFile::load(path).with_context(|| format!("rig file {}", path.display()))?;
+        file.check(preset.name(), BOARD)
+            .with_context(|| format!("rig file {} refused", path.display()))?;
+        check_rig_plant(&file, &rig, f)
+            .with_context(|| format!("rig file {} refused", path.display()))?;
+        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+        rig_checksum = Some(crate::identify::rig_file::checksum_hex(&bytes));
+        if id == ScenarioId::FeOnlineAts {
+            ats_initial = Some(file.compensation.ats_initial);
+        }
+    }
+    let StudyModels {
+        lr,
+        rnn,
+        delay,
+        coeffs,
+        cond,
+        lrx,
+    } = study_models(args.model.as_deref(), id, preset, rig_checksum.as_deref())?;
     // The evaluation knows the specimen the plant really has; a pure run has no plant, so its
     // reference stays the configured structure. The analytical parts keep F (`fe-pure` and
     // `fe-offline` are analyses of the structure as configured: nobody knows the draw before the test).

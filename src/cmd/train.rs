@@ -22,6 +22,10 @@ pub enum Kind {
     /// The structure metamodel of a structure file's numerical part (`--structure`): a delta-form
     /// ARX of order 6 at the specimen's DOF, constant cost per tick whatever N is.
     Meta,
+    /// Nonlinear (modal-hysteretic) metamodel of a yielding structure (`--structure`), CMA-ES on
+    /// FE runs of northridge and loma-prieta at peak ductility 0.7, 2, 4, 6 (never El Centro,
+    /// Kobe or Morgan Hill, the scoring records). docs/nonlinear.md.
+    Nonlinear,
 }
 
 /// RNN initialization.
@@ -31,6 +35,17 @@ pub enum RnnInitArg {
     Arx,
     /// Seeded random weights.
     Random,
+}
+
+/// The nonlinear metamodel's spring family.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum NlLawArg {
+    /// Train bilinear and Bouc–Wen springs, keep the lower training loss.
+    Auto,
+    /// Bilinear kinematic hardening.
+    Bilinear,
+    /// Bouc–Wen.
+    BoucWen,
 }
 
 /// Arguments of `rths train`.
@@ -112,12 +127,30 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
-    /// `meta`: the structure file whose numerical part the metamodel stands for.
+    /// `meta`: the structure file whose numerical part the metamodel stands for; `nonlinear`:
+    /// the structure file with yielding stories.
     #[arg(long, value_name = "FILE")]
     pub structure: Option<PathBuf>,
     /// `meta`: the controller rate it runs at, Hz (2048 or 4096; default: this build's).
     #[arg(long, value_name = "HZ")]
     pub rate: Option<u32>,
+    /// Nonlinear: training records (embedded name or file), repeatable; default northridge and
+    /// loma-prieta. Scoring records are refused.
+    #[arg(long = "records", value_name = "NAME")]
+    pub nl_records: Vec<String>,
+    /// Nonlinear: CMA-ES generations.
+    #[arg(long, default_value_t = 150)]
+    pub generations: usize,
+    /// Nonlinear: the latent springs' law family (`auto`: train both, keep the lower loss).
+    #[arg(long, value_enum, default_value_t = NlLawArg::Auto)]
+    pub law: NlLawArg,
+    /// Nonlinear: modes kept (default: as many as the structure's DOFs).
+    #[arg(long)]
+    pub modes: Option<usize>,
+    /// Nonlinear: do not train; evaluate the model file at --out against the FE reference on the
+    /// scoring records (El Centro, Kobe, Morgan Hill) at peak ductility 0.8, 2 and 4.5 (pure loop).
+    #[arg(long)]
+    pub evaluate: bool,
     /// Output model file (JSON).
     #[arg(long)]
     pub out: PathBuf,
@@ -242,6 +275,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.kind == Kind::Meta {
         return train_meta(&args);
     }
+    if args.kind == Kind::Nonlinear {
+        return train_nonlinear(&args);
+    }
     let prototype = Prototype::paper();
     let k_b = prototype.brace_axial_stiffness_kn_per_mm();
     let motion = match &args.motion {
@@ -350,6 +386,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         Kind::Lrx => return train_lrx(&args),
         Kind::Meta => return train_meta(&args),
+        Kind::Nonlinear => return train_nonlinear(&args),
     };
     file.training.records = response.len();
     file.save(&args.out)
@@ -400,6 +437,154 @@ fn train_meta(args: &Args) -> anyhow::Result<()> {
         structure.dofs(),
         structure.specimen_dof() + 1,
         args.out.display()
+    );
+    Ok(())
+}
+
+// ---- `rths train nonlinear` (issue 16) ----
+
+fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
+    use crate::train::nonlinear::{train, NlTrainConfig, SpringLaw};
+    let path = args
+        .structure
+        .as_ref()
+        .context("rths train nonlinear needs --structure FILE.json")?;
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    if args.evaluate {
+        return evaluate_nonlinear(args, path, &text);
+    }
+    let mut cfg = NlTrainConfig::new(args.seed)?;
+    if !args.nl_records.is_empty() {
+        cfg.records = args
+            .nl_records
+            .iter()
+            .map(|n| crate::cmd::analyze::load_motion(Some(n)))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+    }
+    cfg.generations = args.generations;
+    cfg.modes = args.modes;
+    cfg.laws = match args.law {
+        NlLawArg::Auto => vec![SpringLaw::Bilinear, SpringLaw::BoucWen],
+        NlLawArg::Bilinear => vec![SpringLaw::Bilinear],
+        NlLawArg::BoucWen => vec![SpringLaw::BoucWen],
+    };
+    let bar = if args.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(cfg.generations as u64)
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} generations, best loss {msg}",
+        )
+        .context("progress bar template")?,
+    );
+    bar.set_length((cfg.generations * cfg.laws.len()) as u64);
+    let t = train(&text, &cfg, |g, _, l| {
+        bar.set_position(g as u64);
+        bar.set_message(format!("{l:.3}%"));
+    })?;
+    bar.finish_and_clear();
+    let tr = &t.file.training;
+    println!(
+        "modal-hysteretic model of {} ({} modes, {} springs), seed {}: CMA-ES {} generations × {}",
+        t.file.structure.name,
+        t.file.modes.len(),
+        t.file.springs.len(),
+        tr.seed,
+        tr.generations,
+        tr.population
+    );
+    println!(
+        "  {} springs; loss (mean floor NRMSE over the runs): initial {:.3}%, trained {:.3}%",
+        t.file.springs.first().map_or("?", |s| s.law.as_str()),
+        tr.initial_loss_pct,
+        tr.final_loss_pct
+    );
+    for (label, mu, e) in &t.runs {
+        println!("  {label:<24} ductility {mu:5.2}  specimen-DOF pure-loop NRMSE {e:.3}%");
+    }
+    for (k, s) in t.file.springs.iter().enumerate() {
+        println!(
+            "  spring {}: fy {:.1} kN, k0 {:.2} kN/mm, α {:.3}, n {:.2}, β {:.3}, γ {:.3}",
+            k + 1,
+            s.yield_force_kn,
+            s.k0_kn_per_mm,
+            s.post_yield_ratio,
+            s.exponent,
+            s.beta,
+            s.gamma
+        );
+    }
+    println!("  wall time: {:.1} s", t.wall_time_s);
+    t.file
+        .save(&args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    println!("wrote {}", args.out.display());
+    Ok(())
+}
+
+/// The scoring records of the nonlinear metamodel (embedded name or shipped file).
+const NL_SCORING: [&str; 3] = ["el-centro", "kobe", "data/vrths_benchmark/morgan.csv"];
+/// The peak ductilities it is scored at.
+const NL_SCORING_DUCTILITIES: [f64; 3] = [0.8, 2.0, 4.5];
+
+fn evaluate_nonlinear(args: &Args, path: &std::path::Path, text: &str) -> anyhow::Result<()> {
+    use rayon::prelude::*;
+    let file = rths_files::nl_model_file::NlModelFile::load(&args.out)?;
+    file.check_structure(text)
+        .with_context(|| format!("model {} for {}", args.out.display(), path.display()))?;
+    let s = rths_files::structure_file::Structure::from_json(text)?;
+    let motions = NL_SCORING
+        .iter()
+        .map(|n| crate::cmd::analyze::load_motion(Some(n)))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let jobs: Vec<(&crate::motion::GroundMotion, f64)> = motions
+        .iter()
+        .flat_map(|m| NL_SCORING_DUCTILITIES.iter().map(move |d| (m, *d)))
+        .collect();
+    let rows = jobs
+        .par_iter()
+        .map(|(m, d)| {
+            let scale = crate::train::nonlinear::runs::scale_for_ductility(&s, m, *d, DT_S)?;
+            crate::train::nonlinear::eval::evaluate(&file, &s, m, scale, DT_S)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    println!(
+        "pure loop of {} on {} (FE reference, {} Hz):",
+        args.out.display(),
+        s.name(),
+        (1.0 / DT_S).round()
+    );
+    println!("| run | ductility FE / model | NRMSE (%) | residual drift FE / model (mm) | first 2 s / rest RMS error (%) |");
+    println!("|---|---|---|---|---|");
+    let mut e: Vec<f64> = Vec::new();
+    for r in &rows {
+        let res = |v: &[f64]| {
+            v.iter()
+                .map(|x| format!("{x:.3}"))
+                .collect::<Vec<_>>()
+                .join(" / ")
+        };
+        println!(
+            "| {} | {:.2} / {:.2} | {:.3} | {} vs {} | {:.3} / {:.3} |",
+            r.label,
+            r.ductility_ref,
+            r.ductility_model,
+            r.nrmse_pct,
+            res(&r.residual_ref_mm),
+            res(&r.residual_model_mm),
+            r.startup_rms_pct,
+            r.rest_rms_pct
+        );
+        e.push(r.nrmse_pct);
+    }
+    e.sort_by(f64::total_cmp);
+    println!(
+        "NRMSE median {:.3}%, max {:.3}%",
+        e.get(e.len() / 2).copied().unwrap_or(f64::NAN),
+        e.last().copied().unwrap_or(f64::NAN)
     );
     Ok(())
 }

@@ -3,7 +3,10 @@
 //! with the story forces evaluated each step), its peak ductility and residual drift, and the
 //! hysteresis plot (`rths analyze --structure`; docs/nonlinear.md).
 
+pub mod model;
 pub mod plot;
+pub mod scenario;
+pub mod study;
 
 use anyhow::Context;
 use rths_core::metrics::nrmse_pct;

@@ -1,11 +1,13 @@
 //! Offline training of the metamodels (docs/design.md §5): training data from the pure finite-element response
 //! ([`data`]), the linear regression fitted by SVD least squares ([`lr`]) and the Elman RNN trained by
-//! truncated BPTT with Adam ([`rnn`]). The results are written as [`crate::model_file::ModelFile`]s.
+//! truncated BPTT with Adam ([`rnn`]), the nonlinear modal-hysteretic model by CMA-ES on FE runs of a
+//! yielding structure ([`nonlinear`]). The results are written as [`crate::model_file::ModelFile`]s.
 
 pub mod data;
 pub mod lr;
 pub mod lrx;
 pub mod lstsq;
+pub mod nonlinear;
 pub mod rnn;
 
 use rths_core::metrics::MetricError;

@@ -18,11 +18,13 @@ use crate::params::ParamError;
 mod delta_arx;
 mod lr;
 mod lrx;
+mod modal_hyst;
 mod rnn;
 
 pub use delta_arx::*;
 pub use lr::*;
 pub use lrx::*;
+pub use modal_hyst::*;
 pub use rnn::*;
 
 /// A model whose shape or values failed validation.

@@ -1,0 +1,103 @@
+//! The learned model of a structure's numerical part (`rths train nonlinear`: the
+//! modal-hysteretic metamodel, `rths_core::metamodel::ModalHyst`) as a [`StructureModel`] of the
+//! structure scenarios, loaded for one structure file and refused for another.
+
+use std::path::Path;
+
+use anyhow::Context;
+use rths_core::control::StepError;
+use rths_core::metamodel::ModalHyst;
+use rths_core::params::DT_S;
+use rths_core::structure_n::{Dofs, MAX_DOF};
+use rths_files::nl_model_file::NlModelFile;
+
+use super::scenario::StructureModel;
+
+/// A learned model in the controller's contract (tick 0 is the initial condition, as the FE's).
+#[derive(Debug, Clone)]
+pub struct LearnedModel {
+    model: Box<ModalHyst>,
+    floors: usize,
+    started: bool,
+}
+
+impl LearnedModel {
+    /// The model file `file` for the structure file whose text is `structure_json`: refused with
+    /// the reason unless it was trained for that structure (name and checksum of its content).
+    pub fn new(file: &NlModelFile, structure_json: &str) -> anyhow::Result<Self> {
+        file.check_structure(structure_json)?;
+        // The parameters are continuous-time: built for this build's controller step.
+        let p = file.params(DT_S)?;
+        Ok(Self {
+            floors: p.floors(),
+            model: Box::new(ModalHyst::new(p)),
+            started: false,
+        })
+    }
+
+    /// [`Self::new`] from the model file at `path`.
+    pub fn load(path: &Path, structure_json: &str) -> anyhow::Result<Self> {
+        let file = NlModelFile::load(path).with_context(|| format!("model {}", path.display()))?;
+        Self::new(&file, structure_json)
+            .with_context(|| format!("model {} refused", path.display()))
+    }
+}
+
+impl StructureModel for LearnedModel {
+    fn step(&mut self, ag: f64, specimen_force_kn: f64) -> Result<f64, StepError> {
+        if !ag.is_finite() {
+            return Err(StepError::NonFiniteGroundAccel);
+        }
+        if !self.started {
+            self.model.reset_at(ag);
+            self.started = true;
+            return Ok(self.model.target_mm());
+        }
+        self.model
+            .step(ag, specimen_force_kn)
+            .map_err(|_| StepError::NonFiniteOutput)
+    }
+
+    fn reset(&mut self) {
+        self.model.reset();
+        self.started = false;
+    }
+
+    fn story_drift_mm(&self) -> Option<Dofs> {
+        let mut d = [0.0; MAX_DOF];
+        for (i, di) in d.iter_mut().enumerate().take(self.floors) {
+            *di = self.model.story_drift_mm(i);
+        }
+        Some(d)
+    }
+}
+
+/// The shipped learned models (`data/models/nl-S.json`, `rths train nonlinear`), by the name
+/// of the structure they were trained for.
+pub const SHIPPED: [(&str, &str); 1] = [(
+    "paper-frame-yielding",
+    include_str!("../../data/models/nl-paper-frame-yielding.json"),
+)];
+
+/// The learned model of the structure named `name` whose file's text is `structure_json`: the
+/// model file at `path` if given, else the shipped one for that name. Refused with the reason if
+/// there is none or it was trained for another structure (name and checksum).
+pub fn for_structure(
+    path: Option<&Path>,
+    name: &str,
+    structure_json: &str,
+) -> anyhow::Result<LearnedModel> {
+    if let Some(p) = path {
+        return LearnedModel::load(p, structure_json);
+    }
+    let Some((_, text)) = SHIPPED.iter().find(|(n, _)| *n == name) else {
+        anyhow::bail!(
+            "no shipped learned model of structure {name}: give --model M.json (`rths train \
+             nonlinear --structure FILE --out M.json`)"
+        );
+    };
+    let file = NlModelFile::from_json(text)
+        .with_context(|| format!("the shipped data/models/nl-{name}.json"))?;
+    LearnedModel::new(&file, structure_json)
+        .with_context(|| format!("the shipped data/models/nl-{name}.json refused"))
+}

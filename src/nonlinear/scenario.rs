@@ -1,0 +1,793 @@
+//! `rths simulate --structure FILE`: the hybrid-simulation scenarios of a structure file, judged
+//! against that structure's FE reference (the whole nonlinear structure for a file with yielding
+//! stories; docs/nonlinear.md, "Scenarios").
+//!
+//! - `fe-pure`, `fe-online-ats`: the structure's own numerical part ([`NonlinearFrame`] for a
+//!   yielding file, [`ChangN`] for a linear one) takes the specimen force at the specimen DOF each
+//!   tick; pure (the linear specimen at the model's own displacement, no plant) or on the virtual
+//!   plant with the paper's ATS.
+//! - `nl-pure`, `nl-online`: a learned model of the numerical part (any [`StructureModel`]) in the
+//!   same two loops; online with a lead filter (the rig file's, or the shipped LRX's).
+//! - `lr-online`, `lrx-online`: the shipped *linear* metamodels of the paper's frame, run exactly as
+//!   `rths simulate` runs them, only judged against the nonlinear reference (they must fail
+//!   visibly once the frame yields). Only for a file that *is* the paper's frame.
+//!
+//! What the controller sees: ground acceleration, measured (noisy, quantized) displacement and
+//! force. The reference (whole structure, noise-free) is used only by the scoring ([`score`]).
+//!
+//! Coordinates: the series (`target_mm`, `reference_mm`, ...) are actuator displacements. A file
+//! that is the paper's frame ([`is_paper_frame`]) is tested with the paper's brace (axial: the DOF's
+//! displacement × cos θ, the same rig as `rths simulate` without `--structure`); any other file's
+//! specimen is tested along its DOF (cos θ = 1).
+
+use std::fmt;
+use std::str::FromStr;
+
+use anyhow::Context;
+use rths_core::compensator::{Ats, Compensator, Lead, LeadParams};
+use rths_core::control::StepError;
+use rths_core::hal::{Actuator, Daq, Error as _, Sample};
+use rths_core::metamodel::{LrParams, LrxParams};
+use rths_core::metrics;
+use rths_core::model::Model;
+use rths_core::params::{
+    Prototype, SpecimenScale, BRACE_AXIAL_STIFFNESS_KN_PER_MM, DT_S, PAPER_DELAY_STEPS,
+};
+use rths_core::structure_n::{ChangN, Dofs, MAX_DOF};
+use rths_core::structure_nl::NonlinearFrame;
+use rths_core::supervisor::{Limits, State, Supervisor};
+use rths_files::structure_file::Structure;
+use rths_hal_sim::{Preset, RigConfig, Specimen, VirtualRig};
+use serde::Serialize;
+
+use super::{elastic_drifts, fe_reference, NlResponse, FREE_VIBRATION_S};
+use crate::scenario::{self, ScenarioId, ScenarioReport, ScenarioSetup, Stop};
+
+/// The start-up window of [`StructureFigures::startup_error_ratio`], s (the issue's "first 2 s").
+pub const STARTUP_WINDOW_S: f64 = 2.0;
+/// Relative tolerance on the paper frame's parameters for [`is_paper_frame`]: the shipped file
+/// gives them to 9 significant digits.
+pub const PAPER_FRAME_TOLERANCE: f64 = 1e-9;
+
+/// A scenario of `rths simulate`: one of the study's, or a learned model of a structure file's
+/// numerical part (`nl-pure`, `nl-online`; `--structure` only).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum SimScenario {
+    /// A scenario of the study (docs/design.md §7).
+    Study(ScenarioId),
+    /// The structure's learned model alone (the linear specimen at its own displacement).
+    NlPure,
+    /// The structure's learned model in the hybrid loop on the virtual plant.
+    NlOnline,
+}
+
+impl SimScenario {
+    /// Does the actuator take part?
+    pub fn uses_rig(self) -> bool {
+        match self {
+            SimScenario::Study(id) => id.uses_rig(),
+            SimScenario::NlPure => false,
+            SimScenario::NlOnline => true,
+        }
+    }
+}
+
+impl fmt::Display for SimScenario {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SimScenario::Study(id) => id.fmt(f),
+            SimScenario::NlPure => f.write_str("nl-pure"),
+            SimScenario::NlOnline => f.write_str("nl-online"),
+        }
+    }
+}
+
+/// An unknown scenario name.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}; with --structure also nl-pure, nl-online")]
+pub struct UnknownSimScenario(scenario::UnknownScenario);
+
+impl FromStr for SimScenario {
+    type Err = UnknownSimScenario;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "nl-pure" => Ok(SimScenario::NlPure),
+            "nl-online" => Ok(SimScenario::NlOnline),
+            _ => ScenarioId::from_str(s)
+                .map(SimScenario::Study)
+                .map_err(UnknownSimScenario),
+        }
+    }
+}
+
+/// The scenarios `--structure` runs (docs/nonlinear.md), in report order.
+pub const STRUCTURE_SCENARIOS: [SimScenario; 6] = [
+    SimScenario::NlPure,
+    SimScenario::NlOnline,
+    SimScenario::Study(ScenarioId::FePure),
+    SimScenario::Study(ScenarioId::FeOnlineAts),
+    SimScenario::Study(ScenarioId::LrOnline),
+    SimScenario::Study(ScenarioId::LrxOnline),
+];
+
+/// The numerical part of a structure run, as the controller steps it: the same contract as the
+/// FE of the paper's frame (`rths_core::control::FeModel`).
+pub trait StructureModel {
+    /// Tick k: complete step k with `ü_g(k)` (mm/s²) and the specimen's force at `d_k` on the
+    /// specimen DOF (kN, prototype, along the DOF), and return `d_{k+1}` at the specimen DOF, mm.
+    /// At tick 0 the structure is at rest: step 0 is the initial condition.
+    fn step(&mut self, ground_accel_mm_s2: f64, specimen_force_kn: f64) -> Result<f64, StepError>;
+    /// Back to rest.
+    fn reset(&mut self);
+    /// Story drifts at the last completed step (after [`Self::step`] of tick k: at `d_k`), mm,
+    /// if the model has them (else the run is scored at the specimen's story alone).
+    fn story_drift_mm(&self) -> Option<Dofs> {
+        None
+    }
+}
+
+/// The finite elements of a structure file's numerical part: yielding stories ([`NonlinearFrame`])
+/// or linear ([`ChangN`]).
+#[derive(Debug, Clone)]
+pub struct StructureFe {
+    integ: FeIntegrator,
+    dof: usize,
+    started: bool,
+}
+
+#[derive(Debug, Clone)]
+enum FeIntegrator {
+    Linear(Box<ChangN>),
+    Nonlinear(Box<NonlinearFrame>),
+}
+
+impl StructureFe {
+    /// The numerical part of `structure` at the controller's step.
+    pub fn new(structure: &Structure) -> anyhow::Result<Self> {
+        let integ = if structure.story_laws().is_some() {
+            FeIntegrator::Nonlinear(Box::new(structure.nonlinear_numerical(DT_S)?))
+        } else {
+            FeIntegrator::Linear(Box::new(ChangN::new(structure.numerical()?, DT_S)?))
+        };
+        Ok(Self {
+            integ,
+            dof: structure.specimen_dof(),
+            started: false,
+        })
+    }
+}
+
+impl StructureModel for StructureFe {
+    fn step(&mut self, ag: f64, specimen_force_kn: f64) -> Result<f64, StepError> {
+        if !ag.is_finite() {
+            return Err(StepError::NonFiniteGroundAccel);
+        }
+        if !specimen_force_kn.is_finite() {
+            return Err(StepError::NonFiniteOutput);
+        }
+        let mut r = [0.0; MAX_DOF];
+        if let Some(ri) = r.get_mut(self.dof) {
+            *ri = specimen_force_kn;
+        }
+        let next = match &mut self.integ {
+            FeIntegrator::Linear(c) => {
+                if self.started {
+                    c.advance(ag, &r);
+                } else {
+                    c.reset(ag);
+                }
+                c.next_displacement()
+            }
+            FeIntegrator::Nonlinear(f) => {
+                if self.started {
+                    f.advance(ag, &r);
+                } else {
+                    f.reset(ag);
+                }
+                f.next_displacement()
+            }
+        };
+        self.started = true;
+        let d = next.get(self.dof).copied().unwrap_or(f64::NAN);
+        if d.is_finite() {
+            Ok(d)
+        } else {
+            Err(StepError::NonFiniteOutput)
+        }
+    }
+
+    fn reset(&mut self) {
+        match &mut self.integ {
+            FeIntegrator::Linear(c) => c.reset(0.0),
+            FeIntegrator::Nonlinear(f) => f.reset(0.0),
+        }
+        self.started = false;
+    }
+
+    fn story_drift_mm(&self) -> Option<Dofs> {
+        Some(match &self.integ {
+            FeIntegrator::Linear(c) => {
+                let mut d = [0.0; MAX_DOF];
+                let mut below = 0.0;
+                for (di, xi) in d.iter_mut().zip(c.disp()).take(c.model().dofs()) {
+                    *di = xi - below;
+                    below = *xi;
+                }
+                d
+            }
+            FeIntegrator::Nonlinear(f) => f.story_drift_mm(),
+        })
+    }
+}
+
+/// Is `s` the paper's frame (one DOF, the prototype's mass, stiffnesses and damping within
+/// [`PAPER_FRAME_TOLERANCE`], a massless undamped specimen)? Such a file is tested with the paper's
+/// brace, and a linear one *is* `rths simulate` without `--structure`.
+pub fn is_paper_frame(s: &Structure) -> bool {
+    let p = Prototype::paper();
+    let close = |a: f64, b: f64| (a - b).abs() <= PAPER_FRAME_TOLERANCE * b.abs();
+    let (m_e, k_e, c_e) = s.specimen();
+    s.dofs() == 1
+        && s.specimen_dof() == 0
+        && m_e == 0.0
+        && c_e == 0.0
+        && close(s.mass()[(0, 0)], p.mass_kn_s2_per_mm())
+        && close(s.stiffness()[(0, 0)], p.total_stiffness_kn_per_mm())
+        && close(k_e, p.brace_lateral_stiffness_kn_per_mm())
+        && close(s.damping()[(0, 0)], p.damping_kn_s_per_mm())
+}
+
+/// A structure, a record and its reference: what every scenario of one row shares.
+#[derive(Debug, Clone)]
+pub struct StructureCase {
+    /// The validated structure.
+    pub structure: Structure,
+    /// The paper's frame ([`is_paper_frame`]).
+    pub paper: bool,
+    /// cos θ between the specimen DOF and the actuator (the paper's brace, or 1).
+    pub cos_theta: f64,
+    /// Ground acceleration at every tick, the record then [`FREE_VIBRATION_S`] of zeros, mm/s².
+    pub ground_accel_mm_s2: Vec<f64>,
+    /// The whole structure's response (noise-free; evaluation only).
+    pub reference: NlResponse,
+    /// The reference at the specimen DOF in actuator coordinates, mm (evaluation only).
+    pub reference_mm: Vec<f64>,
+}
+
+impl StructureCase {
+    /// The structure under `record_mm_s2` (sampled at the controller's step) and its reference.
+    pub fn new(structure: Structure, record_mm_s2: &[f64]) -> anyhow::Result<Self> {
+        if record_mm_s2.is_empty() {
+            anyhow::bail!("the ground motion is empty");
+        }
+        let paper = is_paper_frame(&structure);
+        let cos_theta = if paper {
+            Prototype::paper().cos_theta()
+        } else {
+            1.0
+        };
+        let reference = if structure.story_laws().is_some() {
+            fe_reference(&structure, record_mm_s2, DT_S)?
+        } else {
+            linear_reference(&structure, record_mm_s2)?
+        };
+        let mut ag = record_mm_s2.to_vec();
+        ag.resize(reference.time_s.len(), 0.0);
+        let dof = structure.specimen_dof();
+        let reference_mm = (0..ag.len())
+            .map(|k| {
+                let floor: f64 = reference.story_drift_mm[..=dof].iter().map(|d| d[k]).sum();
+                floor * cos_theta
+            })
+            .collect();
+        Ok(Self {
+            structure,
+            paper,
+            cos_theta,
+            ground_accel_mm_s2: ag,
+            reference,
+            reference_mm,
+        })
+    }
+
+    /// The specimen's lateral stiffness at its DOF, kN/mm.
+    fn specimen_k_kn_per_mm(&self) -> f64 {
+        self.structure.specimen().1
+    }
+
+    /// The virtual plant of a hybrid run: `preset` with this structure's specimen at specimen
+    /// scale (the paper's brace for the paper's frame, exactly `rths simulate`'s rig), sensor
+    /// noise `seed`.
+    pub fn rig(&self, preset: Preset, seed: u64) -> RigConfig {
+        scenario::rig_config(preset, Specimen::Linear, self.rig_specimen_factor(), seed)
+    }
+
+    /// The rig's specimen stiffness over the paper's brace: 1 for the paper's frame; along the
+    /// DOF (cos θ = 1) the structure's lateral spring.
+    pub fn rig_specimen_factor(&self) -> f64 {
+        if self.paper {
+            1.0
+        } else {
+            self.specimen_k_kn_per_mm() / BRACE_AXIAL_STIFFNESS_KN_PER_MM
+        }
+    }
+
+    /// Why the reference is beyond what the rig can do (stroke, velocity), if it is: its hybrid
+    /// runs will be stopped by the supervisor.
+    pub fn beyond_rig(&self) -> Option<String> {
+        let lim = Limits::paper_actuator();
+        let peak = metrics::peak_abs(&self.reference_mm);
+        let vel = self
+            .reference_mm
+            .windows(2)
+            .map(|w| (w[1] - w[0]).abs() / DT_S)
+            .fold(0.0, f64::max);
+        if peak > lim.stroke_mm() {
+            Some(format!(
+                "the reference asks {peak:.1} mm of the actuator, its stroke is ±{:.1} mm",
+                lim.stroke_mm()
+            ))
+        } else if vel > lim.velocity_mm_s() {
+            Some(format!(
+                "the reference asks {vel:.0} mm/s of the actuator, its limit is {:.0} mm/s",
+                lim.velocity_mm_s()
+            ))
+        } else {
+            None
+        }
+    }
+}
+
+/// The linear whole structure's response (Chang, as [`elastic_drifts`]) over the record and the
+/// free vibration: the reference of a linear file.
+fn linear_reference(structure: &Structure, record_mm_s2: &[f64]) -> anyhow::Result<NlResponse> {
+    let free = (FREE_VIBRATION_S / DT_S) as usize;
+    let total = record_mm_s2.len() + free;
+    let mut r = NlResponse {
+        time_s: (0..total).map(|i| i as f64 * DT_S).collect(),
+        ground_accel_mm_s2: (0..total)
+            .map(|i| record_mm_s2.get(i).copied().unwrap_or(0.0))
+            .collect(),
+        story_drift_mm: Vec::new(),
+        story_force_kn: Vec::new(),
+        yield_drift_mm: Vec::new(),
+        record_steps: record_mm_s2.len(),
+    };
+    r.story_drift_mm = elastic_drifts(structure, &r, DT_S)?;
+    Ok(r)
+}
+
+/// The per-tick series of a structure run, actuator coordinates, mm.
+#[derive(Debug, Clone, Default)]
+pub struct StructureSeries {
+    /// Target (the numerical part's).
+    pub target_mm: Vec<f64>,
+    /// Command.
+    pub command_mm: Vec<f64>,
+    /// Measured (empty for a pure run).
+    pub measured_mm: Vec<f64>,
+    /// Measured force on the specimen, kN, specimen scale (empty for a pure run).
+    pub measured_force_kn: Vec<f64>,
+    /// The model's story drifts at the target's step, `story_drift_mm[story][k]` (empty if the
+    /// model has none).
+    pub story_drift_mm: Vec<Vec<f64>>,
+}
+
+impl StructureSeries {
+    /// Record the model's story drifts (the structure's `n` stories), if it has them.
+    fn push_drifts(&mut self, model: &dyn StructureModel, n: usize) {
+        if let Some(d) = model.story_drift_mm() {
+            self.story_drift_mm.resize_with(n, Vec::new);
+            for (s, v) in self.story_drift_mm.iter_mut().zip(d) {
+                s.push(v);
+            }
+        }
+    }
+}
+
+/// The pure loop: `model` with the structure's linear specimen at the model's own displacement
+/// (no delay, no plant). Stopped at the first step the model refuses.
+pub fn run_pure(case: &StructureCase, model: &mut dyn StructureModel) -> (StructureSeries, Stop) {
+    model.reset();
+    let k_e = case.specimen_k_kn_per_mm();
+    let n = case.ground_accel_mm_s2.len();
+    let mut s = StructureSeries {
+        target_mm: Vec::with_capacity(n),
+        command_mm: Vec::with_capacity(n),
+        ..StructureSeries::default()
+    };
+    let stories = case.structure.dofs();
+    // d_k at the DOF: row k holds the target produced at tick k−1 (0 at rest).
+    let mut d = 0.0;
+    for (k, &ag) in case.ground_accel_mm_s2.iter().enumerate() {
+        s.target_mm.push(d * case.cos_theta);
+        s.command_mm.push(d * case.cos_theta);
+        match model.step(ag, k_e * d) {
+            Ok(next) => {
+                d = next;
+                s.push_drifts(model, stories);
+            }
+            Err(e) => return (s, Some((format!("{e:?}"), k as f64 * DT_S))),
+        }
+    }
+    (s, None)
+}
+
+/// The hybrid loop on the virtual plant `rig`: per tick the rig's sample, the measured force
+/// (prototype, along the DOF) into `model`, its target through `compensator`, the paper
+/// actuator's supervisor, the command held for one tick. The same tick as
+/// `rths_core::control::Controller` (docs/design.md §7) with a structure model in place of its
+/// analytical part.
+pub fn run_hybrid(
+    case: &StructureCase,
+    model: &mut dyn StructureModel,
+    mut compensator: Compensator,
+    rig: &RigConfig,
+) -> anyhow::Result<(StructureSeries, Stop)> {
+    model.reset();
+    compensator.reset();
+    let scale = SpecimenScale::default();
+    let mut plant = VirtualRig::new(rig.build().context("the virtual plant")?);
+    let mut sup = Supervisor::new(Limits::paper_actuator());
+    // Idle → Armed → Running cannot fail on a fresh supervisor.
+    let _ = sup.arm();
+    let _ = sup.start();
+    let n = case.ground_accel_mm_s2.len();
+    let mut s = StructureSeries {
+        target_mm: Vec::with_capacity(n),
+        command_mm: Vec::with_capacity(n),
+        measured_mm: Vec::with_capacity(n),
+        measured_force_kn: Vec::with_capacity(n),
+        story_drift_mm: Vec::new(),
+    };
+    let stories = case.structure.dofs();
+    let (mut command, mut target) = (0.0, 0.0);
+    let mut last_good = Sample::default();
+    let mut stop: Stop = None;
+    for (k, &ag) in case.ground_accel_mm_s2.iter().enumerate() {
+        let sample = plant.read().map_err(|e| e.kind());
+        let (measured, force) = sample
+            .as_ref()
+            .map_or((f64::NAN, f64::NAN), |x| (x.disp_mm, x.force_kn));
+        if let Ok(x) = sample {
+            if x.disp_mm.is_finite() && x.force_kn.is_finite() {
+                last_good = x;
+            }
+        }
+        s.target_mm.push(target);
+        s.command_mm.push(command);
+        s.measured_mm.push(measured);
+        s.measured_force_kn.push(force);
+        let (mut requested, mut next_target) = (sup.output_mm(), f64::NAN);
+        if sup.state() == State::Running {
+            let force = scale.prototype_force_kn(last_good.force_kn) * case.cos_theta;
+            requested = match model.step(ag, force) {
+                Ok(d) => {
+                    next_target = d * case.cos_theta;
+                    s.push_drifts(model, stories);
+                    compensator
+                        .compensate(scale.specimen_disp_mm(next_target), last_good.disp_mm)
+                        .unwrap_or(f64::NAN)
+                }
+                // The supervisor trips on it.
+                Err(_) => f64::NAN,
+            };
+        }
+        let decision = sup.tick(requested, sample, false);
+        command = decision.command_mm;
+        if next_target.is_finite() {
+            target = next_target;
+        }
+        if let (State::Fault(reason), None) = (decision.state, &stop) {
+            stop = Some((format!("{reason:?}"), k as f64 * DT_S));
+        }
+        // The supervisor's command is within the stroke and finite: the rig accepts it.
+        let _ = plant.command(command);
+        plant.advance_tick();
+    }
+    Ok((s, stop))
+}
+
+/// The paper's ATS (as `fe-online-ats` builds it), starting from `initial` if given (a rig
+/// file's identified values).
+pub fn paper_ats(initial: Option<[f64; 3]>) -> anyhow::Result<Compensator> {
+    let (_, ats) = Model::FeAts {
+        expected_delay_s: PAPER_DELAY_STEPS as f64 * DT_S,
+    }
+    .assemble(Prototype::paper(), DT_S)
+    .map_err(|e| anyhow::anyhow!("the paper's ATS: {e}"))?;
+    Ok(match (initial, ats) {
+        (Some(a), Compensator::Ats(ats)) => Compensator::Ats(Ats::new(
+            ats.params()
+                .with_initial(a)
+                .map_err(|e| anyhow::anyhow!("the rig file's ATS start {a:?}: {e:?}"))?,
+        )),
+        (_, c) => c,
+    })
+}
+
+/// Run one of the study's scenarios of the paper's frame (`lr-online`, `lrx-online`) exactly as
+/// `rths simulate` does, over the case's record and free vibration, against the case's reference.
+pub fn run_paper_scenario(
+    case: &StructureCase,
+    setup: ScenarioSetup<'_>,
+) -> anyhow::Result<(StructureSeries, Stop)> {
+    if !case.paper {
+        anyhow::bail!(
+            "{} runs the shipped model of the paper's frame; {} is another structure",
+            setup.id,
+            case.structure.name()
+        );
+    }
+    let setup = ScenarioSetup {
+        ground_accel_mm_s2: &case.ground_accel_mm_s2,
+        reference_mm: &case.reference_mm,
+        stiffness_factor: 1.0,
+        ..setup
+    };
+    let (h, stop) = scenario::simulate(&setup)?;
+    Ok((
+        StructureSeries {
+            target_mm: h.target_mm,
+            command_mm: h.command_mm,
+            measured_mm: if setup.id.uses_rig() {
+                h.measured_mm
+            } else {
+                Vec::new()
+            },
+            measured_force_kn: if setup.id.uses_rig() {
+                h.measured_force_kn
+            } else {
+                Vec::new()
+            },
+            story_drift_mm: Vec::new(),
+        },
+        stop,
+    ))
+}
+
+/// Residual drift of the reference and of the model at one story, mm.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct ResidualDrift {
+    /// The story (1-based): of the stories the model gives, the one with the largest reference
+    /// residual drift.
+    pub story: usize,
+    /// The reference's.
+    pub reference: f64,
+    /// The run's (its target).
+    pub model: f64,
+}
+
+/// The figures of a structure run beyond the study's: ductility, residual drift, start-up.
+#[derive(Debug, Clone, Serialize)]
+pub struct StructureFigures {
+    /// Peak ductility of the reference over all stories (`null`: a linear structure).
+    pub peak_ductility: Option<f64>,
+    /// Peak ductility of the reference at the specimen's story.
+    pub peak_ductility_specimen_story: Option<f64>,
+    /// Peak ductility of the run over the stories its model gives (all for the FE; the
+    /// specimen's story from the target alone otherwise).
+    pub peak_ductility_model: Option<f64>,
+    /// Residual drift (the mean over the last [`super::RESIDUAL_WINDOW_S`] of the free
+    /// vibration) at the story of [`ResidualDrift::story`].
+    pub residual_drift_mm: Option<ResidualDrift>,
+    /// `|model − reference| / |reference|` of the residual drift, % (`null` when the reference
+    /// has none).
+    pub residual_drift_error_pct: Option<f64>,
+    /// RMS of the target's error in the first [`STARTUP_WINDOW_S`] over its RMS after.
+    pub startup_error_ratio: Option<f64>,
+}
+
+/// A scored structure run: the study's figures and the structure's.
+#[derive(Debug, Clone, Serialize)]
+pub struct StructureReport {
+    /// The study's figures (NRMSE, J1-J5, ...) against the structure's reference.
+    #[serde(flatten)]
+    pub report: ScenarioReport,
+    /// Ductility, residual drift, start-up.
+    #[serde(flatten)]
+    pub figures: StructureFigures,
+}
+
+/// Score a finished run against the case's reference (evaluation: the only place the reference
+/// is read).
+pub fn score(
+    case: &StructureCase,
+    name: SimScenario,
+    series: &StructureSeries,
+    stop: Stop,
+) -> StructureReport {
+    let report = scenario::figures_of_series(
+        &name.to_string(),
+        name.uses_rig(),
+        &series.target_mm,
+        &series.command_mm,
+        &series.measured_mm,
+        &case.reference_mm,
+        stop.clone(),
+    );
+    let r = &case.reference;
+    let nonlinear = !r.yield_drift_mm.is_empty();
+    let dof = case.structure.specimen_dof();
+    let uy = r.yield_drift_mm.get(dof).copied();
+    let mut f = StructureFigures {
+        peak_ductility: nonlinear.then(|| r.peak_ductility()),
+        peak_ductility_specimen_story: None,
+        peak_ductility_model: None,
+        residual_drift_mm: None,
+        residual_drift_error_pct: None,
+        startup_error_ratio: None,
+    };
+    if let Some(uy) = uy {
+        f.peak_ductility_specimen_story =
+            r.story_drift_mm.get(dof).map(|d| metrics::peak_abs(d) / uy);
+    }
+    if stop.is_some() || series.target_mm.len() != case.reference_mm.len() {
+        return StructureReport { report, figures: f };
+    }
+    // The run's stories: the model's own, else the target as the specimen's story (the
+    // specimen sits on DOF 1 of a yielding file).
+    let n = series.target_mm.len();
+    let model_stories: Vec<(usize, Vec<f64>)> = if !series.story_drift_mm.is_empty()
+        && series.story_drift_mm.iter().all(|d| d.len() == n)
+    {
+        series.story_drift_mm.iter().cloned().enumerate().collect()
+    } else {
+        let x = series
+            .target_mm
+            .iter()
+            .map(|x| x / case.cos_theta)
+            .collect();
+        vec![(dof, x)]
+    };
+    if nonlinear {
+        f.peak_ductility_model = model_stories
+            .iter()
+            .filter_map(|(i, d)| Some(metrics::peak_abs(d) / r.yield_drift_mm.get(*i)?))
+            .reduce(f64::max);
+    }
+    let w = ((super::RESIDUAL_WINDOW_S / DT_S) as usize).clamp(1, n.max(1));
+    let tail_mean = |x: &[f64]| x[x.len().saturating_sub(w)..].iter().sum::<f64>() / w as f64;
+    f.residual_drift_mm = model_stories
+        .iter()
+        .filter_map(|(i, d)| {
+            Some(ResidualDrift {
+                story: i + 1,
+                reference: tail_mean(r.story_drift_mm.get(*i)?),
+                model: tail_mean(d),
+            })
+        })
+        .max_by(|a, b| a.reference.abs().total_cmp(&b.reference.abs()));
+    f.residual_drift_error_pct = f
+        .residual_drift_mm
+        .filter(|d| d.reference != 0.0)
+        .map(|d| 100.0 * (d.model - d.reference).abs() / d.reference.abs());
+    let err: Vec<f64> = series
+        .target_mm
+        .iter()
+        .zip(&case.reference_mm)
+        .map(|(a, b)| a - b)
+        .collect();
+    let k0 = ((STARTUP_WINDOW_S / DT_S) as usize).min(err.len());
+    let (first, rest) = err.split_at(k0);
+    let rest_rms = metrics::rms(rest);
+    f.startup_error_ratio = (rest_rms > 0.0).then(|| metrics::rms(first) / rest_rms);
+    StructureReport { report, figures: f }
+}
+
+/// What a structure scenario runs with besides its case.
+pub struct ScenarioInputs<'a> {
+    /// Plant preset of the hybrid runs.
+    pub preset: Preset,
+    /// Sensor-noise seed.
+    pub seed: u64,
+    /// The ATS start of `fe-online-ats` (a rig file's), else the paper's.
+    pub ats_initial: Option<[f64; 3]>,
+    /// The lead filter of `nl-online` (a rig file's, or the shipped LRX's).
+    pub lead: Option<LeadParams>,
+    /// The LR model of `lr-online`.
+    pub lr: Option<LrParams>,
+    /// The LRX model and lead of `lrx-online`.
+    pub lrx: Option<(LrxParams, LeadParams)>,
+    /// The LR/LRX model's feedback delay, ticks.
+    pub delay_steps: usize,
+    /// The learned model of `nl-pure` and `nl-online`.
+    pub nl_model: Option<&'a mut dyn StructureModel>,
+}
+
+/// Does scenario `sc` apply to `structure`? `Err` says why not.
+pub fn check_applies(sc: SimScenario, structure: &Structure) -> anyhow::Result<()> {
+    let ok = match sc {
+        SimScenario::NlPure | SimScenario::NlOnline => structure.story_laws().is_some(),
+        SimScenario::Study(ScenarioId::FePure | ScenarioId::FeOnlineAts) => true,
+        SimScenario::Study(ScenarioId::LrOnline | ScenarioId::LrxOnline) => {
+            is_paper_frame(structure)
+        }
+        SimScenario::Study(_) => false,
+    };
+    if ok {
+        return Ok(());
+    }
+    anyhow::bail!(
+        "scenario {sc} does not apply to structure {}: with --structure, nl-pure and nl-online \
+         need yielding stories (a hysteresis section), lr-online and lrx-online the paper's \
+         frame (their shipped models are of that frame), fe-pure and fe-online-ats run any \
+         structure, and the other study scenarios run without --structure",
+        structure.name()
+    )
+}
+
+/// Run scenario `sc` on `case` and score it: its figures and its series.
+pub fn run_scenario(
+    case: &StructureCase,
+    sc: SimScenario,
+    inputs: ScenarioInputs<'_>,
+) -> anyhow::Result<(StructureReport, StructureSeries)> {
+    check_applies(sc, &case.structure)?;
+    let rig = case.rig(inputs.preset, inputs.seed);
+    let missing = || {
+        anyhow::anyhow!(
+            "{sc} needs the structure's learned model (--model M.json, `rths train nonlinear \
+             --structure FILE`)"
+        )
+    };
+    let (series, stop) = match sc {
+        SimScenario::Study(ScenarioId::FePure) => {
+            run_pure(case, &mut StructureFe::new(&case.structure)?)
+        }
+        SimScenario::Study(ScenarioId::FeOnlineAts) => run_hybrid(
+            case,
+            &mut StructureFe::new(&case.structure)?,
+            paper_ats(inputs.ats_initial)?,
+            &rig,
+        )?,
+        SimScenario::Study(id) => {
+            let setup = ScenarioSetup {
+                id,
+                ground_accel_mm_s2: &case.ground_accel_mm_s2,
+                reference_mm: &case.reference_mm,
+                rig,
+                stiffness_factor: 1.0,
+                lr: inputs.lr,
+                rnn: None,
+                delay_steps: inputs.delay_steps,
+                lrx: inputs.lrx,
+            };
+            run_paper_scenario(case, setup)?
+        }
+        SimScenario::NlPure => run_pure(case, inputs.nl_model.ok_or_else(missing)?),
+        SimScenario::NlOnline => {
+            let lead = inputs.lead.ok_or_else(|| {
+                anyhow::anyhow!("nl-online needs a lead filter (a rig file's or the shipped LRX's)")
+            })?;
+            run_hybrid(
+                case,
+                inputs.nl_model.ok_or_else(missing)?,
+                Compensator::Lead(Lead::new(lead)),
+                &rig,
+            )?
+        }
+    };
+    Ok((score(case, sc, &series, stop), series))
+}
+
+/// A run's series as `rths simulate`'s history (time, ground acceleration, reference, target,
+/// command, measured displacement and force; NaN where the run has none), for its CSV and figure.
+pub fn history(case: &StructureCase, series: &StructureSeries) -> scenario::History {
+    let n = series.target_mm.len();
+    let or_nan = |v: &[f64]| -> Vec<f64> {
+        (0..n)
+            .map(|k| v.get(k).copied().unwrap_or(f64::NAN))
+            .collect()
+    };
+    scenario::History {
+        time_s: (0..n).map(|k| k as f64 * DT_S).collect(),
+        ground_accel_mm_s2: case.ground_accel_mm_s2[..n.min(case.ground_accel_mm_s2.len())]
+            .to_vec(),
+        reference_mm: case.reference_mm[..n.min(case.reference_mm.len())].to_vec(),
+        target_mm: series.target_mm.clone(),
+        command_mm: series.command_mm.clone(),
+        measured_mm: or_nan(&series.measured_mm),
+        measured_force_kn: or_nan(&series.measured_force_kn),
+    }
+}

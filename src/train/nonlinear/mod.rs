@@ -1,0 +1,497 @@
+//! Training of the nonlinear (modal-hysteretic) metamodel (docs/nonlinear.md, docs/design.md
+//! §5.5): FE runs of the yielding structure under training records at intensities from elastic to
+//! past ductility 5, then CMA-ES on the simulation error of the model's pure loop over every run.
+//!
+//! The line between training and truth: the model's modes come from the *elastic* eigen-analysis
+//! of the structure file ([`modal`]; the numerical model is the lab's own), its springs' laws are
+//! drawn at random from the seed and learned from the FE runs' floor displacements; the
+//! structure's `hysteresis` section is only ever used by the FE that produces the training runs.
+//! The scoring records (El Centro, Kobe, Morgan Hill) are refused as training records.
+
+pub mod cmaes;
+pub mod eval;
+pub mod modal;
+pub mod runs;
+
+use std::time::Instant;
+
+use rand::rngs::StdRng;
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+use rths_core::hysteresis::Law;
+use rths_core::metamodel::{ModalHyst, ModalHystParams, ModalMode};
+use rths_files::nl_model_file::{
+    structure_checksum, ModeSpec, NlModelFile, NlTraining, SpringSpec, StructureId, NL_FORMAT,
+    NL_KIND, NL_VERSION,
+};
+use rths_files::structure_file::Structure;
+
+use crate::motion::GroundMotion;
+use crate::train::TrainError;
+use modal::ElasticModes;
+use runs::FeRun;
+
+/// The records the nonlinear metamodel is scored on: never trained on (names and file stems,
+/// compared without case).
+pub const SCORING_RECORDS: [&str; 6] = [
+    "el-centro",
+    "ielc180",
+    "kobe",
+    "tak000",
+    "morgan",
+    "morgan-hill",
+];
+
+/// The default training records (embedded).
+pub const DEFAULT_RECORDS: [&str; 2] = ["northridge", "loma-prieta"];
+
+/// The default peak ductilities of the training runs (FE), per record: elastic to past 5.
+pub const DEFAULT_DUCTILITIES: [f64; 4] = [0.7, 2.0, 4.0, 6.0];
+
+/// Learned numbers per spring (yield force, post-yield ratio, exponent, γ, stiffness scale) and
+/// per mode (frequency and damping scale).
+const PER_SPRING: usize = 5;
+const PER_MODE: usize = 2;
+
+/// The law family of the latent springs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SpringLaw {
+    /// Bilinear kinematic hardening (sharp yield; cheap: a clamp per tick).
+    Bilinear,
+    /// Bouc–Wen (smooth knee; exponent and shape learned too).
+    BoucWen,
+}
+
+impl SpringLaw {
+    /// The model file's name of the law.
+    pub fn name(self) -> &'static str {
+        match self {
+            SpringLaw::Bilinear => "bilinear",
+            SpringLaw::BoucWen => "bouc-wen",
+        }
+    }
+}
+
+/// How to train.
+#[derive(Debug, Clone)]
+pub struct NlTrainConfig {
+    /// The spring families tried, each trained in full; the lower training loss is kept.
+    pub laws: Vec<SpringLaw>,
+    /// Seed of the springs' random initialization and of CMA-ES.
+    pub seed: u64,
+    /// Training records (never a scoring record).
+    pub records: Vec<GroundMotion>,
+    /// Peak ductilities of the FE training runs (one run per record and ductility).
+    pub ductilities: Vec<f64>,
+    /// Modes kept (`None`: as many as DOFs).
+    pub modes: Option<usize>,
+    /// CMA-ES generations (at most).
+    pub generations: usize,
+    /// CMA-ES population (`None`: 4 + ⌊3 ln n⌋).
+    pub population: Option<usize>,
+    /// Control step, s.
+    pub dt_s: f64,
+    /// Keep only the first seconds of each record (`None`: all); for quick tests.
+    pub record_s: Option<f64>,
+}
+
+impl NlTrainConfig {
+    /// The defaults: [`DEFAULT_RECORDS`] at [`DEFAULT_DUCTILITIES`], all modes, 150 generations,
+    /// the controller's step.
+    pub fn new(seed: u64) -> Result<Self, TrainError> {
+        let records = DEFAULT_RECORDS
+            .iter()
+            .map(|n| {
+                GroundMotion::try_embedded(n)
+                    .map_err(|e| TrainError::Setting(format!("record {n}: {e}")))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
+            laws: vec![SpringLaw::Bilinear, SpringLaw::BoucWen],
+            seed,
+            records,
+            ductilities: DEFAULT_DUCTILITIES.to_vec(),
+            modes: None,
+            generations: 150,
+            population: None,
+            dt_s: rths_core::params::DT_S,
+            record_s: None,
+        })
+    }
+
+    fn validate(&self) -> Result<(), TrainError> {
+        if self.records.is_empty() {
+            return Err(TrainError::Setting("no training record".into()));
+        }
+        for m in &self.records {
+            if is_scoring_record(&m.name) {
+                return Err(TrainError::Setting(format!(
+                    "record {} is a scoring record ({}); the metamodel is never trained on it",
+                    m.name,
+                    SCORING_RECORDS.join(", ")
+                )));
+            }
+        }
+        if self.ductilities.is_empty()
+            || self
+                .ductilities
+                .iter()
+                .any(|d| !d.is_finite() || *d <= 0.0 || *d > 50.0)
+        {
+            return Err(TrainError::Setting(
+                "training ductilities must be in (0, 50]".into(),
+            ));
+        }
+        if self.laws.is_empty() {
+            return Err(TrainError::Setting("no spring law to try".into()));
+        }
+        if self.generations == 0 {
+            return Err(TrainError::Setting("generations must be ≥ 1".into()));
+        }
+        if !(self.dt_s.is_finite() && self.dt_s > 0.0) {
+            return Err(TrainError::Setting("dt_s must be > 0".into()));
+        }
+        Ok(())
+    }
+}
+
+/// Whether `name` is one of the [`SCORING_RECORDS`].
+pub fn is_scoring_record(name: &str) -> bool {
+    let n = name.trim().to_ascii_lowercase();
+    SCORING_RECORDS
+        .iter()
+        .any(|s| n == *s || n.starts_with(&format!("{s}.")))
+}
+
+/// The fixed part of the model (from the elastic analysis and the training data) and the map from
+/// the search vector θ to the model's parameters.
+#[derive(Debug, Clone)]
+pub struct Template {
+    modes: ElasticModes,
+    /// The yield force the spring's θ₀ = 0 stands for: half the elastic story force at the
+    /// median peak drift of the training runs, kN.
+    fy_base_kn: Vec<f64>,
+    specimen_k_kn_per_mm: f64,
+    specimen_dof: usize,
+    law: SpringLaw,
+}
+
+fn sigmoid(x: f64) -> f64 {
+    1.0 / (1.0 + (-x).exp())
+}
+
+impl Template {
+    /// From the elastic modes and the training runs, springs of the family `law`.
+    pub fn new(s: &Structure, modes: ElasticModes, runs: &[FeRun], law: SpringLaw) -> Self {
+        let n = modes.story_k0_kn_per_mm.len();
+        let fy_base_kn = (0..n)
+            .map(|k| {
+                let mut peaks: Vec<f64> = runs
+                    .iter()
+                    .map(|r| {
+                        let d = |i: usize| {
+                            let below = if k == 0 {
+                                0.0
+                            } else {
+                                r.floor_disp_mm[k - 1][i]
+                            };
+                            r.floor_disp_mm[k][i] - below
+                        };
+                        (0..r.ground_accel_mm_s2.len()).fold(0.0_f64, |m, i| m.max(d(i).abs()))
+                    })
+                    .collect();
+                peaks.sort_by(f64::total_cmp);
+                let median = peaks.get(peaks.len() / 2).copied().unwrap_or(1.0);
+                0.5 * modes.story_k0_kn_per_mm[k] * median.max(1e-6)
+            })
+            .collect();
+        Self {
+            modes,
+            fy_base_kn,
+            specimen_k_kn_per_mm: s.specimen().1,
+            specimen_dof: s.specimen_dof(),
+            law,
+        }
+    }
+
+    /// Length of θ.
+    pub fn dim(&self) -> usize {
+        PER_SPRING * self.springs() + PER_MODE * self.modes.omega_rad_s.len()
+    }
+
+    fn springs(&self) -> usize {
+        self.modes.story_k0_kn_per_mm.len()
+    }
+
+    /// The initial θ: the modes as analysed (scales 1), each spring's law drawn from the seed.
+    pub fn initial(&self, seed: u64) -> Result<Vec<f64>, TrainError> {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let fy = Normal::new(0.0, 0.7).map_err(|e| TrainError::Setting(e.to_string()))?;
+        let unit = Normal::new(0.0, 1.0).map_err(|e| TrainError::Setting(e.to_string()))?;
+        let mut th = Vec::with_capacity(self.dim());
+        for _ in 0..self.springs() {
+            th.push(fy.sample(&mut rng));
+            th.push(unit.sample(&mut rng));
+            th.push(unit.sample(&mut rng));
+            th.push(unit.sample(&mut rng));
+            th.push(0.0);
+        }
+        th.resize(self.dim(), 0.0);
+        Ok(th)
+    }
+
+    /// The springs' laws and the modes θ stands for.
+    fn decode(&self, th: &[f64]) -> Result<(Vec<SpringSpec>, Vec<ModeSpec>), TrainError> {
+        if th.len() != self.dim() {
+            return Err(TrainError::Setting(format!(
+                "θ has {} entries, expected {}",
+                th.len(),
+                self.dim()
+            )));
+        }
+        let (sp, md) = th.split_at(PER_SPRING * self.springs());
+        let springs = sp
+            .chunks_exact(PER_SPRING)
+            .enumerate()
+            .map(|(k, t)| {
+                let gamma = 0.5 * sigmoid(t[3]);
+                // A bilinear spring leaves θ₂, θ₃ unused (one θ layout for both families).
+                let (exponent, beta, gamma) = match self.law {
+                    SpringLaw::Bilinear => (0.0, 0.0, 0.0),
+                    SpringLaw::BoucWen => (1.0 + 19.0 * sigmoid(t[2]), 1.0 - gamma, gamma),
+                };
+                SpringSpec {
+                    law: self.law.name().into(),
+                    k0_kn_per_mm: self.modes.story_k0_kn_per_mm[k] * (0.3 * t[4]).exp(),
+                    yield_force_kn: self.fy_base_kn[k] * t[0].exp(),
+                    post_yield_ratio: -0.05 + 0.45 * sigmoid(t[1]),
+                    exponent,
+                    beta,
+                    gamma,
+                    drift: self.modes.drift[k].clone(),
+                }
+            })
+            .collect();
+        let modes = md
+            .chunks_exact(PER_MODE)
+            .enumerate()
+            .map(|(j, t)| ModeSpec {
+                omega_rad_s: self.modes.omega_rad_s[j] * (0.1 * t[0]).exp(),
+                damping_ratio: (self.modes.damping_ratio[j] * (0.5 * t[1]).exp()).min(0.9),
+                ground_participation: self.modes.ground_participation[j],
+            })
+            .collect();
+        Ok((springs, modes))
+    }
+
+    /// The model file θ stands for.
+    pub fn file(
+        &self,
+        th: &[f64],
+        structure: StructureId,
+        dt_s: f64,
+        training: NlTraining,
+    ) -> Result<NlModelFile, TrainError> {
+        let (springs, modes) = self.decode(th)?;
+        Ok(NlModelFile {
+            format: NL_FORMAT.into(),
+            version: NL_VERSION,
+            kind: NL_KIND.into(),
+            structure,
+            dt_s,
+            specimen_dof: self.specimen_dof,
+            specimen_stiffness_kn_per_mm: self.specimen_k_kn_per_mm,
+            modes,
+            shape: self.modes.shape.clone(),
+            springs,
+            training,
+        })
+    }
+
+    /// The core parameters θ stands for at `dt_s`.
+    pub fn params(&self, th: &[f64], dt_s: f64) -> Result<ModalHystParams, TrainError> {
+        let (springs, modes) = self.decode(th)?;
+        let laws = springs
+            .iter()
+            .map(|s| s.law())
+            .collect::<Result<Vec<Law>, _>>()?;
+        let modes: Vec<ModalMode> = modes
+            .iter()
+            .map(|m| ModalMode {
+                omega_rad_s: m.omega_rad_s,
+                damping_ratio: m.damping_ratio,
+                ground_participation: m.ground_participation,
+            })
+            .collect();
+        let shape: Vec<f64> = self.modes.shape.iter().flatten().copied().collect();
+        let drift: Vec<f64> = springs.iter().flat_map(|s| s.drift.clone()).collect();
+        ModalHystParams::new(
+            dt_s,
+            &modes,
+            &shape,
+            self.specimen_dof,
+            self.specimen_k_kn_per_mm,
+            &laws,
+            &drift,
+        )
+        .map_err(|e| TrainError::Setting(format!("model parameters: {e}")))
+    }
+}
+
+/// The pure-loop NRMSE (%) of every floor of `model` on `run`, streamed (no traces kept); `None`
+/// if the model diverged.
+pub fn run_nrmse_pct(model: &mut ModalHyst, specimen_k: f64, run: &FeRun) -> Option<Vec<f64>> {
+    let floors = run.floor_disp_mm.len();
+    let ag = &run.ground_accel_mm_s2;
+    model.reset_at(ag.first().copied().unwrap_or(0.0));
+    let mut target = model.target_mm();
+    let mut sq = vec![0.0; floors];
+    let mut peak = vec![0.0_f64; floors];
+    for (k, &a) in ag.iter().enumerate() {
+        if k > 0 {
+            target = model.step(a, specimen_k * target).ok()?;
+        }
+        for (i, (s, p)) in sq.iter_mut().zip(&mut peak).enumerate() {
+            let r = run.floor_disp_mm[i][k];
+            let e = model.floor_disp_mm(i) - r;
+            *s += e * e;
+            *p = p.max(r.abs());
+        }
+    }
+    let n = ag.len().max(1) as f64;
+    Some(
+        sq.iter()
+            .zip(&peak)
+            .map(|(s, p)| 100.0 * (s / n).sqrt() / p.max(1e-12))
+            .collect(),
+    )
+}
+
+/// Training loss of θ: the mean over runs of the mean floor NRMSE (%) of the pure loop; a model
+/// that is invalid or diverges costs 1e6.
+pub fn loss(template: &Template, th: &[f64], runs: &[FeRun], dt_s: f64) -> f64 {
+    let Ok(p) = template.params(th, dt_s) else {
+        return 1e6;
+    };
+    let mut m = ModalHyst::new(p);
+    let mut total = 0.0;
+    for r in runs {
+        let Some(e) = run_nrmse_pct(&mut m, template.specimen_k_kn_per_mm, r) else {
+            return 1e6;
+        };
+        total += e.iter().sum::<f64>() / e.len().max(1) as f64;
+    }
+    let l = total / runs.len().max(1) as f64;
+    if l.is_finite() {
+        l.min(1e6)
+    } else {
+        1e6
+    }
+}
+
+/// A trained model and how it went.
+#[derive(Debug, Clone)]
+pub struct NlTrained {
+    /// The model file (no wall time in it: same seed, same bytes).
+    pub file: NlModelFile,
+    /// Each training run: label, FE peak ductility, specimen-DOF pure-loop NRMSE (%).
+    pub runs: Vec<(String, f64, f64)>,
+    /// Wall time of the whole training, s.
+    pub wall_time_s: f64,
+}
+
+/// Train the metamodel of the structure file `structure_json` (its text: the model records its
+/// checksum). `on_generation(g, generations, best_loss_pct)` reports progress.
+pub fn train(
+    structure_json: &str,
+    cfg: &NlTrainConfig,
+    mut on_generation: impl FnMut(usize, usize, f64),
+) -> Result<NlTrained, TrainError> {
+    let t0 = Instant::now();
+    cfg.validate()?;
+    let s = Structure::from_json(structure_json)
+        .map_err(|e| TrainError::Setting(format!("structure file: {e}")))?;
+    let checksum = structure_checksum(structure_json)
+        .map_err(|e| TrainError::Setting(format!("structure file: {e}")))?;
+    let records: Vec<GroundMotion> = cfg
+        .records
+        .iter()
+        .map(|m| match cfg.record_s {
+            Some(t) => truncated(m, t),
+            None => m.clone(),
+        })
+        .collect();
+    let runs = runs::fe_runs_for_ductilities(&s, &records, &cfg.ductilities, cfg.dt_s)?;
+    let modes = modal::elastic_modes(&s, cfg.modes.unwrap_or(s.dofs()))?;
+    let total = cfg.generations * cfg.laws.len();
+    let mut best: Option<(Template, cmaes::CmaResult, f64)> = None;
+    for (i, law) in cfg.laws.iter().enumerate() {
+        let template = Template::new(&s, modes.clone(), &runs, *law);
+        let x0 = template.initial(cfg.seed)?;
+        let initial_loss = loss(&template, &x0, &runs, cfg.dt_s);
+        let res = cmaes::minimize(
+            |th| loss(&template, th, &runs, cfg.dt_s),
+            &x0,
+            0.5,
+            cfg.generations,
+            cfg.population,
+            cfg.seed,
+            |g, l| on_generation(i * cfg.generations + g, total, l),
+        );
+        // Strictly lower wins, so the order of `laws` breaks ties.
+        if best
+            .as_ref()
+            .is_none_or(|(_, b, _)| res.best_loss < b.best_loss)
+        {
+            best = Some((template, res, initial_loss));
+        }
+    }
+    let (template, res, initial_loss) =
+        best.ok_or_else(|| TrainError::Setting("no spring law to try".into()))?;
+    let p = template.params(&res.best, cfg.dt_s)?;
+    let mut m = ModalHyst::new(p);
+    let mut per_run = Vec::with_capacity(runs.len());
+    let mut max_specimen: f64 = 0.0;
+    for r in &runs {
+        let e = run_nrmse_pct(&mut m, template.specimen_k_kn_per_mm, r)
+            .ok_or_else(|| TrainError::Diverged(format!("trained model on {}", r.label)))?;
+        let es = e.get(template.specimen_dof).copied().unwrap_or(f64::NAN);
+        max_specimen = max_specimen.max(es);
+        per_run.push((r.label.clone(), r.ductility, es));
+    }
+    let training = NlTraining {
+        method: "cma-es".into(),
+        seed: cfg.seed,
+        runs: runs
+            .iter()
+            .map(|r| format!("{} (ductility {:.2})", r.label, r.ductility))
+            .collect(),
+        generations: res.generations,
+        population: res.population,
+        initial_loss_pct: initial_loss,
+        final_loss_pct: res.best_loss,
+        max_train_nrmse_pct: max_specimen,
+    };
+    let file = template.file(
+        &res.best,
+        StructureId {
+            name: s.name().to_string(),
+            checksum,
+        },
+        cfg.dt_s,
+        training,
+    )?;
+    Ok(NlTrained {
+        file,
+        runs: per_run,
+        wall_time_s: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// The first `seconds` of a record (all of it if shorter).
+fn truncated(m: &GroundMotion, seconds: f64) -> GroundMotion {
+    let mut t = m.clone();
+    let keep = ((seconds / m.dt_s).ceil() as usize).max(1);
+    t.accel_g.truncate(keep);
+    t
+}
