@@ -270,10 +270,16 @@ fn bad_model_files_are_refused_with_the_reason() {
 
 #[test]
 fn the_shipped_models_are_for_their_structures() {
-    for (model, structure) in [(
-        "data/models/nl-paper-frame-yielding.json",
-        "data/structures/paper-frame-yielding.json",
-    )] {
+    for (model, structure) in [
+        (
+            "data/models/nl-paper-frame-yielding.json",
+            "data/structures/paper-frame-yielding.json",
+        ),
+        (
+            "data/models/nl-shear3-yielding.json",
+            "data/structures/shear3-yielding.json",
+        ),
+    ] {
         let m = NlModelFile::load_for(&root(model), &root(structure)).unwrap();
         assert!(m.training.runs.iter().all(|r| !r.starts_with("el-centro")
             && !r.starts_with("kobe")
