@@ -182,9 +182,16 @@ fn bad_input_is_refused_with_the_reason() {
         ],
         "--uncertainty is not supported with --structure",
     );
+    let s8 = root("data/structures/shear8-yielding.json");
     refused(
-        &["simulate", "--structure", s3, "--scenario", "nl-pure"],
-        "no shipped learned model of structure shear3-yielding",
+        &[
+            "simulate",
+            "--structure",
+            s8.to_str().unwrap(),
+            "--scenario",
+            "nl-pure",
+        ],
+        "no shipped learned model of structure shear8-yielding",
     );
     // A model trained for another structure, with both names and checksums.
     let paper_model = root("data/models/nl-paper-frame-yielding.json");

@@ -74,10 +74,16 @@ impl StructureModel for LearnedModel {
 
 /// The shipped learned models (`data/models/nl-S.json`, `rths train nonlinear`), by the name
 /// of the structure they were trained for.
-pub const SHIPPED: [(&str, &str); 1] = [(
-    "paper-frame-yielding",
-    include_str!("../../data/models/nl-paper-frame-yielding.json"),
-)];
+pub const SHIPPED: [(&str, &str); 2] = [
+    (
+        "paper-frame-yielding",
+        include_str!("../../data/models/nl-paper-frame-yielding.json"),
+    ),
+    (
+        "shear3-yielding",
+        include_str!("../../data/models/nl-shear3-yielding.json"),
+    ),
+];
 
 /// The learned model of the structure named `name` whose file's text is `structure_json`: the
 /// model file at `path` if given, else the shipped one for that name. Refused with the reason if
