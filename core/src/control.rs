@@ -150,10 +150,13 @@ pub enum Analytical {
     // ---- structure files (issues 15, 16): the feedback is the specimen's measured displacement
     // and force at the structure's specimen DOF (a unit [`SpecimenScale`]), the target the
     // displacement there.
+    #[cfg(feature = "structures")]
     /// Finite elements (Chang) of an N-DOF linear numerical substructure.
     StructureFe(StructureFe),
+    #[cfg(feature = "structures")]
     /// Finite elements (Chang) of an N-story numerical substructure whose stories yield.
     StructureNl(StructureNl),
+    #[cfg(feature = "structures")]
     /// The structure metamodel (delta ARX) of an N-DOF numerical substructure: constant cost per
     /// tick whatever N is.
     StructureMeta(DeltaArx),
@@ -183,8 +186,11 @@ impl Analytical {
                     brace_force_fb_kn: fb.brace_force_kn,
                 })
                 .map_err(|_| StepError::NonFiniteOutput)?,
+            #[cfg(feature = "structures")]
             Analytical::StructureFe(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
+            #[cfg(feature = "structures")]
             Analytical::StructureNl(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
+            #[cfg(feature = "structures")]
             Analytical::StructureMeta(m) => m
                 .predict(ag_mm_s2, fb.brace_disp_mm, fb.brace_force_kn)
                 .map_err(|_| StepError::NonFiniteOutput)?,
@@ -202,8 +208,11 @@ impl Analytical {
             Analytical::Lr(m) => m.reset(),
             Analytical::Rnn(m) => m.reset(),
             Analytical::Lrx(m) => m.reset(),
+            #[cfg(feature = "structures")]
             Analytical::StructureFe(m) => m.reset(),
+            #[cfg(feature = "structures")]
             Analytical::StructureNl(m) => m.reset(),
+            #[cfg(feature = "structures")]
             Analytical::StructureMeta(m) => m.reset(),
         }
     }
@@ -380,6 +389,7 @@ impl Controller {
         self.start_over()
     }
 
+    #[cfg(feature = "structures")]
     /// Make the analytical part `analytical` with no compensator (the structure-file parts, a few
     /// KiB: built by value); only at rest, then start over.
     pub fn install_plain(&mut self, analytical: Analytical) -> Result<(), ReplaceError> {
@@ -615,6 +625,7 @@ impl Controller {
 }
 
 mod structure;
+#[cfg(feature = "structures")]
 use crate::metamodel::DeltaArx;
 pub use structure::{StoryLawSpec, StructureFe, StructureNl, StructureSpec};
 

@@ -8,15 +8,18 @@
 use crate::compensator::{
     Ats, AtsConfig, AtsParams, Compensator, Lead, LeadAdaptParams, LeadParams, LEAD_TAPS,
 };
-use crate::control::{
-    Analytical, Controller, FeModel, ReplaceError, StructureFe, StructureNl, StructureSpec,
-};
+use crate::control::{Analytical, Controller, FeModel, ReplaceError};
+#[cfg(feature = "structures")]
+use crate::control::{StructureFe, StructureNl, StructureSpec};
+#[cfg(feature = "structures")]
 use crate::hysteresis::Law;
+#[cfg(feature = "structures")]
 use crate::metamodel::{DeltaArx, DeltaArxParams};
 use crate::metamodel::{
     Lr, LrParams, Lrx, LrxParams, ModelError, Rnn, RnnParams, RnnScaling, RnnWeights,
 };
 use crate::params::{Prototype, DT_S};
+#[cfg(feature = "structures")]
 use crate::structure_n::{StructureN, MAX_DOF};
 
 /// The analytical part of a run (and its compensator), with raw weights borrowed as a model file
@@ -62,16 +65,19 @@ pub enum ModelSpec<'a> {
         expected_delay_s: f64,
     },
     // ---- structure files (issues 15, 16); no compensator.
+    #[cfg(feature = "structures")]
     /// Finite elements (Chang) of a linear N-DOF structure file's numerical part.
     StructureFe {
         /// The structure (no story laws).
         structure: StructureSpec<'a>,
     },
+    #[cfg(feature = "structures")]
     /// Finite elements (Chang) of a yielding structure file's numerical part.
     StructureNl {
         /// The structure (one story law per DOF).
         structure: StructureSpec<'a>,
     },
+    #[cfg(feature = "structures")]
     /// The structure metamodel (`rths train meta`).
     StructureMeta {
         /// Coefficients, [`crate::metamodel::DELTA_ARX_COEFFS`], order of
@@ -101,10 +107,13 @@ pub enum Model {
         expected_delay_s: f64,
     },
     // ---- structure files (issues 15, 16).
+    #[cfg(feature = "structures")]
     /// A linear N-DOF numerical part and its specimen's DOF.
     StructureFe(StructureN, usize),
+    #[cfg(feature = "structures")]
     /// A yielding numerical part, its specimen's DOF and its story laws (the first N).
     StructureNl(StructureN, usize, [Law; MAX_DOF]),
+    #[cfg(feature = "structures")]
     /// The structure metamodel.
     StructureMeta(DeltaArxParams),
 }
@@ -136,11 +145,13 @@ impl ModelSpec<'_> {
             }
             ModelSpec::Fe => Model::Fe,
             ModelSpec::FeAts { expected_delay_s } => Model::FeAts { expected_delay_s },
+            #[cfg(feature = "structures")]
             ModelSpec::StructureFe { structure } => {
                 // Built once to refuse a structure the integrator cannot step (singular D).
                 structure.linear(DT_S)?;
                 Model::StructureFe(structure.numerical()?, structure.specimen_dof)
             }
+            #[cfg(feature = "structures")]
             ModelSpec::StructureNl { structure } => {
                 structure.yielding(DT_S)?;
                 Model::StructureNl(
@@ -149,6 +160,7 @@ impl ModelSpec<'_> {
                     structure.story_laws()?,
                 )
             }
+            #[cfg(feature = "structures")]
             ModelSpec::StructureMeta {
                 theta,
                 k_corr_kn_per_mm,
@@ -171,14 +183,17 @@ impl Model {
             Model::Lrx(p, lead) => Ok(lrx_parts(p, lead)),
             Model::Fe => fe_parts(proto, dt_s, None),
             Model::FeAts { expected_delay_s } => fe_parts(proto, dt_s, Some(expected_delay_s)),
+            #[cfg(feature = "structures")]
             Model::StructureFe(m, dof) => Ok((
                 Analytical::StructureFe(StructureFe::new(m, dof, dt_s)?),
                 Compensator::None,
             )),
+            #[cfg(feature = "structures")]
             Model::StructureNl(m, dof, laws) => Ok((
                 Analytical::StructureNl(StructureNl::build(m, &laws, dof, dt_s)?),
                 Compensator::None,
             )),
+            #[cfg(feature = "structures")]
             Model::StructureMeta(p) => Ok(meta_parts(p)),
         }
     }
@@ -274,14 +289,17 @@ pub fn assemble(
         ModelSpec::Fe => fe_parts(proto, dt_s, None),
         ModelSpec::FeAts { expected_delay_s } => fe_parts(proto, dt_s, Some(expected_delay_s)),
         // Built in place, not through `Model` (stack, as above).
+        #[cfg(feature = "structures")]
         ModelSpec::StructureFe { structure } => Ok((
             Analytical::StructureFe(structure.linear(dt_s)?),
             Compensator::None,
         )),
+        #[cfg(feature = "structures")]
         ModelSpec::StructureNl { structure } => Ok((
             Analytical::StructureNl(structure.yielding(dt_s)?),
             Compensator::None,
         )),
+        #[cfg(feature = "structures")]
         ModelSpec::StructureMeta {
             theta,
             k_corr_kn_per_mm,
@@ -292,6 +310,7 @@ pub fn assemble(
     }
 }
 
+#[cfg(feature = "structures")]
 fn meta_parts(p: DeltaArxParams) -> (Analytical, Compensator) {
     (
         Analytical::StructureMeta(DeltaArx::new(p)),
@@ -339,12 +358,15 @@ pub fn assemble_in(
             ctl.install_fe(FeModel::new(proto, dt_s)?)?;
             ctl.install_ats(ats)
         }
+        #[cfg(feature = "structures")]
         ModelSpec::StructureFe { structure } => {
             ctl.install_plain(Analytical::StructureFe(structure.linear(dt_s)?))
         }
+        #[cfg(feature = "structures")]
         ModelSpec::StructureNl { structure } => {
             ctl.install_plain(Analytical::StructureNl(structure.yielding(dt_s)?))
         }
+        #[cfg(feature = "structures")]
         ModelSpec::StructureMeta {
             theta,
             k_corr_kn_per_mm,
