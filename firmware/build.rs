@@ -14,12 +14,18 @@
 //!   or with its yielding stories) or, with `structure-meta`, `RTHS_STRUCTURE_MODEL=path`, its
 //!   structure metamodel (`rths train meta --structure path --rate R`), refused if trained for
 //!   another structure (name and checksum) or rate.
-//! - With feature `budget-structures`: the budget's structures, FE linear, FE yielding and the
-//!   metamodel for N = 1, 3, 8: `RTHS_BUDGET_LINEAR`, `RTHS_BUDGET_YIELDING` (three structure files
-//!   each, comma-separated; default `paper-frame,vrths-case1,shear8` and
-//!   `paper-frame-yielding,shear3-yielding,shear8-yielding` in `data/structures/`) and
-//!   `RTHS_BUDGET_METAS` (the linear ones' metamodels at this build's rate, required: `budget.sh`
-//!   trains them).
+//! - With feature `structure-modal`: `RTHS_STRUCTURE=path` (a yielding structure file) and
+//!   `RTHS_STRUCTURE_MODEL=path`, its learned modal-hysteretic metamodel (an `rths-nl-model` file,
+//!   `rths train nonlinear`), refused if trained for another structure (name and checksum of its
+//!   content). Its modes are continuous-time and its laws rate-independent, so a model trained at
+//!   2048 Hz runs at 4096 Hz: no rate check.
+//! - With feature `budget-structures`: the budget's structures, FE linear, FE yielding, the
+//!   structure metamodel and the modal-hysteretic metamodel for N = 1, 3, 8: `RTHS_BUDGET_LINEAR`,
+//!   `RTHS_BUDGET_YIELDING` (three structure files each, comma-separated; default
+//!   `paper-frame,vrths-case1,shear8` and `paper-frame-yielding,shear3-yielding,shear8-yielding` in
+//!   `data/structures/`), `RTHS_BUDGET_METAS` (the linear ones' metamodels at this build's rate,
+//!   required: `budget.sh` trains them) and `RTHS_BUDGET_MODALS` (the yielding ones' modal models;
+//!   default `nl-<name>.json` in `data/models/`).
 //!
 //! The files are read by the host's own readers (`rths-files`): a model file is checked exactly as
 //! `rths check-model` checks it (feature names included), the record parsed as `rths analyze` parses
@@ -34,6 +40,7 @@ use std::path::{Path, PathBuf};
 
 use rths_core::params::{dt_s, CONTROL_RATES_HZ};
 use rths_files::model_file::{ModelFile, ModelKind};
+use rths_files::nl_model_file::NlModelFile;
 use rths_files::motion::parse_at2;
 use rths_files::structure_file::Structure;
 use rths_files::structure_meta::{MetaFile, StructureArrays};
@@ -492,22 +499,7 @@ fn structure_spec(structure: &Structure, yielding: bool, path: &Path) -> String 
     if let Err(e) = built {
         fail(format!("{}: {e}", path.display()));
     }
-    let mut laws = String::from("&[");
-    for l in &a.laws {
-        let bw = match l.bouc_wen {
-            Some(v) => format!("Some({})", array(&v)),
-            None => "None".into(),
-        };
-        let _ = write!(
-            laws,
-            "rths_core::control::StoryLawSpec {{ k0_kn_per_mm: {}, yield_force_kn: {}, \
-             post_yield_ratio: {}, bouc_wen: {bw} }},",
-            lit(l.k0_kn_per_mm),
-            lit(l.yield_force_kn),
-            lit(l.post_yield_ratio)
-        );
-    }
-    laws.push(']');
+    let laws = law_specs(&a.laws);
     format!(
         "rths_core::control::StructureSpec {{ dofs: {}, mass: &{}, damping: &{}, stiffness: &{}, \
          initial_stiffness: &{}, ground_mass: &{}, specimen_dof: {}, laws: {laws} }}",
@@ -521,9 +513,76 @@ fn structure_spec(structure: &Structure, yielding: bool, path: &Path) -> String 
     )
 }
 
-/// The `ModelSpec` of one structure path: `fe`, `nl` or `meta`.
-fn structure_model_spec(path: &Path, kind: &str, meta: Option<&Path>) -> String {
+/// Story laws as a `&[StoryLawSpec]` expression.
+fn law_specs(laws: &[rths_core::control::StoryLawSpec]) -> String {
+    let mut out = String::from("&[");
+    for l in laws {
+        let bw = match l.bouc_wen {
+            Some(v) => format!("Some({})", array(&v)),
+            None => "None".into(),
+        };
+        let _ = write!(
+            out,
+            "rths_core::control::StoryLawSpec {{ k0_kn_per_mm: {}, yield_force_kn: {}, \
+             post_yield_ratio: {}, bouc_wen: {bw} }},",
+            lit(l.k0_kn_per_mm),
+            lit(l.yield_force_kn),
+            lit(l.post_yield_ratio)
+        );
+    }
+    out.push(']');
+    out
+}
+
+/// The modal-hysteretic metamodel at `model`, checked against the structure file at `path` (name
+/// and checksum) and validated at this build's step, as a `ModelSpec::StructureModal` expression.
+fn modal_spec(path: &Path, model: &Path) -> String {
+    println!("cargo:rerun-if-changed={}", model.display());
+    let f = NlModelFile::load_for(model, path)
+        .unwrap_or_else(|e| fail(format!("{} for {}: {e}", model.display(), path.display())));
+    // The controller's own validation at its step (the file's step is only where it was trained).
+    f.params(dt_s(rate_hz()))
+        .unwrap_or_else(|e| fail(format!("{}: {e}", model.display())));
+    let mut modes = String::from("&[");
+    for m in &f.modes {
+        let _ = write!(
+            modes,
+            "rths_core::metamodel::ModalMode {{ omega_rad_s: {}, damping_ratio: {}, \
+             ground_participation: {} }},",
+            lit(m.omega_rad_s),
+            lit(m.damping_ratio),
+            lit(m.ground_participation)
+        );
+    }
+    modes.push(']');
+    let laws: Vec<rths_core::control::StoryLawSpec> = f
+        .springs
+        .iter()
+        .map(|s| {
+            s.law()
+                .map(|l| rths_core::control::StoryLawSpec::of(&l))
+                .unwrap_or_else(|e| fail(format!("{}: {e}", model.display())))
+        })
+        .collect();
+    let shape: Vec<f64> = f.shape.iter().flatten().copied().collect();
+    let drift: Vec<f64> = f.springs.iter().flat_map(|s| s.drift.iter().copied()).collect();
+    format!(
+        "rths_core::model::ModelSpec::StructureModal {{ model: rths_core::control::ModalSpec {{ \
+         modes: {modes}, shape: &{}, specimen_dof: {}, specimen_k_kn_per_mm: {}, laws: {}, \
+         drift: &{} }} }}",
+        array(&shape),
+        f.specimen_dof,
+        lit(f.specimen_stiffness_kn_per_mm),
+        law_specs(&laws),
+        array(&drift)
+    )
+}
+
+/// The `ModelSpec` of one structure path: `fe`, `nl`, `meta` or `modal` (`model`: the metamodel
+/// file of `meta` and `modal`).
+fn structure_model_spec(path: &Path, kind: &str, model: Option<&Path>) -> String {
     let s = load_structure(path);
+    let meta = model;
     match kind {
         "fe" => format!(
             "rths_core::model::ModelSpec::StructureFe {{ structure: {} }}",
@@ -533,6 +592,10 @@ fn structure_model_spec(path: &Path, kind: &str, meta: Option<&Path>) -> String 
             "rths_core::model::ModelSpec::StructureNl {{ structure: {} }}",
             structure_spec(&s, true, path)
         ),
+        "modal" => {
+            let m = model.unwrap_or_else(|| fail(format!("{}: no model file", path.display())));
+            modal_spec(path, m)
+        }
         _ => {
             let m = meta.unwrap_or_else(|| fail(format!("{}: no metamodel file", path.display())));
             let p = load_meta(m, &s);
@@ -545,7 +608,8 @@ fn structure_model_spec(path: &Path, kind: &str, meta: Option<&Path>) -> String 
     }
 }
 
-/// A build that runs one structure (`structure-fe`, `structure-nl`, `structure-meta`).
+/// A build that runs one structure (`structure-fe`, `structure-nl`, `structure-meta`,
+/// `structure-modal`).
 fn structure(out: &mut String, kind: &str) {
     println!("cargo:rerun-if-env-changed=RTHS_STRUCTURE");
     println!("cargo:rerun-if-env-changed=RTHS_STRUCTURE_MODEL");
@@ -566,6 +630,13 @@ fn structure(out: &mut String, kind: &str) {
             rate_hz()
         ));
     }
+    if kind == "modal" && meta.is_none() {
+        fail(format!(
+            "structure-modal needs RTHS_STRUCTURE_MODEL=path: an rths-nl-model file trained with \
+             `cargo run --release --features sim -- train nonlinear --structure {} --out M.json`",
+            path.display()
+        ));
+    }
     let spec = structure_model_spec(&path, kind, meta.as_deref());
     let _ = writeln!(out, "/// The structure (and model) compiled in.");
     let _ = writeln!(
@@ -573,14 +644,14 @@ fn structure(out: &mut String, kind: &str) {
         "pub const STRUCTURE_SPEC: rths_core::model::ModelSpec<'static> = {spec};"
     );
     let source = match &meta {
-        Some(m) if kind == "meta" => format!("{} ({})", path.display(), m.display()),
+        Some(m) if kind == "meta" || kind == "modal" => format!("{} ({})", path.display(), m.display()),
         _ => path.display().to_string(),
     };
     let _ = writeln!(out, "/// The model file compiled in.");
     let _ = writeln!(out, "pub const MODEL_SOURCE: &str = {source:?};");
 }
 
-/// A comma-separated list of three files from `var`, or the defaults in `dir`.
+/// A comma-separated list of three files from `var`, or the defaults `dir/<name>.json`.
 fn three(var: &str, dir: &Path, default: [&str; 3]) -> Vec<PathBuf> {
     println!("cargo:rerun-if-env-changed={var}");
     let v: Vec<PathBuf> = match std::env::var(var) {
@@ -596,7 +667,7 @@ fn three(var: &str, dir: &Path, default: [&str; 3]) -> Vec<PathBuf> {
     v
 }
 
-/// The budget build (`budget-structures`): the nine controllers it steps.
+/// The budget build (`budget-structures`): the twelve controllers it steps.
 fn budget_structures(out: &mut String, root: &Path) {
     let dir = root.join("data/structures");
     let linear = three(
@@ -633,15 +704,31 @@ fn budget_structures(out: &mut String, root: &Path) {
             metas.len()
         ));
     }
+    let modals = three(
+        "RTHS_BUDGET_MODALS",
+        &root.join("data/models"),
+        [
+            "nl-paper-frame-yielding",
+            "nl-shear3-yielding",
+            "nl-shear8-yielding",
+        ],
+    );
     let mut rows = String::new();
-    for (kind, files) in [("fe", &linear), ("nl", &yielding), ("meta", &linear)] {
+    for (kind, files, models) in [
+        ("fe", &linear, None),
+        ("nl", &yielding, None),
+        ("meta", &linear, Some(&metas)),
+        ("modal", &yielding, Some(&modals)),
+    ] {
         for (i, path) in files.iter().enumerate() {
             let s = load_structure(path);
-            let spec = structure_model_spec(path, kind, metas.get(i).map(PathBuf::as_path));
+            let model = models.and_then(|m| m.get(i)).map(PathBuf::as_path);
+            let spec = structure_model_spec(path, kind, model);
             let path_name = match kind {
                 "fe" => "structure-fe",
                 "nl" => "structure-nl",
-                _ => "structure-meta",
+                "meta" => "structure-meta",
+                _ => "structure-modal",
             };
             // The specimen's stiffness: the budget's ideal rig holds it (analytical.rs).
             let (_, k_e, _) = s.specimen();
@@ -663,15 +750,15 @@ fn budget_structures(out: &mut String, root: &Path) {
             );
         }
     }
-    let _ = writeln!(out, "/// The budget's nine controllers.");
+    let _ = writeln!(out, "/// The budget's twelve controllers.");
     let _ = writeln!(
         out,
-        "pub const BUDGET_ROWS: [crate::analytical::BudgetRow; 9] = [\n{rows}];"
+        "pub const BUDGET_ROWS: [crate::analytical::BudgetRow; 12] = [\n{rows}];"
     );
     let _ = writeln!(out, "/// The model file compiled in.");
     let _ = writeln!(
         out,
-        "pub const MODEL_SOURCE: &str = \"budget: FE linear, FE yielding, metamodel; N = 1, 3, 8\";"
+        "pub const MODEL_SOURCE: &str = \"budget: FE linear, FE yielding, metamodel, modal metamodel; N = 1, 3, 8\";"
     );
 }
 
@@ -752,7 +839,7 @@ fn main() {
     };
     let mut mem = read(&mem_file);
     if std::env::var_os("CARGO_FEATURE_BUDGET_STRUCTURES").is_some() {
-        // The structure budget builds its nine controllers one after the other on the stack
+        // The structure budget builds its twelve controllers one after the other on the stack
         // (each ~45 KB with its compensator's storage, twice while one is assembled): on the
         // emulated M7 it maps 512 KiB of the MPS2's 4 MiB SSRAM2/3. The controllers themselves
         // are unchanged; a structure build (`structure-*`) keeps the board's 128 KiB.
@@ -773,6 +860,7 @@ fn main() {
         ("CARGO_FEATURE_STRUCTURE_FE", "fe"),
         ("CARGO_FEATURE_STRUCTURE_NL", "nl"),
         ("CARGO_FEATURE_STRUCTURE_META", "meta"),
+        ("CARGO_FEATURE_STRUCTURE_MODAL", "modal"),
     ]
     .into_iter()
     .find(|(f, _)| std::env::var_os(f).is_some())

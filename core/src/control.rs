@@ -160,6 +160,9 @@ pub enum Analytical {
     /// The structure metamodel (delta ARX) of an N-DOF numerical substructure: constant cost per
     /// tick whatever N is.
     StructureMeta(DeltaArx),
+    #[cfg(feature = "structures")]
+    /// The learned modal-hysteretic metamodel of a yielding numerical substructure (issue 16).
+    StructureModal(StructureModal),
 }
 
 impl Analytical {
@@ -194,6 +197,8 @@ impl Analytical {
             Analytical::StructureMeta(m) => m
                 .predict(ag_mm_s2, fb.brace_disp_mm, fb.brace_force_kn)
                 .map_err(|_| StepError::NonFiniteOutput)?,
+            #[cfg(feature = "structures")]
+            Analytical::StructureModal(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
         };
         if y.is_finite() {
             Ok(y)
@@ -214,6 +219,8 @@ impl Analytical {
             Analytical::StructureNl(m) => m.reset(),
             #[cfg(feature = "structures")]
             Analytical::StructureMeta(m) => m.reset(),
+            #[cfg(feature = "structures")]
+            Analytical::StructureModal(m) => m.reset(),
         }
     }
 }
@@ -627,7 +634,9 @@ impl Controller {
 mod structure;
 #[cfg(feature = "structures")]
 use crate::metamodel::DeltaArx;
-pub use structure::{StoryLawSpec, StructureFe, StructureNl, StructureSpec};
+pub use structure::{
+    ModalSpec, StoryLawSpec, StructureFe, StructureModal, StructureNl, StructureSpec,
+};
 
 #[cfg(test)]
 mod tests;

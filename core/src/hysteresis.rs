@@ -163,74 +163,64 @@ impl Law {
     }
 }
 
-/// A story: its law and its small state (last drift and the law's internal variable).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Story {
-    law: Law,
+/// A story's small state under its law (16 bytes: last drift and the law's internal variable),
+/// kept apart from the law so that a model with fixed laws copies only this per step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StoryState {
     drift_mm: f64,
     /// Bilinear: the force, kN. Bouc–Wen: `z`.
     internal: f64,
 }
 
-impl Story {
-    /// A story at rest.
-    pub fn new(law: Law) -> Self {
-        Self {
-            law,
-            drift_mm: 0.0,
-            internal: 0.0,
-        }
-    }
-
-    /// The law.
-    pub fn law(&self) -> &Law {
-        &self.law
-    }
-
-    /// Back to rest, virgin state.
-    pub fn reset(&mut self) {
-        self.drift_mm = 0.0;
-        self.internal = 0.0;
-    }
+impl StoryState {
+    /// At rest, virgin.
+    pub const REST: Self = Self {
+        drift_mm: 0.0,
+        internal: 0.0,
+    };
 
     /// The drift of the last update, mm.
     pub fn drift_mm(&self) -> f64 {
         self.drift_mm
     }
+}
 
-    /// The force at the last update, kN.
-    pub fn force_kn(&self) -> f64 {
-        match self.law.0 {
-            Kind::Bilinear { .. } => self.internal,
+impl Law {
+    /// The force of a story in `state` under this law, kN.
+    #[inline]
+    pub fn force_kn(&self, state: &StoryState) -> f64 {
+        match self.0 {
+            Kind::Bilinear { .. } => state.internal,
             Kind::BoucWen {
                 k0_kn_per_mm,
                 yield_force_kn,
                 post_yield_ratio,
                 ..
             } => {
-                post_yield_ratio * k0_kn_per_mm * self.drift_mm
-                    + (1.0 - post_yield_ratio) * yield_force_kn * self.internal
+                post_yield_ratio * k0_kn_per_mm * state.drift_mm
+                    + (1.0 - post_yield_ratio) * yield_force_kn * state.internal
             }
         }
     }
 
-    /// Move to `drift_mm` (the path from the last drift is taken as monotonic) and return the
-    /// story force, kN. A non-finite drift leaves the state unchanged.
-    pub fn update(&mut self, drift_mm: f64) -> f64 {
+    /// Move `state` to `drift_mm` (the path from the last drift is taken as monotonic) and return
+    /// the story force, kN. A non-finite drift leaves the state unchanged.
+    #[inline]
+    pub fn update(&self, state: &mut StoryState, drift_mm: f64) -> f64 {
         if !drift_mm.is_finite() {
-            return self.force_kn();
+            return self.force_kn(state);
         }
-        let du = drift_mm - self.drift_mm;
-        match self.law.0 {
+        let du = drift_mm - state.drift_mm;
+        match self.0 {
             Kind::Bilinear {
                 k0_kn_per_mm,
                 yield_force_kn,
                 post_yield_ratio,
             } => {
-                let trial = self.internal + k0_kn_per_mm * du;
+                let trial = state.internal + k0_kn_per_mm * du;
                 let back = post_yield_ratio * k0_kn_per_mm * drift_mm;
                 let band = (1.0 - post_yield_ratio) * yield_force_kn;
-                self.internal = clamp(trial, back - band, back + band);
+                state.internal = clamp(trial, back - band, back + band);
             }
             Kind::BoucWen {
                 k0_kn_per_mm,
@@ -252,16 +242,64 @@ impl Story {
                 };
                 // `|z|` never exceeds its bound `(β+γ)^(−1/n)` (where dz/du vanishes); clamping
                 // to it keeps a drift jump far larger than the sub-step cap from overshooting.
-                let mut z = self.internal;
+                let mut z = state.internal;
                 for _ in 0..steps {
                     let mid = clamp(z + 0.5 * h * rate(z), -z_max, z_max);
                     z = clamp(z + h * rate(mid), -z_max, z_max);
                 }
-                self.internal = z;
+                state.internal = z;
             }
         }
-        self.drift_mm = drift_mm;
-        self.force_kn()
+        state.drift_mm = drift_mm;
+        self.force_kn(state)
+    }
+}
+
+/// A story: its law and its small state ([`StoryState`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Story {
+    law: Law,
+    state: StoryState,
+}
+
+impl Story {
+    /// A story at rest.
+    pub fn new(law: Law) -> Self {
+        Self {
+            law,
+            state: StoryState::REST,
+        }
+    }
+
+    /// The law.
+    pub fn law(&self) -> &Law {
+        &self.law
+    }
+
+    /// Its state.
+    pub fn state(&self) -> &StoryState {
+        &self.state
+    }
+
+    /// Back to rest, virgin state.
+    pub fn reset(&mut self) {
+        self.state = StoryState::REST;
+    }
+
+    /// The drift of the last update, mm.
+    pub fn drift_mm(&self) -> f64 {
+        self.state.drift_mm
+    }
+
+    /// The force at the last update, kN.
+    pub fn force_kn(&self) -> f64 {
+        self.law.force_kn(&self.state)
+    }
+
+    /// Move to `drift_mm` ([`Law::update`]) and return the story force, kN. A non-finite drift
+    /// leaves the state unchanged.
+    pub fn update(&mut self, drift_mm: f64) -> f64 {
+        self.law.update(&mut self.state, drift_mm)
     }
 }
 

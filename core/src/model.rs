@@ -10,11 +10,11 @@ use crate::compensator::{
 };
 use crate::control::{Analytical, Controller, FeModel, ReplaceError};
 #[cfg(feature = "structures")]
-use crate::control::{StructureFe, StructureNl, StructureSpec};
+use crate::control::{ModalSpec, StructureFe, StructureModal, StructureNl, StructureSpec};
 #[cfg(feature = "structures")]
 use crate::hysteresis::Law;
 #[cfg(feature = "structures")]
-use crate::metamodel::{DeltaArx, DeltaArxParams};
+use crate::metamodel::{DeltaArx, DeltaArxParams, ModalHystParams};
 use crate::metamodel::{
     Lr, LrParams, Lrx, LrxParams, ModelError, Rnn, RnnParams, RnnScaling, RnnWeights,
 };
@@ -86,6 +86,14 @@ pub enum ModelSpec<'a> {
         /// The force correction's stiffness, kN/mm.
         k_corr_kn_per_mm: f64,
     },
+    #[cfg(feature = "structures")]
+    /// The learned modal-hysteretic metamodel of a yielding structure (`rths train nonlinear`):
+    /// stepped at the controller's step whatever rate it was trained at (continuous-time modes,
+    /// rate-independent laws).
+    StructureModal {
+        /// The model's arrays.
+        model: ModalSpec<'a>,
+    },
 }
 
 /// A [`ModelSpec`] whose weights passed validation.
@@ -116,6 +124,9 @@ pub enum Model {
     #[cfg(feature = "structures")]
     /// The structure metamodel.
     StructureMeta(DeltaArxParams),
+    #[cfg(feature = "structures")]
+    /// The modal-hysteretic metamodel (validated at [`DT_S`]; assembled at the controller's step).
+    StructureModal(ModalHystParams),
 }
 
 impl ModelSpec<'_> {
@@ -165,6 +176,8 @@ impl ModelSpec<'_> {
                 theta,
                 k_corr_kn_per_mm,
             } => Model::StructureMeta(DeltaArxParams::from_slice(theta, k_corr_kn_per_mm)?),
+            #[cfg(feature = "structures")]
+            ModelSpec::StructureModal { model } => Model::StructureModal(model.params(DT_S)?),
         })
     }
 }
@@ -195,6 +208,8 @@ impl Model {
             )),
             #[cfg(feature = "structures")]
             Model::StructureMeta(p) => Ok(meta_parts(p)),
+            #[cfg(feature = "structures")]
+            Model::StructureModal(p) => Ok(modal_parts(p.at_dt_s(dt_s)?)),
         }
     }
 }
@@ -307,6 +322,8 @@ pub fn assemble(
             theta,
             k_corr_kn_per_mm,
         )?)),
+        #[cfg(feature = "structures")]
+        ModelSpec::StructureModal { model } => Ok(modal_parts(model.params(dt_s)?)),
     }
 }
 
@@ -314,6 +331,14 @@ pub fn assemble(
 fn meta_parts(p: DeltaArxParams) -> (Analytical, Compensator) {
     (
         Analytical::StructureMeta(DeltaArx::new(p)),
+        Compensator::None,
+    )
+}
+
+#[cfg(feature = "structures")]
+fn modal_parts(p: ModalHystParams) -> (Analytical, Compensator) {
+    (
+        Analytical::StructureModal(StructureModal::new(p)),
         Compensator::None,
     )
 }
@@ -371,6 +396,10 @@ pub fn assemble_in(
             theta,
             k_corr_kn_per_mm,
         } => ctl.install_plain(meta_parts(DeltaArxParams::from_slice(theta, k_corr_kn_per_mm)?).0),
+        #[cfg(feature = "structures")]
+        ModelSpec::StructureModal { model } => {
+            ctl.install_plain(modal_parts(model.params(dt_s)?).0)
+        }
     }
 }
 

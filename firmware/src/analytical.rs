@@ -1,6 +1,7 @@
 //! The controller of this build: its analytical part, chosen by feature (exactly one of
 //! `model-lr`, `model-rnn`, `fe-ats`, `model-lrx`, the structure-file parts `structure-fe`,
-//! `structure-nl`, `structure-meta` (`RTHS_STRUCTURE`, build.rs), or `budget-structures`, the
+//! `structure-nl`, `structure-meta`, `structure-modal` (`RTHS_STRUCTURE`, build.rs), or
+//! `budget-structures`, the
 //! structure budget run), fed from the generated `gen` constants.
 
 use core::mem::MaybeUninit;
@@ -18,10 +19,11 @@ const _: () = assert!(
         + cfg!(feature = "structure-fe") as u8
         + cfg!(feature = "structure-nl") as u8
         + cfg!(feature = "structure-meta") as u8
+        + cfg!(feature = "structure-modal") as u8
         + cfg!(feature = "budget-structures") as u8
         == 1,
     "enable exactly one analytical part: `model-lr`, `model-rnn`, `fe-ats`, `model-lrx`, \
-     `structure-fe`, `structure-nl`, `structure-meta` or `budget-structures`"
+     `structure-fe`, `structure-nl`, `structure-meta`, `structure-modal` or `budget-structures`"
 );
 
 /// A structure-file part (or the structure budget) is built.
@@ -29,6 +31,7 @@ const STRUCTURE: bool = cfg!(any(
     feature = "structure-fe",
     feature = "structure-nl",
     feature = "structure-meta",
+    feature = "structure-modal",
     feature = "budget-structures"
 ));
 
@@ -39,6 +42,8 @@ pub const SCENARIO_PREFIX: &str = if cfg!(feature = "structure-fe") {
     "structure-nl"
 } else if cfg!(feature = "structure-meta") {
     "structure-meta"
+} else if cfg!(feature = "structure-modal") {
+    "structure-modal"
 } else if cfg!(feature = "budget-structures") {
     "budget-structures"
 } else if cfg!(feature = "model-rnn") {
@@ -183,7 +188,8 @@ const SPEC: ModelSpec<'static> = ModelSpec::FeAts {
 #[cfg(any(
     feature = "structure-fe",
     feature = "structure-nl",
-    feature = "structure-meta"
+    feature = "structure-meta",
+    feature = "structure-modal"
 ))]
 const SPEC: ModelSpec<'static> = crate::gen::STRUCTURE_SPEC;
 /// The budget build's app controller (never ticked: `init` runs [`structure_budget`] and exits).
@@ -244,10 +250,10 @@ pub fn faults() -> rths_hal_sim::FaultPlan {
     }
 }
 
-/// One controller of the structure budget (build.rs generates the nine of `gen::BUDGET_ROWS`).
+/// One controller of the structure budget (build.rs generates the twelve of `gen::BUDGET_ROWS`).
 #[cfg(feature = "budget-structures")]
 pub struct BudgetRow {
-    /// The budget path: `structure-fe`, `structure-nl` or `structure-meta`.
+    /// The budget path: `structure-fe`, `structure-nl`, `structure-meta` or `structure-modal`.
     pub path: &'static str,
     /// The structure file's name.
     pub structure: &'static str,
@@ -283,8 +289,8 @@ fn budget_tick(
     c.tick(ag_mm_s2, Ok(s), false)
 }
 
-/// The structure budget: each of the nine controllers of `gen::BUDGET_ROWS` (FE linear, FE
-/// yielding and the structure metamodel for N = 1, 3, 8) runs the whole record (`ag_mm_s2(k)`,
+/// The structure budget: each of the twelve controllers of `gen::BUDGET_ROWS` (FE linear, FE
+/// yielding, the structure metamodel and the modal-hysteretic metamodel for N = 1, 3, 8) runs the whole record (`ag_mm_s2(k)`,
 /// `ticks`) from rest, one after the other, on an ideal rig: the measured displacement is the
 /// command in force, the measured force the structure file's linear specimen at it (the plant does
 /// not change the instruction count of these controllers: no branch depends on it). Counted per
@@ -308,7 +314,7 @@ pub fn structure_budget<C: rths_app::board::InstrCounter>(
 }
 
 /// One row of [`structure_budget`]: its controller, run and reported. Out of line: inlined into
-/// the loop over the nine rows, the compiler unrolled it and gave each row's ~12 KB controller
+/// the loop over the rows, the compiler unrolled it and gave each row's ~12 KB controller
 /// its own stack slot (a 111 KB frame, past the RAM).
 #[cfg(feature = "budget-structures")]
 #[inline(never)]

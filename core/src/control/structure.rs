@@ -1,7 +1,8 @@
 //! The analytical parts of a structure-file test: an N-DOF numerical substructure (linear, or with
 //! yielding stories) integrated by Chang's explicit method, fed the measured specimen force at the
 //! specimen's DOF and giving the target displacement there (docs/benchmark.md, docs/nonlinear.md).
-//! The structure metamodel of the same substructure is [`crate::metamodel::DeltaArx`].
+//! The structure metamodel of the same substructure is [`crate::metamodel::DeltaArx`]; the learned
+//! nonlinear metamodel of a yielding one is [`StructureModal`] ([`crate::metamodel::ModalHyst`]).
 //!
 //! Each step is the vRTHS benchmark loop's (`src/benchmark/run.rs`): at tick 0 the structure is at
 //! rest under `ü_g(0)` (the initial condition); at tick k > 0 the step completes with `ü_g(k)` and
@@ -9,6 +10,7 @@
 //! displacement at that DOF. A non-finite input is refused before it touches the state.
 
 use crate::hysteresis::Law;
+use crate::metamodel::{ModalHyst, ModalHystParams, ModalMode, ModelError, MODAL_MAX_SPRINGS};
 use crate::params::ParamError;
 use crate::structure_n::{ChangN, StructureN, MAX_DOF};
 use crate::structure_nl::NonlinearFrame;
@@ -277,6 +279,94 @@ impl StructureNl {
     /// Back to rest, every story virgin.
     pub fn reset(&mut self) {
         self.frame.reset(0.0);
+        self.started = false;
+    }
+}
+
+/// The modal-hysteretic metamodel of a yielding structure (an `rths-nl-model` file), raw: the
+/// arrays the file stores (validated by [`Self::params`]). Firmware keeps one in a `const` over its
+/// generated `&'static` arrays. The modes are continuous-time (frequencies, damping) and the laws
+/// rate-independent, so a model trained at one control rate runs at any other: the step is the
+/// controller's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModalSpec<'a> {
+    /// The modes.
+    pub modes: &'a [ModalMode],
+    /// Mode shapes, floors × modes, row-major.
+    pub shape: &'a [f64],
+    /// The specimen's DOF, 0-based.
+    pub specimen_dof: usize,
+    /// The specimen's stiffness the modes include, kN/mm.
+    pub specimen_k_kn_per_mm: f64,
+    /// The latent springs' laws, 1..=[`MODAL_MAX_SPRINGS`].
+    pub laws: &'a [StoryLawSpec],
+    /// The springs' drift per unit of each mode, springs × modes, row-major.
+    pub drift: &'a [f64],
+}
+
+impl ModalSpec<'_> {
+    /// The validated parameters at control step `dt_s`.
+    pub fn params(&self, dt_s: f64) -> Result<ModalHystParams, ModelError> {
+        let m = self.laws.len();
+        if m == 0 || m > MODAL_MAX_SPRINGS {
+            return Err(ParamError::OutOfRange("number of latent springs (1..=8)").into());
+        }
+        let mut laws = [Law::bilinear(1.0, 1.0, 0.0)?; MODAL_MAX_SPRINGS];
+        for (l, s) in laws.iter_mut().zip(self.laws) {
+            *l = s.validate()?;
+        }
+        ModalHystParams::new(
+            dt_s,
+            self.modes,
+            self.shape,
+            self.specimen_dof,
+            self.specimen_k_kn_per_mm,
+            laws.get(..m).unwrap_or(&[]),
+            self.drift,
+        )
+    }
+}
+
+/// The modal-hysteretic metamodel ([`ModalHyst`]) as the controller steps it: tick 0 rests it
+/// under `ü_g(0)`, each later tick completes the step with `ü_g(k)` and the measured force.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StructureModal {
+    model: ModalHyst,
+    started: bool,
+}
+
+impl StructureModal {
+    /// The model of `params`, at rest.
+    pub fn new(params: ModalHystParams) -> Self {
+        Self {
+            model: ModalHyst::new(params),
+            started: false,
+        }
+    }
+
+    /// The model (its modes' and springs' state).
+    pub fn model(&self) -> &ModalHyst {
+        &self.model
+    }
+
+    /// As [`StructureFe::next_target`]; a step that would overflow is refused (state unchanged).
+    #[inline]
+    pub fn next_target(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
+        finite_inputs(ag_mm_s2, force_kn)?;
+        if self.started {
+            self.model
+                .step(ag_mm_s2, force_kn)
+                .map_err(|_| super::StepError::NonFiniteOutput)
+        } else {
+            self.model.reset_at(ag_mm_s2);
+            self.started = true;
+            Ok(self.model.target_mm())
+        }
+    }
+
+    /// Back to rest, every spring virgin.
+    pub fn reset(&mut self) {
+        self.model.reset();
         self.started = false;
     }
 }

@@ -20,7 +20,7 @@
 //! [`ModelError`] and the state is left as it was.
 
 use super::{all_finite, shape, ModelError};
-use crate::hysteresis::{Law, Story};
+use crate::hysteresis::{Law, StoryState};
 use crate::params::ParamError;
 
 /// Largest number of modes of the model.
@@ -73,12 +73,7 @@ impl ModalHystParams {
         laws: &[Law],
         drift_row_major: &[f64],
     ) -> Result<Self, ModelError> {
-        if !dt_s.is_finite() {
-            return Err(ParamError::NotFinite("time step").into());
-        }
-        if dt_s <= 0.0 {
-            return Err(ParamError::NotPositive("time step").into());
-        }
+        let dt_s = time_step(dt_s)?;
         let r = modes.len();
         if r == 0 || r > MODAL_MAX_MODES {
             return Err(ParamError::OutOfRange("number of modes (1..=8)").into());
@@ -162,6 +157,15 @@ impl ModalHystParams {
         })
     }
 
+    /// The same model at control step `dt_s`: the modes are continuous-time and the laws
+    /// rate-independent, so a model trained at one rate runs at another.
+    pub fn at_dt_s(self, dt_s: f64) -> Result<Self, ModelError> {
+        Ok(Self {
+            dt_s: time_step(dt_s)?,
+            ..self
+        })
+    }
+
     /// The time step, s.
     pub fn dt_s(&self) -> f64 {
         self.dt_s
@@ -192,6 +196,17 @@ impl ModalHystParams {
     }
 }
 
+/// A finite, positive time step.
+fn time_step(dt_s: f64) -> Result<f64, ModelError> {
+    if !dt_s.is_finite() {
+        Err(ParamError::NotFinite("time step").into())
+    } else if dt_s <= 0.0 {
+        Err(ParamError::NotPositive("time step").into())
+    } else {
+        Ok(dt_s)
+    }
+}
+
 /// Chang's coefficients of one modal equation (unit mass): the scalar case of
 /// [`crate::structure_n::ChangN`]'s `D = M + ½ΔtC + ¼Δt²K0`, `β1 = D⁻¹(M + ½ΔtC)`, `β2 = D⁻¹·½M`.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -209,7 +224,8 @@ struct ModeStep {
 pub struct ModalHyst {
     p: ModalHystParams,
     step: [ModeStep; MODAL_MAX_MODES],
-    stories: [Option<Story>; MODAL_MAX_SPRINGS],
+    /// The springs' small states (their laws stay in the parameters: a step copies 16 B each).
+    states: [StoryState; MODAL_MAX_SPRINGS],
     disp: [f64; MODAL_MAX_MODES],
     vel: [f64; MODAL_MAX_MODES],
     accel: [f64; MODAL_MAX_MODES],
@@ -234,14 +250,10 @@ impl ModalHyst {
                 solve: 1.0 / m_half_c,
             };
         }
-        let mut stories = [None; MODAL_MAX_SPRINGS];
-        for (s, l) in stories.iter_mut().zip(&p.law) {
-            *s = l.map(Story::new);
-        }
         let mut me = Self {
             p,
             step,
-            stories,
+            states: [StoryState::REST; MODAL_MAX_SPRINGS],
             disp: [0.0; MODAL_MAX_MODES],
             vel: [0.0; MODAL_MAX_MODES],
             accel: [0.0; MODAL_MAX_MODES],
@@ -269,9 +281,7 @@ impl ModalHyst {
         } else {
             0.0
         };
-        for s in self.stories.iter_mut().flatten() {
-            s.reset();
-        }
+        self.states = [StoryState::REST; MODAL_MAX_SPRINGS];
         self.disp = [0.0; MODAL_MAX_MODES];
         self.vel = [0.0; MODAL_MAX_MODES];
         for (a, m) in self.accel.iter_mut().zip(self.p.mode_list()) {
@@ -304,6 +314,11 @@ impl ModalHyst {
             self.floor_disp_mm(i - 1)
         };
         self.floor_disp_mm(i) - below
+    }
+
+    /// Drift of latent spring `k` at the last completed step, mm (0 past the springs).
+    pub fn spring_drift_mm(&self, k: usize) -> f64 {
+        self.states.get(k).map_or(0.0, |s| s.drift_mm())
     }
 
     #[inline]
@@ -341,16 +356,21 @@ impl ModalHyst {
                 *x = phi * unbalanced;
             }
         }
-        // The springs move on a copy of the ones in use, committed only if the step is finite.
+        // The springs' states move on a copy, committed only if the step is finite.
         let m = self.p.springs;
-        let mut stories = self.stories;
-        for (s, row) in stories.iter_mut().zip(&self.p.drift).take(m) {
-            if let Some(s) = s {
+        let mut states = self.states;
+        for ((s, law), row) in states
+            .iter_mut()
+            .zip(&self.p.law)
+            .zip(&self.p.drift)
+            .take(m)
+        {
+            if let Some(law) = law {
                 let mut delta = 0.0;
                 for (a, b) in row.iter().zip(&d1).take(r) {
                     delta += a * b;
                 }
-                let h = s.update(delta) - s.law().k0_kn_per_mm() * delta;
+                let h = law.update(s, delta) - law.k0_kn_per_mm() * delta;
                 for (x, dk) in rq.iter_mut().zip(row).take(r) {
                     *x += dk * h;
                 }
@@ -382,7 +402,7 @@ impl ModalHyst {
         if !ok || !target.is_finite() {
             return Err(ParamError::NotFinite("model state (the step overflowed)").into());
         }
-        self.stories = stories;
+        self.states = states;
         self.disp = d1;
         self.vel = v1;
         self.accel = a1;

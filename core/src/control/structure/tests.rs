@@ -6,7 +6,7 @@ use proptest::prelude::*;
 use super::*;
 use crate::control::{Analytical, ControlConfig, Controller, FeedbackSource};
 use crate::hal::{ErrorKind, Sample};
-use crate::metamodel::{DeltaArx, DeltaArxParams, DELTA_ARX_COEFFS};
+use crate::metamodel::{DeltaArx, DeltaArxParams, ModalHyst, ModalMode, DELTA_ARX_COEFFS};
 use crate::model::{assemble, ModelSpec};
 use crate::params::{Prototype, SpecimenScale, DT_S};
 use crate::supervisor::{Limits, State};
@@ -64,6 +64,48 @@ fn yielding_spec() -> StructureSpec<'static> {
         stiffness: &ZERO,
         laws: &LAWS,
         ..linear_spec()
+    }
+}
+
+/// A two-mode, two-floor modal-hysteretic model with a bilinear and a Bouc–Wen spring that yield
+/// at drifts of 5 µm: the ground motion below drives both well past it.
+const MODES: [ModalMode; 2] = [
+    ModalMode {
+        omega_rad_s: 15.0,
+        damping_ratio: 0.03,
+        ground_participation: 1.0,
+    },
+    ModalMode {
+        omega_rad_s: 40.0,
+        damping_ratio: 0.05,
+        ground_participation: 0.3,
+    },
+];
+const MODAL_SHAPE: [f64; 4] = [0.8, 0.5, 1.0, -0.6];
+const MODAL_LAWS: [StoryLawSpec; 2] = [
+    StoryLawSpec {
+        k0_kn_per_mm: 200.0,
+        yield_force_kn: 1.0,
+        post_yield_ratio: 0.05,
+        bouc_wen: None,
+    },
+    StoryLawSpec {
+        k0_kn_per_mm: 150.0,
+        yield_force_kn: 0.75,
+        post_yield_ratio: 0.05,
+        bouc_wen: Some([2.0, 0.5, 0.5]),
+    },
+];
+const MODAL_DRIFT: [f64; 4] = [0.8, 0.5, 0.2, -1.1];
+
+fn modal_spec() -> ModalSpec<'static> {
+    ModalSpec {
+        modes: &MODES,
+        shape: &MODAL_SHAPE,
+        specimen_dof: 0,
+        specimen_k_kn_per_mm: K_SPECIMEN,
+        laws: &MODAL_LAWS,
+        drift: &MODAL_DRIFT,
     }
 }
 
@@ -198,6 +240,65 @@ fn the_metamodel_variant_is_the_delta_arx_bit_for_bit() {
 }
 
 #[test]
+fn the_modal_variant_is_the_modal_hysteretic_model_bit_for_bit() {
+    let spec = modal_spec();
+    let (inputs, targets) = run(&ModelSpec::StructureModal { model: spec }, 4000);
+    let mut m = ModalHyst::new(spec.params(DT_S).unwrap());
+    let mut peak_drift: f64 = 0.0;
+    for (k, ([ag, _, f], t)) in inputs.iter().zip(&targets).enumerate() {
+        let y = if k == 0 {
+            m.reset_at(*ag);
+            m.target_mm()
+        } else {
+            m.step(*ag, *f).unwrap()
+        };
+        assert_eq!(t.to_bits(), y.to_bits(), "tick {k}");
+        peak_drift = peak_drift.max(m.spring_drift_mm(0).abs());
+    }
+    // Spring 0 yields at 1/200 mm.
+    assert!(peak_drift > 10.0 * 1.0 / 200.0, "peak drift {peak_drift}");
+}
+
+#[test]
+fn a_modal_spec_runs_at_the_step_it_is_given_and_bad_ones_are_refused() {
+    let spec = modal_spec();
+    let at = |dt: f64| spec.params(dt).unwrap();
+    assert_eq!(at(DT_S / 2.0).dt_s(), DT_S / 2.0);
+    assert_eq!(at(DT_S).at_dt_s(DT_S / 2.0).unwrap(), at(DT_S / 2.0));
+    assert!(at(DT_S).at_dt_s(0.0).is_err());
+    assert!(ModalSpec { laws: &[], ..spec }.params(DT_S).is_err());
+    let nine = [MODAL_LAWS[0]; 9];
+    assert!(ModalSpec {
+        laws: &nine,
+        ..spec
+    }
+    .params(DT_S)
+    .is_err());
+    let bad_law = [StoryLawSpec {
+        yield_force_kn: -1.0,
+        ..MODAL_LAWS[0]
+    }; 2];
+    assert!(ModalSpec {
+        laws: &bad_law,
+        ..spec
+    }
+    .params(DT_S)
+    .is_err());
+    assert!(ModalSpec {
+        drift: &MODAL_DRIFT[..3],
+        ..spec
+    }
+    .params(DT_S)
+    .is_err());
+    assert!(ModalSpec {
+        specimen_dof: 2,
+        ..spec
+    }
+    .params(DT_S)
+    .is_err());
+}
+
+#[test]
 fn a_yielding_spec_is_not_a_linear_one_and_bad_specs_are_refused() {
     assert!(yielding_spec().linear(DT_S).is_err());
     assert!(linear_spec().yielding(DT_S).is_err());
@@ -259,13 +360,14 @@ proptest! {
     /// themselves refuse it with their state untouched.
     #[test]
     fn non_finite_feedback_is_refused_never_a_panic(
-        which in 0u8..3,
+        which in 0u8..4,
         picks in proptest::collection::vec((any::<u8>(), any::<u8>(), any::<u8>(), -5.0f64..5.0), 1..200),
     ) {
         let th = theta();
         let spec = match which {
             0 => ModelSpec::StructureFe { structure: linear_spec() },
             1 => ModelSpec::StructureNl { structure: yielding_spec() },
+            2 => ModelSpec::StructureModal { model: modal_spec() },
             _ => ModelSpec::StructureMeta { theta: &th, k_corr_kn_per_mm: 50.0 },
         };
         let mut c = controller(&spec);
@@ -283,6 +385,7 @@ proptest! {
         let r = match &mut a {
             Analytical::StructureFe(m) => m.next_target(f64::NAN, 1.0).map(|_| ()),
             Analytical::StructureNl(m) => m.next_target(1.0, f64::NAN).map(|_| ()),
+            Analytical::StructureModal(m) => m.next_target(f64::INFINITY, 1.0).map(|_| ()),
             Analytical::StructureMeta(m) => m.predict(1.0, 0.0, f64::INFINITY).map(|_| ()).map_err(|_| super::super::StepError::NonFiniteOutput),
             _ => Ok(()),
         };
@@ -304,6 +407,9 @@ fn validated_models_assemble_the_same_parts() {
         ModelSpec::StructureMeta {
             theta: &th,
             k_corr_kn_per_mm: 50.0,
+        },
+        ModelSpec::StructureModal {
+            model: modal_spec(),
         },
     ] {
         let direct = assemble(&spec, Prototype::paper(), DT_S).unwrap();
