@@ -23,17 +23,28 @@
 # its qemu-netduinoplus2 row is marked "fits": false.
 #
 # The structure budget (issues 15, 16): one build (`budget-structures`, emulated M7, 4096 Hz) steps
-# nine controllers, FE linear, FE yielding and the structure metamodel for N = 1, 3, 8, through the
-# whole record in one QEMU run, one `STRUCTURE` line each ("structure_rows" in the JSON). Checks:
-# each within 10 % of the 4096 Hz tick at 480 MHz; the metamodel cheaper than the FE for N ≥ 3, and
-# its cost independent of N (max within 10 % of the N = 1 one); no panic reachable from its tick.
+# twelve controllers, FE linear, FE yielding, the structure metamodel (of the linear structures)
+# and the learned modal-hysteretic metamodel (of the yielding ones: data/models/nl-<name>.json, or
+# RTHS_BUDGET_MODALS=m1,m3,m8) for N = 1, 3, 8, through the whole record in one QEMU run, one
+# `STRUCTURE` line each ("structure_rows" in the JSON). Checks: each within 10 % of the 4096 Hz tick
+# at 480 MHz; the structure metamodel cheaper than the linear FE for N ≥ 3, and its cost
+# independent of N (max within 10 % of the N = 1 one); the modal metamodel cheaper than the
+# yielding FE for N ≥ 3; no panic reachable from its tick.
 #
-#   ./budget.sh          the human-readable table (needs qemu-system-arm)
-#   ./budget.sh --json   one JSON object {"rows": [...], ...} on stdout (progress on stderr)
+#   ./budget.sh                the human-readable table (needs qemu-system-arm)
+#   ./budget.sh --json         one JSON object {"rows": [...], ...} on stdout (progress on stderr)
+#   ./budget.sh --structures   the structure budget only (with or after --json)
 set -euo pipefail
 cd "$(dirname "$0")"
 JSON=0
-if [ "${1:-}" = --json ]; then JSON=1; fi
+STRUCTURES_ONLY=0
+for arg in "$@"; do
+  case "$arg" in
+    --json) JSON=1 ;;
+    --structures) STRUCTURES_ONLY=1 ;;
+    *) echo "usage: $0 [--json] [--structures]" >&2; exit 2 ;;
+  esac
+done
 CPI=1.5
 LIMIT_PCT=10
 M4_LR_MAX_INSTR=2000
@@ -186,8 +197,8 @@ add_row() { # add_row BOARD CORE CLOCK_HZ PATH TWIN RATE
   fi
 }
 
-train_4096
 REFUSED=()
+if [ "$STRUCTURES_ONLY" = 1 ]; then RATES=""; else train_4096; fi
 for rate in $RATES; do
   # The emulated boards: build and run every path.
   for path in $PATHS; do
@@ -225,6 +236,7 @@ done
 STRUCT_ROWS=()
 structures() {
   local dir=$PWD/../data/structures metas=() s line path name n min mean max pct fits=true p
+  mkdir -p "$M4096"
   for s in paper-frame vrths-case1 shear8; do
     (cd .. && cargo run --release --quiet --features rate-4096 -- train meta --rate 4096 \
       --structure "$dir/$s.json" --out "$M4096/meta-$s.json" >&2)
@@ -241,7 +253,7 @@ structures() {
   if ! out=$(cd "$(mktemp -d)" && $M7_RUNNER "$OLDPWD/$OUT/qemu-mps2-an500-structures-4096.elf"); then
     say "FAIL: the structure budget run failed (a controller left Running):"; say "$out"; fail=1
   fi
-  declare -A FE_MAX META_MAX
+  declare -A FE_MAX META_MAX NL_MAX MODAL_MAX
   while read -r line; do
     path=$(sed -n 's/.*"path":"\([^"]*\)".*/\1/p' <<<"$line")
     name=$(sed -n 's/.*"structure":"\([^"]*\)".*/\1/p' <<<"$line")
@@ -256,15 +268,20 @@ structures() {
     fi
     [ "$path" = structure-fe ] && FE_MAX[$n]=$max
     [ "$path" = structure-meta ] && META_MAX[$n]=$max
+    [ "$path" = structure-nl ] && NL_MAX[$n]=$max
+    [ "$path" = structure-modal ] && MODAL_MAX[$n]=$max
     STRUCT_ROWS+=("$path|$name|$n|$min|$mean|$max|$pct|$fits|$fnv")
   done < <(grep '^STRUCTURE ' <<<"$out")
-  if [ "${#STRUCT_ROWS[@]}" != 9 ]; then say "FAIL: structure budget: ${#STRUCT_ROWS[@]} rows, 9 expected"; fail=1; fi
+  if [ "${#STRUCT_ROWS[@]}" != 12 ]; then say "FAIL: structure budget: ${#STRUCT_ROWS[@]} rows, 12 expected"; fail=1; fi
   for n in 3 8; do
     if [ "${META_MAX[$n]:-0}" -ge "${FE_MAX[$n]:-0}" ]; then
       say "FAIL: structure budget: the metamodel (${META_MAX[$n]:-?}) is not cheaper than the FE (${FE_MAX[$n]:-?}) at N = $n"; fail=1
     fi
     if awk -v a="${META_MAX[$n]:-0}" -v b="${META_MAX[1]:-0}" 'BEGIN { exit !(a > 1.1 * b) }'; then
       say "FAIL: structure budget: the metamodel's cost grows with N (${META_MAX[1]:-?} at N = 1, ${META_MAX[$n]} at N = $n)"; fail=1
+    fi
+    if [ "${MODAL_MAX[$n]:-0}" -ge "${NL_MAX[$n]:-0}" ]; then
+      say "FAIL: structure budget: the modal metamodel (${MODAL_MAX[$n]:-?}) is not cheaper than the yielding FE (${NL_MAX[$n]:-?}) at N = $n"; fail=1
     fi
   done
 }
@@ -296,14 +313,16 @@ if [ "$JSON" = 1 ]; then
   done
   printf '\n]}\n'
 else
-  printf '\n%-19s %-9s %5s %-7s %7s %8s %7s %6s %7s %7s %6s  %s\n' board core rate path max mean "% tick" stack flash ram panics "instructions from"
-  for row in "${ROWS[@]}"; do
-    IFS='|' read -r board core rate path max mean pct stack flash ram p twin fits clock min mem <<<"$row"
-    printf '%-19s %-9s %5s %-7s %7s %8s %6s%% %6s %7s %7s %6s  %s%s\n' "$board" "$core" "$rate" "$path" "$max" "$mean" "$pct" "$stack" "$flash" "$ram" "$p" "$twin" "$([ "$fits" = true ] || echo ' (DOES NOT FIT)')"
-  done
-  echo "(% of the tick at the board's clock, 168 MHz M4 / 480 MHz M7, $CPI cycles per instruction assumed;"
-  echo " budget: $LIMIT_PCT% for LR and LRX on the M4 and every path on the M7; LR ≤ $M4_LR_MAX_INSTR (M4) / ≤ $M7_LR_MAX_INSTR (M7)"
-  echo " instructions; flash ≤ $((FLASH_MAX / 1024)) KiB, static RAM ≤ $((RAM_MAX / 1024)) KiB; stack = measured high-water, bytes)"
+  if [ "$STRUCTURES_ONLY" = 0 ]; then
+    printf '\n%-19s %-9s %5s %-7s %7s %8s %7s %6s %7s %7s %6s  %s\n' board core rate path max mean "% tick" stack flash ram panics "instructions from"
+    for row in "${ROWS[@]}"; do
+      IFS='|' read -r board core rate path max mean pct stack flash ram p twin fits clock min mem <<<"$row"
+      printf '%-19s %-9s %5s %-7s %7s %8s %6s%% %6s %7s %7s %6s  %s%s\n' "$board" "$core" "$rate" "$path" "$max" "$mean" "$pct" "$stack" "$flash" "$ram" "$p" "$twin" "$([ "$fits" = true ] || echo ' (DOES NOT FIT)')"
+    done
+    echo "(% of the tick at the board's clock, 168 MHz M4 / 480 MHz M7, $CPI cycles per instruction assumed;"
+    echo " budget: $LIMIT_PCT% for LR and LRX on the M4 and every path on the M7; LR ≤ $M4_LR_MAX_INSTR (M4) / ≤ $M7_LR_MAX_INSTR (M7)"
+    echo " instructions; flash ≤ $((FLASH_MAX / 1024)) KiB, static RAM ≤ $((RAM_MAX / 1024)) KiB; stack = measured high-water, bytes)"
+  fi
   printf '\nstructure budget (qemu-mps2-an500, Cortex-M7, 4096 Hz; Controller::tick on an ideal rig, whole record)\n'
   printf '%-15s %-21s %3s %7s %8s %7s %7s\n' path structure N min mean max "% tick"
   for row in "${STRUCT_ROWS[@]}"; do

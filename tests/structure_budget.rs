@@ -1,29 +1,75 @@
 //! The firmware's structure budget (`firmware/budget.sh`, `budget-structures`) rerun on the host:
-//! the same nine controllers (FE linear, FE yielding, structure metamodel; N = 1, 3, 8), the same
+//! the same twelve controllers (FE linear, FE yielding, structure metamodel, modal-hysteretic
+//! metamodel of `data/models/nl-<name>.json`; N = 1, 3, 8), the same
 //! El Centro ticks at 4096 Hz, the same ideal rig, and the same FNV-1a checksum of each command
 //! stream. The expected checksums are the emulated Cortex-M7's (`STRUCTURE` lines of its QEMU run,
 //! docs/firmware.md#the-structure-budget): host and firmware step these controllers bit for bit.
 
 use rths::benchmark::meta::train_at;
 use rths_core::control::{ControlConfig, Controller, FeedbackSource};
+use rths_core::control::{ModalSpec, StoryLawSpec};
 use rths_core::hal::Sample;
+use rths_core::metamodel::ModalMode;
 use rths_core::model::{assemble, ModelSpec};
 use rths_core::params::{dt_s, Prototype, SpecimenScale, FORCE_SCALE};
 use rths_core::supervisor::{Limits, State};
 use rths_files::motion::GroundMotion;
+use rths_files::nl_model_file::NlModelFile;
 use rths_files::structure_file::Structure;
 use rths_files::structure_meta::StructureArrays;
 
 /// The firmware's record length at 4096 Hz (its `RECORD_TICKS`).
 const TICKS: usize = 163_800;
+/// The M7's checksum of the modal row of `data/models/nl-shear8-yielding.json`.
+const SHEAR8_MODAL_FNV: u64 = 0x0545ac80ec6c33f0;
 /// The budget's prototype-to-actuator displacement scale (`firmware/src/analytical.rs`).
 const DISP_SCALE: f64 = 10.0;
 
-fn structure(name: &str) -> Structure {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+fn structure_path(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("data/structures")
-        .join(format!("{name}.json"));
-    Structure::load(&path).unwrap()
+        .join(format!("{name}.json"))
+}
+
+fn structure(name: &str) -> Structure {
+    Structure::load(&structure_path(name)).unwrap()
+}
+
+/// FNV-1a of the command stream of the modal-hysteretic metamodel of `name`
+/// (`data/models/nl-<name>.json`, checked against the structure file) as the firmware builds it:
+/// the file's arrays as a `ModelSpec::StructureModal`.
+fn run_modal(name: &str, k_e: f64, ag: &[f64]) -> u64 {
+    let model = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("data/models")
+        .join(format!("nl-{name}.json"));
+    let f = NlModelFile::load_for(&model, &structure_path(name)).unwrap();
+    let modes: Vec<ModalMode> = f
+        .modes
+        .iter()
+        .map(|m| ModalMode {
+            omega_rad_s: m.omega_rad_s,
+            damping_ratio: m.damping_ratio,
+            ground_participation: m.ground_participation,
+        })
+        .collect();
+    let laws: Vec<StoryLawSpec> = f
+        .springs
+        .iter()
+        .map(|s| StoryLawSpec::of(&s.law().unwrap()))
+        .collect();
+    let shape: Vec<f64> = f.shape.iter().flatten().copied().collect();
+    let drift: Vec<f64> = f.springs.iter().flat_map(|s| s.drift.clone()).collect();
+    let spec = ModelSpec::StructureModal {
+        model: ModalSpec {
+            modes: &modes,
+            shape: &shape,
+            specimen_dof: f.specimen_dof,
+            specimen_k_kn_per_mm: f.specimen_stiffness_kn_per_mm,
+            laws: &laws,
+            drift: &drift,
+        },
+    };
+    run(&spec, k_e, ag)
 }
 
 /// FNV-1a of the command stream's bits, as the firmware computes it.
@@ -66,7 +112,7 @@ fn the_host_steps_the_structure_budget_as_the_m7_does() {
     let dt = dt_s(4096);
     let ag = GroundMotion::try_el_centro().unwrap().resample_mm_s2(dt);
     assert!(ag.len() >= TICKS);
-    let cases: [(&str, &str, u64); 9] = [
+    let cases: [(&str, &str, u64); 12] = [
         ("fe", "paper-frame", 0x93aa19d5b021bff6),
         ("fe", "vrths-case1", 0xe6553a72110da023),
         ("fe", "shear8", 0xeb26b80c088b0d63),
@@ -76,6 +122,9 @@ fn the_host_steps_the_structure_budget_as_the_m7_does() {
         ("meta", "paper-frame", 0x41c5b851e3265ce3),
         ("meta", "vrths-case1", 0x511c3a1c7356b7bb),
         ("meta", "shear8", 0x31766306ed5277f0),
+        ("modal", "paper-frame-yielding", 0x08dd5f278d652d3b),
+        ("modal", "shear3-yielding", 0x0ca4e1b207eb55cb),
+        ("modal", "shear8-yielding", SHEAR8_MODAL_FNV),
     ];
     for (kind, name, expected) in cases {
         let s = structure(name);
@@ -101,6 +150,7 @@ fn the_host_steps_the_structure_budget_as_the_m7_does() {
                     &ag,
                 )
             }
+            "modal" => run_modal(name, k_e, &ag),
             _ => {
                 let m = train_at(&s, rths::benchmark::DEFAULT_INTENSITY, dt).unwrap();
                 let p = m.params();

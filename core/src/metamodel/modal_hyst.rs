@@ -230,6 +230,8 @@ pub struct ModalHyst {
     vel: [f64; MODAL_MAX_MODES],
     accel: [f64; MODAL_MAX_MODES],
     next: [f64; MODAL_MAX_MODES],
+    /// The specimen DOF's displacement at `next` (the target given; the next step's `u_s`).
+    target: f64,
 }
 
 impl ModalHyst {
@@ -258,6 +260,7 @@ impl ModalHyst {
             vel: [0.0; MODAL_MAX_MODES],
             accel: [0.0; MODAL_MAX_MODES],
             next: [0.0; MODAL_MAX_MODES],
+            target: 0.0,
         };
         me.reset();
         me
@@ -289,11 +292,12 @@ impl ModalHyst {
         }
         let (next, _) = predict(&self.step, &self.disp, &self.vel, &self.accel, self.p.modes);
         self.next = next;
+        self.target = self.floor_of(&self.next, self.p.specimen_dof);
     }
 
     /// The target displacement of the specimen's DOF for the coming step, mm.
     pub fn target_mm(&self) -> f64 {
-        self.floor_of(&self.next, self.p.specimen_dof)
+        self.target
     }
 
     /// Displacement of floor `i` (0-based) at the last completed step, mm (0 past the floors).
@@ -346,8 +350,8 @@ impl ModalHyst {
         }
         let r = self.p.modes;
         let d1 = self.next;
-        let u_s = self.floor_of(&d1, self.p.specimen_dof);
-        let unbalanced = specimen_force_kn - self.p.specimen_k_kn_per_mm * u_s;
+        // The specimen DOF's displacement at `d1`: the last target, computed then.
+        let unbalanced = specimen_force_kn - self.p.specimen_k_kn_per_mm * self.target;
         // Modal restoring force beyond the elastic modes: the specimen's unbalance, then each
         // spring's deviation from elasticity through the same drift map.
         let mut rq = [0.0; MODAL_MAX_MODES];
@@ -379,23 +383,24 @@ impl ModalHyst {
         let half_dt = 0.5 * self.p.dt_s;
         let mut v1 = [0.0; MODAL_MAX_MODES];
         let mut a1 = [0.0; MODAL_MAX_MODES];
-        for j in 0..r {
-            if let (Some(st), Some(m), Some(v0), Some(a0), Some(d), Some(x)) = (
-                self.step.get(j),
-                self.p.mode.get(j),
-                self.vel.get(j),
-                self.accel.get(j),
-                d1.get(j),
-                rq.get(j),
-            ) {
-                let vp = v0 + a0 * half_dt;
-                let a = (-m.ground_participation * ground_accel_mm_s2 - st.k * d - x - st.c * vp)
-                    * st.solve;
-                if let (Some(vo), Some(ao)) = (v1.get_mut(j), a1.get_mut(j)) {
-                    *vo = vp + a * half_dt;
-                    *ao = a;
-                }
-            }
+        // Zipped fixed arrays: no index to check.
+        for (((((((st, m), v0), a0), d), x), vo), ao) in self
+            .step
+            .iter()
+            .zip(&self.p.mode)
+            .zip(&self.vel)
+            .zip(&self.accel)
+            .zip(&d1)
+            .zip(&rq)
+            .zip(v1.iter_mut())
+            .zip(a1.iter_mut())
+            .take(r)
+        {
+            let vp = v0 + a0 * half_dt;
+            let a = (-m.ground_participation * ground_accel_mm_s2 - st.k * d - x - st.c * vp)
+                * st.solve;
+            *vo = vp + a * half_dt;
+            *ao = a;
         }
         let (next, ok) = predict(&self.step, &d1, &v1, &a1, r);
         let target = self.floor_of(&next, self.p.specimen_dof);
@@ -407,6 +412,7 @@ impl ModalHyst {
         self.vel = v1;
         self.accel = a1;
         self.next = next;
+        self.target = target;
         Ok(target)
     }
 }
