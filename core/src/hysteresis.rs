@@ -59,6 +59,8 @@ enum Kind {
         gamma: f64,
         /// `(β+γ)^(−1/n)`, the bound of `|z|`.
         z_max: f64,
+        /// `n` when it is a whole number (then `|z|ⁿ` is a few products, not `pow`), else 0.
+        whole_exponent: u32,
     },
 }
 
@@ -109,6 +111,12 @@ impl Law {
             beta,
             gamma,
             z_max: libm::pow(beta + gamma, -1.0 / exponent),
+            whole_exponent: if libm::floor(exponent) == exponent {
+                // In 1..=20 here (validated above), so the cast is exact.
+                exponent as u32
+            } else {
+                0
+            },
         }))
     }
 
@@ -229,6 +237,7 @@ impl Law {
                 beta,
                 gamma,
                 z_max,
+                whole_exponent,
                 ..
             } => {
                 let uy = yield_force_kn / k0_kn_per_mm;
@@ -238,7 +247,12 @@ impl Law {
                 let h = du / steps as f64;
                 let rate = |z: f64| {
                     let sign = if h * z >= 0.0 { 1.0 } else { -1.0 };
-                    (1.0 - libm::pow(libm::fabs(z), exponent) * (beta * sign + gamma)) / uy
+                    let zn = if whole_exponent > 0 {
+                        powi(libm::fabs(z), whole_exponent)
+                    } else {
+                        libm::pow(libm::fabs(z), exponent)
+                    };
+                    (1.0 - zn * (beta * sign + gamma)) / uy
                 };
                 // `|z|` never exceeds its bound `(β+γ)^(−1/n)` (where dz/du vanishes); clamping
                 // to it keeps a drift jump far larger than the sub-step cap from overshooting.
@@ -301,6 +315,26 @@ impl Story {
     pub fn update(&mut self, drift_mm: f64) -> f64 {
         self.law.update(&mut self.state, drift_mm)
     }
+}
+
+/// `x^n` for a whole `n ≥ 1` by squaring: on a Cortex-M a general `pow` costs hundreds of
+/// instructions per call, and Bouc–Wen calls it twice per sub-step. Equal to `pow` for `n = 1, 2`
+/// (`x`, `x·x`), within a few ulps otherwise.
+#[inline]
+fn powi(x: f64, n: u32) -> f64 {
+    let mut base = x;
+    let mut e = n;
+    let mut acc = 1.0;
+    while e > 0 {
+        if e & 1 == 1 {
+            acc *= base;
+        }
+        e >>= 1;
+        if e > 0 {
+            base *= base;
+        }
+    }
+    acc
 }
 
 /// `f64::clamp`'s result without its `min <= max` assertion: the bounds here are ordered by the

@@ -179,3 +179,29 @@ proptest::proptest! {
         }
     }
 }
+
+#[test]
+fn whole_exponent_power_matches_pow() {
+    // n = 1 and 2 are pow's own exact cases: bit for bit, so the shipped n = 2 frames are unchanged.
+    for i in 0..=300 {
+        let x = f64::from(i) * 0.005;
+        assert_eq!(powi(x, 1).to_bits(), libm::pow(x, 1.0).to_bits());
+        assert_eq!(powi(x, 2).to_bits(), libm::pow(x, 2.0).to_bits());
+        for n in 3..=20_u32 {
+            let p = libm::pow(x, f64::from(n));
+            assert!((powi(x, n) - p).abs() <= 1e-14 * p.abs(), "x = {x}, n = {n}");
+        }
+    }
+}
+
+#[test]
+fn whole_and_fractional_exponents_give_the_same_loop() {
+    // A whole n takes the product path, n + 1e-12 the pow path: the same loop to round-off.
+    let mut a = Story::new(Law::bouc_wen(100.0, 50.0, 0.05, 3.0, 0.5, 0.5).unwrap());
+    let mut b = Story::new(Law::bouc_wen(100.0, 50.0, 0.05, 3.0 + 1e-12, 0.5, 0.5).unwrap());
+    for k in 0..4000 {
+        let u = 2.0 * libm::sin(f64::from(k) * 0.01) * (1.0 + f64::from(k) / 1000.0);
+        let (fa, fb) = (a.update(u), b.update(u));
+        assert!((fa - fb).abs() <= 1e-6 * (1.0 + fb.abs()), "step {k}: {fa} vs {fb}");
+    }
+}
