@@ -490,17 +490,30 @@ fn the_rig_at_the_models_current_displacement_removes_the_one_tick_lead() {
     let case = StructureCase::new(s, &ag).unwrap();
     let rig = case.rig(Preset::UnrCompact, 1);
     let sc = SimScenario::Study(ScenarioId::FeOnlineAts);
-    let figures = |timing| {
+    let figures = |timing, rig: &rths_hal_sim::RigConfig| {
         let mut fe = StructureFe::new(&case.structure).unwrap();
         let (series, stop) =
-            run_hybrid(&case, &mut fe, paper_ats(None).unwrap(), &rig, timing).unwrap();
+            run_hybrid(&case, &mut fe, paper_ats(None).unwrap(), rig, timing).unwrap();
         assert!(stop.is_none());
         score(&case, sc, &series, stop).figures
     };
     let (next, current) = (
-        figures(CompensatorTarget::Next),
-        figures(CompensatorTarget::Current),
+        figures(CompensatorTarget::Next, &rig),
+        figures(CompensatorTarget::Current, &rig),
     );
+    // Not the sensors: noise-free, unquantized ones move the residual by 0.0001 mm (measured).
+    let ideal = rths_hal_sim::RigConfig {
+        sensors: rths_hal_sim::Sensors::ideal(),
+        ..rig
+    };
+    for (timing, f) in [
+        (CompensatorTarget::Next, &next),
+        (CompensatorTarget::Current, &current),
+    ] {
+        let a = f.residual_drift_mm.unwrap().model;
+        let b = figures(timing, &ideal).residual_drift_mm.unwrap().model;
+        assert!((a - b).abs() < 0.005, "{timing:?}: {a} noisy, {b} ideal");
+    }
     let mu_ref = current.peak_ductility.unwrap();
     let low = |f: &rths::nonlinear::scenario::StructureFigures| {
         1.0 - f.peak_ductility_model.unwrap() / mu_ref
