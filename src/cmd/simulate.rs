@@ -13,7 +13,7 @@ use crate::identify::RigFile;
 use crate::model_file::{ModelFile, ModelKind};
 use crate::models;
 use crate::nonlinear::scenario::{
-    self as nl, is_paper_frame, SimScenario, StructureCase, StructureReport,
+    self as nl, is_paper_frame, LengthScale, SimScenario, StructureCase, StructureReport,
 };
 use crate::scenario::{self, ScenarioId, ScenarioSetup};
 use crate::study::{self, PlantDraw, StudyJson};
@@ -47,6 +47,12 @@ pub struct Args {
     /// paper's linear frame runs exactly as without --structure.
     #[arg(long, value_name = "FILE.json")]
     pub structure: Option<PathBuf>,
+    /// Length (displacement) scale L ≥ 1 of a hybrid run with --structure (similitude): the
+    /// actuator imposes the structure's specimen displacement / L on a rig specimen L times
+    /// stiffer, so the measured force × the force scale is still the structure's specimen force.
+    /// The DAQ's noise stays at the rig's scale. Default 1 (the structure's own specimen).
+    #[arg(long, default_value_t = 1.0, value_name = "L")]
+    pub length_scale: f64,
     /// Ground motion: an AT2/CSV file or an embedded record name (default El Centro).
     #[arg(long, value_name = "PATH|NAME")]
     pub motion: Option<String>,
@@ -343,7 +349,11 @@ fn run_structure(
     }
     let sc = args.scenario;
     nl::check_applies(sc, &structure)?;
-    let case = StructureCase::new(structure, ag)?;
+    let length = LengthScale::new(args.length_scale)?;
+    if length != LengthScale::unit() && !sc.uses_rig() {
+        anyhow::bail!("--length-scale scales the rig's specimen; {sc} runs without a rig");
+    }
+    let case = StructureCase::new(structure, ag)?.with_length_scale(length);
     let rig = case.rig(preset, args.seed);
     let mut ats_initial = None;
     let mut rig_checksum = None;
@@ -437,6 +447,12 @@ fn run_structure(
     if let Some(why) = &beyond_rig {
         println!("beyond the rig      {why}");
     }
+    if let Some(l) = report.length_scale.filter(|l| *l != 1.0) {
+        println!(
+            "length scale        L = {l}: the rig imposes the structure's displacement / {l} (its \
+             sensor noise is {l} × larger relative to the signal)"
+        );
+    }
     print_figures(&report.report);
     let f = &report.figures;
     println!(
@@ -500,14 +516,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         None => None,
     };
+    LengthScale::new(args.length_scale)?;
     let id = match (args.scenario, structure) {
         // The paper's linear frame *is* the study's structure: the same run, bit for bit.
         (SimScenario::Study(id), Some((s, _)))
-            if is_paper_frame(&s) && s.story_laws().is_none() =>
+            if is_paper_frame(&s) && s.story_laws().is_none() && args.length_scale == 1.0 =>
         {
             id
         }
         (_, Some((s, text))) => return run_structure(&args, s, &text, &ag, &motion_label, preset),
+        (SimScenario::Study(_), None) if args.length_scale != 1.0 => anyhow::bail!(
+            "--length-scale needs --structure FILE (the scale of that structure's specimen on the rig)"
+        ),
         (SimScenario::Study(id), None) => id,
         (other, None) => anyhow::bail!(
             "{other} runs the learned model of a structure's numerical part: give --structure \

@@ -19,6 +19,11 @@
 //! that is the paper's frame ([`is_paper_frame`]) is tested with the paper's brace (axial: the DOF's
 //! displacement × cos θ, the same rig as `rths simulate` without `--structure`); any other file's
 //! specimen is tested along its DOF (cos θ = 1).
+//!
+//! Length scale ([`LengthScale`], `--length-scale L`, similitude): the actuator imposes the
+//! structure's specimen displacement / L on the same rig specimen, whose force is then / L too;
+//! displacement and force scale both × L, so the structure still sees its own specimen. The
+//! series stay in the structure's (prototype) actuator coordinates: the rig's displacements × L.
 
 use std::fmt;
 use std::str::FromStr;
@@ -31,7 +36,8 @@ use rths_core::metamodel::{LrParams, LrxParams};
 use rths_core::metrics;
 use rths_core::model::Model;
 use rths_core::params::{
-    Prototype, SpecimenScale, BRACE_AXIAL_STIFFNESS_KN_PER_MM, DT_S, PAPER_DELAY_STEPS,
+    Prototype, SpecimenScale, BRACE_AXIAL_STIFFNESS_KN_PER_MM, DISP_SCALE, DT_S, FORCE_SCALE,
+    PAPER_DELAY_STEPS,
 };
 use rths_core::structure_n::{ChangN, Dofs, MAX_DOF};
 use rths_core::structure_nl::NonlinearFrame;
@@ -48,6 +54,83 @@ pub const STARTUP_WINDOW_S: f64 = 2.0;
 /// Relative tolerance on the paper frame's parameters for [`is_paper_frame`]: the shipped file
 /// gives them to 9 significant digits.
 pub const PAPER_FRAME_TOLERANCE: f64 = 1e-9;
+
+/// A length (displacement) scale of a hybrid test, L ≥ 1 (similitude, as labs scale a test to
+/// their actuator): the rig's specimen displacement is the structure's / L. The rig's specimen
+/// keeps its stiffness and the force scale grows × L with the displacement scale, so the
+/// measured force (/ L) × the force scale is still the structure's specimen force. The force
+/// scale must grow with L: the actuator's force capacity binds at the same displacement as its
+/// stroke on the paper's brace (29.6 kN / 1.224 kN/mm = 24.2 mm), so a stiffer rig specimen at
+/// the same force scale would trip the force interlock instead. The rig (actuator and specimen)
+/// is the same at every L, so its identification and compensation still fit. L = 1 is the
+/// project's [`SpecimenScale::default`] exactly. The DAQ's noise stays at the rig's scale: at L
+/// its share of the signal is L times larger.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LengthScale {
+    length: f64,
+    scale: SpecimenScale,
+}
+
+/// A length scale that is not a number ≥ 1.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error(
+    "the length scale must be a finite number ≥ 1 (the rig imposes the structure's specimen \
+     displacement / L), got {0}"
+)]
+pub struct BadLengthScale(pub f64);
+
+impl LengthScale {
+    /// L = 1: the rig's specimen is the structure's (today's runs, bit for bit).
+    pub fn unit() -> Self {
+        Self {
+            length: 1.0,
+            scale: SpecimenScale::default(),
+        }
+    }
+
+    /// L, refused unless finite and ≥ 1.
+    pub fn new(length: f64) -> Result<Self, BadLengthScale> {
+        if !(length.is_finite() && length >= 1.0) {
+            return Err(BadLengthScale(length));
+        }
+        if length == 1.0 {
+            return Ok(Self::unit());
+        }
+        let scale = SpecimenScale::new(DISP_SCALE * length, FORCE_SCALE * length)
+            .map_err(|_| BadLengthScale(length))?;
+        Ok(Self { length, scale })
+    }
+
+    /// L.
+    pub fn get(self) -> f64 {
+        self.length
+    }
+
+    /// The prototype ↔ rig conversion of a run at this scale (the one home of the length scale's
+    /// conversion): displacement and force scales × L.
+    pub fn specimen_scale(self) -> SpecimenScale {
+        self.scale
+    }
+}
+
+impl Default for LengthScale {
+    fn default() -> Self {
+        Self::unit()
+    }
+}
+
+/// What a series of actuator displacements (prototype coordinates, mm, one per tick) asks of the
+/// actuator at length scale `length`: its peak |displacement| and peak |velocity| at the rig's
+/// scale, (mm, mm/s).
+pub fn rig_demand(series_mm: &[f64], length: LengthScale) -> (f64, f64) {
+    let scale = length.specimen_scale();
+    let peak = scale.specimen_disp_mm(metrics::peak_abs(series_mm));
+    let vel = series_mm
+        .windows(2)
+        .map(|w| scale.specimen_disp_mm((w[1] - w[0]).abs()) / DT_S)
+        .fold(0.0, f64::max);
+    (peak, vel)
+}
 
 /// A scenario of `rths simulate`: one of the study's, or a learned model of a structure file's
 /// numerical part (`nl-pure`, `nl-online`; `--structure` only).
@@ -252,6 +335,8 @@ pub struct StructureCase {
     pub reference: NlResponse,
     /// The reference at the specimen DOF in actuator coordinates, mm (evaluation only).
     pub reference_mm: Vec<f64>,
+    /// The hybrid runs' length scale (default 1).
+    pub length: LengthScale,
 }
 
 impl StructureCase {
@@ -287,7 +372,13 @@ impl StructureCase {
             ground_accel_mm_s2: ag,
             reference,
             reference_mm,
+            length: LengthScale::unit(),
         })
+    }
+
+    /// The same case with the hybrid runs at length scale `length`.
+    pub fn with_length_scale(self, length: LengthScale) -> Self {
+        Self { length, ..self }
     }
 
     /// The specimen's lateral stiffness at its DOF, kN/mm.
@@ -303,7 +394,8 @@ impl StructureCase {
     }
 
     /// The rig's specimen stiffness over the paper's brace: 1 for the paper's frame; along the
-    /// DOF (cos θ = 1) the structure's lateral spring.
+    /// DOF (cos θ = 1) the structure's lateral spring. The same at every length scale
+    /// ([`LengthScale`]).
     pub fn rig_specimen_factor(&self) -> f64 {
         if self.paper {
             1.0
@@ -312,16 +404,11 @@ impl StructureCase {
         }
     }
 
-    /// Why the reference is beyond what the rig can do (stroke, velocity), if it is: its hybrid
-    /// runs will be stopped by the supervisor.
+    /// Why the reference is beyond what the rig can do (stroke, velocity) at the case's length
+    /// scale, if it is: its hybrid runs will be stopped by the supervisor.
     pub fn beyond_rig(&self) -> Option<String> {
         let lim = Limits::paper_actuator();
-        let peak = metrics::peak_abs(&self.reference_mm);
-        let vel = self
-            .reference_mm
-            .windows(2)
-            .map(|w| (w[1] - w[0]).abs() / DT_S)
-            .fold(0.0, f64::max);
+        let (peak, vel) = rig_demand(&self.reference_mm, self.length);
         if peak > lim.stroke_mm() {
             Some(format!(
                 "the reference asks {peak:.1} mm of the actuator, its stroke is ±{:.1} mm",
@@ -413,20 +500,39 @@ pub fn run_pure(case: &StructureCase, model: &mut dyn StructureModel) -> (Struct
     (s, None)
 }
 
+/// Which displacement of the model the compensator of a hybrid run is given at tick k.
+///
+/// The ATS is fitted on the command and the measurement of the same tick, so the one-tick hold
+/// of the command is part of the delay it compensates (and the lead filters are fitted the same
+/// way): the rig reaches what the compensator was given at tick k by the sample of tick k + 1 +
+/// the delay, extrapolated over that time. Given d_{k+1}, the rig is at d_{k+1} when the model
+/// reads the force it needs at d_k: the specimen's force leads by one tick, which acts as added
+/// damping (measured: every hybrid peak 3-4 % low on the yielding paper frame, its residual drift
+/// off by up to 75 %). Given d_k, the rig is at d_k when its force is read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CompensatorTarget {
+    /// d_{k+1}, the displacement the model has just produced: the tick of
+    /// `rths_core::control::Controller` (docs/design.md §7).
+    Next,
+    /// d_k, the model's displacement whose force it reads at tick k: the structure scenarios'.
+    Current,
+}
+
 /// The hybrid loop on the virtual plant `rig`: per tick the rig's sample, the measured force
-/// (prototype, along the DOF) into `model`, its target through `compensator`, the paper
-/// actuator's supervisor, the command held for one tick. The same tick as
-/// `rths_core::control::Controller` (docs/design.md §7) with a structure model in place of its
-/// analytical part.
+/// (prototype, along the DOF) into `model`, its target ([`CompensatorTarget`]) through
+/// `compensator`, the paper actuator's supervisor, the command held for one tick. With
+/// [`CompensatorTarget::Next`] the same tick as `rths_core::control::Controller`
+/// (docs/design.md §7) with a structure model in place of its analytical part.
 pub fn run_hybrid(
     case: &StructureCase,
     model: &mut dyn StructureModel,
     mut compensator: Compensator,
     rig: &RigConfig,
+    timing: CompensatorTarget,
 ) -> anyhow::Result<(StructureSeries, Stop)> {
     model.reset();
     compensator.reset();
-    let scale = SpecimenScale::default();
+    let scale = case.length.specimen_scale();
     let mut plant = VirtualRig::new(rig.build().context("the virtual plant")?);
     let mut sup = Supervisor::new(Limits::paper_actuator());
     // Idle → Armed → Running cannot fail on a fresh supervisor.
@@ -454,9 +560,10 @@ pub fn run_hybrid(
                 last_good = x;
             }
         }
+        // The series in the structure's coordinates (the rig's × L; identity at L = 1).
         s.target_mm.push(target);
-        s.command_mm.push(command);
-        s.measured_mm.push(measured);
+        s.command_mm.push(scale.prototype_disp_mm(command));
+        s.measured_mm.push(scale.prototype_disp_mm(measured));
         s.measured_force_kn.push(force);
         let (mut requested, mut next_target) = (sup.output_mm(), f64::NAN);
         if sup.state() == State::Running {
@@ -465,8 +572,12 @@ pub fn run_hybrid(
                 Ok(d) => {
                     next_target = d * case.cos_theta;
                     s.push_drifts(model, stories);
+                    let given = match timing {
+                        CompensatorTarget::Next => next_target,
+                        CompensatorTarget::Current => target,
+                    };
                     compensator
-                        .compensate(scale.specimen_disp_mm(next_target), last_good.disp_mm)
+                        .compensate(scale.specimen_disp_mm(given), last_good.disp_mm)
                         .unwrap_or(f64::NAN)
                 }
                 // The supervisor trips on it.
@@ -517,6 +628,13 @@ pub fn run_paper_scenario(
             "{} runs the shipped model of the paper's frame; {} is another structure",
             setup.id,
             case.structure.name()
+        );
+    }
+    if case.length != LengthScale::unit() {
+        anyhow::bail!(
+            "{} runs exactly as `rths simulate` without --structure, at length scale 1; got {}",
+            setup.id,
+            case.length.get()
         );
     }
     let setup = ScenarioSetup {
@@ -587,6 +705,11 @@ pub struct StructureReport {
     /// Ductility, residual drift, start-up.
     #[serde(flatten)]
     pub figures: StructureFigures,
+    /// The hybrid run's length scale L (`null`: a pure run, no rig).
+    pub length_scale: Option<f64>,
+    /// Why the reference is beyond the rig at that scale, if it is (hybrid runs only): the
+    /// supervisor stops such a run.
+    pub beyond_rig: Option<String>,
 }
 
 /// Score a finished run against the case's reference (evaluation: the only place the reference
@@ -622,8 +745,19 @@ pub fn score(
         f.peak_ductility_specimen_story =
             r.story_drift_mm.get(dof).map(|d| metrics::peak_abs(d) / uy);
     }
+    let (length_scale, beyond_rig) = if name.uses_rig() {
+        (Some(case.length.get()), case.beyond_rig())
+    } else {
+        (None, None)
+    };
+    let out = |figures| StructureReport {
+        report,
+        figures,
+        length_scale,
+        beyond_rig,
+    };
     if stop.is_some() || series.target_mm.len() != case.reference_mm.len() {
-        return StructureReport { report, figures: f };
+        return out(f);
     }
     // The run's stories: the model's own, else the target as the specimen's story (the
     // specimen sits on DOF 1 of a yielding file).
@@ -672,7 +806,7 @@ pub fn score(
     let (first, rest) = err.split_at(k0);
     let rest_rms = metrics::rms(rest);
     f.startup_error_ratio = (rest_rms > 0.0).then(|| metrics::rms(first) / rest_rms);
-    StructureReport { report, figures: f }
+    out(f)
 }
 
 /// What a structure scenario runs with besides its case.
@@ -740,6 +874,7 @@ pub fn run_scenario(
             &mut StructureFe::new(&case.structure)?,
             paper_ats(inputs.ats_initial)?,
             &rig,
+            CompensatorTarget::Current,
         )?,
         SimScenario::Study(id) => {
             let setup = ScenarioSetup {
@@ -765,6 +900,7 @@ pub fn run_scenario(
                 inputs.nl_model.ok_or_else(missing)?,
                 Compensator::Lead(Lead::new(lead)),
                 &rig,
+                CompensatorTarget::Current,
             )?
         }
     };
