@@ -22,7 +22,8 @@ pub enum Kind {
     /// The structure metamodel of a structure file's numerical part (`--structure`): a delta-form
     /// ARX of order 6 at the specimen's DOF, constant cost per tick whatever N is.
     Meta,
-    /// Nonlinear (modal-hysteretic) metamodel of a yielding structure (`--structure`), CMA-ES on
+    /// Nonlinear (modal-hysteretic) metamodel of a yielding structure (`--structure`): each spring
+    /// fitted to its story's force–drift history, then CMA-ES on the whole model's pure loop, on
     /// FE runs of northridge and loma-prieta at peak ductility 0.7, 2, 4, 6 (never El Centro,
     /// Kobe or Morgan Hill, the scoring records). docs/nonlinear.md.
     Nonlinear,
@@ -148,11 +149,11 @@ pub struct Args {
     #[arg(long = "records", value_name = "NAME")]
     pub nl_records: Vec<String>,
     /// Nonlinear: CMA-ES generations of stage 2 (the whole model on the runs).
-    #[arg(long, default_value_t = 150)]
+    #[arg(long, default_value_t = 20)]
     pub generations: usize,
     /// Nonlinear: CMA-ES generations of stage 1, per spring (its law on its story's force–drift
     /// history from the FE training runs).
-    #[arg(long, default_value_t = 60)]
+    #[arg(long, default_value_t = 100)]
     pub stage1_generations: usize,
     /// Nonlinear: the specimen force of the training's pure loop as the lab's DAQ reads it (load
     /// cell noise and 16-bit converter, fixed seeded sequence per run) or exact.

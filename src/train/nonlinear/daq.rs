@@ -76,11 +76,20 @@ impl ForceDaq {
         let s = self.structure_kn_per_cell_kn;
         let cell = force_kn / s + self.noise_cell_kn.get(k).copied().unwrap_or(0.0);
         let read = match self.full_scale_cell_kn {
-            Some(fs) => quantize(cell, fs),
+            Some(fs) => on_grid(cell, fs),
             None => cell,
         };
         read * s
     }
+}
+
+/// `cell` on the converter's grid (full scale `fs`), not clipped at ±`fs`: the training runs at
+/// ductility 6 ask more of the load cell than the actuator's capacity (the paper's frame: some
+/// 35 kN of 31.14), runs a rig would stop, and a clipped force would teach the model a wrong
+/// specimen. Whole full scales are carried past the converter (`fs` is a whole number of codes).
+fn on_grid(cell: f64, fs: f64) -> f64 {
+    let whole = (cell / fs).trunc() * fs;
+    whole + quantize(cell - whole, fs)
 }
 
 /// Structure force along the specimen DOF per load-cell kN: the specimen scale's force scale,
@@ -128,6 +137,11 @@ mod tests {
         // The converter: readings sit on its grid (full scale / 2¹⁵ at the cell).
         let lsb = ACTUATOR_CAPACITY_KN / 32768.0 * 1000.0;
         let q = a.measure(11, f) / lsb;
+        assert!((q - q.round()).abs() < 1e-6, "{q}");
+        // Past the full scale the reading is not clipped, and stays on the grid.
+        let big = 2.5 * ACTUATOR_CAPACITY_KN * 1000.0;
+        let q = a.measure(12, big) / lsb;
+        assert!((a.measure(12, big) - big).abs() < 5.0 * sigma, "{}", a.measure(12, big));
         assert!((q - q.round()).abs() < 1e-6, "{q}");
     }
 }

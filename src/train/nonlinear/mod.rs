@@ -117,8 +117,8 @@ pub struct NlTrainConfig {
 }
 
 impl NlTrainConfig {
-    /// The defaults: [`DEFAULT_RECORDS`] at [`DEFAULT_DUCTILITIES`], all modes, 60 stage-1
-    /// generations per spring, 150 stage-2 generations, the controller's step, the lab's force.
+    /// The defaults: [`DEFAULT_RECORDS`] at [`DEFAULT_DUCTILITIES`], all modes, 100 stage-1
+    /// generations per spring, 20 stage-2 generations, the controller's step, the lab's force.
     pub fn new(seed: u64) -> Result<Self, TrainError> {
         let records = DEFAULT_RECORDS
             .iter()
@@ -133,8 +133,8 @@ impl NlTrainConfig {
             records,
             ductilities: DEFAULT_DUCTILITIES.to_vec(),
             modes: None,
-            stage1_generations: 60,
-            generations: 150,
+            stage1_generations: 100,
+            generations: 20,
             population: None,
             dt_s: rths_core::params::DT_S,
             record_s: None,
@@ -194,8 +194,8 @@ pub fn is_scoring_record(name: &str) -> bool {
 #[derive(Debug, Clone)]
 pub struct Template {
     modes: ElasticModes,
-    /// The yield force the spring's θ₀ = 0 stands for: half the elastic story force at the
-    /// median peak drift of the training runs, kN.
+    /// The yield force the spring's θ₀ = 0 stands for: half the median over the training runs of
+    /// the story's peak force (the FE's output), kN.
     fy_base_kn: Vec<f64>,
     specimen_k_kn_per_mm: f64,
     specimen_dof: usize,
@@ -210,21 +210,17 @@ impl Template {
             .map(|k| {
                 let mut peaks: Vec<f64> = runs
                     .iter()
-                    .map(|r| {
-                        let d = |i: usize| {
-                            let below = if k == 0 {
-                                0.0
-                            } else {
-                                r.floor_disp_mm[k - 1][i]
-                            };
-                            r.floor_disp_mm[k][i] - below
-                        };
-                        (0..r.ground_accel_mm_s2.len()).fold(0.0_f64, |m, i| m.max(d(i).abs()))
-                    })
+                    .filter_map(|r| r.story_force_kn.get(k))
+                    .map(|f| f.iter().fold(0.0_f64, |m, v| m.max(v.abs())))
                     .collect();
                 peaks.sort_by(f64::total_cmp);
-                let median = peaks.get(peaks.len() / 2).copied().unwrap_or(1.0);
-                0.5 * modes.story_k0_kn_per_mm[k] * median.max(1e-6)
+                let median = peaks.get(peaks.len() / 2).copied().unwrap_or(0.0);
+                if median > 0.0 && median.is_finite() {
+                    0.5 * median
+                } else {
+                    // No force history: the elastic force at 1 mm stands in (θ₀ moves it).
+                    0.5 * modes.story_k0_kn_per_mm[k]
+                }
             })
             .collect();
         Self {
@@ -486,11 +482,13 @@ pub fn train(
                 .collect();
             let slot = k * PER_SPRING..(k + 1) * PER_SPRING;
             let base = i * per_law + k * cfg.stage1_generations;
+            let mut t0 = x0[slot.clone()].to_vec();
+            t0[0] = t0[0].min(stage1::MAX_START_LN_FY);
             let r = stage1::fit_spring(
                 *law,
                 template.modes.story_k0_kn_per_mm[k],
                 template.fy_base_kn[k],
-                &x0[slot.clone()],
+                &t0,
                 &histories,
                 cfg.stage1_generations,
                 None,
