@@ -141,7 +141,11 @@ mod tests {
         // Past the full scale the reading is not clipped, and stays on the grid.
         let big = 2.5 * ACTUATOR_CAPACITY_KN * 1000.0;
         let q = a.measure(12, big) / lsb;
-        assert!((a.measure(12, big) - big).abs() < 5.0 * sigma, "{}", a.measure(12, big));
+        assert!(
+            (a.measure(12, big) - big).abs() < 5.0 * sigma,
+            "{}",
+            a.measure(12, big)
+        );
         assert!((q - q.round()).abs() < 1e-6, "{q}");
     }
 }

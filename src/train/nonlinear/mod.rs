@@ -172,7 +172,9 @@ impl NlTrainConfig {
             return Err(TrainError::Setting("generations must be ≥ 1".into()));
         }
         if self.stage1_generations == 0 {
-            return Err(TrainError::Setting("stage-1 generations must be ≥ 1".into()));
+            return Err(TrainError::Setting(
+                "stage-1 generations must be ≥ 1".into(),
+            ));
         }
         if !(self.dt_s.is_finite() && self.dt_s > 0.0) {
             return Err(TrainError::Setting("dt_s must be > 0".into()));
@@ -383,13 +385,7 @@ pub fn run_nrmse_pct(
 
 /// Training loss of θ: the mean over runs of the mean floor NRMSE (%) of the pure loop, each run
 /// with its force `daq` (one per run); a model that is invalid or diverges costs 1e6.
-pub fn loss(
-    template: &Template,
-    th: &[f64],
-    runs: &[FeRun],
-    daq: &[ForceDaq],
-    dt_s: f64,
-) -> f64 {
+pub fn loss(template: &Template, th: &[f64], runs: &[FeRun], daq: &[ForceDaq], dt_s: f64) -> f64 {
     let Ok(p) = template.params(th, dt_s) else {
         return 1e6;
     };
