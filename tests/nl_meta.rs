@@ -199,7 +199,7 @@ fn the_same_seed_writes_the_same_bytes_with_the_force_noise_on() {
 fn stage_1_puts_the_springs_near_their_stories_laws() {
     let mut cfg = quick_config(3, 1);
     cfg.laws = vec![SpringLaw::BoucWen];
-    cfg.stage1_generations = 40;
+    cfg.stage1_generations = 150;
     let t = train(
         &text("data/structures/shear3-yielding.json"),
         &cfg,
