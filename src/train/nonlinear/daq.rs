@@ -85,7 +85,7 @@ impl ForceDaq {
 
 /// `cell` on the converter's grid (full scale `fs`), not clipped at ±`fs`: the training runs at
 /// ductility 6 ask more of the load cell than the actuator's capacity (the paper's frame: some
-/// 35 kN of 31.14), runs a rig would stop, and a clipped force would teach the model a wrong
+/// 46 kN of 31.14), runs a rig would stop, and a clipped force would teach the model a wrong
 /// specimen. Whole full scales are carried past the converter (`fs` is a whole number of codes).
 fn on_grid(cell: f64, fs: f64) -> f64 {
     let whole = (cell / fs).trunc() * fs;
