@@ -30,6 +30,11 @@ pub struct FeRun {
     pub record_steps: usize,
     /// Each story's residual drift, mm.
     pub residual_drift_mm: Vec<f64>,
+    /// The FE's story drifts, `story_drift_mm[story][step]`, mm: with [`Self::story_force_kn`]
+    /// the lab's own numerical model's output that stage 1 of the training fits each spring to.
+    pub story_drift_mm: Vec<Vec<f64>>,
+    /// The FE's numerical story forces (the specimen's not included), `[story][step]`, kN.
+    pub story_force_kn: Vec<Vec<f64>>,
 }
 
 fn to_err(e: anyhow::Error) -> TrainError {
@@ -64,6 +69,8 @@ pub fn fe_run(
         floor_disp_mm: floors,
         record_steps: r.record_steps,
         residual_drift_mm: r.residual_drift_mm(dt_s),
+        story_drift_mm: r.story_drift_mm,
+        story_force_kn: r.story_force_kn,
     })
 }
 
