@@ -189,7 +189,10 @@ fn whole_exponent_power_matches_pow() {
         assert_eq!(powi(x, 2).to_bits(), libm::pow(x, 2.0).to_bits());
         for n in 3..=20_u32 {
             let p = libm::pow(x, f64::from(n));
-            assert!((powi(x, n) - p).abs() <= 1e-14 * p.abs(), "x = {x}, n = {n}");
+            assert!(
+                (powi(x, n) - p).abs() <= 1e-14 * p.abs(),
+                "x = {x}, n = {n}"
+            );
         }
     }
 }
@@ -202,6 +205,9 @@ fn whole_and_fractional_exponents_give_the_same_loop() {
     for k in 0..4000 {
         let u = 2.0 * libm::sin(f64::from(k) * 0.01) * (1.0 + f64::from(k) / 1000.0);
         let (fa, fb) = (a.update(u), b.update(u));
-        assert!((fa - fb).abs() <= 1e-6 * (1.0 + fb.abs()), "step {k}: {fa} vs {fb}");
+        assert!(
+            (fa - fb).abs() <= 1e-6 * (1.0 + fb.abs()),
+            "step {k}: {fa} vs {fb}"
+        );
     }
 }
