@@ -74,7 +74,7 @@ impl StructureModel for LearnedModel {
 
 /// The shipped learned models (`data/models/nl-S.json`, `rths train nonlinear`), by the name
 /// of the structure they were trained for.
-pub const SHIPPED: [(&str, &str); 2] = [
+pub const SHIPPED: [(&str, &str); 3] = [
     (
         "paper-frame-yielding",
         include_str!("../../data/models/nl-paper-frame-yielding.json"),
@@ -82,6 +82,10 @@ pub const SHIPPED: [(&str, &str); 2] = [
     (
         "shear3-yielding",
         include_str!("../../data/models/nl-shear3-yielding.json"),
+    ),
+    (
+        "shear8-yielding",
+        include_str!("../../data/models/nl-shear8-yielding.json"),
     ),
 ];
 
