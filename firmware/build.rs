@@ -40,8 +40,8 @@ use std::path::{Path, PathBuf};
 
 use rths_core::params::{dt_s, CONTROL_RATES_HZ};
 use rths_files::model_file::{ModelFile, ModelKind};
-use rths_files::nl_model_file::NlModelFile;
 use rths_files::motion::parse_at2;
+use rths_files::nl_model_file::NlModelFile;
 use rths_files::structure_file::Structure;
 use rths_files::structure_meta::{MetaFile, StructureArrays};
 
@@ -565,7 +565,11 @@ fn modal_spec(path: &Path, model: &Path) -> String {
         })
         .collect();
     let shape: Vec<f64> = f.shape.iter().flatten().copied().collect();
-    let drift: Vec<f64> = f.springs.iter().flat_map(|s| s.drift.iter().copied()).collect();
+    let drift: Vec<f64> = f
+        .springs
+        .iter()
+        .flat_map(|s| s.drift.iter().copied())
+        .collect();
     format!(
         "rths_core::model::ModelSpec::StructureModal {{ model: rths_core::control::ModalSpec {{ \
          modes: {modes}, shape: &{}, specimen_dof: {}, specimen_k_kn_per_mm: {}, laws: {}, \
@@ -644,7 +648,9 @@ fn structure(out: &mut String, kind: &str) {
         "pub const STRUCTURE_SPEC: rths_core::model::ModelSpec<'static> = {spec};"
     );
     let source = match &meta {
-        Some(m) if kind == "meta" || kind == "modal" => format!("{} ({})", path.display(), m.display()),
+        Some(m) if kind == "meta" || kind == "modal" => {
+            format!("{} ({})", path.display(), m.display())
+        }
         _ => path.display().to_string(),
     };
     let _ = writeln!(out, "/// The model file compiled in.");
