@@ -14,7 +14,7 @@ use crate::scenario::ScenarioId;
 use rths_files::nl_model_file::NlModelFile;
 
 /// The shipped yielding structures, scored by default.
-const SHIPPED: [(&str, &str); 2] = [
+const SHIPPED: [(&str, &str); 3] = [
     (
         "data/structures/paper-frame-yielding.json",
         include_str!("../../data/structures/paper-frame-yielding.json"),
@@ -23,13 +23,18 @@ const SHIPPED: [(&str, &str); 2] = [
         "data/structures/shear3-yielding.json",
         include_str!("../../data/structures/shear3-yielding.json"),
     ),
+    (
+        "data/structures/shear8-yielding.json",
+        include_str!("../../data/structures/shear8-yielding.json"),
+    ),
 ];
 
 /// Arguments of `rths nonlinear-study`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Structure files with yielding stories (repeatable). Default: the shipped
-    /// `data/structures/paper-frame-yielding.json` and `shear3-yielding.json`.
+    /// `data/structures/paper-frame-yielding.json`, `shear3-yielding.json` and
+    /// `shear8-yielding.json`.
     #[arg(long, value_name = "FILE.json")]
     pub structure: Vec<PathBuf>,
     /// Learned models (`rths train nonlinear`) for nl-pure / nl-online (repeatable), each for the
@@ -157,7 +162,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         lr: lr.lr,
         lrx: lrx.lrx,
         delay_steps: lr.delay,
-        lead: Some(crate::cmd::simulate::shipped_lrx_lead()?),
         preset,
         seed: args.seed,
         records,

@@ -3,7 +3,6 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use rths_core::compensator::LeadAdaptParams;
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{BoucWen, Preset, RigConfig, Specimen};
 
@@ -248,13 +247,6 @@ pub struct StudyModels {
     )>,
 }
 
-/// The lead filter of the shipped LRX model (`data/models/lrx.json`, fitted on this simulator's
-/// default rig): `nl-online`'s compensation without `--rig`.
-pub fn shipped_lrx_lead() -> anyhow::Result<rths_core::compensator::LeadParams> {
-    let m = ModelFile::from_json(DEFAULT_LRX).context("the shipped data/models/lrx.json")?;
-    Ok(models::lrx_params(&m)?.1)
-}
-
 /// Load and check the model of scenario `id` (`--model` or the shipped one), refused if it was
 /// trained for another rig (`check_model_rig`).
 pub fn study_models(
@@ -314,9 +306,10 @@ struct StructureJson {
     scenarios: Vec<StructureReport>,
     /// Why the reference is beyond the actuator (stroke or velocity), if it is.
     beyond_rig: Option<String>,
-    /// The ATS's initial [a0, a1 (s), a2 (s²)] taken from `--rig` (fe-online-ats only).
+    /// The hybrid run's compensation (fe-online-ats: its ATS start; nl-online: its lead and
+    /// force correction): `--rig`'s, else identified on the virtual plant before the run.
     #[serde(skip_serializing_if = "Option::is_none")]
-    ats_initial: Option<[f64; 3]>,
+    compensation: Option<crate::nonlinear::rig::RigCompensation>,
 }
 
 /// `rths simulate --structure FILE` for a structure that is not the paper's linear frame.
@@ -355,38 +348,51 @@ fn run_structure(
     }
     let case = StructureCase::new(structure, ag)?.with_length_scale(length);
     let rig = case.rig(preset, args.seed);
-    let mut ats_initial = None;
+    // The compensation: the rig file's, else the rig identified first on this virtual plant
+    // (`rths identify`'s procedure: what a lab does before testing a structure's specimen).
     let mut rig_checksum = None;
-    let mut rig_lead = None;
-    if let Some(path) = &args.rig {
-        let file = RigFile::load(path).with_context(|| format!("rig file {}", path.display()))?;
-        file.check(preset.name(), BOARD)
-            .with_context(|| format!("rig file {} refused", path.display()))?;
-        check_rig_plant(&file, &rig, case.rig_specimen_factor())
-            .with_context(|| format!("rig file {} refused", path.display()))?;
-        let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-        rig_checksum = Some(crate::identify::rig_file::checksum_hex(&bytes));
-        if sc == SimScenario::Study(ScenarioId::FeOnlineAts) {
-            ats_initial = Some(file.compensation.ats_initial);
+    let comp = match &args.rig {
+        Some(path) => {
+            let file =
+                RigFile::load(path).with_context(|| format!("rig file {}", path.display()))?;
+            file.check(preset.name(), BOARD)
+                .with_context(|| format!("rig file {} refused", path.display()))?;
+            check_rig_plant(&file, &rig, case.rig_specimen_factor())
+                .with_context(|| format!("rig file {} refused", path.display()))?;
+            let bytes =
+                std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+            rig_checksum = Some(crate::identify::rig_file::checksum_hex(&bytes));
+            Some(crate::nonlinear::rig::from_rig_file(
+                &case.structure,
+                &file,
+                &path.display().to_string(),
+            )?)
         }
-        rig_lead = Some(
-            file.lead_params()?
-                .with_adaptation(Some(LeadAdaptParams::new(
-                    crate::train::lrx::RIG_LEAD_ADAPT_TICKS,
-                )?)),
-        );
-    }
+        None if matches!(
+            sc,
+            SimScenario::NlOnline | SimScenario::Study(ScenarioId::FeOnlineAts)
+        ) =>
+        {
+            Some(crate::nonlinear::rig::identify(
+                &case.structure,
+                preset,
+                args.seed,
+            )?)
+        }
+        None => None,
+    };
+    let ats_initial = match sc {
+        SimScenario::Study(ScenarioId::FeOnlineAts) => comp.as_ref().map(|c| c.ats_initial),
+        _ => None,
+    };
     let models = match sc {
         SimScenario::Study(id @ (ScenarioId::LrOnline | ScenarioId::LrxOnline)) => Some(
             study_models(args.model.as_deref(), id, preset, rig_checksum.as_deref())?,
         ),
         _ => None,
     };
-    // nl-online's lead: the rig file's identified one, else the shipped LRX's (fitted on this
-    // simulator's default rig).
-    let lead = match (sc, rig_lead) {
-        (SimScenario::NlOnline, Some(l)) => Some(l),
-        (SimScenario::NlOnline, None) => Some(shipped_lrx_lead()?),
+    let corrected_lead = match sc {
+        SimScenario::NlOnline => comp.as_ref().map(|c| c.corrected_lead),
         _ => None,
     };
     let mut learned = match sc {
@@ -402,7 +408,7 @@ fn run_structure(
             preset,
             seed: args.seed,
             ats_initial,
-            lead,
+            corrected_lead,
             lr: models.as_ref().and_then(|m| m.lr),
             lrx: models.as_ref().and_then(|m| m.lrx),
             delay_steps: models.as_ref().map_or(PAPER_DELAY_STEPS, |m| m.delay),
@@ -433,7 +439,7 @@ fn run_structure(
             motion: motion_label.to_string(),
             scenarios: vec![report],
             beyond_rig,
-            ats_initial,
+            compensation: comp,
         };
         println!("{}", serde_json::to_string(&json)?);
         return Ok(());

@@ -5,6 +5,7 @@
 
 pub mod model;
 pub mod plot;
+pub mod rig;
 pub mod scenario;
 pub mod study;
 

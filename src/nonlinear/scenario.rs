@@ -46,6 +46,7 @@ use rths_files::structure_file::Structure;
 use rths_hal_sim::{Preset, RigConfig, Specimen, VirtualRig};
 use serde::Serialize;
 
+use super::rig::CorrectedLead;
 use super::{elastic_drifts, fe_reference, NlResponse, FREE_VIBRATION_S};
 use crate::scenario::{self, ScenarioId, ScenarioReport, ScenarioSetup, Stop};
 
@@ -303,6 +304,28 @@ impl StructureModel for StructureFe {
     }
 }
 
+/// The rig's specimen stiffness over the paper's brace for a structure: 1 for the paper's frame
+/// (its brace); along the DOF (cos θ = 1) the structure's lateral spring at force scale 1000. The
+/// same at every length scale ([`LengthScale`]).
+pub fn rig_specimen_factor(structure: &Structure) -> f64 {
+    if is_paper_frame(structure) {
+        1.0
+    } else {
+        structure.specimen().1 / BRACE_AXIAL_STIFFNESS_KN_PER_MM
+    }
+}
+
+/// The virtual plant a structure is tested on: `preset` with the structure's specimen at specimen
+/// scale ([`rig_specimen_factor`]), sensor noise `seed`.
+pub fn structure_rig(structure: &Structure, preset: Preset, seed: u64) -> RigConfig {
+    scenario::rig_config(
+        preset,
+        Specimen::Linear,
+        rig_specimen_factor(structure),
+        seed,
+    )
+}
+
 /// Is `s` the paper's frame (one DOF, the prototype's mass, stiffnesses and damping within
 /// [`PAPER_FRAME_TOLERANCE`], a massless undamped specimen)? Such a file is tested with the paper's
 /// brace, and a linear one *is* `rths simulate` without `--structure`.
@@ -390,18 +413,14 @@ impl StructureCase {
     /// scale (the paper's brace for the paper's frame, exactly `rths simulate`'s rig), sensor
     /// noise `seed`.
     pub fn rig(&self, preset: Preset, seed: u64) -> RigConfig {
-        scenario::rig_config(preset, Specimen::Linear, self.rig_specimen_factor(), seed)
+        structure_rig(&self.structure, preset, seed)
     }
 
     /// The rig's specimen stiffness over the paper's brace: 1 for the paper's frame; along the
     /// DOF (cos θ = 1) the structure's lateral spring. The same at every length scale
     /// ([`LengthScale`]).
     pub fn rig_specimen_factor(&self) -> f64 {
-        if self.paper {
-            1.0
-        } else {
-            self.specimen_k_kn_per_mm() / BRACE_AXIAL_STIFFNESS_KN_PER_MM
-        }
+        rig_specimen_factor(&self.structure)
     }
 
     /// Why the reference is beyond what the rig can do (stroke, velocity) at the case's length
@@ -529,6 +548,7 @@ pub fn run_hybrid(
     mut compensator: Compensator,
     rig: &RigConfig,
     timing: CompensatorTarget,
+    k_corr_kn_per_mm: f64,
 ) -> anyhow::Result<(StructureSeries, Stop)> {
     model.reset();
     compensator.reset();
@@ -567,7 +587,11 @@ pub fn run_hybrid(
         s.measured_force_kn.push(force);
         let (mut requested, mut next_target) = (sup.output_mm(), f64::NAN);
         if sup.state() == State::Running {
-            let force = scale.prototype_force_kn(last_good.force_kn) * case.cos_theta;
+            // The force at the displacement the rig was to be at (the compensator was given
+            // `target` one hold and one delay ago): F̃ = F_m + k̂·(d̂ − x_m), at the rig.
+            let rig_force = last_good.force_kn
+                + k_corr_kn_per_mm * (scale.specimen_disp_mm(target) - last_good.disp_mm);
+            let force = scale.prototype_force_kn(rig_force) * case.cos_theta;
             requested = match model.step(ag, force) {
                 Ok(d) => {
                     next_target = d * case.cos_theta;
@@ -817,8 +841,9 @@ pub struct ScenarioInputs<'a> {
     pub seed: u64,
     /// The ATS start of `fe-online-ats` (a rig file's), else the paper's.
     pub ats_initial: Option<[f64; 3]>,
-    /// The lead filter of `nl-online` (a rig file's, or the shipped LRX's).
-    pub lead: Option<LeadParams>,
+    /// The lead filter and force correction of `nl-online` (a rig file's, or identified on the
+    /// virtual rig: [`super::rig`]).
+    pub corrected_lead: Option<CorrectedLead>,
     /// The LR model of `lr-online`.
     pub lr: Option<LrParams>,
     /// The LRX model and lead of `lrx-online`.
@@ -875,6 +900,7 @@ pub fn run_scenario(
             paper_ats(inputs.ats_initial)?,
             &rig,
             CompensatorTarget::Current,
+            0.0,
         )?,
         SimScenario::Study(id) => {
             let setup = ScenarioSetup {
@@ -892,15 +918,19 @@ pub fn run_scenario(
         }
         SimScenario::NlPure => run_pure(case, inputs.nl_model.ok_or_else(missing)?),
         SimScenario::NlOnline => {
-            let lead = inputs.lead.ok_or_else(|| {
-                anyhow::anyhow!("nl-online needs a lead filter (a rig file's or the shipped LRX's)")
+            let c = inputs.corrected_lead.ok_or_else(|| {
+                anyhow::anyhow!(
+                    "nl-online needs the rig's identified lead and specimen stiffness (a rig \
+                     file's, or identified on the virtual rig)"
+                )
             })?;
             run_hybrid(
                 case,
                 inputs.nl_model.ok_or_else(missing)?,
-                Compensator::Lead(Lead::new(lead)),
+                Compensator::Lead(Lead::new(c.lead)),
                 &rig,
                 CompensatorTarget::Current,
+                c.k_corr_kn_per_mm,
             )?
         }
     };

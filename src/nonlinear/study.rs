@@ -17,6 +17,7 @@ use rths_core::params::DT_S;
 use rths_files::structure_file::Structure;
 use serde::Serialize;
 
+use super::rig::RigCompensation;
 use super::scenario::{
     self as nl, check_applies, rig_demand, run_pure, LengthScale, ScenarioInputs, SimScenario,
     StructureCase, StructureFe, StructureModel, StructureReport, STRUCTURE_SCENARIOS,
@@ -110,7 +111,7 @@ pub type ModelFactory<'a> =
 
 /// What the study runs with.
 pub struct StudyConfig<'a> {
-    /// The structures (yielding ones: the shipped two by default).
+    /// The structures (yielding ones: the shipped three by default).
     pub structures: Vec<Structure>,
     /// The learned models (`nl-*` rows), by structure.
     pub models: ModelFactory<'a>,
@@ -123,8 +124,6 @@ pub struct StudyConfig<'a> {
     )>,
     /// The LR/LRX feedback delay, ticks.
     pub delay_steps: usize,
-    /// `nl-online`'s lead filter.
-    pub lead: Option<rths_core::compensator::LeadParams>,
     /// Plant preset.
     pub preset: rths_hal_sim::Preset,
     /// Sensor-noise seed.
@@ -231,6 +230,8 @@ pub fn rig_capacity(structure: &Structure, motion: &GroundMotion) -> anyhow::Res
 /// The whole study.
 #[derive(Debug, Clone, Serialize)]
 pub struct StudyReport {
+    /// Each structure's identified rig: the compensation of its hybrid runs.
+    pub identified_rigs: Vec<RigCompensation>,
     /// Every row.
     pub rows: Vec<StudyRow>,
     /// What the rig can test, by structure and record.
@@ -243,6 +244,7 @@ pub struct StudyReport {
 fn row(
     cfg: &StudyConfig<'_>,
     structure: &Structure,
+    comp: &RigCompensation,
     record_name: &str,
     target: f64,
 ) -> anyhow::Result<StudyRow> {
@@ -289,8 +291,8 @@ fn row(
         let inputs = ScenarioInputs {
             preset: cfg.preset,
             seed: cfg.seed,
-            ats_initial: None,
-            lead: cfg.lead,
+            ats_initial: Some(comp.ats_initial),
+            corrected_lead: Some(comp.corrected_lead),
             lr: cfg.lr,
             lrx: cfg.lrx,
             delay_steps: cfg.delay_steps,
@@ -319,20 +321,29 @@ fn row(
     })
 }
 
-/// Run the study (rows in parallel on rayon's pool).
+/// Run the study (rows in parallel on rayon's pool). Each structure's rig is identified first
+/// ([`super::rig::identify`]); its hybrid runs use that compensation.
 pub fn run(cfg: &StudyConfig<'_>) -> anyhow::Result<StudyReport> {
-    let jobs: Vec<(&Structure, &str, f64)> = cfg
+    let rigs = cfg
+        .structures
+        .par_iter()
+        .map(|s| super::rig::identify(s, cfg.preset, cfg.seed))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let jobs: Vec<(&Structure, &RigCompensation, &str, f64)> = cfg
         .structures
         .iter()
-        .flat_map(|s| {
-            cfg.records
-                .iter()
-                .flat_map(move |r| cfg.ductilities.iter().map(move |&mu| (s, r.as_str(), mu)))
+        .zip(&rigs)
+        .flat_map(|(s, c)| {
+            cfg.records.iter().flat_map(move |r| {
+                cfg.ductilities
+                    .iter()
+                    .map(move |&mu| (s, c, r.as_str(), mu))
+            })
         })
         .collect();
     let rows = jobs
         .par_iter()
-        .map(|&(s, r, mu)| row(cfg, s, r, mu))
+        .map(|&(s, c, r, mu)| row(cfg, s, c, r, mu))
         .collect::<anyhow::Result<Vec<_>>>()?;
     let pairs: Vec<(&Structure, &str)> = cfg
         .structures
@@ -353,6 +364,7 @@ pub fn run(cfg: &StudyConfig<'_>) -> anyhow::Result<StudyReport> {
         .collect::<anyhow::Result<Vec<_>>>()?;
     let goals = goals(&rows);
     Ok(StudyReport {
+        identified_rigs: rigs,
         rows,
         rig_capacity,
         goals,
@@ -545,6 +557,23 @@ fn loop_floor_goal(rows: &[StudyRow]) -> Goal {
 pub fn markdown(r: &StudyReport) -> String {
     let o = |v: Option<f64>, d: usize| v.map_or("—".to_string(), |x| format!("{x:.d$}"));
     let mut s = String::from(
+        "| structure | rig identified: delay ms | gain | specimen kN/mm (rig) | lead residual % | ATS start a0 / a1 s / a2 s² |\n|---|---|---|---|---|---|\n",
+    );
+    for c in &r.identified_rigs {
+        s += &format!(
+            "| {} | {:.3} | {:.4} | {:.4} | {:.2} | {:.4} / {:.5} / {:.3e} |\n",
+            c.structure,
+            c.delay_ms,
+            c.gain,
+            c.specimen_k_kn_per_mm,
+            c.lead_residual_pct,
+            c.ats_initial[0],
+            c.ats_initial[1],
+            c.ats_initial[2]
+        );
+    }
+    s += "\n";
+    s += &String::from(
         "| structure | record | scale | μ ref | elastic NRMSE % | scenario | L | NRMSE % | measured % | J4 % | μ run | residual story: ref / run mm | residual err % | start-up | note |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for row in &r.rows {
