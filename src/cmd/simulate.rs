@@ -370,7 +370,9 @@ fn run_structure(
         }
         None if matches!(
             sc,
-            SimScenario::NlOnline | SimScenario::Study(ScenarioId::FeOnlineAts)
+            SimScenario::NlOnline
+                | SimScenario::FeOnlineLead
+                | SimScenario::Study(ScenarioId::FeOnlineAts)
         ) =>
         {
             Some(crate::nonlinear::rig::identify(
@@ -392,7 +394,9 @@ fn run_structure(
         _ => None,
     };
     let corrected_lead = match sc {
-        SimScenario::NlOnline => comp.as_ref().map(|c| c.corrected_lead),
+        SimScenario::NlOnline | SimScenario::FeOnlineLead => {
+            comp.as_ref().map(|c| c.corrected_lead)
+        }
         _ => None,
     };
     let mut learned = match sc {

@@ -1,8 +1,8 @@
 //! The compensation of a structure's hybrid runs: what a lab identifies of its rig before testing a
 //! structure's specimen (`rths identify`'s procedure on the virtual plant, or a rig file it wrote),
 //! and nothing else. `fe-online-ats` takes the ATS start; `nl-online` takes the lead filter with
-//! its online gain-and-delay correction and the identified specimen stiffness for the force
-//! correction (docs/nonlinear.md, "Scenarios").
+//! its online gain-and-delay correction and the identified specimen for the force correction
+//! (docs/nonlinear.md, "Scenarios").
 
 use anyhow::Context;
 use rths_core::compensator::{LeadAdaptParams, LeadParams};
@@ -11,18 +11,70 @@ use rths_hal_sim::{FaultPlan, Preset};
 use serde::Serialize;
 
 use super::scenario::{rig_specimen_factor, structure_rig};
+use crate::identify::estimate::SpecimenFit;
 use crate::identify::{identify_virtual, IdentifyConfig, RigFile};
 
-/// The compensation of `nl-online`: the learned model is fed the measured force corrected to its
-/// own displacement, `F̃ = F_m + k̂·(d̂ − x_m)` (LRX's force correction, docs/design.md §5.3, at the
-/// rig), and its target goes through the lead filter.
+/// The force a model is fed in the hybrid loop, corrected to the model's own displacement with the
+/// identified specimen (LRX's correction of a rig-trained model, docs/design.md §5.3, at the rig):
+/// `F̃ = F_m + k̂·(d̂ − x_m) − m̂·d̂'' − ĉ·d̂'`, d̂ the displacement the rig was to be at, its
+/// derivatives by central differences one tick back. The spring term removes the rig's tracking
+/// error from the force; the mass and damping terms remove what the rig's specimen has and the
+/// structure file's (a spring) does not.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ForceCorrection {
+    /// k̂, kN/mm (0: none).
+    pub k_kn_per_mm: f64,
+    /// ĉ, kN·s/mm.
+    pub c_kn_s_per_mm: f64,
+    /// m̂, kN·s²/mm.
+    pub m_kn_s2_per_mm: f64,
+}
+
+impl ForceCorrection {
+    /// No correction: the measured force as is.
+    pub const NONE: Self = Self {
+        k_kn_per_mm: 0.0,
+        c_kn_s_per_mm: 0.0,
+        m_kn_s2_per_mm: 0.0,
+    };
+
+    /// From identified values: refused unless finite and ≥ 0.
+    pub fn new(k_kn_per_mm: f64, c_kn_s_per_mm: f64, m_kn_s2_per_mm: f64) -> anyhow::Result<Self> {
+        for (what, v) in [
+            ("stiffness", k_kn_per_mm),
+            ("damping", c_kn_s_per_mm),
+            ("mass", m_kn_s2_per_mm),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                anyhow::bail!("the identified specimen {what} {v} is not usable (finite, ≥ 0)");
+            }
+        }
+        Ok(Self {
+            k_kn_per_mm,
+            c_kn_s_per_mm,
+            m_kn_s2_per_mm,
+        })
+    }
+
+    /// `F̃` from the measured force and displacement and the rig's targets `d = [d̂_k, d̂_{k−1},
+    /// d̂_{k−2}]` (mm), at step `dt_s`.
+    pub fn force_kn(&self, force_kn: f64, disp_mm: f64, d: [f64; 3], dt_s: f64) -> f64 {
+        let accel = (d[0] - 2.0 * d[1] + d[2]) / (dt_s * dt_s);
+        let vel = (d[0] - d[2]) / (2.0 * dt_s);
+        force_kn + self.k_kn_per_mm * (d[0] - disp_mm)
+            - self.m_kn_s2_per_mm * accel
+            - self.c_kn_s_per_mm * vel
+    }
+}
+
+/// The compensation of `nl-online`: the identified lead filter in front of the rig, the force
+/// fed to the learned model corrected with the identified specimen.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CorrectedLead {
     /// The lead filter, with its online gain-and-delay correction.
     pub lead: LeadParams,
-    /// The force correction's stiffness at the rig, kN/mm (the identified specimen's; 0: the
-    /// measured force as is).
-    pub k_corr_kn_per_mm: f64,
+    /// The force correction.
+    pub correction: ForceCorrection,
 }
 
 /// What was identified of the rig a structure is tested on: the compensation of its hybrid runs.
@@ -58,13 +110,14 @@ fn adapted(lead: LeadParams) -> anyhow::Result<LeadParams> {
     )))
 }
 
-fn corrected(lead: LeadParams, k_kn_per_mm: f64) -> anyhow::Result<CorrectedLead> {
-    if !(k_kn_per_mm.is_finite() && k_kn_per_mm >= 0.0) {
-        anyhow::bail!("the identified specimen stiffness {k_kn_per_mm} kN/mm is not usable");
-    }
+fn corrected(lead: LeadParams, fit: &SpecimenFit) -> anyhow::Result<CorrectedLead> {
     Ok(CorrectedLead {
         lead: adapted(lead)?,
-        k_corr_kn_per_mm: k_kn_per_mm,
+        correction: ForceCorrection::new(
+            fit.stiffness_kn_per_mm,
+            fit.damping_kn_s_per_mm,
+            fit.mass_kn_s2_per_mm,
+        )?,
     })
 }
 
@@ -91,7 +144,7 @@ pub fn identify(
         specimen_k_kn_per_mm: id.specimen.stiffness_kn_per_mm,
         lead_residual_pct: id.lead_residual_pct,
         ats_initial: id.ats_initial,
-        corrected_lead: corrected(lead, id.specimen.stiffness_kn_per_mm)?,
+        corrected_lead: corrected(lead, &id.specimen)?,
     })
 }
 
@@ -111,6 +164,6 @@ pub fn from_rig_file(
         specimen_k_kn_per_mm: k,
         lead_residual_pct: file.quality.lead_residual_pct,
         ats_initial: file.compensation.ats_initial,
-        corrected_lead: corrected(file.lead_params()?, k)?,
+        corrected_lead: corrected(file.lead_params()?, &file.specimen_fit)?,
     })
 }

@@ -46,7 +46,7 @@ use rths_files::structure_file::Structure;
 use rths_hal_sim::{Preset, RigConfig, Specimen, VirtualRig};
 use serde::Serialize;
 
-use super::rig::CorrectedLead;
+use super::rig::{CorrectedLead, ForceCorrection};
 use super::{elastic_drifts, fe_reference, NlResponse, FREE_VIBRATION_S};
 use crate::scenario::{self, ScenarioId, ScenarioReport, ScenarioSetup, Stop};
 
@@ -143,6 +143,9 @@ pub enum SimScenario {
     NlPure,
     /// The structure's learned model in the hybrid loop on the virtual plant.
     NlOnline,
+    /// The structure's own FE in the hybrid loop with `nl-online`'s compensation (the identified
+    /// lead and force correction): the learned model's twin with the exact numerical part.
+    FeOnlineLead,
 }
 
 impl SimScenario {
@@ -151,7 +154,7 @@ impl SimScenario {
         match self {
             SimScenario::Study(id) => id.uses_rig(),
             SimScenario::NlPure => false,
-            SimScenario::NlOnline => true,
+            SimScenario::NlOnline | SimScenario::FeOnlineLead => true,
         }
     }
 }
@@ -162,13 +165,14 @@ impl fmt::Display for SimScenario {
             SimScenario::Study(id) => id.fmt(f),
             SimScenario::NlPure => f.write_str("nl-pure"),
             SimScenario::NlOnline => f.write_str("nl-online"),
+            SimScenario::FeOnlineLead => f.write_str("fe-online-lead"),
         }
     }
 }
 
 /// An unknown scenario name.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{0}; with --structure also nl-pure, nl-online")]
+#[error("{0}; with --structure also nl-pure, nl-online, fe-online-lead")]
 pub struct UnknownSimScenario(scenario::UnknownScenario);
 
 impl FromStr for SimScenario {
@@ -177,6 +181,7 @@ impl FromStr for SimScenario {
         match s {
             "nl-pure" => Ok(SimScenario::NlPure),
             "nl-online" => Ok(SimScenario::NlOnline),
+            "fe-online-lead" => Ok(SimScenario::FeOnlineLead),
             _ => ScenarioId::from_str(s)
                 .map(SimScenario::Study)
                 .map_err(UnknownSimScenario),
@@ -185,11 +190,12 @@ impl FromStr for SimScenario {
 }
 
 /// The scenarios `--structure` runs (docs/nonlinear.md), in report order.
-pub const STRUCTURE_SCENARIOS: [SimScenario; 6] = [
+pub const STRUCTURE_SCENARIOS: [SimScenario; 7] = [
     SimScenario::NlPure,
     SimScenario::NlOnline,
     SimScenario::Study(ScenarioId::FePure),
     SimScenario::Study(ScenarioId::FeOnlineAts),
+    SimScenario::FeOnlineLead,
     SimScenario::Study(ScenarioId::LrOnline),
     SimScenario::Study(ScenarioId::LrxOnline),
 ];
@@ -548,7 +554,7 @@ pub fn run_hybrid(
     mut compensator: Compensator,
     rig: &RigConfig,
     timing: CompensatorTarget,
-    k_corr_kn_per_mm: f64,
+    correction: &ForceCorrection,
 ) -> anyhow::Result<(StructureSeries, Stop)> {
     model.reset();
     compensator.reset();
@@ -568,6 +574,8 @@ pub fn run_hybrid(
     };
     let stories = case.structure.dofs();
     let (mut command, mut target) = (0.0, 0.0);
+    // d̂_k, d̂_{k−1}, d̂_{k−2} at the rig (the force correction's).
+    let mut rig_targets = [0.0; 3];
     let mut last_good = Sample::default();
     let mut stop: Stop = None;
     for (k, &ag) in case.ground_accel_mm_s2.iter().enumerate() {
@@ -588,9 +596,9 @@ pub fn run_hybrid(
         let (mut requested, mut next_target) = (sup.output_mm(), f64::NAN);
         if sup.state() == State::Running {
             // The force at the displacement the rig was to be at (the compensator was given
-            // `target` one hold and one delay ago): F̃ = F_m + k̂·(d̂ − x_m), at the rig.
-            let rig_force = last_good.force_kn
-                + k_corr_kn_per_mm * (scale.specimen_disp_mm(target) - last_good.disp_mm);
+            // `target` one hold and one delay ago), at the rig.
+            let rig_force =
+                correction.force_kn(last_good.force_kn, last_good.disp_mm, rig_targets, DT_S);
             let force = scale.prototype_force_kn(rig_force) * case.cos_theta;
             requested = match model.step(ag, force) {
                 Ok(d) => {
@@ -613,6 +621,11 @@ pub fn run_hybrid(
         if next_target.is_finite() {
             target = next_target;
         }
+        rig_targets = [
+            scale.specimen_disp_mm(target),
+            rig_targets[0],
+            rig_targets[1],
+        ];
         if let (State::Fault(reason), None) = (decision.state, &stop) {
             stop = Some((format!("{reason:?}"), k as f64 * DT_S));
         }
@@ -858,7 +871,8 @@ pub struct ScenarioInputs<'a> {
 pub fn check_applies(sc: SimScenario, structure: &Structure) -> anyhow::Result<()> {
     let ok = match sc {
         SimScenario::NlPure | SimScenario::NlOnline => structure.story_laws().is_some(),
-        SimScenario::Study(ScenarioId::FePure | ScenarioId::FeOnlineAts) => true,
+        SimScenario::Study(ScenarioId::FePure | ScenarioId::FeOnlineAts)
+        | SimScenario::FeOnlineLead => true,
         SimScenario::Study(ScenarioId::LrOnline | ScenarioId::LrxOnline) => {
             is_paper_frame(structure)
         }
@@ -870,7 +884,8 @@ pub fn check_applies(sc: SimScenario, structure: &Structure) -> anyhow::Result<(
     anyhow::bail!(
         "scenario {sc} does not apply to structure {}: with --structure, nl-pure and nl-online \
          need yielding stories (a hysteresis section), lr-online and lrx-online the paper's \
-         frame (their shipped models are of that frame), fe-pure and fe-online-ats run any \
+         frame (their shipped models are of that frame), fe-pure, fe-online-ats and \
+         fe-online-lead run any \
          structure, and the other study scenarios run without --structure",
         structure.name()
     )
@@ -900,7 +915,7 @@ pub fn run_scenario(
             paper_ats(inputs.ats_initial)?,
             &rig,
             CompensatorTarget::Current,
-            0.0,
+            &ForceCorrection::NONE,
         )?,
         SimScenario::Study(id) => {
             let setup = ScenarioSetup {
@@ -917,20 +932,27 @@ pub fn run_scenario(
             run_paper_scenario(case, setup)?
         }
         SimScenario::NlPure => run_pure(case, inputs.nl_model.ok_or_else(missing)?),
-        SimScenario::NlOnline => {
+        SimScenario::NlOnline | SimScenario::FeOnlineLead => {
             let c = inputs.corrected_lead.ok_or_else(|| {
                 anyhow::anyhow!(
-                    "nl-online needs the rig's identified lead and specimen stiffness (a rig \
-                     file's, or identified on the virtual rig)"
+                    "{sc} needs the rig's identified lead and specimen (a rig file's, or \
+                     identified on the virtual rig)"
                 )
             })?;
+            let mut fe;
+            let model: &mut dyn StructureModel = if sc == SimScenario::NlOnline {
+                inputs.nl_model.ok_or_else(missing)?
+            } else {
+                fe = StructureFe::new(&case.structure)?;
+                &mut fe
+            };
             run_hybrid(
                 case,
-                inputs.nl_model.ok_or_else(missing)?,
+                model,
                 Compensator::Lead(Lead::new(c.lead)),
                 &rig,
                 CompensatorTarget::Current,
-                c.k_corr_kn_per_mm,
+                &c.correction,
             )?
         }
     };
