@@ -24,7 +24,7 @@
 #
 # The structure budget (issues 15, 16): one build (`budget-structures`, emulated M7, 4096 Hz) steps
 # twelve controllers, FE linear, FE yielding, the structure metamodel (of the linear structures)
-# and the learned modal-hysteretic metamodel (of the yielding ones: data/models/nl-<name>.json, or
+# and the learned modal-hysteretic metamodel (of the yielding ones: data/models/nl-S.json, or
 # RTHS_BUDGET_MODALS=m1,m3,m8) for N = 1, 3, 8, through the whole record in one QEMU run, one
 # `STRUCTURE` line each ("structure_rows" in the JSON). Checks: each within 10 % of the 4096 Hz tick
 # at 480 MHz; the structure metamodel cheaper than the linear FE for N ≥ 3, and its cost

@@ -25,7 +25,7 @@
 //!   `paper-frame,vrths-case1,shear8` and `paper-frame-yielding,shear3-yielding,shear8-yielding` in
 //!   `data/structures/`), `RTHS_BUDGET_METAS` (the linear ones' metamodels at this build's rate,
 //!   required: `budget.sh` trains them) and `RTHS_BUDGET_MODALS` (the yielding ones' modal models;
-//!   default `nl-<name>.json` in `data/models/`).
+//!   default `nl-S.json` in `data/models/`).
 //!
 //! The files are read by the host's own readers (`rths-files`): a model file is checked exactly as
 //! `rths check-model` checks it (feature names included), the record parsed as `rths analyze` parses

@@ -1,6 +1,6 @@
 //! The firmware's structure budget (`firmware/budget.sh`, `budget-structures`) rerun on the host:
 //! the same twelve controllers (FE linear, FE yielding, structure metamodel, modal-hysteretic
-//! metamodel of `data/models/nl-<name>.json`; N = 1, 3, 8), the same
+//! metamodel of `data/models/nl-S.json`; N = 1, 3, 8), the same
 //! El Centro ticks at 4096 Hz, the same ideal rig, and the same FNV-1a checksum of each command
 //! stream. The expected checksums are the emulated Cortex-M7's (`STRUCTURE` lines of its QEMU run,
 //! docs/firmware.md#the-structure-budget): host and firmware step these controllers bit for bit.
@@ -34,7 +34,7 @@ fn structure(name: &str) -> Structure {
 }
 
 /// FNV-1a of the command stream of the modal-hysteretic metamodel of `name`
-/// (`data/models/nl-<name>.json`, checked against the structure file) as the firmware builds it:
+/// (`data/models/nl-S.json`, checked against the structure file) as the firmware builds it:
 /// the file's arrays as a `ModelSpec::StructureModal`.
 fn run_modal(name: &str, k_e: f64, ag: &[f64]) -> u64 {
     let model = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
