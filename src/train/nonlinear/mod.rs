@@ -322,6 +322,18 @@ impl Template {
     /// The core parameters θ stands for at `dt_s`.
     pub fn params(&self, th: &[f64], dt_s: f64) -> Result<ModalHystParams, TrainError> {
         let (springs, modes) = self.decode(th)?;
+        for (k, sp) in springs.iter().enumerate() {
+            let k_el = self.modes.story_k0_kn_per_mm[k];
+            if !stage1::keeps_story_physical(sp, k_el) {
+                return Err(TrainError::Setting(format!(
+                    "spring {}: k0 {:.2} kN/mm with post-yield ratio {:.3} softens its story \
+                     (elastic {k_el:.2} kN/mm) past the limit",
+                    k + 1,
+                    sp.k0_kn_per_mm,
+                    sp.post_yield_ratio
+                )));
+            }
+        }
         let laws = springs
             .iter()
             .map(|s| s.law())

@@ -8,7 +8,7 @@
 //! simulation of the modes: a few seconds per story, and the whole-run search (stage 2) starts in
 //! the right basin instead of at a random law.
 
-use rths_core::hysteresis::{Law, Story};
+use rths_core::hysteresis::{Law, Story, MIN_POST_YIELD_RATIO};
 use rths_files::nl_model_file::SpringSpec;
 
 use super::cmaes::{self, CmaResult};
@@ -47,7 +47,7 @@ fn sigmoid(x: f64) -> f64 {
 /// reference stiffness `k0_base_kn_per_mm` and yield force `fy_base_kn`: yield force
 /// `fy_base·e^{t₀}`, post-yield ratio in (−0.05, 0.4), Bouc–Wen exponent a whole number in 1..=20 and
 /// `γ = ½·e^{−t₃²}`, `β = 1 − γ` (so `β + γ = 1`: the spring yields at its yield force), stiffness
-/// `k0_base·e^{0.3·t₄}`. A bilinear spring leaves t₂ and t₃ unused (one layout for both families).
+/// `k0_base·e^{0.3·t₄}` at most [`max_k0_kn_per_mm`] (`k0_base` is the story's elastic stiffness). A bilinear spring leaves t₂ and t₃ unused (one layout for both families).
 pub fn spring_spec(
     law: SpringLaw,
     k0_base_kn_per_mm: f64,
@@ -92,16 +92,41 @@ fn spring_spec_with(
             gamma,
         ),
     };
+    let post_yield_ratio = -0.05 + 0.45 * sigmoid(at(1));
     SpringSpec {
         law: law.name().into(),
-        k0_kn_per_mm: k0_base_kn_per_mm * (0.3 * at(4)).exp(),
+        // At most the stiffness that keeps the story physical ([`keeps_story_physical`]): a cap,
+        // not a penalty, so the loss still varies with the other numbers there.
+        k0_kn_per_mm: (k0_base_kn_per_mm * (0.3 * at(4)).exp())
+            .min(max_k0_kn_per_mm(k0_base_kn_per_mm, post_yield_ratio)),
         yield_force_kn: fy_base_kn * at(0).exp(),
-        post_yield_ratio: -0.05 + 0.45 * sigmoid(at(1)),
+        post_yield_ratio,
         exponent,
         beta,
         gamma,
         drift,
     }
+}
+
+/// Does a spring of initial stiffness `k0` and post-yield ratio `α` keep its story physical in the
+/// model? The modes carry the story's elastic stiffness `k_el` (the eigen-analysis), and a spring
+/// adds its deviation from its own elasticity, `f(u) − k0·u`: past yield the story's tangent is
+/// `k_el − (1 − α)·k0`, which must not soften beyond what a structure file's law may
+/// (`MIN_POST_YIELD_RATIO`·`k_el`). Without this, a spring fitted stiffer than its story (k0 212.75
+/// for k_el 200, α 0.03, seen fitting a law outside the model's form) makes the yielding story's
+/// stiffness negative and the model's drift grows without bound (1e67 mm) at high ductility.
+/// [`spring_spec`] caps `k0` at [`max_k0_kn_per_mm`], so every spring it gives passes (to
+/// round-off).
+pub fn keeps_story_physical(spec: &SpringSpec, k_el_kn_per_mm: f64) -> bool {
+    let tangent = k_el_kn_per_mm - (1.0 - spec.post_yield_ratio) * spec.k0_kn_per_mm;
+    tangent >= (MIN_POST_YIELD_RATIO - 1e-9) * k_el_kn_per_mm
+}
+
+/// The largest `k0` a spring of post-yield ratio `α` may have on a story of elastic stiffness
+/// `k_el`: `(1 − MIN_POST_YIELD_RATIO)·k_el / (1 − α)` (1.05–1.83 `k_el` over the fitted range of
+/// `α`), where [`keeps_story_physical`]'s tangent reaches its limit.
+pub fn max_k0_kn_per_mm(k_el_kn_per_mm: f64, post_yield_ratio: f64) -> f64 {
+    (1.0 - MIN_POST_YIELD_RATIO) * k_el_kn_per_mm / (1.0 - post_yield_ratio)
 }
 
 /// One story's recorded history: drift (mm) and force (kN), step by step.
@@ -268,14 +293,47 @@ mod tests {
     }
 
     #[test]
+    fn no_spring_softens_its_story_past_the_limit() {
+        // However stiff θ asks, the spring stays within the cap, and the cap is the limit.
+        let k_el = 200.0;
+        for t4 in [-3.0, 0.0, 0.5, 3.0, 30.0] {
+            for t1 in [-5.0, 0.0, 5.0] {
+                let t = [0.0, t1, 0.0, 0.0, t4];
+                let sp = spring_spec(SpringLaw::Bilinear, k_el, 1000.0, &t, Vec::new());
+                assert!(keeps_story_physical(&sp, k_el), "{sp:?}");
+                assert!(sp.k0_kn_per_mm <= max_k0_kn_per_mm(k_el, sp.post_yield_ratio));
+            }
+        }
+        let at_cap = spring_spec(
+            SpringLaw::Bilinear,
+            k_el,
+            1000.0,
+            &[0.0, 0.0, 0.0, 0.0, 30.0],
+            Vec::new(),
+        );
+        let tangent = k_el - (1.0 - at_cap.post_yield_ratio) * at_cap.k0_kn_per_mm;
+        assert!(
+            (tangent - MIN_POST_YIELD_RATIO * k_el).abs() < 1e-9 * k_el,
+            "{tangent}"
+        );
+        // The spring that made a model diverge (a law outside the model's form): refused.
+        let bad = SpringSpec {
+            k0_kn_per_mm: 240.0,
+            post_yield_ratio: 0.03,
+            ..at_cap
+        };
+        assert!(!keeps_story_physical(&bad, k_el));
+    }
+
+    #[test]
     fn stage_1_recovers_a_bilinear_law_from_its_force_drift_history() {
         let truth = Law::bilinear(250.0, 3000.0, 0.08).expect("law");
-        recovers(SpringLaw::Bilinear, truth, 200.0, 2000.0);
+        recovers(SpringLaw::Bilinear, truth, 230.0, 2000.0);
     }
 
     #[test]
     fn stage_1_recovers_a_bouc_wen_law_from_its_force_drift_history() {
         let truth = Law::bouc_wen(250.0, 3000.0, 0.05, 3.0, 0.7, 0.3).expect("law");
-        recovers(SpringLaw::BoucWen, truth, 200.0, 2000.0);
+        recovers(SpringLaw::BoucWen, truth, 230.0, 2000.0);
     }
 }
