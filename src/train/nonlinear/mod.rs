@@ -54,8 +54,9 @@ pub const DEFAULT_RECORDS: [&str; 2] = ["northridge", "loma-prieta"];
 /// The default peak ductilities of the training runs (FE), per record: elastic to past 5.
 pub const DEFAULT_DUCTILITIES: [f64; 4] = [0.7, 2.0, 4.0, 6.0];
 
-/// Learned numbers per spring (yield force, post-yield ratio, exponent, γ, stiffness scale) and
-/// per mode (frequency and damping scale).
+/// θ's numbers per spring (yield force, post-yield ratio, exponent, γ, and one unused since the
+/// spring's `k0` is its story's elastic stiffness: [`stage1::spring_spec`]) and per mode
+/// (frequency and damping scale).
 pub(crate) const PER_SPRING: usize = 5;
 const PER_MODE: usize = 2;
 

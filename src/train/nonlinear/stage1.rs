@@ -1,10 +1,11 @@
 //! Stage 1 of the nonlinear training: each latent spring's law fitted on its own to its story's
 //! force–drift history from the FE training runs (the lab's own numerical model on the training
 //! records; the structure file's `hysteresis` section is not read). The law is driven along the
-//! recorded drift and its force compared with the recorded story force; CMA-ES ([`cmaes`]) on
+//! recorded drift and the story force the model gives with it ([`force_nrmse_pct`]) compared with
+//! the recorded story force; CMA-ES ([`cmaes`]) on
 //! the spring's slice of θ (the layout of [`spring_spec`]), from the seed's random draw.
 //!
-//! Five numbers per story instead of the whole model's dozens, and a loss that needs no
+//! Four numbers per story instead of the whole model's dozens, and a loss that needs no
 //! simulation of the modes: a few seconds per story, and the whole-run search (stage 2) starts in
 //! the right basin instead of at a random law.
 
@@ -43,7 +44,7 @@ fn sigmoid(x: f64) -> f64 {
     1.0 / (1.0 + (-x).exp())
 }
 
-/// The spring of family `law` that its slice `t` of θ (5 numbers) stands for, around the
+/// The spring of family `law` that its slice `t` of θ (5 entries) stands for, around the
 /// reference stiffness `k0_base_kn_per_mm` and yield force `fy_base_kn`: yield force
 /// `fy_base·e^{t₀}`, post-yield ratio in (−0.05, 0.4), Bouc–Wen exponent a whole number in 1..=20 and
 /// `γ = ½·e^{−t₃²}`, `β = 1 − γ` (so `β + γ = 1`: the spring yields at its yield force), initial
