@@ -148,8 +148,8 @@ run_twin() { # run_twin BOARD PATH RATE: run the emulated board's ELF, keep its 
 PATHS="lr lrx rnn-10 fe-ats"
 RATES="2048 4096"
 ROWS=()
-add_row() { # add_row BOARD CORE CLOCK_HZ PATH TWIN RATE
-  local board=$1 core=$2 clock=$3 path=$4 twin=$5 rate=$6
+add_row() { # add_row BOARD CORE CLOCK_HZ PATH TWIN RATE KEY (KEY: the row's place in the table)
+  local board=$1 core=$2 clock=$3 path=$4 twin=$5 rate=$6 key=$7
   local r=${RESULT[$twin/$path/$rate]} ip min mean max stack pct flash ram p fits=true mem=true
   ip=$(sed -n 's/.*"instr_per_tick":{\([^}]*\)}.*/\1/p' <<<"$r")
   min=$(field "$ip" min); mean=$(field "$ip" mean); max=$(field "$ip" max)
@@ -166,7 +166,7 @@ add_row() { # add_row BOARD CORE CLOCK_HZ PATH TWIN RATE
   fi
   if awk -v p="$pct" -v l=100 'BEGIN { exit !(p > l) }'; then fits=false; fi
   if [ "$flash" -gt "$FLASH_MAX" ] || [ "$ram" -gt "$RAM_MAX" ]; then mem=false; fi
-  ROWS+=("$board|$core|$rate|$path|$max|$mean|$pct|$stack|$flash|$ram|$p|$twin|$fits|$clock|$min|$mem")
+  ROWS+=("$key|$board|$core|$rate|$path|$max|$mean|$pct|$stack|$flash|$ram|$p|$twin|$fits|$clock|$min|$mem")
   # The goals.
   local over_limit
   over_limit=$(awk -v p="$pct" -v l="$LIMIT_PCT" 'BEGIN { print (p > l) ? 1 : 0 }')
@@ -198,38 +198,56 @@ add_row() { # add_row BOARD CORE CLOCK_HZ PATH TWIN RATE
 }
 
 REFUSED=()
-if [ "$STRUCTURES_ONLY" = 1 ]; then RATES=""; else train_4096; fi
-for rate in $RATES; do
-  # The emulated boards: build and run every path.
-  for path in $PATHS; do
-    build qemu-netduinoplus2 "$path" "$rate"
-    run_twin qemu-netduinoplus2 "$path" "$rate"
-    add_row qemu-netduinoplus2 cortex-m4 168000000 "$path" qemu-netduinoplus2 "$rate"
-    build qemu-mps2-an500 "$path" "$rate"
-    run_twin qemu-mps2-an500 "$path" "$rate"
-    add_row qemu-mps2-an500 cortex-m7 480000000 "$path" qemu-mps2-an500 "$rate"
-  done
-  # The real boards: cross-build every path they accept.
-  for path in $PATHS; do
-    if [ "$path" = rnn-10 ] || { [ "$path" = fe-ats ] && [ "$rate" = 4096 ]; }; then
-      # Must not build: these overrun the F407's tick (main.rs refuses them at compile time).
-      feat=board-stm32f4,model-rnn
-      if [ "$path" = fe-ats ]; then feat=board-stm32f4,fe-ats; fi
-      if [ "$rate" = 4096 ]; then feat="$feat,rate-4096"; fi
-      if cargo build --release --quiet --no-default-features --features "$feat" 2>/dev/null; then
-        say "FAIL: the stm32f407 built $path at $rate Hz (it must refuse: it overruns the tick)"; fail=1
+# chain CORE: every row of one core's two boards (cortex-m4: qemu-netduinoplus2, stm32f407;
+# cortex-m7: qemu-mps2-an500, stm32h743; the M7's structure budget last). The two cores' builds use
+# their own target dirs (target/, target/m7/) and a fat-LTO build or a QEMU run keeps one host core
+# busy, so the two chains run side by side (QEMU's -icount counts are the guest's, not the host's
+# load). A chain hands its rows back in files under $OUT/chain-CORE.*, each row keyed for the
+# table's order (rate, emulated before real, path, M4 before M7).
+chain() {
+  local core=$1 rate path i emulated real clock key
+  if [ "$core" = cortex-m4 ]; then
+    emulated=qemu-netduinoplus2; real=stm32f407; clock=168000000; key=0
+  else
+    emulated=qemu-mps2-an500; real=stm32h743; clock=480000000; key=1
+  fi
+  for rate in $RATES; do
+    # The emulated board: build and run every path.
+    i=0
+    for path in $PATHS; do
+      build "$emulated" "$path" "$rate"
+      run_twin "$emulated" "$path" "$rate"
+      add_row "$emulated" "$core" "$clock" "$path" "$emulated" "$rate" "$rate|0|$i|$key"
+      i=$((i + 1))
+    done
+    # The real board: cross-build every path it accepts.
+    i=0
+    for path in $PATHS; do
+      if [ "$core" = cortex-m4 ] && { [ "$path" = rnn-10 ] || { [ "$path" = fe-ats ] && [ "$rate" = 4096 ]; }; }; then
+        # Must not build: these overrun the F407's tick (main.rs refuses them at compile time).
+        feat=board-stm32f4,model-rnn
+        if [ "$path" = fe-ats ]; then feat=board-stm32f4,fe-ats; fi
+        if [ "$rate" = 4096 ]; then feat="$feat,rate-4096"; fi
+        if cargo build --release --quiet --no-default-features --features "$feat" 2>/dev/null; then
+          say "FAIL: the stm32f407 built $path at $rate Hz (it must refuse: it overruns the tick)"; fail=1
+        else
+          say "stm32f407 $path at $rate Hz: refused at compile time, as it must be"
+          REFUSED+=("$path|$rate")
+        fi
       else
-        say "stm32f407 $path at $rate Hz: refused at compile time, as it must be"
-        REFUSED+=("$path|$rate")
+        build "$real" "$path" "$rate"
+        add_row "$real" "$core" "$clock" "$path" "$emulated" "$rate" "$rate|1|$i|$key"
       fi
-    else
-      build stm32f407 "$path" "$rate"
-      add_row stm32f407 cortex-m4 168000000 "$path" qemu-netduinoplus2 "$rate"
-    fi
-    build stm32h743 "$path" "$rate"
-    add_row stm32h743 cortex-m7 480000000 "$path" qemu-mps2-an500 "$rate"
+      i=$((i + 1))
+    done
   done
-done
+  if [ "$core" = cortex-m7 ]; then structures; fi
+  local r
+  for r in "${ROWS[@]}"; do echo "$r"; done >"$OUT/chain-$core.rows"
+  for r in "${REFUSED[@]}"; do echo "$r"; done >"$OUT/chain-$core.refused"
+  for r in "${STRUCT_ROWS[@]}"; do echo "$r"; done >"$OUT/chain-$core.structures"
+  return "$fail"
+}
 
 # The structure budget: the metamodels of the three linear structures trained at 4096 Hz, one M7
 # build, one QEMU run.
@@ -285,7 +303,23 @@ structures() {
     fi
   done
 }
-structures
+
+chains="cortex-m4 cortex-m7"
+if [ "$STRUCTURES_ONLY" = 1 ]; then RATES=""; chains=cortex-m7; else train_4096; fi
+rm -f "$OUT"/chain-*
+pids=()
+for core in $chains; do
+  chain "$core" &
+  pids+=($!)
+done
+for pid in "${pids[@]}"; do wait "$pid" || fail=1; done
+ROWS=()
+REFUSED=()
+STRUCT_ROWS=()
+for f in "$OUT"/chain-*.rows; do [ -e "$f" ] || continue; cat "$f"; done | sort -t'|' -k1,1n -k2,2n -k3,3n -k4,4n >"$OUT/rows"
+while IFS= read -r r; do ROWS+=("${r#*|*|*|*|}"); done <"$OUT/rows"
+for f in "$OUT"/chain-*.refused; do [ -e "$f" ] || continue; while IFS= read -r r; do REFUSED+=("$r"); done <"$f"; done
+for f in "$OUT"/chain-*.structures; do [ -e "$f" ] || continue; while IFS= read -r r; do STRUCT_ROWS+=("$r"); done <"$f"; done
 
 if [ "$JSON" = 1 ]; then
   printf '{"cycles_per_instr":%s,"budget_pct":%s,"rows":[' "$CPI" "$LIMIT_PCT"
