@@ -307,12 +307,16 @@ structures() {
 chains="cortex-m4 cortex-m7"
 if [ "$STRUCTURES_ONLY" = 1 ]; then RATES=""; chains=cortex-m7; else train_4096; fi
 rm -f "$OUT"/chain-*
-pids=()
+declare -A CHAIN_PID
 for core in $chains; do
   chain "$core" &
-  pids+=($!)
+  CHAIN_PID[$core]=$!
 done
-for pid in "${pids[@]}"; do wait "$pid" || fail=1; done
+for core in $chains; do
+  if ! wait "${CHAIN_PID[$core]}"; then
+    say "FAIL: the $core chain failed (a build, a run or a check, above)"; fail=1
+  fi
+done
 ROWS=()
 REFUSED=()
 STRUCT_ROWS=()
