@@ -317,13 +317,10 @@ for core in $chains; do
     say "FAIL: the $core chain failed (a build, a run or a check, above)"; fail=1
   fi
 done
-ROWS=()
-REFUSED=()
-STRUCT_ROWS=()
-for f in "$OUT"/chain-*.rows; do [ -e "$f" ] || continue; cat "$f"; done | sort -t'|' -k1,1n -k2,2n -k3,3n -k4,4n >"$OUT/rows"
-while IFS= read -r r; do ROWS+=("${r#*|*|*|*|}"); done <"$OUT/rows"
-for f in "$OUT"/chain-*.refused; do [ -e "$f" ] || continue; while IFS= read -r r; do REFUSED+=("$r"); done <"$f"; done
-for f in "$OUT"/chain-*.structures; do [ -e "$f" ] || continue; while IFS= read -r r; do STRUCT_ROWS+=("$r"); done <"$f"; done
+# A failed chain wrote no files: its rows are missing and the run fails above.
+mapfile -t ROWS < <(cat "$OUT"/chain-*.rows 2>/dev/null | sort -t'|' -k1,1n -k2,2n -k3,3n -k4,4n | cut -d'|' -f5-)
+mapfile -t REFUSED < <(cat "$OUT"/chain-*.refused 2>/dev/null)
+mapfile -t STRUCT_ROWS < <(cat "$OUT"/chain-*.structures 2>/dev/null)
 
 if [ "$JSON" = 1 ]; then
   printf '{"cycles_per_instr":%s,"budget_pct":%s,"rows":[' "$CPI" "$LIMIT_PCT"
