@@ -4,6 +4,7 @@
 //! score against it; the controller never sees it.
 
 use rths_core::params::{SpecimenScale, DT_S};
+use rths_core::reference::Reference;
 use rths_hal_sim::{RigConfig, Specimen};
 use serde::Serialize;
 
@@ -13,25 +14,17 @@ use crate::scenario;
 /// The reference brace deformation: pure FE of the paper's frame with the brace scaled by `factor`
 /// (the frame's damping coefficient unchanged: [`scenario::specimen_prototype`]).
 pub fn reference_mm(ag_mm_s2: &[f64], factor: f64) -> anyhow::Result<Vec<f64>> {
-    use rths_core::integrator::{Chang, ExplicitIntegrator};
-    use rths_core::structure::{LinearStructure, Vector};
     let proto = scenario::specimen_prototype(factor)?;
-    // The brace deformation of `pure_response(.., Method::Chang)`, with the same arithmetic step for
-    // step (and the same errors), without the five other histories nobody reads here.
+    // The brace deformation of `pure_response(.., Method::Chang)`: core's one reference stepper,
+    // without the five other histories nobody reads here.
     let ag0 = *ag_mm_s2.first().ok_or(AnalysisError::EmptyMotion)?;
     if let Some(index) = ag_mm_s2.iter().position(|a| !a.is_finite()) {
         return Err(AnalysisError::NonFiniteMotion { index }.into());
     }
-    let model = LinearStructure::prototype_pure(&proto).map_err(AnalysisError::from)?;
-    let mut ch = Chang::new(model, DT_S).map_err(AnalysisError::from)?;
-    ch.reset(ag0);
-    let zero = Vector::<1>::zeros();
+    let mut pure = Reference::new(&proto, DT_S, ag0).map_err(AnalysisError::from)?;
     let mut out = Vec::with_capacity(ag_mm_s2.len());
     out.push(proto.brace_disp_mm(0.0));
-    for &ag in &ag_mm_s2[1..] {
-        ch.advance(ag, &zero);
-        out.push(proto.brace_disp_mm(ch.state().disp[0]));
-    }
+    out.extend(ag_mm_s2.iter().skip(1).map(|&ag| pure.advance(ag)));
     match out.iter().position(|d| !d.is_finite()) {
         Some(step) => Err(AnalysisError::Diverged { step }.into()),
         None => Ok(out),

@@ -405,12 +405,7 @@ impl Link {
             match m {
                 DeviceMsg::Telemetry(t) => {
                     if let Err(g) = seq.observe(t.seq) {
-                        eprintln!(
-                            "warning: telemetry gap: expected record {}, got {} ({} missing)",
-                            g.expected,
-                            g.got,
-                            g.got.wrapping_sub(g.expected)
-                        );
+                        warn_gap("telemetry", "record", &g);
                         s.gaps.push(g);
                     }
                     s.records += 1;
@@ -483,12 +478,7 @@ impl Link {
             match self.recv(idle) {
                 Ok(DeviceMsg::IdentifySample(t)) => {
                     if let Err(g) = seq.observe(t.seq) {
-                        eprintln!(
-                            "warning: identification gap: expected sample {}, got {} ({} missing)",
-                            g.expected,
-                            g.got,
-                            g.got.wrapping_sub(g.expected)
-                        );
+                        warn_gap("identification", "sample", &g);
                         gaps.push(g);
                     }
                     command_mm.push(t.command_mm);
@@ -518,4 +508,14 @@ impl Link {
             end,
         })
     }
+}
+
+/// Report a sequence gap on stderr as it is found: `what` of the stream, `unit` of its items.
+fn warn_gap(what: &str, unit: &str, g: &Gap) {
+    eprintln!(
+        "warning: {what} gap: expected {unit} {}, got {} ({} missing)",
+        g.expected,
+        g.got,
+        g.got.wrapping_sub(g.expected)
+    );
 }

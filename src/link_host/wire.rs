@@ -60,20 +60,23 @@ pub fn record_messages(
         scale,
         checksum: rths_link::record_checksum(samples_g, dt_s),
     });
-    for (i, ch) in samples_g.chunks(RECORD_CHUNK).enumerate() {
-        let mut values = [0.0; RECORD_CHUNK];
-        values
-            .get_mut(..ch.len())
-            .ok_or_else(|| LinkHostError::Motion("chunk".into()))?
-            .copy_from_slice(ch);
-        out.push(HostMsg::RecordChunk {
-            seq: i as u32,
-            count: ch.len() as u8,
-            values,
-        });
-    }
+    out.extend(
+        chunks(samples_g).map(|(seq, count, values)| HostMsg::RecordChunk { seq, count, values }),
+    );
     out.push(HostMsg::RecordCommit);
     Ok(out)
+}
+
+/// `values` in frames of [`RECORD_CHUNK`]: each chunk's number (from 0), its count, and its
+/// values padded with 0.
+fn chunks(values: &[f64]) -> impl Iterator<Item = (u32, u8, [f64; RECORD_CHUNK])> + '_ {
+    values.chunks(RECORD_CHUNK).enumerate().map(|(i, ch)| {
+        let mut padded = [0.0; RECORD_CHUNK];
+        for (d, s) in padded.iter_mut().zip(ch) {
+            *d = *s;
+        }
+        (i as u32, ch.len() as u8, padded)
+    })
 }
 
 /// The flat values of a model file for a chunked upload, and its wire kind: LRX in
@@ -152,18 +155,7 @@ pub fn model_messages(model: &ModelFile) -> Result<Vec<HostMsg>, LinkHostError> 
         delay_steps,
         checksum: rths_link::model_values_checksum(kind, &v, delay_steps),
     }];
-    for (i, ch) in v.chunks(RECORD_CHUNK).enumerate() {
-        let mut values = [0.0; RECORD_CHUNK];
-        values
-            .get_mut(..ch.len())
-            .ok_or_else(|| LinkHostError::Model("chunk".into()))?
-            .copy_from_slice(ch);
-        out.push(HostMsg::ModelChunk {
-            seq: i as u32,
-            count: ch.len() as u8,
-            values,
-        });
-    }
+    out.extend(chunks(&v).map(|(seq, count, values)| HostMsg::ModelChunk { seq, count, values }));
     out.push(HostMsg::ModelCommit);
     Ok(out)
 }
@@ -267,6 +259,18 @@ mod tests {
             HostMsg::RecordChunk { seq, count, .. } => assert_eq!((seq, count), (2, 1)),
             _ => panic!("{:?}", m[3]),
         }
+        let values = |msg: &HostMsg| match msg {
+            HostMsg::RecordChunk { values, .. } => *values,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(
+            values(&m[1])[..],
+            samples[..RECORD_CHUNK],
+            "the first chunk"
+        );
+        let mut last = [0.0; RECORD_CHUNK];
+        last[0] = samples[24];
+        assert_eq!(values(&m[3]), last, "the last chunk, padded with 0");
         assert!(record_messages(&samples[..1], 0.02, 1.0).is_err());
         assert!(record_messages(&[0.0, f64::NAN], 0.02, 1.0).is_err());
         assert!(record_messages(&samples, 0.0, 1.0).is_err());
