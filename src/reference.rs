@@ -91,7 +91,7 @@ pub fn reference_for(
 /// What the plant of a run really has (drawn with `uncertainty`, else nominal): the report's `plant`
 /// object. Known to the evaluation (the fair reference), never to the controller.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct PlantDraw {
+pub struct DrawnPlant {
     /// The parameters were drawn from the benchmark's uncertainty.
     pub uncertainty: bool,
     /// The seed of the draw (and of the sensor noise).
@@ -109,7 +109,7 @@ pub struct PlantDraw {
     pub specimen_stiffness_factor: f64,
 }
 
-impl PlantDraw {
+impl DrawnPlant {
     /// Build the plant of `rig` (configured with stiffness factor `factor`) and read what it has.
     pub fn of(rig: &RigConfig, factor: f64) -> anyhow::Result<Self> {
         // The same draw (same seed, same order) at time scale 1 gives the drawn values exactly, at
@@ -135,15 +135,15 @@ impl PlantDraw {
 
 /// The fair reference of a run on the plant `rig` (configured with specimen stiffness factor
 /// `factor`): the structure with the specimen the plant really has, i.e. [`reference_for`] at the
-/// effective factor of [`PlantDraw::of`] (the Bouc–Wen shape is not drawn). Every run whose plant may
+/// effective factor of [`DrawnPlant::of`] (the Bouc–Wen shape is not drawn). Every run whose plant may
 /// be drawn takes its reference here, so a drawn specimen is never judged against the nominal one.
 /// Returns the reference and the draw (for the report).
 pub fn reference_for_rig(
     ag_mm_s2: &[f64],
     rig: &RigConfig,
     factor: f64,
-) -> anyhow::Result<(Vec<f64>, PlantDraw)> {
-    let draw = PlantDraw::of(rig, factor)?;
+) -> anyhow::Result<(Vec<f64>, DrawnPlant)> {
+    let draw = DrawnPlant::of(rig, factor)?;
     let reference = reference_for(ag_mm_s2, rig.specimen, draw.specimen_stiffness_factor)?;
     Ok((reference, draw))
 }

@@ -19,7 +19,7 @@ use crate::plot::{self, Panel};
 use crate::scenario::{self, ScenarioId, ScenarioReport, ScenarioRun, ScenarioSetup};
 use crate::sweep::{self, SpecimenSweep, SweepModels};
 // The reference a study scores against has its own home; kept here under its old paths.
-pub use crate::reference::{reference_for, reference_for_rig, reference_mm, PlantDraw};
+pub use crate::reference::{reference_for, reference_for_rig, reference_mm, DrawnPlant};
 use crate::train::{data, lr, lrx, rnn};
 
 /// What to run.

@@ -8,7 +8,7 @@ use std::process::{Command, Output};
 
 use rths::motion::GroundMotion;
 use rths::scenario::{self, ScenarioId, ScenarioSetup};
-use rths::study::{self, PlantDraw};
+use rths::study::{self, DrawnPlant};
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{Preset, Specimen};
 
@@ -94,7 +94,7 @@ fn a_quick_study_has_every_row_and_lists_the_draws() {
         assert!((5..5 + draws as u64).contains(&seed));
         let mut rig = scenario::rig_config(preset, Specimen::Linear, f, seed);
         rig.uncertainty = true;
-        let d = PlantDraw::of(&rig, f).unwrap();
+        let d = DrawnPlant::of(&rig, f).unwrap();
         assert_eq!(j["plant"]["beta1"].as_f64().unwrap(), d.beta1);
         assert_eq!(j["plant"]["a3"].as_f64().unwrap(), d.a3);
         assert_ne!(d.beta1, rths_hal_sim::params::NOMINAL_BETA1);
@@ -148,7 +148,7 @@ fn a_quick_study_has_every_row_and_lists_the_draws() {
     );
     rig.uncertainty = true;
     let f: f64 = first[col("stiffness_factor")].parse().unwrap();
-    let d = PlantDraw::of(&rig, f).unwrap();
+    let d = DrawnPlant::of(&rig, f).unwrap();
     assert_eq!(first[col("beta2")].parse::<f64>().unwrap(), d.beta2);
     assert_eq!(
         first[col("specimen_stiffness_n_per_m")]

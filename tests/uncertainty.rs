@@ -8,7 +8,7 @@ use rths::model_file::ModelFile;
 use rths::models;
 use rths::motion::GroundMotion;
 use rths::scenario::{self, ScenarioId, ScenarioRun, ScenarioSetup};
-use rths::study::{self, PlantDraw};
+use rths::study::{self, DrawnPlant};
 use rths_core::metrics;
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{BoucWen, Preset, RigConfig, Specimen};
@@ -93,7 +93,7 @@ fn the_draw_is_the_plants_and_the_reference_follows_it() {
     // is the drawn stiffness over the paper's brace.
     let mut c08 = scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 0.8, 3);
     c08.uncertainty = true;
-    let d08 = PlantDraw::of(&c08, 0.8).unwrap();
+    let d08 = DrawnPlant::of(&c08, 0.8).unwrap();
     let k08 = c08.specimen_stiffness_kn_per_mm * 1e6;
     let offset = draw.specimen_stiffness_n_per_m - nominal_k;
     assert!((d08.specimen_stiffness_n_per_m - k08 - offset).abs() < 1e-6);
@@ -146,7 +146,7 @@ fn measure_twenty_draws_on_held_out_records() {
     for name in ["kobe", "el-centro"] {
         let (ag, scale) = held_out(name);
         let nominal = study::reference_for(&ag, Specimen::Linear, 1.0).unwrap();
-        let mut draws: Vec<(RigConfig, Vec<f64>, PlantDraw)> = Vec::new();
+        let mut draws: Vec<(RigConfig, Vec<f64>, DrawnPlant)> = Vec::new();
         for seed in 1..=20 {
             let rig = uncertain_rig(seed);
             let (fair, draw) = study::reference_for_rig(&ag, &rig, 1.0).unwrap();

@@ -121,7 +121,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!("  a3                {:.4} 1/s", p.a3());
     println!("  specimen mass     {:.3} kg", p.specimen_mass_kg());
     // What a run's fair reference would use: the structure with this brace.
-    let draw = crate::study::PlantDraw::of(&config(&args), 1.0)?;
+    let draw = crate::study::DrawnPlant::of(&config(&args), 1.0)?;
     println!(
         "  specimen k        {:.4} kN/mm ({:.1} N/m, F = {:.4} of the paper's brace)",
         p.specimen_stiffness_kn_per_mm(),

@@ -15,7 +15,7 @@ use crate::nonlinear::scenario::{
     self as nl, is_paper_frame, LengthScale, SimScenario, StructureCase, StructureReport,
 };
 use crate::scenario::{self, ScenarioId, ScenarioSetup};
-use crate::study::{self, PlantDraw, StudyJson};
+use crate::study::{self, DrawnPlant, StudyJson};
 use rths_files::structure_file::Structure;
 
 /// The board of every `rths simulate` run: the plant is simulated on the host.
@@ -105,7 +105,7 @@ struct SimulateJson {
     #[serde(flatten)]
     study: StudyJson,
     /// What the plant had (drawn or nominal); `null` for a pure run (no plant in the loop).
-    plant: Option<PlantDraw>,
+    plant: Option<DrawnPlant>,
     /// The ATS's initial [a0, a1 (s), a2 (s²)] taken from `--rig` (fe-online-ats only).
     #[serde(skip_serializing_if = "Option::is_none")]
     ats_initial: Option<[f64; 3]>,

@@ -13,7 +13,7 @@
 //!
 //! What each side sees: the identification reads only the commands it sent and the displacement
 //! and force as measured (noisy, quantized); the controllers see only the DAQ. The draw
-//! ([`PlantDraw`]) is read by the evaluation alone (fair reference, report).
+//! ([`DrawnPlant`]) is read by the evaluation alone (fair reference, report).
 //!
 //! The runs are independent closed loops: rayon spreads the (preset, draw, specimen) jobs over
 //! every core and collects them in order, so the figures do not depend on the scheduling.
@@ -36,7 +36,7 @@ use crate::model_file::ModelFile;
 use crate::models;
 use crate::motion::{parse_csv, GroundMotion};
 use crate::scenario::{self, ScenarioId, ScenarioSetup};
-use crate::study::{self, PlantDraw};
+use crate::study::{self, DrawnPlant};
 use crate::sweep;
 use crate::train::lrx;
 
@@ -172,7 +172,7 @@ pub struct DrawCase {
     /// Configured specimen stiffness factor.
     pub stiffness_factor: f64,
     /// The drawn plant (known to the evaluation only).
-    pub plant: PlantDraw,
+    pub plant: DrawnPlant,
     /// What the identification gave (`null` if it was refused).
     pub rig: Option<RigSummary>,
     /// Why the identification was refused, if it was (then only `lr-online` runs).
@@ -324,7 +324,7 @@ fn run_job(
         case: case_label(specimen, factor),
         specimen: specimen.name().to_string(),
         stiffness_factor: factor,
-        plant: PlantDraw::of(&rig, factor)?,
+        plant: DrawnPlant::of(&rig, factor)?,
         identification_refused: ident.as_ref().err().cloned(),
         rig: ident.ok().map(|(s, _)| s),
         runs,

@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use super::{case_label, cases, goals, median, DrawCase, Robustness, RunResult, CONTROLLERS};
 use crate::scenario::ScenarioId;
-use crate::study::PlantDraw;
+use crate::study::DrawnPlant;
 
 /// One row of the table: a controller on one preset and specimen case, over every draw and record.
 #[derive(Debug, Clone, Serialize)]
@@ -128,7 +128,7 @@ pub struct JobJson<'a> {
     /// Configured specimen stiffness factor.
     pub stiffness_factor: f64,
     /// The drawn plant.
-    pub plant: &'a PlantDraw,
+    pub plant: &'a DrawnPlant,
     /// What was identified.
     pub rig: Option<&'a super::RigSummary>,
     /// Why the identification was refused.
