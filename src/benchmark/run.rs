@@ -1,7 +1,10 @@
 //! One vRTHS benchmark run: the numerical substructure of a case integrated by Chang's method
 //! ([`ChangN`]) at 4096 Hz, the benchmark plant and specimen (`rths-hal-sim`, `--preset benchmark`)
 //! behind the benchmark's sensors and 18-bit converters, a controller, and the reference (the whole
-//! structure, linear, Newmark average acceleration, same record and intensity).
+//! structure, linear, Newmark average acceleration, same record and intensity). The controller is
+//! `rths_core::control::Controller` (the firmware's, with its supervisor at the benchmark
+//! actuator's limits, [`actuator_limits`]) driven by the host's one control step
+//! ([`crate::drive::run`]).
 //!
 //! What the controller sees: the ground acceleration, the measured (noisy, quantized) actuator
 //! displacement and load-cell force, and the nominal plant model the benchmark hands its

@@ -1,6 +1,7 @@
-//! The compensation of a structure's hybrid runs: what a lab identifies of its rig before testing a
-//! structure's specimen (`rths identify`'s procedure on the virtual plant, or a rig file it wrote),
-//! and nothing else. `fe-online-ats` takes the ATS start; `nl-online` takes the lead filter with
+//! The rig of a structure's hybrid runs: the virtual plant and specimen a structure is tested on
+//! ([`structure_rig`], [`is_paper_frame`]), and its compensation, what a lab identifies of its rig
+//! before testing a structure's specimen (`rths identify`'s procedure on the virtual plant, or a
+//! rig file it wrote), and nothing else. `fe-online-ats` takes the ATS start; `nl-online` takes the lead filter with
 //! its online gain-and-delay correction and the identified specimen for the force correction
 //! (docs/nonlinear.md, "Scenarios").
 

@@ -2,10 +2,13 @@
 //! against that structure's FE reference (the whole nonlinear structure for a file with yielding
 //! stories; docs/nonlinear.md, "Scenarios").
 //!
-//! - `fe-pure`, `fe-online-ats`: the structure's own numerical part ([`NonlinearFrame`] for a
-//!   yielding file, [`ChangN`] for a linear one) takes the specimen force at the specimen DOF each
-//!   tick; pure (the linear specimen at the model's own displacement, no plant) or on the virtual
-//!   plant with the paper's ATS.
+//! - `fe-pure`, `fe-online-ats`: the structure's own numerical part ([`StructureFe`]: the core
+//!   controller's `StructureNl` for a yielding file, its `StructureFe` for a linear one) takes the
+//!   specimen force at the specimen DOF each tick; pure (the linear specimen at the model's own
+//!   displacement, no plant) or on the virtual plant with the paper's ATS.
+//!
+//! Every run is `rths_core::control::Controller`, the firmware's controller, driven by the host's
+//! one control step ([`crate::drive::run`]): the numerical part is its analytical part.
 //! - `nl-pure`, `nl-online`: a learned model of the numerical part (any [`StructureModel`]) in the
 //!   same two loops; online with a lead filter (the rig file's, or the shipped LRX's).
 //! - `lr-online`, `lrx-online`: the shipped *linear* metamodels of the paper's frame, run exactly as
