@@ -6,6 +6,7 @@
 pub mod analysis;
 pub mod benchmark;
 pub mod cmd;
+pub mod drive;
 pub mod faults;
 pub mod identify;
 pub mod link_host;

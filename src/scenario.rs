@@ -11,7 +11,6 @@ use std::str::FromStr;
 
 use rths_core::compensator::{Ats, Compensator, LeadParams};
 use rths_core::control::{ControlConfig, Controller, FeedbackSource};
-use rths_core::hal::{Actuator, Daq, Error as _, Sample};
 use rths_core::metamodel::{LrParams, LrxParams, ModelError, RnnParams};
 use rths_core::metrics;
 use rths_core::model::Model;
@@ -19,6 +18,8 @@ use rths_core::params::{ParamError, Prototype, SpecimenScale, DT_S, PAPER_DELAY_
 use rths_core::supervisor::{Limits, State};
 use rths_hal_sim::{FaultPlan, Preset, RigConfig, Specimen, VirtualRig};
 use serde::Serialize;
+
+use crate::drive;
 
 /// The scenarios of docs/design.md §7 (plus `fe-online` and `rnn-online-H`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -415,8 +416,7 @@ pub fn report_with_ats_start(
     Ok(figures_of(setup.id, &series, stop))
 }
 
-/// Why and when the supervisor stopped a run.
-pub type Stop = Option<(String, f64)>;
+pub use crate::drive::Stop;
 
 /// Faults injected into a closed-loop run: the virtual rig's fault plan and the controller's
 /// `overrun` input (a control tick that missed its deadline). Default: none.
@@ -544,62 +544,31 @@ fn closed_loop(
     } else {
         None
     };
-    // Idle → Armed → Running cannot fail on a fresh controller; a failure would be a logic error
-    // that the report would show as an immediate stop.
-    let _ = ctl.supervisor_mut().arm();
-    let _ = ctl.supervisor_mut().start();
-
-    let (mut command, mut target) = (0.0, 0.0);
-    let mut stop: Stop = None;
-    for (k, (&ag, &reference)) in setup
-        .ground_accel_mm_s2
-        .iter()
-        .zip(setup.reference_mm)
-        .enumerate()
-    {
-        let t = k as f64 * DT_S;
-        let sample = match rig.as_mut() {
-            Some(r) => r.read().map_err(|e| e.kind()),
-            None => Ok(Sample::default()),
-        };
-        let (m, f) = match (&rig, sample) {
-            (Some(_), Ok(s)) => (s.disp_mm, s.force_kn),
-            _ => (f64::NAN, f64::NAN),
-        };
-        let overrun = injection
-            .overruns
-            .is_some_and(|(first, count)| (k as u64).wrapping_sub(first) < count);
-        let out = ctl.tick(ag, sample, overrun);
-        observe(&TickRow {
-            k,
-            time_s: t,
-            ground_accel_mm_s2: ag,
-            reference_mm: reference,
-            target_mm: target,
-            command_mm: command,
-            measured_mm: m,
-            measured_force_kn: f,
-            next_command_mm: out.command_mm,
-            state: out.state,
-            true_disp_mm: rig.as_ref().map_or(f64::NAN, |r| r.true_disp_mm()),
-            true_force_kn: rig.as_ref().map_or(f64::NAN, |r| r.true_force_kn()),
-            servo_command_mm: rig.as_ref().map_or(f64::NAN, |r| r.held_command_mm()),
-        });
-        command = out.command_mm;
-        if out.target_mm.is_finite() {
-            target = out.target_mm;
-        }
-        if let (State::Fault(reason), None) = (out.state, &stop) {
-            stop = Some((format!("{reason:?}"), t));
-        }
-        if let Some(r) = rig.as_mut() {
-            // The supervisor's command is always within the stroke and finite, so the rig accepts it;
-            // an error here would only report a clip, which the history shows anyway.
-            let _ = r.command(command);
-            r.advance_tick();
-        }
-    }
-    Ok(stop)
+    Ok(drive::run(
+        &mut ctl,
+        rig.as_mut(),
+        setup.ground_accel_mm_s2,
+        injection.overruns,
+        DT_S,
+        |st, _, _| {
+            observe(&TickRow {
+                k: st.k,
+                time_s: st.k as f64 * DT_S,
+                ground_accel_mm_s2: st.ground_accel_mm_s2,
+                reference_mm: setup.reference_mm.get(st.k).copied().unwrap_or(f64::NAN),
+                target_mm: st.target_mm,
+                command_mm: st.command_mm,
+                measured_mm: st.measured_mm,
+                measured_force_kn: st.measured_force_kn,
+                next_command_mm: st.out.command_mm,
+                state: st.out.state,
+                true_disp_mm: st.true_disp_mm,
+                true_force_kn: st.true_force_kn,
+                servo_command_mm: st.servo_command_mm,
+            });
+            std::ops::ControlFlow::Continue(())
+        },
+    ))
 }
 
 /// The figures of a finished run (docs/design.md §7).

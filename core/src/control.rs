@@ -12,6 +12,10 @@
 //! 3. an optional delay [`Compensator`] turns the target into the command;
 //! 4. the [`Supervisor`] checks everything and rate-limits the command.
 //!
+//! Two parameters of a test change steps 1 and 3 (both off by default, the firmware's default):
+//! a [`ForceCorrection`] brings the measured force to the displacement the rig was to be at, with
+//! the identified specimen; and [`CompensatorTarget`] says which target the compensator is given.
+//!
 //! A DAQ error or a non-finite sample is never fed to the model: the last good sample is held for the
 //! model (and counted), while the supervisor sees the raw result and trips on a non-finite value or a
 //! sensor timeout. Nothing here allocates or panics.
@@ -58,7 +62,7 @@ impl From<ParamError> for ReplaceError {
 pub const MAX_DELAY_STEPS: usize = 64;
 
 /// Where the analytical part's feedback comes from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum FeedbackSource {
     /// The DAQ: measured displacement and force (an online hybrid test).
     Measured,
@@ -67,6 +71,12 @@ pub enum FeedbackSource {
     OwnDelayed {
         /// Delay in ticks, ≤ [`MAX_DELAY_STEPS`].
         delay_steps: usize,
+    },
+    /// The model's own target in force (no delay) and a linear specimen's force for it: the pure
+    /// runs of a structure file, whose specimen is not the prototype's brace.
+    OwnLinearSpecimen {
+        /// The specimen's stiffness at the analytical part's DOF, kN/mm (finite, ≥ 0).
+        stiffness_kn_per_mm: f64,
     },
 }
 
@@ -207,6 +217,36 @@ impl Analytical {
         }
     }
 
+    /// Story drifts at the last completed step (after the tick of k: at d_k), mm, of the
+    /// analytical parts that have stories (the structure files'); `None` for the others.
+    pub fn story_drift_mm(&self) -> Option<crate::structure_n::Dofs> {
+        match self {
+            #[cfg(feature = "structures")]
+            Analytical::StructureFe(m) => {
+                let c = m.chang();
+                let mut d = [0.0; crate::structure_n::MAX_DOF];
+                let mut below = 0.0;
+                for (di, xi) in d.iter_mut().zip(c.disp()).take(c.model().dofs()) {
+                    *di = xi - below;
+                    below = *xi;
+                }
+                Some(d)
+            }
+            #[cfg(feature = "structures")]
+            Analytical::StructureNl(m) => Some(m.frame().story_drift_mm()),
+            #[cfg(feature = "structures")]
+            Analytical::StructureModal(m) => {
+                let model = m.model();
+                let mut d = [0.0; crate::structure_n::MAX_DOF];
+                for (i, di) in d.iter_mut().enumerate().take(model.params().floors()) {
+                    *di = model.story_drift_mm(i);
+                }
+                Some(d)
+            }
+            _ => None,
+        }
+    }
+
     fn reset(&mut self) {
         match self {
             Analytical::Fe(m) => m.reset(),
@@ -261,6 +301,25 @@ impl TargetRing {
     }
 }
 
+/// Which target of the analytical part the compensator is given at tick k.
+///
+/// The ATS is fitted on the command and the measurement of the same tick, so the one-tick hold
+/// of the command is part of the delay it compensates (and the lead filters are fitted the same
+/// way): the rig reaches what the compensator was given at tick k by the sample of tick k + 1 +
+/// the delay. Given d_{k+1}, the rig is at d_{k+1} when the model reads the force it needs at
+/// d_k: the specimen's force leads by one tick, which acts as added damping (measured on the
+/// yielding paper frame: every hybrid peak 3-4 % low, its residual drift off by up to 75 %,
+/// docs/nonlinear.md). Given d_k, the rig is at d_k when its force is read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CompensatorTarget {
+    /// d_{k+1}, the target the model has just produced (the paper's loop, docs/design.md §7).
+    #[default]
+    Next,
+    /// d_k, the target in force at tick k, whose force the model reads (the structure
+    /// scenarios').
+    Current,
+}
+
 /// Everything about a controller that is fixed for a test, validated.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ControlConfig {
@@ -268,6 +327,9 @@ pub struct ControlConfig {
     scale: SpecimenScale,
     feedback: FeedbackSource,
     limits: Limits,
+    /// `None`: the measured force as is.
+    correction: Option<ForceCorrection>,
+    compensator_target: CompensatorTarget,
 }
 
 impl ControlConfig {
@@ -278,17 +340,53 @@ impl ControlConfig {
         feedback: FeedbackSource,
         limits: Limits,
     ) -> Result<Self, ParamError> {
-        if let FeedbackSource::OwnDelayed { delay_steps } = feedback {
-            if delay_steps > MAX_DELAY_STEPS {
+        match feedback {
+            FeedbackSource::OwnDelayed { delay_steps } if delay_steps > MAX_DELAY_STEPS => {
                 return Err(ParamError::OutOfRange("feedback delay steps"));
             }
+            FeedbackSource::OwnLinearSpecimen {
+                stiffness_kn_per_mm: k,
+            } if !(k.is_finite() && k >= 0.0) => {
+                return Err(ParamError::OutOfRange("own-feedback specimen stiffness"));
+            }
+            _ => {}
         }
         Ok(Self {
             proto,
             scale,
             feedback,
             limits,
+            correction: None,
+            compensator_target: CompensatorTarget::Next,
         })
+    }
+    /// The same configuration with the measured force corrected by `correction` before the
+    /// analytical part sees it ([`FeedbackSource::Measured`] only; [`ForceCorrection::NONE`]:
+    /// no correction, no term at all).
+    pub fn with_force_correction(self, correction: ForceCorrection) -> Self {
+        Self {
+            correction: (!correction.is_none()).then_some(correction),
+            ..self
+        }
+    }
+    /// The same configuration with the compensator given `target`.
+    pub fn with_compensator_target(self, target: CompensatorTarget) -> Self {
+        Self {
+            compensator_target: target,
+            ..self
+        }
+    }
+    /// The force correction, if any.
+    pub fn force_correction(&self) -> Option<&ForceCorrection> {
+        self.correction.as_ref()
+    }
+    /// Which target the compensator is given.
+    pub fn compensator_target(&self) -> CompensatorTarget {
+        self.compensator_target
+    }
+    /// The supervisor's limits.
+    pub fn limits(&self) -> &Limits {
+        &self.limits
     }
     /// The prototype the analytical part stands for.
     pub fn prototype(&self) -> &Prototype {
@@ -610,7 +708,18 @@ impl Controller {
         let fb = match cfg.feedback {
             FeedbackSource::Measured => Feedback {
                 brace_disp_mm: cfg.scale.prototype_disp_mm(self.last_good.disp_mm),
-                brace_force_kn: cfg.scale.prototype_force_kn(self.last_good.force_kn),
+                brace_force_kn: cfg.scale.prototype_force_kn(match &cfg.correction {
+                    None => self.last_good.force_kn,
+                    Some(c) => {
+                        // The rig's targets d̂_k, d̂_{k−1}, d̂_{k−2}: the ring before this tick's push.
+                        let d = |i| cfg.scale.specimen_disp_mm(self.targets.delayed(i));
+                        c.force_kn(
+                            self.last_good.force_kn,
+                            self.last_good.disp_mm,
+                            [d(0), d(1), d(2)],
+                        )
+                    }
+                }),
             },
             FeedbackSource::OwnDelayed { delay_steps } => {
                 let x = self.targets.delayed(delay_steps);
@@ -619,10 +728,23 @@ impl Controller {
                     brace_force_kn: cfg.proto.brace_force_kn(x),
                 }
             }
+            FeedbackSource::OwnLinearSpecimen {
+                stiffness_kn_per_mm,
+            } => {
+                let x = self.targets.delayed(0);
+                Feedback {
+                    brace_disp_mm: x,
+                    brace_force_kn: stiffness_kn_per_mm * x,
+                }
+            }
         };
         let target = self.analytical.next_target(ag_mm_s2, &fb)?;
+        let given = match cfg.compensator_target {
+            CompensatorTarget::Next => target,
+            CompensatorTarget::Current => self.targets.delayed(0),
+        };
         self.targets.push(target);
-        let target_specimen = cfg.scale.specimen_disp_mm(target);
+        let target_specimen = cfg.scale.specimen_disp_mm(given);
         let command = self
             .compensator
             .compensate(target_specimen, self.last_good.disp_mm)
@@ -631,9 +753,11 @@ impl Controller {
     }
 }
 
+mod correction;
 mod structure;
 #[cfg(feature = "structures")]
 use crate::metamodel::DeltaArx;
+pub use correction::ForceCorrection;
 pub use structure::{
     ModalSpec, StoryLawSpec, StructureFe, StructureModal, StructureNl, StructureSpec,
 };

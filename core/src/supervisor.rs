@@ -45,6 +45,11 @@ fn beyond(x: f64, limit: f64) -> bool {
 /// the 7.6 mm following-error limit.
 pub const FROZEN_SENSOR_MM: f64 = 0.5;
 
+/// Standard deviations of the difference of two noisy readings a reading may move in one tick
+/// beyond the velocity's step before it is implausible ([`Limits::with_sensor_noise_mm`]): at 8σ a
+/// Gaussian noise crosses it about once in 10^15 ticks.
+pub const NOISE_SIGMAS: f64 = 8.0;
+
 /// Interlock limits and ramp rates, validated.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Limits {
@@ -58,6 +63,9 @@ pub struct Limits {
     dt_s: f64,
     following_error_mm: f64,
     frozen_sensor_mm: f64,
+    /// σ of the displacement sensor's noise, mm (0: not known; the plausibility step is the
+    /// velocity's alone).
+    sensor_noise_mm: f64,
     // Per-tick steps, derived once (the MCU does f64 in software: no multiplications per tick).
     max_step_mm: f64,
     max_step_tol_mm: f64,
@@ -88,6 +96,7 @@ impl Limits {
             dt_s: DT_S,
             following_error_mm: 0.3 * ACTUATOR_STROKE_MM,
             frozen_sensor_mm: FROZEN_SENSOR_MM,
+            sensor_noise_mm: 0.0,
             max_step_mm: 0.0,
             max_step_tol_mm: 0.0,
             fault_step_mm: 0.0,
@@ -106,7 +115,9 @@ impl Limits {
         self.max_step_tol_mm = self.max_step_mm * (1.0 + 1e-9);
         self.fault_step_mm = (self.fault_ramp_rate_mm_s * self.dt_s).min(self.max_step_mm);
         self.end_step_mm = (self.end_ramp_rate_mm_s * self.dt_s).min(self.max_step_mm);
-        self.implausible_step_mm = 1.5 * self.max_step_mm;
+        // + 0.0 without a known noise: the velocity's step alone, bit for bit.
+        self.implausible_step_mm = 1.5 * self.max_step_mm
+            + NOISE_SIGMAS * core::f64::consts::SQRT_2 * self.sensor_noise_mm;
         self.following_error_f32 = self.following_error_mm as f32;
         self.implausible_step_f32 = self.implausible_step_mm as f32;
         self.frozen_sensor_f32 = self.frozen_sensor_mm as f32;
@@ -134,6 +145,21 @@ impl Limits {
     pub fn with_following_error_mm(self, following_error_mm: f64) -> Result<Self, ParamError> {
         Ok(Self {
             following_error_mm: positive(following_error_mm, "following error limit")?,
+            ..self
+        }
+        .derive())
+    }
+
+    /// The same limits for a displacement sensor whose noise has σ = `sensor_noise_mm` (finite,
+    /// ≥ 0): the per-tick plausibility step grows by [`NOISE_SIGMAS`] σ of the difference of two
+    /// readings, so that noise alone never trips it (at 4096 Hz the velocity's step is within a
+    /// few σ of the vRTHS benchmark's sensor).
+    pub fn with_sensor_noise_mm(self, sensor_noise_mm: f64) -> Result<Self, ParamError> {
+        if !(sensor_noise_mm.is_finite() && sensor_noise_mm >= 0.0) {
+            return Err(ParamError::OutOfRange("sensor noise (finite, ≥ 0)"));
+        }
+        Ok(Self {
+            sensor_noise_mm,
             ..self
         }
         .derive())
@@ -172,6 +198,7 @@ impl Limits {
             dt_s: positive(dt_s, "time step")?,
             following_error_mm: 0.3 * stroke_mm,
             frozen_sensor_mm: FROZEN_SENSOR_MM,
+            sensor_noise_mm: 0.0,
             max_step_mm: 0.0,
             max_step_tol_mm: 0.0,
             fault_step_mm: 0.0,

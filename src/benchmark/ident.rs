@@ -63,6 +63,21 @@ impl Converters {
     }
 }
 
+impl crate::drive::Plant for Converters {
+    fn advance_tick(&mut self) {
+        Converters::advance_tick(self);
+    }
+    fn true_disp_mm(&self) -> f64 {
+        Converters::true_disp_mm(self)
+    }
+    fn true_force_kn(&self) -> f64 {
+        self.rig.true_force_kn()
+    }
+    fn held_command_mm(&self) -> f64 {
+        self.rig.held_command_mm()
+    }
+}
+
 impl Daq for Converters {
     type Error = SimError;
     fn read(&mut self) -> Result<Sample, SimError> {

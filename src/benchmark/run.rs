@@ -1,30 +1,41 @@
 //! One vRTHS benchmark run: the numerical substructure of a case integrated by Chang's method
 //! ([`ChangN`]) at 4096 Hz, the benchmark plant and specimen (`rths-hal-sim`, `--preset benchmark`)
 //! behind the benchmark's sensors and 18-bit converters, a controller, and the reference (the whole
-//! structure, linear, Newmark average acceleration, same record and intensity).
+//! structure, linear, Newmark average acceleration, same record and intensity). The controller is
+//! `rths_core::control::Controller` (the firmware's, with its supervisor at the benchmark
+//! actuator's limits, [`actuator_limits`]) driven by the host's one control step
+//! ([`crate::drive::run`]).
 //!
 //! What the controller sees: the ground acceleration, the measured (noisy, quantized) actuator
 //! displacement and load-cell force, and the nominal plant model the benchmark hands its
 //! participants (the ATS starts from its phase delay). It never sees the drawn plant, the specimen's
 //! true force or the reference: only the evaluation ([`RunResult::criteria`]) does.
 
+use std::ops::ControlFlow;
 use std::sync::OnceLock;
 
 use anyhow::Context;
-use rths_core::compensator::{Ats, AtsConfig, AtsParams, Lead};
-use rths_core::hal::{Actuator, Daq};
+use rths_core::compensator::{Ats, AtsConfig, AtsParams, Compensator, Lead};
+use rths_core::control::{
+    self as core_control, Analytical, ControlConfig, Controller, FeedbackSource,
+};
 use rths_core::integrator::Newmark;
 use rths_core::metamodel::{DeltaArx, DeltaArxParams};
 use rths_core::metrics::{benchmark_criteria, normalized_std_error_pct, BenchmarkCriteria};
+use rths_core::params::{Prototype, SpecimenScale};
 use rths_core::structure::{LinearStructure, Mat};
 use rths_core::structure_n::{ChangN, MAX_DOF};
+use rths_core::supervisor::{Limits, State};
 use rths_files::structure_file::{Structure, SI_TO_MM_KN};
 use rths_hal_sim::{PlantParams, Preset, RigConfig, Sensors, VirtualRig};
 
 use crate::motion::GroundMotion;
 
 use super::ident::Converters;
-use super::{noise_sigma, Record, DISP_NOISE_POWER_M2, DT_S, FORCE_NOISE_POWER_N2};
+use super::{
+    noise_sigma, Record, ACTUATOR_CAPACITY_N, DISP_NOISE_POWER_M2, DT_S, FORCE_NOISE_POWER_N2,
+};
+use crate::drive;
 
 /// The controllers the benchmark can run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -244,6 +255,29 @@ fn reference_n<const N: usize>(
     Ok(out)
 }
 
+/// The benchmark actuator's interlock limits for its runs: the nominal actuator's stroke and
+/// velocity with the 95 % margins of `Limits::paper_actuator`, its force capacity (the load
+/// cell's full scale, [`ACTUATOR_CAPACITY_N`]) without one (the benchmark's case 3 on Kobe asks
+/// more than 95 % of it: that margin stops the run at 10.1 s), its sensor timeout, overrun count
+/// and ramps, at the benchmark's 4096 Hz; the per-tick plausibility check knows the displacement
+/// sensor's noise (at 4096 Hz the velocity limit's step alone is within a few σ of two
+/// readings' difference, docs/benchmark.md).
+pub fn actuator_limits(specimen_kn_per_mm: f64) -> anyhow::Result<Limits> {
+    let nominal = plant_params(PlantDraw::Nominal, specimen_kn_per_mm)?;
+    Limits::new(
+        0.95 * nominal.stroke_mm(),
+        0.95 * nominal.velocity_limit_mm_s(),
+        ACTUATOR_CAPACITY_N * 1e-3,
+        8,
+        4,
+        20.0,
+        10.0,
+        DT_S,
+    )
+    .and_then(|l| l.with_sensor_noise_mm(noise_sigma(DISP_NOISE_POWER_M2, DT_S) * 1e3))
+    .map_err(|e| anyhow::anyhow!("the benchmark actuator's limits: {e}"))
+}
+
 /// Fraction of the nominal specimen stiffness used in the metamodel's force correction
 /// `F̃ = F_m + k_c·(d̂ − x_m)`. With the full nominal stiffness the loop grows late in the run on
 /// perturbed plants whose specimen is stiffer than nominal (case 1 El Centro, seeds 1 and 4:
@@ -342,7 +376,6 @@ pub fn run_on(
     let params = plant_params(cfg.plant, k_e_file)?;
     let reference = reference(structure, &params, &ag)?;
     let mut rig = Converters::new(VirtualRig::new(params));
-    let mut integ = ChangN::new(structure.numerical()?, DT_S).context("numerical substructure")?;
     let mut meta = match cfg.controller.uses_metamodel() {
         true => Some(trained(cfg.case, structure)?),
         false => None,
@@ -364,16 +397,42 @@ pub fn run_on(
             .context("the metamodel with the identified force correction")?;
         *m = DeltaArx::new(params);
     }
-    let mut ats = match cfg.controller {
-        ControllerKind::Fe | ControllerKind::FeId | ControllerKind::MetaId => None,
-        ControllerKind::FeAts | ControllerKind::MetaAts => Some(Ats::new(
+    let compensator = match cfg.controller {
+        ControllerKind::Fe => Compensator::None,
+        ControllerKind::FeAts | ControllerKind::MetaAts => Compensator::Ats(Ats::new(
             AtsParams::new(AtsConfig::paper(DT_S, nominal_delay_s(structure)?))
                 .context("ATS parameters")?,
         )),
+        ControllerKind::FeId | ControllerKind::MetaId => Compensator::Lead(Lead::new(
+            identification.as_ref().context("the identified lead")?.lead,
+        )),
     };
-    let mut lead = identification.as_ref().map(|id| Lead::new(id.lead));
-    let stroke_mm = params.stroke_mm();
     let dof = structure.specimen_dof();
+    // The numerical part in the controller: Chang's method, or the metamodel (its force
+    // correction in its parameters). For the metamodel the other floors are the numerical model
+    // under the measured force, a reconstruction beside the loop (not the command's path).
+    let (analytical, mut beside) = match meta {
+        Some(m) => (
+            Analytical::StructureMeta(m),
+            Some(ChangN::new(structure.numerical()?, DT_S).context("numerical substructure")?),
+        ),
+        None => (
+            Analytical::StructureFe(
+                core_control::StructureFe::new(structure.numerical()?, dof, DT_S)
+                    .context("numerical substructure")?,
+            ),
+            None,
+        ),
+    };
+    let limits = actuator_limits(k_e_file)?;
+    // The benchmark's quantities are the rig's own (full scale): a unit specimen scale.
+    let config = ControlConfig::new(
+        Prototype::paper(),
+        SpecimenScale::new(1.0, 1.0)?,
+        FeedbackSource::Measured,
+        limits,
+    )?;
+    let mut ctl = Controller::new(config, analytical, compensator);
     let dofs = structure.dofs();
     let n = ag.len();
     let mut h = History {
@@ -382,61 +441,59 @@ pub fn run_on(
     };
     let mut unstable = None;
     let mut clipped_force_ticks = 0;
-    for (k, &a) in ag.iter().enumerate() {
-        let s = rig.read().map_err(|e| anyhow::anyhow!("rig: {e}"))?;
-        let (x_m, f_m) = (s.disp_mm, s.force_kn);
-        if rig.force_clipped() {
+    drive::run(&mut ctl, Some(&mut rig), &ag, None, DT_S, |st, ctl, rig| {
+        if rig.is_some_and(Converters::force_clipped) {
             clipped_force_ticks += 1;
         }
-        if k == 0 {
-            integ.reset(a);
-        } else {
-            let mut r = [0.0; MAX_DOF];
-            r[dof] = f_m;
-            integ.advance(a, &r);
-        }
-        h.time_s.push(k as f64 * DT_S);
-        h.measured_mm.push(x_m);
-        h.true_disp_mm.push(rig.true_disp_mm());
-        // The other floors: the numerical model under the measured force (for the metamodel, a
-        // reconstruction beside the loop, not the command's path).
-        for (f, x) in h.floors_mm.iter_mut().zip(integ.disp()) {
-            f.push(*x);
-        }
-        let next = match meta.as_mut() {
-            Some(m) => {
-                let d_k = m.current_mm();
-                h.target_mm.push(d_k);
-                // Toward the force the specimen would have at the model's own displacement
-                // (LRX's correction, docs/design.md §5.3; its stiffness is in the model's params).
-                // A refused (non-finite) step is a divergence, caught below.
-                m.predict(a, x_m, f_m).unwrap_or(f64::NAN)
+        h.time_s.push(st.k as f64 * DT_S);
+        h.measured_mm.push(st.measured_mm);
+        h.true_disp_mm.push(st.true_disp_mm);
+        h.target_mm.push(st.target_mm);
+        let floors = match (beside.as_mut(), ctl.analytical()) {
+            (Some(integ), _) => {
+                if st.k == 0 {
+                    integ.reset(st.ground_accel_mm_s2);
+                } else {
+                    let mut r = [0.0; MAX_DOF];
+                    if let Some(ri) = r.get_mut(dof) {
+                        *ri = st.measured_force_kn;
+                    }
+                    integ.advance(st.ground_accel_mm_s2, &r);
+                }
+                *integ.disp()
             }
-            None => {
-                h.target_mm.push(integ.disp()[dof]);
-                integ.next_displacement()[dof]
-            }
+            (None, Analytical::StructureFe(m)) => *m.chang().disp(),
+            (None, _) => [f64::NAN; MAX_DOF],
         };
-        let u = match (ats.as_mut(), lead.as_mut()) {
-            (Some(c), _) => c
-                .compensate(next, x_m)
-                .map_err(|e| anyhow::anyhow!("ATS: {e:?}"))?,
-            (None, Some(l)) => l
-                .step(next, x_m)
-                .map_err(|e| anyhow::anyhow!("lead: {e:?}"))?,
-            (None, None) => next,
-        };
-        if !u.is_finite() || u.abs() >= stroke_mm || x_m.abs() >= stroke_mm {
+        for (f, x) in h.floors_mm.iter_mut().zip(floors) {
+            f.push(x);
+        }
+        if let State::Fault(reason) = st.out.state {
             unstable = Some(format!(
-                "diverged at t = {:.3} s: command {u:.3} mm, measured {x_m:.3} mm (stroke ±{stroke_mm} mm)",
-                k as f64 * DT_S
+                "the supervisor stopped the run at t = {:.3} s: {reason:?} (requested {:.3} mm, \
+                 measured {:.3} mm; stroke ±{:.2} mm, {:.1} mm/s, ±{:.2} kN)",
+                st.k as f64 * DT_S,
+                st.out.requested_mm,
+                st.measured_mm,
+                limits.stroke_mm(),
+                limits.velocity_mm_s(),
+                limits.force_kn(),
             ));
-            break;
+            return ControlFlow::Break(());
         }
-        rig.command(u)
-            .map_err(|e| anyhow::anyhow!("actuator: {e}"))?;
-        rig.advance_tick();
-    }
+        ControlFlow::Continue(())
+    });
+    let (ats_coefficients, lead_adaptation) = match ctl.compensator() {
+        Compensator::Ats(a) => (Some(a.coefficients()), None),
+        Compensator::Lead(l) => {
+            let st = l.adaptation_state();
+            (
+                None,
+                Some([f64::from(st.gain), f64::from(st.delay_ticks) * DT_S]),
+            )
+        }
+        _ => (None, None),
+    };
     let ticks = h.time_s.len();
     h.reference_mm = reference
         .into_iter()
@@ -463,11 +520,8 @@ pub fn run_on(
         criteria,
         unstable,
         history: h,
-        ats_coefficients: ats.map(|a| a.coefficients()),
-        lead_adaptation: lead.map(|l| {
-            let st = l.adaptation_state();
-            [f64::from(st.gain), f64::from(st.delay_ticks) * DT_S]
-        }),
+        ats_coefficients,
+        lead_adaptation,
         identification,
         force_correction_kn_per_mm: cfg.controller.uses_metamodel().then_some(k_corr),
         specimen_stiffness_n_per_m: params.specimen_stiffness_n_per_m(),

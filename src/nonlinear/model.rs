@@ -5,20 +5,18 @@
 use std::path::Path;
 
 use anyhow::Context;
-use rths_core::control::StepError;
-use rths_core::metamodel::ModalHyst;
+use rths_core::control::{Analytical, StructureModal};
+use rths_core::metamodel::ModalHystParams;
 use rths_core::params::DT_S;
-use rths_core::structure_n::{Dofs, MAX_DOF};
 use rths_files::nl_model_file::NlModelFile;
 
 use super::scenario::StructureModel;
 
-/// A learned model in the controller's contract (tick 0 is the initial condition, as the FE's).
+/// A learned model for the controller: core's [`StructureModal`] (tick 0 is the initial
+/// condition, as the FE's; story drifts from the model's floors).
 #[derive(Debug, Clone)]
 pub struct LearnedModel {
-    model: Box<ModalHyst>,
-    floors: usize,
-    started: bool,
+    params: Box<ModalHystParams>,
 }
 
 impl LearnedModel {
@@ -27,11 +25,8 @@ impl LearnedModel {
     pub fn new(file: &NlModelFile, structure_json: &str) -> anyhow::Result<Self> {
         file.check_structure(structure_json)?;
         // The parameters are continuous-time: built for this build's controller step.
-        let p = file.params(DT_S)?;
         Ok(Self {
-            floors: p.floors(),
-            model: Box::new(ModalHyst::new(p)),
-            started: false,
+            params: Box::new(file.params(DT_S)?),
         })
     }
 
@@ -44,31 +39,8 @@ impl LearnedModel {
 }
 
 impl StructureModel for LearnedModel {
-    fn step(&mut self, ag: f64, specimen_force_kn: f64) -> Result<f64, StepError> {
-        if !ag.is_finite() {
-            return Err(StepError::NonFiniteGroundAccel);
-        }
-        if !self.started {
-            self.model.reset_at(ag);
-            self.started = true;
-            return Ok(self.model.target_mm());
-        }
-        self.model
-            .step(ag, specimen_force_kn)
-            .map_err(|_| StepError::NonFiniteOutput)
-    }
-
-    fn reset(&mut self) {
-        self.model.reset();
-        self.started = false;
-    }
-
-    fn story_drift_mm(&self) -> Option<Dofs> {
-        let mut d = [0.0; MAX_DOF];
-        for (i, di) in d.iter_mut().enumerate().take(self.floors) {
-            *di = self.model.story_drift_mm(i);
-        }
-        Some(d)
+    fn analytical(&self) -> Analytical {
+        Analytical::StructureModal(StructureModal::new(*self.params))
     }
 }
 

@@ -1,70 +1,66 @@
-//! The compensation of a structure's hybrid runs: what a lab identifies of its rig before testing a
-//! structure's specimen (`rths identify`'s procedure on the virtual plant, or a rig file it wrote),
-//! and nothing else. `fe-online-ats` takes the ATS start; `nl-online` takes the lead filter with
+//! The rig of a structure's hybrid runs: the virtual plant and specimen a structure is tested on
+//! ([`structure_rig`], [`is_paper_frame`]), and its compensation, what a lab identifies of its rig
+//! before testing a structure's specimen (`rths identify`'s procedure on the virtual plant, or a
+//! rig file it wrote), and nothing else. `fe-online-ats` takes the ATS start; `nl-online` takes the lead filter with
 //! its online gain-and-delay correction and the identified specimen for the force correction
 //! (docs/nonlinear.md, "Scenarios").
 
 use anyhow::Context;
 use rths_core::compensator::{LeadAdaptParams, LeadParams};
+use rths_core::params::{Prototype, BRACE_AXIAL_STIFFNESS_KN_PER_MM, DT_S};
 use rths_files::structure_file::Structure;
-use rths_hal_sim::{FaultPlan, Preset};
+use rths_hal_sim::{FaultPlan, Preset, RigConfig, Specimen};
 use serde::Serialize;
 
-use super::scenario::{rig_specimen_factor, structure_rig};
 use crate::identify::estimate::SpecimenFit;
 use crate::identify::{identify_virtual, IdentifyConfig, RigFile};
 
 /// The force a model is fed in the hybrid loop, corrected to the model's own displacement with the
-/// identified specimen (LRX's correction of a rig-trained model, docs/design.md §5.3, at the rig):
-/// `F̃ = F_m + k̂·(d̂ − x_m) − m̂·d̂'' − ĉ·d̂'`, d̂ the displacement the rig was to be at, its
-/// derivatives by central differences one tick back. The spring term removes the rig's tracking
-/// error from the force; the mass and damping terms remove what the rig's specimen has and the
-/// structure file's (a spring) does not.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct ForceCorrection {
-    /// k̂, kN/mm (0: none).
-    pub k_kn_per_mm: f64,
-    /// ĉ, kN·s/mm.
-    pub c_kn_s_per_mm: f64,
-    /// m̂, kN·s²/mm.
-    pub m_kn_s2_per_mm: f64,
+/// identified specimen: a parameter of the core controller (LRX's correction of a rig-trained
+/// model, docs/design.md §5.3, at the rig).
+pub use rths_core::control::ForceCorrection;
+
+/// Relative tolerance on the paper frame's parameters for [`is_paper_frame`]: the shipped file
+/// gives them to 9 significant digits.
+pub const PAPER_FRAME_TOLERANCE: f64 = 1e-9;
+
+/// The rig's specimen stiffness over the paper's brace for a structure: 1 for the paper's frame
+/// (its brace); along the DOF (cos θ = 1) the structure's lateral spring at force scale 1000. The
+/// same at every length scale ([`super::scenario::LengthScale`]).
+pub fn rig_specimen_factor(structure: &Structure) -> f64 {
+    if is_paper_frame(structure) {
+        1.0
+    } else {
+        structure.specimen().1 / BRACE_AXIAL_STIFFNESS_KN_PER_MM
+    }
 }
 
-impl ForceCorrection {
-    /// No correction: the measured force as is.
-    pub const NONE: Self = Self {
-        k_kn_per_mm: 0.0,
-        c_kn_s_per_mm: 0.0,
-        m_kn_s2_per_mm: 0.0,
-    };
+/// The virtual plant a structure is tested on: `preset` with the structure's specimen at specimen
+/// scale ([`rig_specimen_factor`]), sensor noise `seed`.
+pub fn structure_rig(structure: &Structure, preset: Preset, seed: u64) -> RigConfig {
+    crate::scenario::rig_config(
+        preset,
+        Specimen::Linear,
+        rig_specimen_factor(structure),
+        seed,
+    )
+}
 
-    /// From identified values: refused unless finite and ≥ 0.
-    pub fn new(k_kn_per_mm: f64, c_kn_s_per_mm: f64, m_kn_s2_per_mm: f64) -> anyhow::Result<Self> {
-        for (what, v) in [
-            ("stiffness", k_kn_per_mm),
-            ("damping", c_kn_s_per_mm),
-            ("mass", m_kn_s2_per_mm),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                anyhow::bail!("the identified specimen {what} {v} is not usable (finite, ≥ 0)");
-            }
-        }
-        Ok(Self {
-            k_kn_per_mm,
-            c_kn_s_per_mm,
-            m_kn_s2_per_mm,
-        })
-    }
-
-    /// `F̃` from the measured force and displacement and the rig's targets `d = [d̂_k, d̂_{k−1},
-    /// d̂_{k−2}]` (mm), at step `dt_s`.
-    pub fn force_kn(&self, force_kn: f64, disp_mm: f64, d: [f64; 3], dt_s: f64) -> f64 {
-        let accel = (d[0] - 2.0 * d[1] + d[2]) / (dt_s * dt_s);
-        let vel = (d[0] - d[2]) / (2.0 * dt_s);
-        force_kn + self.k_kn_per_mm * (d[0] - disp_mm)
-            - self.m_kn_s2_per_mm * accel
-            - self.c_kn_s_per_mm * vel
-    }
+/// Is `s` the paper's frame (one DOF, the prototype's mass, stiffnesses and damping within
+/// [`PAPER_FRAME_TOLERANCE`], a massless undamped specimen)? Such a file is tested with the paper's
+/// brace, and a linear one *is* `rths simulate` without `--structure`.
+pub fn is_paper_frame(s: &Structure) -> bool {
+    let p = Prototype::paper();
+    let close = |a: f64, b: f64| (a - b).abs() <= PAPER_FRAME_TOLERANCE * b.abs();
+    let (m_e, k_e, c_e) = s.specimen();
+    s.dofs() == 1
+        && s.specimen_dof() == 0
+        && m_e == 0.0
+        && c_e == 0.0
+        && close(s.mass()[(0, 0)], p.mass_kn_s2_per_mm())
+        && close(s.stiffness()[(0, 0)], p.total_stiffness_kn_per_mm())
+        && close(k_e, p.brace_lateral_stiffness_kn_per_mm())
+        && close(s.damping()[(0, 0)], p.damping_kn_s_per_mm())
 }
 
 /// The compensation of `nl-online`: the identified lead filter in front of the rig, the force
@@ -117,7 +113,9 @@ fn corrected(lead: LeadParams, fit: &SpecimenFit) -> anyhow::Result<CorrectedLea
             fit.stiffness_kn_per_mm,
             fit.damping_kn_s_per_mm,
             fit.mass_kn_s2_per_mm,
-        )?,
+            DT_S,
+        )
+        .map_err(|e| anyhow::anyhow!("the identified specimen is not usable: {e}"))?,
     })
 }
 

@@ -2,10 +2,13 @@
 //! against that structure's FE reference (the whole nonlinear structure for a file with yielding
 //! stories; docs/nonlinear.md, "Scenarios").
 //!
-//! - `fe-pure`, `fe-online-ats`: the structure's own numerical part ([`NonlinearFrame`] for a
-//!   yielding file, [`ChangN`] for a linear one) takes the specimen force at the specimen DOF each
-//!   tick; pure (the linear specimen at the model's own displacement, no plant) or on the virtual
-//!   plant with the paper's ATS.
+//! - `fe-pure`, `fe-online-ats`: the structure's own numerical part ([`StructureFe`]: the core
+//!   controller's `StructureNl` for a yielding file, its `StructureFe` for a linear one) takes the
+//!   specimen force at the specimen DOF each tick; pure (the linear specimen at the model's own
+//!   displacement, no plant) or on the virtual plant with the paper's ATS.
+//!
+//! Every run is `rths_core::control::Controller`, the firmware's controller, driven by the host's
+//! one control step ([`crate::drive::run`]): the numerical part is its analytical part.
 //! - `nl-pure`, `nl-online`: a learned model of the numerical part (any [`StructureModel`]) in the
 //!   same two loops; online with a lead filter (the rig file's, or the shipped LRX's).
 //! - `lr-online`, `lrx-online`: the shipped *linear* metamodels of the paper's frame, run exactly as
@@ -28,33 +31,33 @@
 use std::fmt;
 use std::str::FromStr;
 
+use std::ops::ControlFlow;
+
 use anyhow::Context;
 use rths_core::compensator::{Ats, Compensator, Lead, LeadParams};
-use rths_core::control::StepError;
-use rths_core::hal::{Actuator, Daq, Error as _, Sample};
+pub use rths_core::control::CompensatorTarget;
+use rths_core::control::{
+    self as core_control, Analytical, ControlConfig, Controller, FeedbackSource, ForceCorrection,
+};
 use rths_core::metamodel::{LrParams, LrxParams};
 use rths_core::metrics;
 use rths_core::model::Model;
 use rths_core::params::{
-    Prototype, SpecimenScale, BRACE_AXIAL_STIFFNESS_KN_PER_MM, DISP_SCALE, DT_S, FORCE_SCALE,
-    PAPER_DELAY_STEPS,
+    Prototype, SpecimenScale, DISP_SCALE, DT_S, FORCE_SCALE, PAPER_DELAY_STEPS,
 };
-use rths_core::structure_n::{ChangN, Dofs, MAX_DOF};
-use rths_core::structure_nl::NonlinearFrame;
-use rths_core::supervisor::{Limits, State, Supervisor};
+use rths_core::supervisor::Limits;
 use rths_files::structure_file::Structure;
-use rths_hal_sim::{Preset, RigConfig, Specimen, VirtualRig};
+use rths_hal_sim::{Preset, RigConfig, VirtualRig};
 use serde::Serialize;
 
-use super::rig::{CorrectedLead, ForceCorrection};
+use super::rig::CorrectedLead;
+pub use super::rig::{is_paper_frame, rig_specimen_factor, structure_rig, PAPER_FRAME_TOLERANCE};
 use super::{elastic_drifts, fe_reference, NlResponse, FREE_VIBRATION_S};
-use crate::scenario::{self, ScenarioId, ScenarioReport, ScenarioSetup, Stop};
+use crate::drive::{self, Stop};
+use crate::scenario::{self, ScenarioId, ScenarioReport, ScenarioSetup};
 
 /// The start-up window of [`StructureFigures::startup_error_ratio`], s (the "first 2 s").
 pub const STARTUP_WINDOW_S: f64 = 2.0;
-/// Relative tolerance on the paper frame's parameters for [`is_paper_frame`]: the shipped file
-/// gives them to 9 significant digits.
-pub const PAPER_FRAME_TOLERANCE: f64 = 1e-9;
 
 /// A length (displacement) scale of a hybrid test, L ≥ 1 (similitude, as labs scale a test to
 /// their actuator): the rig's specimen displacement is the structure's / L. The rig's specimen
@@ -111,6 +114,21 @@ impl LengthScale {
     /// conversion): displacement and force scales × L.
     pub fn specimen_scale(self) -> SpecimenScale {
         self.scale
+    }
+
+    /// The controller's prototype ↔ rig conversion of a run at this scale whose actuator is at
+    /// `cos_theta` to the analytical part's DOF (the paper's brace; 1 along the DOF): the rig's
+    /// displacement is the DOF's × cos θ / L, the DOF's force the rig's × L × cos θ. At cos θ = 1
+    /// exactly [`Self::specimen_scale`].
+    pub fn dof_scale(self, cos_theta: f64) -> Result<SpecimenScale, BadLengthScale> {
+        if cos_theta == 1.0 {
+            return Ok(self.scale);
+        }
+        SpecimenScale::new(
+            DISP_SCALE * self.length / cos_theta,
+            FORCE_SCALE * self.length * cos_theta,
+        )
+        .map_err(|_| BadLengthScale(self.length))
     }
 }
 
@@ -200,153 +218,46 @@ pub const STRUCTURE_SCENARIOS: [SimScenario; 7] = [
     SimScenario::Study(ScenarioId::LrxOnline),
 ];
 
-/// The numerical part of a structure run, as the controller steps it: the same contract as the
-/// FE of the paper's frame (`rths_core::control::FeModel`).
+/// The numerical part of a structure run: an analytical part of the core controller
+/// (`rths_core::control::Analytical`: the structure's finite elements, or a learned model of them)
+/// that takes the specimen's force at the specimen DOF (kN, prototype, along the DOF) each tick
+/// and gives the next displacement there, mm; its story drifts are read from the controller.
 pub trait StructureModel {
-    /// Tick k: complete step k with `ü_g(k)` (mm/s²) and the specimen's force at `d_k` on the
-    /// specimen DOF (kN, prototype, along the DOF), and return `d_{k+1}` at the specimen DOF, mm.
-    /// At tick 0 the structure is at rest: step 0 is the initial condition.
-    fn step(&mut self, ground_accel_mm_s2: f64, specimen_force_kn: f64) -> Result<f64, StepError>;
-    /// Back to rest.
-    fn reset(&mut self);
-    /// Story drifts at the last completed step (after [`Self::step`] of tick k: at `d_k`), mm,
-    /// if the model has them (else the run is scored at the specimen's story alone).
-    fn story_drift_mm(&self) -> Option<Dofs> {
-        None
-    }
+    /// The analytical part, at rest.
+    fn analytical(&self) -> Analytical;
 }
 
-/// The finite elements of a structure file's numerical part: yielding stories ([`NonlinearFrame`])
-/// or linear ([`ChangN`]).
+/// The finite elements of a structure file's numerical part: yielding stories
+/// (`rths_core::control::StructureNl`) or linear (`rths_core::control::StructureFe`).
 #[derive(Debug, Clone)]
 pub struct StructureFe {
-    integ: FeIntegrator,
-    dof: usize,
-    started: bool,
-}
-
-#[derive(Debug, Clone)]
-enum FeIntegrator {
-    Linear(Box<ChangN>),
-    Nonlinear(Box<NonlinearFrame>),
+    analytical: Analytical,
 }
 
 impl StructureFe {
     /// The numerical part of `structure` at the controller's step.
     pub fn new(structure: &Structure) -> anyhow::Result<Self> {
-        let integ = if structure.story_laws().is_some() {
-            FeIntegrator::Nonlinear(Box::new(structure.nonlinear_numerical(DT_S)?))
+        let dof = structure.specimen_dof();
+        let analytical = if structure.story_laws().is_some() {
+            Analytical::StructureNl(core_control::StructureNl::new(
+                structure.nonlinear_numerical(DT_S)?,
+                dof,
+            )?)
         } else {
-            FeIntegrator::Linear(Box::new(ChangN::new(structure.numerical()?, DT_S)?))
+            Analytical::StructureFe(core_control::StructureFe::new(
+                structure.numerical()?,
+                dof,
+                DT_S,
+            )?)
         };
-        Ok(Self {
-            integ,
-            dof: structure.specimen_dof(),
-            started: false,
-        })
+        Ok(Self { analytical })
     }
 }
 
 impl StructureModel for StructureFe {
-    fn step(&mut self, ag: f64, specimen_force_kn: f64) -> Result<f64, StepError> {
-        if !ag.is_finite() {
-            return Err(StepError::NonFiniteGroundAccel);
-        }
-        if !specimen_force_kn.is_finite() {
-            return Err(StepError::NonFiniteOutput);
-        }
-        let mut r = [0.0; MAX_DOF];
-        if let Some(ri) = r.get_mut(self.dof) {
-            *ri = specimen_force_kn;
-        }
-        let next = match &mut self.integ {
-            FeIntegrator::Linear(c) => {
-                if self.started {
-                    c.advance(ag, &r);
-                } else {
-                    c.reset(ag);
-                }
-                c.next_displacement()
-            }
-            FeIntegrator::Nonlinear(f) => {
-                if self.started {
-                    f.advance(ag, &r);
-                } else {
-                    f.reset(ag);
-                }
-                f.next_displacement()
-            }
-        };
-        self.started = true;
-        let d = next.get(self.dof).copied().unwrap_or(f64::NAN);
-        if d.is_finite() {
-            Ok(d)
-        } else {
-            Err(StepError::NonFiniteOutput)
-        }
+    fn analytical(&self) -> Analytical {
+        self.analytical.clone()
     }
-
-    fn reset(&mut self) {
-        match &mut self.integ {
-            FeIntegrator::Linear(c) => c.reset(0.0),
-            FeIntegrator::Nonlinear(f) => f.reset(0.0),
-        }
-        self.started = false;
-    }
-
-    fn story_drift_mm(&self) -> Option<Dofs> {
-        Some(match &self.integ {
-            FeIntegrator::Linear(c) => {
-                let mut d = [0.0; MAX_DOF];
-                let mut below = 0.0;
-                for (di, xi) in d.iter_mut().zip(c.disp()).take(c.model().dofs()) {
-                    *di = xi - below;
-                    below = *xi;
-                }
-                d
-            }
-            FeIntegrator::Nonlinear(f) => f.story_drift_mm(),
-        })
-    }
-}
-
-/// The rig's specimen stiffness over the paper's brace for a structure: 1 for the paper's frame
-/// (its brace); along the DOF (cos θ = 1) the structure's lateral spring at force scale 1000. The
-/// same at every length scale ([`LengthScale`]).
-pub fn rig_specimen_factor(structure: &Structure) -> f64 {
-    if is_paper_frame(structure) {
-        1.0
-    } else {
-        structure.specimen().1 / BRACE_AXIAL_STIFFNESS_KN_PER_MM
-    }
-}
-
-/// The virtual plant a structure is tested on: `preset` with the structure's specimen at specimen
-/// scale ([`rig_specimen_factor`]), sensor noise `seed`.
-pub fn structure_rig(structure: &Structure, preset: Preset, seed: u64) -> RigConfig {
-    scenario::rig_config(
-        preset,
-        Specimen::Linear,
-        rig_specimen_factor(structure),
-        seed,
-    )
-}
-
-/// Is `s` the paper's frame (one DOF, the prototype's mass, stiffnesses and damping within
-/// [`PAPER_FRAME_TOLERANCE`], a massless undamped specimen)? Such a file is tested with the paper's
-/// brace, and a linear one *is* `rths simulate` without `--structure`.
-pub fn is_paper_frame(s: &Structure) -> bool {
-    let p = Prototype::paper();
-    let close = |a: f64, b: f64| (a - b).abs() <= PAPER_FRAME_TOLERANCE * b.abs();
-    let (m_e, k_e, c_e) = s.specimen();
-    s.dofs() == 1
-        && s.specimen_dof() == 0
-        && m_e == 0.0
-        && c_e == 0.0
-        && close(s.mass()[(0, 0)], p.mass_kn_s2_per_mm())
-        && close(s.stiffness()[(0, 0)], p.total_stiffness_kn_per_mm())
-        && close(k_e, p.brace_lateral_stiffness_kn_per_mm())
-        && close(s.damping()[(0, 0)], p.damping_kn_s_per_mm())
 }
 
 /// A structure, a record and its reference: what every scenario of one row shares.
@@ -486,9 +397,10 @@ pub struct StructureSeries {
 }
 
 impl StructureSeries {
-    /// Record the model's story drifts (the structure's `n` stories), if it has them.
-    fn push_drifts(&mut self, model: &dyn StructureModel, n: usize) {
-        if let Some(d) = model.story_drift_mm() {
+    /// Record the controller's story drifts (the structure's `n` stories), if its analytical part
+    /// has them.
+    fn push_drifts(&mut self, ctl: &Controller, n: usize) {
+        if let Some(d) = ctl.analytical().story_drift_mm() {
             self.story_drift_mm.resize_with(n, Vec::new);
             for (s, v) in self.story_drift_mm.iter_mut().zip(d) {
                 s.push(v);
@@ -497,73 +409,78 @@ impl StructureSeries {
     }
 }
 
-/// The pure loop: `model` with the structure's linear specimen at the model's own displacement
-/// (no delay, no plant). Stopped at the first step the model refuses.
+/// The pure loop: `model` in the controller with the structure's linear specimen at the model's
+/// own displacement (no delay, no plant, [`FeedbackSource::OwnLinearSpecimen`]). Stopped at the
+/// first step the model refuses.
 pub fn run_pure(case: &StructureCase, model: &mut dyn StructureModel) -> (StructureSeries, Stop) {
-    model.reset();
-    let k_e = case.specimen_k_kn_per_mm();
     let n = case.ground_accel_mm_s2.len();
     let mut s = StructureSeries {
         target_mm: Vec::with_capacity(n),
         command_mm: Vec::with_capacity(n),
         ..StructureSeries::default()
     };
+    let config = SpecimenScale::new(1.0, 1.0).and_then(|unit| {
+        ControlConfig::new(
+            Prototype::paper(),
+            unit,
+            FeedbackSource::OwnLinearSpecimen {
+                stiffness_kn_per_mm: case.specimen_k_kn_per_mm(),
+            },
+            Limits::unbounded(),
+        )
+    });
+    let config = match config {
+        Ok(c) => c,
+        Err(e) => return (s, Some((format!("{e}"), 0.0))),
+    };
+    let mut ctl = Controller::new(config, model.analytical(), Compensator::None);
     let stories = case.structure.dofs();
-    // d_k at the DOF: row k holds the target produced at tick k−1 (0 at rest).
-    let mut d = 0.0;
-    for (k, &ag) in case.ground_accel_mm_s2.iter().enumerate() {
-        s.target_mm.push(d * case.cos_theta);
-        s.command_mm.push(d * case.cos_theta);
-        match model.step(ag, k_e * d) {
-            Ok(next) => {
-                d = next;
-                s.push_drifts(model, stories);
+    // A pure run measures nothing: the rows are the target in force at each tick (the command
+    // is the target), until the first step the model refuses.
+    let stop = drive::run::<VirtualRig>(
+        &mut ctl,
+        None,
+        &case.ground_accel_mm_s2,
+        None,
+        DT_S,
+        |st, ctl, _| {
+            s.target_mm.push(st.target_mm * case.cos_theta);
+            s.command_mm.push(st.target_mm * case.cos_theta);
+            if st.out.target_mm.is_finite() {
+                s.push_drifts(ctl, stories);
+                ControlFlow::Continue(())
+            } else {
+                ControlFlow::Break(())
             }
-            Err(e) => return (s, Some((format!("{e:?}"), k as f64 * DT_S))),
-        }
-    }
-    (s, None)
+        },
+    );
+    (s, stop)
 }
 
-/// Which displacement of the model the compensator of a hybrid run is given at tick k.
-///
-/// The ATS is fitted on the command and the measurement of the same tick, so the one-tick hold
-/// of the command is part of the delay it compensates (and the lead filters are fitted the same
-/// way): the rig reaches what the compensator was given at tick k by the sample of tick k + 1 +
-/// the delay, extrapolated over that time. Given d_{k+1}, the rig is at d_{k+1} when the model
-/// reads the force it needs at d_k: the specimen's force leads by one tick, which acts as added
-/// damping (measured: every hybrid peak 3-4 % low on the yielding paper frame, its residual drift
-/// off by up to 75 %). Given d_k, the rig is at d_k when its force is read.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CompensatorTarget {
-    /// d_{k+1}, the displacement the model has just produced: the tick of
-    /// `rths_core::control::Controller` (docs/design.md §7).
-    Next,
-    /// d_k, the model's displacement whose force it reads at tick k: the structure scenarios'.
-    Current,
-}
-
-/// The hybrid loop on the virtual plant `rig`: per tick the rig's sample, the measured force
-/// (prototype, along the DOF) into `model`, its target ([`CompensatorTarget`]) through
-/// `compensator`, the paper actuator's supervisor, the command held for one tick. With
-/// [`CompensatorTarget::Next`] the same tick as `rths_core::control::Controller`
-/// (docs/design.md §7) with a structure model in place of its analytical part.
+/// The hybrid loop on the virtual plant `rig`: `model` in the core controller (the firmware's
+/// tick, [`drive::run`]) with the measured force corrected by `correction` (at the rig, then
+/// prototype, along the DOF), the compensator given the target of `timing`, the paper
+/// actuator's supervisor, the command held for one tick.
 pub fn run_hybrid(
     case: &StructureCase,
     model: &mut dyn StructureModel,
-    mut compensator: Compensator,
+    compensator: Compensator,
     rig: &RigConfig,
     timing: CompensatorTarget,
     correction: &ForceCorrection,
 ) -> anyhow::Result<(StructureSeries, Stop)> {
-    model.reset();
-    compensator.reset();
     let scale = case.length.specimen_scale();
+    let config = ControlConfig::new(
+        Prototype::paper(),
+        case.length.dof_scale(case.cos_theta)?,
+        FeedbackSource::Measured,
+        Limits::paper_actuator(),
+    )
+    .context("the controller of the structure's hybrid run")?
+    .with_force_correction(*correction)
+    .with_compensator_target(timing);
+    let mut ctl = Controller::new(config, model.analytical(), compensator);
     let mut plant = VirtualRig::new(rig.build().context("the virtual plant")?);
-    let mut sup = Supervisor::new(Limits::paper_actuator());
-    // Idle → Armed → Running cannot fail on a fresh supervisor.
-    let _ = sup.arm();
-    let _ = sup.start();
     let n = case.ground_accel_mm_s2.len();
     let mut s = StructureSeries {
         target_mm: Vec::with_capacity(n),
@@ -573,66 +490,25 @@ pub fn run_hybrid(
         story_drift_mm: Vec::new(),
     };
     let stories = case.structure.dofs();
-    let (mut command, mut target) = (0.0, 0.0);
-    // d̂_k, d̂_{k−1}, d̂_{k−2} at the rig (the force correction's).
-    let mut rig_targets = [0.0; 3];
-    let mut last_good = Sample::default();
-    let mut stop: Stop = None;
-    for (k, &ag) in case.ground_accel_mm_s2.iter().enumerate() {
-        let sample = plant.read().map_err(|e| e.kind());
-        let (measured, force) = sample
-            .as_ref()
-            .map_or((f64::NAN, f64::NAN), |x| (x.disp_mm, x.force_kn));
-        if let Ok(x) = sample {
-            if x.disp_mm.is_finite() && x.force_kn.is_finite() {
-                last_good = x;
+    let stop = drive::run(
+        &mut ctl,
+        Some(&mut plant),
+        &case.ground_accel_mm_s2,
+        None,
+        DT_S,
+        |st, ctl, _| {
+            // The series in the structure's actuator coordinates (the rig's × L; identity at
+            // L = 1).
+            s.target_mm.push(st.target_mm * case.cos_theta);
+            s.command_mm.push(scale.prototype_disp_mm(st.command_mm));
+            s.measured_mm.push(scale.prototype_disp_mm(st.measured_mm));
+            s.measured_force_kn.push(st.measured_force_kn);
+            if st.out.target_mm.is_finite() {
+                s.push_drifts(ctl, stories);
             }
-        }
-        // The series in the structure's coordinates (the rig's × L; identity at L = 1).
-        s.target_mm.push(target);
-        s.command_mm.push(scale.prototype_disp_mm(command));
-        s.measured_mm.push(scale.prototype_disp_mm(measured));
-        s.measured_force_kn.push(force);
-        let (mut requested, mut next_target) = (sup.output_mm(), f64::NAN);
-        if sup.state() == State::Running {
-            // The force at the displacement the rig was to be at (the compensator was given
-            // `target` one hold and one delay ago), at the rig.
-            let rig_force =
-                correction.force_kn(last_good.force_kn, last_good.disp_mm, rig_targets, DT_S);
-            let force = scale.prototype_force_kn(rig_force) * case.cos_theta;
-            requested = match model.step(ag, force) {
-                Ok(d) => {
-                    next_target = d * case.cos_theta;
-                    s.push_drifts(model, stories);
-                    let given = match timing {
-                        CompensatorTarget::Next => next_target,
-                        CompensatorTarget::Current => target,
-                    };
-                    compensator
-                        .compensate(scale.specimen_disp_mm(given), last_good.disp_mm)
-                        .unwrap_or(f64::NAN)
-                }
-                // The supervisor trips on it.
-                Err(_) => f64::NAN,
-            };
-        }
-        let decision = sup.tick(requested, sample, false);
-        command = decision.command_mm;
-        if next_target.is_finite() {
-            target = next_target;
-        }
-        rig_targets = [
-            scale.specimen_disp_mm(target),
-            rig_targets[0],
-            rig_targets[1],
-        ];
-        if let (State::Fault(reason), None) = (decision.state, &stop) {
-            stop = Some((format!("{reason:?}"), k as f64 * DT_S));
-        }
-        // The supervisor's command is within the stroke and finite: the rig accepts it.
-        let _ = plant.command(command);
-        plant.advance_tick();
-    }
+            ControlFlow::Continue(())
+        },
+    );
     Ok((s, stop))
 }
 

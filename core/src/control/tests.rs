@@ -216,3 +216,93 @@ proptest::proptest! {
         }
     }
 }
+
+fn measured_fe(config: ControlConfig) -> Controller {
+    let a = Analytical::Fe(FeModel::new(Prototype::paper(), DT_S).unwrap());
+    let mut c = Controller::new(config, a, Compensator::None);
+    c.supervisor_mut().arm().unwrap();
+    c.supervisor_mut().start().unwrap();
+    c
+}
+
+#[test]
+fn by_default_no_force_correction_and_the_next_target() {
+    let c = config(FeedbackSource::Measured);
+    assert!(c.force_correction().is_none());
+    assert_eq!(c.compensator_target(), CompensatorTarget::Next);
+    // No correction given as all zeros is no term at all.
+    assert!(c
+        .with_force_correction(ForceCorrection::NONE)
+        .force_correction()
+        .is_none());
+}
+
+#[test]
+fn the_compensator_is_given_the_target_of_its_timing() {
+    let mut next = measured_fe(config(FeedbackSource::Measured));
+    let mut current = measured_fe(
+        config(FeedbackSource::Measured).with_compensator_target(CompensatorTarget::Current),
+    );
+    // The target in force at k: the one produced at k − 1 (0 at rest).
+    let mut in_force = 0.0_f64;
+    let mut moved = false;
+    for k in 0..3000 {
+        // A perfect actuator at the command in force, the specimen the prototype's brace.
+        let spring = |c: &Controller| {
+            let x = c.supervisor().output_mm();
+            Ok(Sample {
+                disp_mm: x,
+                force_kn: SpecimenScale::default()
+                    .specimen_force_kn(Prototype::paper().brace_force_kn(x)),
+            })
+        };
+        let a = next.tick(ground(k), spring(&next), false);
+        let b = current.tick(ground(k), spring(&current), false);
+        assert_eq!(a.state, State::Running);
+        assert_eq!(b.state, State::Running);
+        assert_eq!(a.command_mm.to_bits(), a.target_mm.to_bits());
+        assert_eq!(b.command_mm.to_bits(), in_force.to_bits(), "tick {k}");
+        moved |= b.target_mm != in_force;
+        in_force = b.target_mm;
+    }
+    assert!(moved);
+}
+
+#[test]
+fn the_force_correction_feeds_the_model_the_corrected_force() {
+    let corr = ForceCorrection::new(1.2, 0.01, 1e-5, DT_S).unwrap();
+    let measured = config(FeedbackSource::Measured);
+    let mut with = measured_fe(measured.with_force_correction(corr));
+    let mut by_hand = measured_fe(measured);
+    let scale = SpecimenScale::default();
+    // d̂_k, d̂_{k−1}, d̂_{k−2} at the rig.
+    let mut d = [0.0; 3];
+    let mut differs = false;
+    for k in 0..3000 {
+        // A rig that falls short of the command, the specimen a spring.
+        let x = 0.98 * with.supervisor().output_mm();
+        let f = 1.2 * x;
+        let a = with.tick(
+            ground(k),
+            Ok(Sample {
+                disp_mm: x,
+                force_kn: f,
+            }),
+            false,
+        );
+        let f_corr = corr.force_kn(f, x, d);
+        differs |= f_corr != f;
+        let b = by_hand.tick(
+            ground(k),
+            Ok(Sample {
+                disp_mm: x,
+                force_kn: f_corr,
+            }),
+            false,
+        );
+        assert_eq!(a.state, State::Running);
+        assert_eq!(a.target_mm.to_bits(), b.target_mm.to_bits(), "tick {k}");
+        d = [scale.specimen_disp_mm(a.target_mm), d[0], d[1]];
+    }
+    assert!(differs);
+}
