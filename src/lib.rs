@@ -8,6 +8,7 @@ pub mod benchmark;
 pub mod cmd;
 pub mod faults;
 pub mod identify;
+pub mod imported;
 pub mod link_host;
 pub mod model_file;
 pub mod models;

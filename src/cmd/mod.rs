@@ -5,6 +5,7 @@ pub mod benchmark;
 pub mod check_model;
 pub mod faults;
 pub mod identify;
+pub mod import;
 pub mod link;
 pub mod nonlinear_study;
 pub mod plant;
