@@ -10,7 +10,7 @@ use rths_core::integrator::{Chang, ExplicitIntegrator};
 use rths_core::structure::{LinearStructure, ShearBuilding, Vector};
 use rths_core::structure_n::{ChangN, StructureN, MAX_DOF};
 
-const DT_S: f64 = 1.0 / 4096.0;
+const DT_4096_S: f64 = 1.0 / 4096.0;
 
 fn building<const N: usize>() -> LinearStructure<N> {
     ShearBuilding::<N>::uniform(1.0, 30.0, 0.05)
@@ -21,7 +21,7 @@ fn building<const N: usize>() -> LinearStructure<N> {
 /// The same step with the compile-time sized `Chang<N>` (nalgebra static matrices), under the same
 /// machine load: the reference the run-time sized one is compared with.
 fn fixed<const N: usize>(g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>) {
-    let mut integ = Chang::new(building::<N>(), DT_S).expect("valid step");
+    let mut integ = Chang::new(building::<N>(), DT_4096_S).expect("valid step");
     let mut k = 0u32;
     g.bench_function(format!("fixed_n{N}"), |b| {
         b.iter(|| {
@@ -77,7 +77,7 @@ fn meta<const N: usize>(g: &mut criterion::BenchmarkGroup<'_, criterion::measure
 fn step(c: &mut Criterion) {
     let mut g = c.benchmark_group("chang_n_tick");
     for (n, m) in [(1, model::<1>()), (3, model::<3>()), (8, model::<8>())] {
-        let mut integ = ChangN::new(m, DT_S).expect("valid step");
+        let mut integ = ChangN::new(m, DT_4096_S).expect("valid step");
         let mut k = 0u32;
         g.bench_function(format!("n{n}"), |b| {
             b.iter(|| {

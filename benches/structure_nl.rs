@@ -18,7 +18,7 @@ use rths_core::structure::{LinearStructure, ShearBuilding, Vector};
 use rths_core::structure_n::{ChangN, StructureN, MAX_DOF};
 use rths_core::structure_nl::NonlinearFrame;
 
-const DT_S: f64 = 1.0 / 4096.0;
+const DT_4096_S: f64 = 1.0 / 4096.0;
 const K_STORY: f64 = 30.0;
 
 fn building<const N: usize>() -> LinearStructure<N> {
@@ -64,7 +64,7 @@ fn step(c: &mut Criterion) {
         // A ground motion strong enough to keep the stories yielding.
         let ag = |k: u32| 400.0 * (f64::from(k % 64) - 32.0);
         for (name, law) in [("bilinear", bilinear), ("bouc_wen", bouc_wen)] {
-            let mut f = NonlinearFrame::new(nl, &vec![law; n], DT_S).expect("valid frame");
+            let mut f = NonlinearFrame::new(nl, &vec![law; n], DT_4096_S).expect("valid frame");
             let mut k = 0u32;
             g.bench_function(format!("{name}_n{n}"), |b| {
                 b.iter(|| {
@@ -76,7 +76,7 @@ fn step(c: &mut Criterion) {
                 })
             });
         }
-        let mut integ = ChangN::new(lin, DT_S).expect("valid step");
+        let mut integ = ChangN::new(lin, DT_4096_S).expect("valid step");
         let mut k = 0u32;
         g.bench_function(format!("linear_n{n}"), |b| {
             b.iter(|| {
@@ -140,7 +140,7 @@ fn modal_model(n: usize, law: &str) -> ModalHyst {
     let shape: Vec<f64> = modes.shape.iter().flatten().copied().collect();
     let drift: Vec<f64> = modes.drift.iter().flatten().copied().collect();
     ModalHyst::new(
-        ModalHystParams::new(DT_S, &mm, &shape, 0, 0.01, &laws, &drift).expect("valid model"),
+        ModalHystParams::new(DT_4096_S, &mm, &shape, 0, 0.01, &laws, &drift).expect("valid model"),
     )
 }
 
@@ -174,13 +174,15 @@ fn shipped(c: &mut Criterion) {
     let ag = GroundMotion::try_el_centro()
         .expect("embedded record")
         .scaled(2.0)
-        .resample_mm_s2(DT_S);
+        .resample_mm_s2(DT_4096_S);
     for file in ["paper-frame-yielding", "shear3-yielding"] {
         let path = format!("{}/data/structures/{file}.json", env!("CARGO_MANIFEST_DIR"));
         let s = rths_files::structure_file::Structure::load(std::path::Path::new(&path))
             .expect("shipped structure");
         let k_e = s.specimen().1;
-        let mut fe = s.nonlinear_numerical(DT_S).expect("nonlinear structure");
+        let mut fe = s
+            .nonlinear_numerical(DT_4096_S)
+            .expect("nonlinear structure");
         let mut k = 0usize;
         g.bench_function(format!("fe_{file}"), |b| {
             b.iter(|| {
@@ -204,7 +206,8 @@ fn shipped(c: &mut Criterion) {
         let shape: Vec<f64> = modes.shape.iter().flatten().copied().collect();
         let drift: Vec<f64> = modes.drift.iter().flatten().copied().collect();
         let mut m = ModalHyst::new(
-            ModalHystParams::new(DT_S, &mm, &shape, 0, k_e, laws, &drift).expect("valid model"),
+            ModalHystParams::new(DT_4096_S, &mm, &shape, 0, k_e, laws, &drift)
+                .expect("valid model"),
         );
         let mut k = 0usize;
         let mut target = 0.0;

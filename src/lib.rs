@@ -15,6 +15,7 @@ pub mod models;
 pub mod motion;
 pub mod nonlinear;
 pub mod plot;
+pub mod reference;
 pub mod robustness;
 pub mod scenario;
 pub mod soak;

@@ -21,8 +21,8 @@ use rths_hal_sim::{BoucWen, Preset, Specimen};
 use serde::Serialize;
 
 use crate::motion::GroundMotion;
+use crate::reference::reference_for;
 use crate::scenario::{self, ScenarioId, ScenarioReport, ScenarioSetup};
-use crate::study::reference_for;
 
 /// The specimen stiffness factors of the sweep.
 pub const FACTORS: [f64; 5] = [0.6, 0.8, 1.0, 1.2, 1.4];

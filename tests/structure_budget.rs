@@ -6,6 +6,7 @@
 //! docs/firmware.md#the-structure-budget): host and firmware step these controllers bit for bit.
 
 use rths::benchmark::meta::train_at;
+use rths_core::checksum::Fnv1a64;
 use rths_core::control::{ControlConfig, Controller, FeedbackSource};
 use rths_core::control::{ModalSpec, StoryLawSpec};
 use rths_core::hal::Sample;
@@ -85,7 +86,7 @@ fn run(spec: &ModelSpec<'_>, k_e: f64, ag: &[f64]) -> u64 {
     let mut ctl = Controller::new(cfg, a, c);
     ctl.supervisor_mut().arm().unwrap();
     ctl.supervisor_mut().start().unwrap();
-    let mut fnv: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut fnv = Fnv1a64::new();
     for &g in &ag[..TICKS] {
         let x = ctl.supervisor().output_mm();
         let f_proto = k_e * scale.prototype_disp_mm(x);
@@ -98,11 +99,9 @@ fn run(spec: &ModelSpec<'_>, k_e: f64, ag: &[f64]) -> u64 {
             false,
         );
         assert_eq!(out.state, State::Running);
-        for b in out.command_mm.to_bits().to_le_bytes() {
-            fnv = (fnv ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
-        }
+        fnv.write_f64(out.command_mm);
     }
-    fnv
+    fnv.finish()
 }
 
 #[test]

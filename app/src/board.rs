@@ -81,7 +81,7 @@ pub trait Harness<R> {
 }
 
 /// The board's calibration of its instruction counter, measured at boot.
-pub trait Calibration {
+pub trait CounterCalibration {
     /// The calibration line (`CALIB {...}`) printed before the report; nothing if the board has none.
     fn write_line<W: core::fmt::Write>(&self, w: &mut W) -> core::fmt::Result;
     /// Instructions the counter itself takes between two readings (subtracted from each tick's).
@@ -90,9 +90,9 @@ pub trait Calibration {
 
 /// No calibration.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct NoCalibration;
+pub struct NoCounterCalibration;
 
-impl Calibration for NoCalibration {
+impl CounterCalibration for NoCounterCalibration {
     fn write_line<W: core::fmt::Write>(&self, _: &mut W) -> core::fmt::Result {
         Ok(())
     }
@@ -129,7 +129,7 @@ pub trait Board {
     /// What runs between ticks.
     type Harness: Harness<Self::Rig>;
     /// The instruction counter's calibration.
-    type Calibration: Calibration + Copy;
+    type CounterCalibration: CounterCalibration + Copy;
     /// The control task's watchdog.
     type Watchdog: Watchdog;
     /// The plant runs inside the MCU (QEMU): the record plays once per power-up from rest at 0 mm,
@@ -164,7 +164,7 @@ pub struct Parts<B: Board> {
     /// What runs between ticks.
     pub harness: B::Harness,
     /// The instruction counter's calibration.
-    pub calibration: B::Calibration,
+    pub calibration: B::CounterCalibration,
     /// The control task's watchdog (stopped).
     pub watchdog: B::Watchdog,
 }

@@ -8,7 +8,7 @@ use rths_core::supervisor::State;
 
 /// One telemetry record: what the controller did at a tick.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Record {
+pub struct TelemetryRecord {
     /// Tick of the run (0 at `Start`).
     pub tick: u32,
     /// Command written, mm.
@@ -35,14 +35,14 @@ pub struct StepOutput {
 }
 
 /// The controller's work in one tick: read the DAQ, tick the controller with ground acceleration
-/// `ag_mm_s2`, write the command and, if `record`, queue the tick's [`Record`] as tick `k`.
+/// `ag_mm_s2`, write the command and, if `record`, queue the tick's [`TelemetryRecord`] as tick `k`.
 ///
 /// Kept out of line so that `firmware/panic-check.sh` can walk its call graph (no panic reachable).
 #[inline(never)]
 pub fn control_step<D, A>(
     ctl: &mut Controller,
     daq_act: &mut D,
-    producer: &mut Producer<'_, Record>,
+    producer: &mut Producer<'_, TelemetryRecord>,
     k: u32,
     ag_mm_s2: f64,
     overrun: bool,
@@ -63,7 +63,7 @@ where
     };
     let queued = !record
         || producer
-            .enqueue(Record {
+            .enqueue(TelemetryRecord {
                 tick: k,
                 command_mm: out.command_mm,
                 target_mm: out.target_mm,

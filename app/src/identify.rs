@@ -18,7 +18,7 @@ use rths_core::params::DT_S;
 use rths_core::supervisor::State;
 use rths_link::NackReason;
 
-use crate::Record;
+use crate::TelemetryRecord;
 
 /// The excitation's tables in flash (the firmware's build script writes them with rths-core's
 /// `StdTables`, as `rths identify` computes them): f64 little-endian, with the unit period's stats.
@@ -208,7 +208,7 @@ pub fn identify_step<D, A>(
     id: &mut Identification,
     ctl: &mut Controller,
     daq_act: &mut D,
-    producer: &mut Producer<'_, Record>,
+    producer: &mut Producer<'_, TelemetryRecord>,
     tables: &FlashTables,
     overrun: bool,
 ) -> IdentifyTick
@@ -261,7 +261,7 @@ where
         Ok(s) => (s.disp_mm, s.force_kn),
         Err(_) => (f64::NAN, f64::NAN),
     };
-    let rec = Record {
+    let rec = TelemetryRecord {
         tick: id.ticks,
         command_mm: d.command_mm,
         target_mm: requested,

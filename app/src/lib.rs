@@ -3,7 +3,7 @@
 //!
 //! - [`board`]: the traits a board implements (tick timer, link port, instruction counter, E-stop,
 //!   and the [`board::Board`] that names them); `boards/qemu` and `boards/stm32f4` implement them.
-//! - [`control`]: the controller's work in one tick (the measured section) and its [`Record`].
+//! - [`control`]: the controller's work in one tick (the measured section) and its [`TelemetryRecord`].
 //! - [`run`]: the run's statistics, updated once per tick.
 //! - [`report`]: the `CALIB` and `RESULT` lines of the emulated board.
 //! - [`link`]: the command link's request handling and telemetry stream.
@@ -30,7 +30,7 @@ pub mod report;
 pub mod rig_upload;
 pub mod run;
 
-pub use control::{control_step, Record};
+pub use control::{control_step, TelemetryRecord};
 pub use run::Run;
 
 /// Ticks in one second of test time (the controller rate): the fault hold that ends a faulted run,

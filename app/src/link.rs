@@ -13,7 +13,7 @@ use crate::board::LinkPort;
 use crate::identify::{FlashTables, Identification};
 use crate::model_upload::ModelStaging;
 use crate::record::RecordStore;
-use crate::{Record, Run};
+use crate::{Run, TelemetryRecord};
 
 /// The wire state of a supervisor state.
 pub fn run_state(s: State) -> RunState {
@@ -182,7 +182,7 @@ impl<'a> Session<'a> {
     }
 
     /// The telemetry message of `r`, numbered, or `None` if decimation skips it.
-    pub fn telemetry(&mut self, r: &Record) -> Option<DeviceMsg> {
+    pub fn telemetry(&mut self, r: &TelemetryRecord) -> Option<DeviceMsg> {
         // checked_rem: `every` ≥ 1 (`Arm` refuses 0), and no panic path in the telemetry task.
         if r.tick.checked_rem(self.every) != Some(0) {
             return None;

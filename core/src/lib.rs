@@ -12,6 +12,7 @@
 #[cfg(feature = "std")]
 extern crate std;
 
+pub mod checksum;
 pub mod compensator;
 pub mod control;
 pub mod filter;

@@ -21,6 +21,7 @@
 
 use std::path::{Path, PathBuf};
 
+use rths_core::checksum::{fnv1a64, Fnv1a64Label};
 use rths_core::hysteresis::Law;
 use rths_core::metamodel::{
     ModalHystParams, ModalMode, ModelError, MODAL_MAX_FLOORS, MODAL_MAX_MODES, MODAL_MAX_SPRINGS,
@@ -206,12 +207,7 @@ pub fn structure_checksum(structure_json: &str) -> Result<String, NlModelFileErr
         o.remove("description");
     }
     let canon = serde_json::to_string(&v)?;
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in canon.as_bytes() {
-        h ^= u64::from(*b);
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    Ok(format!("fnv1a64:{h:016x}"))
+    Ok(Fnv1a64Label(fnv1a64(canon.as_bytes())).to_string())
 }
 
 /// The structure's `name` field (for the refusal message), or `"?"`.

@@ -21,6 +21,7 @@
 
 use std::path::{Path, PathBuf};
 
+use rths_core::checksum::{Fnv1a64, Fnv1a64Label};
 use rths_core::control::{StoryLawSpec, StructureSpec};
 use rths_core::metamodel::{DeltaArxParams, DELTA_ARX_COEFFS, DELTA_ARX_ORDER};
 use rths_core::structure_n::StructureN;
@@ -111,13 +112,6 @@ impl StructureArrays {
     }
 }
 
-/// FNV-1a, 64 bits.
-fn fnv1a(bytes: impl IntoIterator<Item = u8>) -> u64 {
-    bytes.into_iter().fold(0xcbf2_9ce4_8422_2325, |h, b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
-    })
-}
-
 /// A checksum of what a structure *is* (not of its file's text): its DOFs, whole mass, stiffness
 /// and damping (rths units, row-major), the specimen's DOF, mass, stiffness and damping, and its
 /// story laws, as little-endian f64 bytes. `"fnv1a64:"` and 16 hex digits.
@@ -134,10 +128,11 @@ pub fn structure_checksum(structure: &Structure) -> String {
         values.extend([s.k0_kn_per_mm, s.yield_force_kn, s.post_yield_ratio]);
         values.extend(s.bouc_wen.unwrap_or([0.0; 3]));
     }
-    format!(
-        "fnv1a64:{:016x}",
-        fnv1a(values.iter().flat_map(|v| v.to_le_bytes()))
-    )
+    let mut h = Fnv1a64::new();
+    for &v in &values {
+        h.write_f64(v);
+    }
+    Fnv1a64Label(h.finish()).to_string()
 }
 
 /// Which structure a metamodel was trained for.

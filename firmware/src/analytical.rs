@@ -350,7 +350,7 @@ fn budget_row<C: rths_app::board::InstrCounter>(
     };
     let (mut min, mut max, mut sum, mut n) = (u32::MAX, 0u32, 0u64, 0u32);
     // FNV-1a of the commands' bits: the stream a host run of the same controller must match.
-    let mut fnv: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut fnv = rths_core::checksum::Fnv1a64::new();
     let mut state = c.supervisor().state();
     for k in 0..ticks {
         let x = c.supervisor().output_mm();
@@ -372,9 +372,7 @@ fn budget_row<C: rths_app::board::InstrCounter>(
         max = max.max(instr);
         sum = sum.saturating_add(u64::from(instr));
         n = n.saturating_add(1);
-        for b in out.command_mm.to_bits().to_le_bytes() {
-            fnv = (fnv ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
-        }
+        fnv.write_f64(out.command_mm);
     }
     let ok = started && state == State::Running && n == ticks;
     let mean = if n > 0 { sum as f64 / n as f64 } else { 0.0 };
@@ -388,7 +386,7 @@ fn budget_row<C: rths_app::board::InstrCounter>(
         row.dofs,
         n,
         ok,
-        fnv,
+        fnv.finish(),
         if n > 0 { min } else { 0 },
         mean,
         max

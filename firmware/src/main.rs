@@ -79,7 +79,7 @@ mod stack;
 use core::sync::atomic::AtomicU32;
 use core::sync::atomic::{AtomicBool, Ordering};
 
-use rths_app::board::{Board, Calibration as _};
+use rths_app::board::{Board, CounterCalibration as _};
 use rths_app::report::{as_expected, write_result, ReportInfo};
 use rths_app::Run;
 use rths_core::supervisor::{Limits, State};
@@ -175,7 +175,7 @@ fn fault_spec() -> Option<&'static str> {
 fn report(
     r: &Run,
     end: State,
-    calib: &<B as Board>::Calibration,
+    calib: &<B as Board>::CounterCalibration,
     daq_errors: u32,
     held_samples: u32,
     record_ticks: u32,
@@ -218,7 +218,7 @@ mod app {
     use rths_app::board::{EStop, Harness, InstrCounter, TickTimer, Watchdog};
     use rths_app::record::RecordStore;
     use rths_app::run::TickFacts;
-    use rths_app::{control_step, Record};
+    use rths_app::{control_step, TelemetryRecord};
     use rths_core::control::Controller;
 
     /// The link port and the session (the stream's numbering, the model in force). Without `link`
@@ -247,10 +247,10 @@ mod app {
         counter: <B as Board>::Counter,
         estop: <B as Board>::EStop,
         harness: <B as Board>::Harness,
-        calibration: <B as Board>::Calibration,
+        calibration: <B as Board>::CounterCalibration,
         watchdog: <B as Board>::Watchdog,
-        producer: Producer<'static, Record>,
-        consumer: Consumer<'static, Record>,
+        producer: Producer<'static, TelemetryRecord>,
+        consumer: Consumer<'static, TelemetryRecord>,
         /// ü_g for the coming tick of a run, mm/s².
         ag: f64,
         /// The instruction counter's own overhead, subtracted from each tick's count.
@@ -260,7 +260,7 @@ mod app {
         reader: rths_link::FrameReader<{ rths_link::MAX_FRAME }>,
     }
 
-    #[init(local = [queue: Queue<Record, QUEUE> = Queue::new(),
+    #[init(local = [queue: Queue<TelemetryRecord, QUEUE> = Queue::new(),
                     staging: [f64; analytical::STAGING] = [0.0; analytical::STAGING],
                     controller: MaybeUninit<Controller> = MaybeUninit::uninit()])]
     fn init(cx: init::Context) -> (Shared, Local) {
@@ -280,7 +280,7 @@ mod app {
         #[cfg(feature = "budget-structures")]
         analytical::structure_budget(
             &parts.counter,
-            rths_app::board::Calibration::counter_overhead_instr(&parts.calibration),
+            rths_app::board::CounterCalibration::counter_overhead_instr(&parts.calibration),
             |k| store.accel_mm_s2(k),
             store.ticks(),
         );

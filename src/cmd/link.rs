@@ -626,7 +626,7 @@ fn identify(
     idle: Duration,
 ) -> anyhow::Result<()> {
     use crate::cmd::identify as host;
-    use crate::identify::{estimate, excitation, runner::Record, Outcome, Signals};
+    use crate::identify::{estimate, excitation, runner::IdentificationRecord, Outcome, Signals};
     let args = host::Args {
         preset: crate::cmd::plant::PresetArg::UnrCompact,
         seed: 1,
@@ -675,7 +675,7 @@ fn identify(
         );
     }
     let daq_errors = s.measured_mm.iter().filter(|v| !v.is_finite()).count();
-    let record = Record {
+    let record = IdentificationRecord {
         dt_s: cfg.excitation.dt_s,
         command_mm: s.command_mm,
         measured_mm: s.measured_mm,

@@ -107,7 +107,12 @@ pub fn analyze(rec: &Recording, scenario: Option<ScenarioId>) -> anyhow::Result<
         None => field("scenario")?.parse()?,
     };
     let scale: f64 = field("scale")?.parse().context("header `scale`")?;
-    let motion = load_motion(Some(field("motion")?))?.scaled(scale);
+    let named = field("motion")?;
+    if std::path::Path::new(named).exists() {
+        // A file named by the header is read within a limit (never a device that never ends).
+        link_host::check_named_file("motion", std::path::Path::new(named))?;
+    }
+    let motion = load_motion(Some(named))?.scaled(scale);
     // The record the device played must be the one named: same samples, step and scale.
     let sum = format!(
         "{:08x}",
@@ -142,9 +147,7 @@ pub fn analyze(rec: &Recording, scenario: Option<ScenarioId>) -> anyhow::Result<
 
 /// Run `rths report`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let text = std::fs::read_to_string(&args.recording)
-        .with_context(|| format!("reading {}", args.recording.display()))?;
-    let rec = link_host::read_recording(&text)
+    let rec = link_host::read_recording_file(&args.recording)
         .with_context(|| format!("recording {}", args.recording.display()))?;
     let run = analyze(&rec, args.scenario)?;
     let id = &run.report.id;
@@ -260,5 +263,22 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("not the record of this recording"), "{e}");
+    }
+
+    #[test]
+    fn a_recording_naming_a_file_that_never_ends_is_refused_unread() {
+        if !std::path::Path::new("/dev/zero").exists() {
+            eprintln!("SKIPPED: /dev/zero (not on this system)");
+            return;
+        }
+        let text = format!(
+            "# format: rths-recording 1\n# scenario: lr-online\n# motion: /dev/zero\n# scale: 1.0\n\
+             # record_checksum: 00000000\n{}\n",
+            link_host::CSV_HEADER
+        );
+        let e = analyze(&read_recording(&text).unwrap(), None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not a regular file"), "{e}");
     }
 }

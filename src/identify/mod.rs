@@ -30,7 +30,9 @@ use rths_hal_sim::{FaultPlan, RigConfig, VirtualRig};
 pub use estimate::{Design, Identification, Signals};
 pub use excitation::{Excitation, ExcitationConfig};
 pub use rig_file::RigFile;
-pub use runner::Record;
+pub use runner::IdentificationRecord;
+/// The old name of [`IdentificationRecord`], kept until `benchmark::ident` follows the rename.
+pub use runner::IdentificationRecord as Record;
 
 /// Why an identification did not produce a rig file.
 #[derive(Debug, thiserror::Error)]
@@ -112,7 +114,7 @@ pub struct Outcome {
     /// The excitation played.
     pub excitation: Excitation,
     /// The measured record.
-    pub record: Record,
+    pub record: IdentificationRecord,
     /// What was identified.
     pub identification: Identification,
 }

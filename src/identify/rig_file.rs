@@ -6,6 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
+use rths_core::checksum::{fnv1a64, Fnv1a64Label};
 use rths_core::compensator::{LeadParams, LEAD_MAX_STRIDE, LEAD_TAPS};
 use serde::{Deserialize, Serialize};
 
@@ -376,12 +377,7 @@ impl RigFile {
 /// A checksum of a file's bytes (FNV-1a, 64 bit), hex: identifies the rig file a model was trained
 /// with (not a security hash).
 pub fn checksum_hex(bytes: &[u8]) -> String {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in bytes {
-        h ^= u64::from(*b);
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    format!("fnv1a64:{h:016x}")
+    Fnv1a64Label(fnv1a64(bytes)).to_string()
 }
 
 /// `t` as ISO 8601 UTC (`YYYY-MM-DDTHH:MM:SSZ`), from the Unix time (days to civil date by Howard

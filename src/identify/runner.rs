@@ -15,7 +15,7 @@ use super::IdentifyError;
 
 /// What the controller saw during an identification run, one entry per tick.
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct Record {
+pub struct IdentificationRecord {
     /// Controller tick, s.
     pub dt_s: f64,
     /// The command sent at tick k (after the supervisor), mm; held from k to k+1.
@@ -42,7 +42,7 @@ pub fn run<R, F>(
     excitation: &Excitation,
     limits: Limits,
     mut next_tick: F,
-) -> Result<Record, IdentifyError>
+) -> Result<IdentificationRecord, IdentifyError>
 where
     R: Daq + Actuator,
     F: FnMut(&mut R),
@@ -50,7 +50,7 @@ where
     let dt_s = excitation.config.dt_s;
     let max_ramp_ticks = (MAX_RAMP_S / dt_s).round() as usize;
     let n = excitation.command_mm.len();
-    let mut rec = Record {
+    let mut rec = IdentificationRecord {
         dt_s,
         command_mm: Vec::with_capacity(n),
         measured_mm: Vec::with_capacity(n),
@@ -63,27 +63,28 @@ where
     // anyway.
     let _ = sup.arm();
     let _ = sup.start();
-    let mut tick = |rig: &mut R, sup: &mut Supervisor, requested: f64, rec: &mut Record| {
-        let sample: Result<Sample, ErrorKind> = rig.read().map_err(|e| e.kind());
-        match sample {
-            Ok(s) => {
-                rec.measured_mm.push(s.disp_mm);
-                rec.force_kn.push(s.force_kn);
+    let mut tick =
+        |rig: &mut R, sup: &mut Supervisor, requested: f64, rec: &mut IdentificationRecord| {
+            let sample: Result<Sample, ErrorKind> = rig.read().map_err(|e| e.kind());
+            match sample {
+                Ok(s) => {
+                    rec.measured_mm.push(s.disp_mm);
+                    rec.force_kn.push(s.force_kn);
+                }
+                Err(_) => {
+                    rec.daq_errors += 1;
+                    rec.measured_mm.push(f64::NAN);
+                    rec.force_kn.push(f64::NAN);
+                }
             }
-            Err(_) => {
-                rec.daq_errors += 1;
-                rec.measured_mm.push(f64::NAN);
-                rec.force_kn.push(f64::NAN);
+            let d = sup.tick(requested, sample, false);
+            rec.command_mm.push(d.command_mm);
+            if rig.command(d.command_mm).is_err() {
+                rec.actuator_errors += 1;
             }
-        }
-        let d = sup.tick(requested, sample, false);
-        rec.command_mm.push(d.command_mm);
-        if rig.command(d.command_mm).is_err() {
-            rec.actuator_errors += 1;
-        }
-        next_tick(rig);
-        d.state
-    };
+            next_tick(rig);
+            d.state
+        };
     let mut trip: Option<(FaultReason, f64)> = None;
     for (k, &u) in excitation.command_mm.iter().enumerate() {
         if let State::Fault(reason) = tick(rig, &mut sup, u, &mut rec) {

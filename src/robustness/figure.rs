@@ -5,7 +5,7 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use super::{case_label, cases, goals, Robustness, CONTROLLERS};
+use super::{case_label, cases, goals, median, Robustness, CONTROLLERS};
 
 /// Y range of the panels, % (log scale); the bottom goes a decade lower when a run needs it (an
 /// adaptive metamodel reaches 0.05 %); runs outside are drawn at the edge.
@@ -117,7 +117,7 @@ pub fn draw(r: &Robustness, path: &Path) -> anyhow::Result<()> {
                         _ => unstable_pts.push((x, UNSTABLE_AT_PCT)),
                     }
                 }
-                if let Some(m) = super::report::median(&mut ys) {
+                if let Some(m) = median(&mut ys) {
                     medians.push((x0, m.clamp(y_min, Y_MAX_PCT)));
                 }
             }

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use serde::Serialize;
 
-use super::{case_label, cases, goals, DrawCase, Robustness, RunResult, CONTROLLERS};
+use super::{case_label, cases, goals, median, DrawCase, Robustness, RunResult, CONTROLLERS};
 use crate::scenario::ScenarioId;
 use crate::study::PlantDraw;
 
@@ -138,17 +138,6 @@ pub struct JobJson<'a> {
 
 /// Unstable runs listed one by one in `report.md` (all are in `runs.csv`).
 const MAX_LISTED: usize = 40;
-
-/// Median (`None` if empty); sorts the slice in place.
-pub(super) fn median(v: &mut [f64]) -> Option<f64> {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    match n {
-        0 => None,
-        _ if n % 2 == 1 => v.get(n / 2).copied(),
-        _ => Some(0.5 * (v.get(n / 2 - 1)? + v.get(n / 2)?)),
-    }
-}
 
 fn spread(mut v: Vec<f64>) -> Option<Spread> {
     let med = median(&mut v)?;

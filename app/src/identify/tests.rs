@@ -88,13 +88,13 @@ impl Ideal {
 }
 
 /// Run an identification to its end; the records and the final state.
-fn run(nan_at: u32) -> (Vec<Record>, Identification, Controller) {
+fn run(nan_at: u32) -> (Vec<TelemetryRecord>, Identification, Controller) {
     let t = tables();
     let mut ctl = controller();
     let player = begin(&mut ctl, &t, 2.0, true, None).unwrap();
     let mut id = Identification::new();
     id.start(player);
-    let mut q: Queue<Record, 8> = Queue::new();
+    let mut q: Queue<TelemetryRecord, 8> = Queue::new();
     let (mut p, mut c) = q.split();
     let mut rig = Ideal {
         pos_mm: 0.0,
@@ -223,7 +223,7 @@ fn the_link_request_starts_an_identification_and_numbers_its_samples() {
     assert!(matches!(e, Effect::Identify(_)));
     assert!(s.identifying);
     assert_eq!(ctl.supervisor().state(), State::Running);
-    let r = Record {
+    let r = TelemetryRecord {
         tick: 0,
         command_mm: 0.25,
         target_mm: 0.25,

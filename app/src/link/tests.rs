@@ -299,7 +299,7 @@ fn upload_lr_refusals_and_swap() {
 fn telemetry_decimation_and_sequence_numbers() {
     let mut s = session(true, Rearm::OncePerPowerUp);
     s.every = 3;
-    let rec = |tick| Record {
+    let rec = |tick| TelemetryRecord {
         tick,
         command_mm: 1.0,
         target_mm: 2.0,

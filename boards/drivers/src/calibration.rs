@@ -1,6 +1,6 @@
 //! The rig's calibration: which ADC channel carries which sensor, volts per engineering unit and
 //! offsets of each sensor, and the volts per mm of the servo-controller's command input. Validated at
-//! construction ([`Calibration::new`]); the drivers never hold a scale constant of their own.
+//! construction ([`ConverterCalibration::new`]); the drivers never hold a scale constant of their own.
 //!
 //! Conventions (all at the converter pins, after the servo-controller's conditioning):
 //! - sensor: `volts = volts_per_unit · value + offset_v`, so `value = (volts − offset_v) / volts_per_unit`;
@@ -131,11 +131,11 @@ impl CalibrationConfig {
 
 /// A validated calibration (immutable).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Calibration {
+pub struct ConverterCalibration {
     cfg: CalibrationConfig,
 }
 
-impl Calibration {
+impl ConverterCalibration {
     /// Validate: finite non-zero scales, finite offsets within full scale, channels in 0..8 and
     /// distinct.
     pub fn new(cfg: CalibrationConfig) -> Result<Self, CalibrationError> {

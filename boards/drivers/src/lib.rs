@@ -17,5 +17,5 @@ pub mod ad7606;
 pub mod calibration;
 pub mod rig;
 
-pub use calibration::{Calibration, CalibrationConfig, CalibrationError, Scale};
+pub use calibration::{CalibrationConfig, CalibrationError, ConverterCalibration, Scale};
 pub use rig::{check_estop, ActiveLevel, EStop, Rig, RigError};

@@ -1,4 +1,4 @@
-//! The real rig as the controller sees it: the AD7606 and the AD5754R behind a [`Calibration`], as
+//! The real rig as the controller sees it: the AD7606 and the AD5754R behind a [`ConverterCalibration`], as
 //! `rths_core::hal::{Daq, Actuator}`, and the hardware E-stop input.
 
 use embedded_hal::delay::DelayNs;
@@ -8,7 +8,7 @@ use rths_core::hal::{Actuator, Daq, ErrorKind, Sample};
 
 use crate::ad5754::{self, Ad5754, Ad5754Error};
 use crate::ad7606::{self, Ad7606, Ad7606Error};
-use crate::calibration::Calibration;
+use crate::calibration::ConverterCalibration;
 
 /// A failure of the rig's I/O.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -38,7 +38,7 @@ impl rths_core::hal::Error for RigError {
 pub struct Rig<ASPI, CONVST, BUSY, RESET, AD, DSPI, LDAC, DD> {
     adc: Ad7606<ASPI, CONVST, BUSY, RESET, AD>,
     dac: Ad5754<DSPI, LDAC, DD>,
-    cal: Calibration,
+    cal: ConverterCalibration,
     last_code: i16,
 }
 
@@ -55,11 +55,11 @@ where
     DD: DelayNs,
 {
     /// The rig from its initialized converters. The ADC must clock out at least
-    /// [`Calibration::channels_to_read`] channels (checked by the caller's configuration).
+    /// [`ConverterCalibration::channels_to_read`] channels (checked by the caller's configuration).
     pub fn new(
         adc: Ad7606<ASPI, CONVST, BUSY, RESET, AD>,
         dac: Ad5754<DSPI, LDAC, DD>,
-        cal: Calibration,
+        cal: ConverterCalibration,
     ) -> Self {
         Self {
             adc,
@@ -70,7 +70,7 @@ where
     }
 
     /// The calibration in use.
-    pub fn calibration(&self) -> &Calibration {
+    pub fn calibration(&self) -> &ConverterCalibration {
         &self.cal
     }
 

@@ -20,7 +20,7 @@ use embedded_hal::delay::DelayNs;
 use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
 use rths_board_drivers::ad5754::{Ad5754, Ad5754Error};
 use rths_board_drivers::ad7606::{Ad7606, Ad7606Config, Ad7606Error};
-use rths_board_drivers::{ActiveLevel, Calibration, CalibrationConfig, EStop, Rig};
+use rths_board_drivers::{ActiveLevel, ConverterCalibration, CalibrationConfig, EStop, Rig};
 use stm32f4xx_hal::gpio::{Input, Output, PushPull, PB0, PB1, PB12, PC4, PC5, PD0, PD1};
 pub use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
@@ -150,7 +150,7 @@ pub struct Board {
 impl Board {
     /// Clocks, pins, converters (ADC reset, DAC range set and read back, output latched at 0 V), E-stop,
     /// link UART, and the tick timer (stopped).
-    pub fn init(dp: pac::Peripherals, cal: Calibration) -> Result<Self, BoardError> {
+    pub fn init(dp: pac::Peripherals, cal: ConverterCalibration) -> Result<Self, BoardError> {
         let watchdog = Iwdg(stm32f4xx_hal::watchdog::IndependentWatchdog::new(dp.IWDG));
         let mut rcc = dp.RCC.freeze(
             Config::hse(HSE_HZ.Hz())
@@ -311,7 +311,7 @@ impl rths_app::board::Board for Stm32f4 {
     type Counter = CycleCounter;
     type EStop = EStopInput;
     type Harness = rths_app::board::NoHarness;
-    type Calibration = rths_app::board::NoCalibration;
+    type CounterCalibration = rths_app::board::NoCounterCalibration;
     type Watchdog = Iwdg;
     const EMULATED_PLANT: bool = false;
 
@@ -340,7 +340,7 @@ pub fn init(
     dp: pac::Peripherals,
     mut core: cortex_m::Peripherals,
 ) -> Result<rths_app::board::Parts<Stm32f4>, BoardError> {
-    let cal = Calibration::new(CalibrationConfig::paper_actuator())
+    let cal = ConverterCalibration::new(CalibrationConfig::paper_actuator())
         .map_err(|_| BoardError::Calibration)?;
     let b = Board::init(dp, cal)?;
     core.DCB.enable_trace();
@@ -352,7 +352,7 @@ pub fn init(
         counter: CycleCounter,
         estop: EStopInput(b.estop),
         harness: rths_app::board::NoHarness,
-        calibration: rths_app::board::NoCalibration,
+        calibration: rths_app::board::NoCounterCalibration,
         watchdog: b.watchdog,
     })
 }

@@ -31,7 +31,7 @@ use embedded_hal::delay::DelayNs;
 use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
 use rths_board_drivers::ad5754::{Ad5754, Ad5754Error};
 use rths_board_drivers::ad7606::{Ad7606, Ad7606Config, Ad7606Error};
-use rths_board_drivers::{ActiveLevel, Calibration, CalibrationConfig, EStop, Rig};
+use rths_board_drivers::{ActiveLevel, ConverterCalibration, CalibrationConfig, EStop, Rig};
 use stm32h7xx_hal::gpio::{Input, Output, Pin, PushPull};
 use stm32h7xx_hal::independent_watchdog::IndependentWatchdog;
 pub use stm32h7xx_hal::pac;
@@ -236,7 +236,7 @@ pub struct Board {
 impl Board {
     /// Power and clocks, pins, converters (ADC reset, DAC range set and read back, output latched at
     /// 0 V), E-stop, link UART, the tick timer (stopped) and the watchdog (not started).
-    pub fn init(dp: pac::Peripherals, cal: Calibration) -> Result<Self, BoardError> {
+    pub fn init(dp: pac::Peripherals, cal: ConverterCalibration) -> Result<Self, BoardError> {
         // 480 MHz needs voltage scale 0 (revision V silicon).
         let pwrcfg = dp.PWR.constrain().vos0(&dp.SYSCFG).freeze();
         let ccdr = dp
@@ -351,7 +351,7 @@ impl rths_app::board::Board for Stm32h743 {
     type Counter = CycleCounter;
     type EStop = EStopInput;
     type Harness = rths_app::board::NoHarness;
-    type Calibration = rths_app::board::NoCalibration;
+    type CounterCalibration = rths_app::board::NoCounterCalibration;
     type Watchdog = Watchdog;
     const EMULATED_PLANT: bool = false;
 
@@ -380,7 +380,7 @@ pub fn init(
     dp: pac::Peripherals,
     mut core: cortex_m::Peripherals,
 ) -> Result<rths_app::board::Parts<Stm32h743>, BoardError> {
-    let cal = Calibration::new(CalibrationConfig::paper_actuator())
+    let cal = ConverterCalibration::new(CalibrationConfig::paper_actuator())
         .map_err(|_| BoardError::Calibration)?;
     // The M7's caches: the instruction cache speeds flash execution; the data cache stays off (the
     // statics and the stack are in DTCM, which it does not serve, and the SPI buffers need no
@@ -396,7 +396,7 @@ pub fn init(
         counter: CycleCounter,
         estop: EStopInput(b.estop),
         harness: rths_app::board::NoHarness,
-        calibration: rths_app::board::NoCalibration,
+        calibration: rths_app::board::NoCounterCalibration,
         watchdog: b.watchdog,
     })
 }

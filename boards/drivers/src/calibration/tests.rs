@@ -2,7 +2,7 @@ use super::*;
 
 #[test]
 fn the_paper_default_maps_full_strokes_to_full_scale() {
-    let c = Calibration::new(CalibrationConfig::paper_actuator()).unwrap();
+    let c = ConverterCalibration::new(CalibrationConfig::paper_actuator()).unwrap();
     let k = c.config();
     assert_eq!((k.disp_channel, k.force_channel), (0, 1));
     assert!((k.disp.to_volts(25.4) - 10.0).abs() < 1e-12);
@@ -87,14 +87,14 @@ fn bad_calibrations_are_refused() {
         ),
     ];
     for (cfg, want) in cases {
-        assert_eq!(Calibration::new(cfg), Err(want));
+        assert_eq!(ConverterCalibration::new(cfg), Err(want));
         assert!(!want.to_string().is_empty());
     }
 }
 
 #[test]
 fn channels_to_read_reaches_the_higher_channel() {
-    let c = Calibration::new(CalibrationConfig {
+    let c = ConverterCalibration::new(CalibrationConfig {
         disp_channel: 5,
         force_channel: 2,
         ..CalibrationConfig::paper_actuator()

@@ -38,7 +38,7 @@ fn rig(
     dac_spi: &[SpiT<u8>],
     ldac_pulses: usize,
 ) -> (TestRig, Mocks) {
-    let cal = Calibration::new(cal).unwrap();
+    let cal = ConverterCalibration::new(cal).unwrap();
     let mut conv = Vec::new();
     let mut busy = Vec::new();
     for _ in 0..conversions {
@@ -180,7 +180,7 @@ fn a_non_finite_command_is_refused_and_nothing_is_written() {
 #[test]
 fn adc_and_dac_failures_keep_their_kind() {
     // BUSY stuck high before the conversion.
-    let cal = Calibration::new(CalibrationConfig::paper_actuator()).unwrap();
+    let cal = ConverterCalibration::new(CalibrationConfig::paper_actuator()).unwrap();
     let mut busy = Pin::new(&[PinT::get(State::High)]);
     let mut others = [Spi::new(&[])];
     let mut pins = [Pin::new(&[]), Pin::new(&[])];

@@ -1,8 +1,9 @@
 use super::*;
+use crate::checksum::Fnv1a64;
 use crate::structure_n::{StructureN, MAX_DOF};
 use crate::structure_nl::NonlinearFrame;
 
-const DT_S: f64 = 1.0 / 2048.0;
+const DT_2048_S: f64 = 1.0 / 2048.0;
 
 /// One yielding story of mass `m` on the specimen `k_e`, as the FE's numerical part and as the
 /// modal model with its one mode: the two must be the same computation.
@@ -11,7 +12,7 @@ fn one_mode_one_spring_is_the_fe_pure_loop() {
     let (m, c, k0, k_e) = (1.75, 0.9, 176.75, 622.54);
     let law = Law::bilinear(k0, 1569.2, 0.05).expect("valid law");
     let model = StructureN::new(1, &[m], &[c], &[0.0], &[k0 + k_e], &[m]).expect("valid");
-    let mut fe = NonlinearFrame::new(model, &[law], DT_S).expect("valid frame");
+    let mut fe = NonlinearFrame::new(model, &[law], DT_2048_S).expect("valid frame");
     let w = ((k0 + k_e) / m).sqrt();
     let phi = 1.0 / m.sqrt();
     let mode = ModalMode {
@@ -19,7 +20,8 @@ fn one_mode_one_spring_is_the_fe_pure_loop() {
         damping_ratio: c / (2.0 * m * w),
         ground_participation: phi * m,
     };
-    let p = ModalHystParams::new(DT_S, &[mode], &[phi], 0, k_e, &[law], &[phi]).expect("valid");
+    let p =
+        ModalHystParams::new(DT_2048_S, &[mode], &[phi], 0, k_e, &[law], &[phi]).expect("valid");
     let mut mm = ModalHyst::new(p);
     let ag = |k: usize| 9000.0 * libm::sin(k as f64 * 0.01) * libm::sin(k as f64 * 3e-4);
     fe.reset(ag(0));
@@ -48,7 +50,7 @@ fn small() -> ModalHystParams {
         ground_participation: 1.0,
     };
     let law = Law::bouc_wen(100.0, 50.0, 0.05, 2.0, 0.5, 0.5).expect("valid law");
-    ModalHystParams::new(DT_S, &[mode], &[1.0], 0, 10.0, &[law], &[1.0]).expect("valid")
+    ModalHystParams::new(DT_2048_S, &[mode], &[1.0], 0, 10.0, &[law], &[1.0]).expect("valid")
 }
 
 #[test]
@@ -62,33 +64,33 @@ fn bad_params_are_refused_with_the_reason() {
     let ok = |dt: f64, modes: &[ModalMode], shape: &[f64], dof: usize, k: f64, drift: &[f64]| {
         ModalHystParams::new(dt, modes, shape, dof, k, &[law], drift)
     };
-    assert!(ok(DT_S, &[mode], &[1.0], 0, 1.0, &[1.0]).is_ok());
+    assert!(ok(DT_2048_S, &[mode], &[1.0], 0, 1.0, &[1.0]).is_ok());
     assert!(ok(0.0, &[mode], &[1.0], 0, 1.0, &[1.0]).is_err());
     assert!(ok(f64::NAN, &[mode], &[1.0], 0, 1.0, &[1.0]).is_err());
-    assert!(ok(DT_S, &[], &[1.0], 0, 1.0, &[1.0]).is_err());
+    assert!(ok(DT_2048_S, &[], &[1.0], 0, 1.0, &[1.0]).is_err());
     let neg = ModalMode {
         omega_rad_s: -1.0,
         ..mode
     };
-    assert!(ok(DT_S, &[neg], &[1.0], 0, 1.0, &[1.0]).is_err());
+    assert!(ok(DT_2048_S, &[neg], &[1.0], 0, 1.0, &[1.0]).is_err());
     let overdamped = ModalMode {
         damping_ratio: 1.0,
         ..mode
     };
-    assert!(ok(DT_S, &[overdamped], &[1.0], 0, 1.0, &[1.0]).is_err());
+    assert!(ok(DT_2048_S, &[overdamped], &[1.0], 0, 1.0, &[1.0]).is_err());
     let nan = ModalMode {
         ground_participation: f64::NAN,
         ..mode
     };
-    assert!(ok(DT_S, &[nan], &[1.0], 0, 1.0, &[1.0]).is_err());
+    assert!(ok(DT_2048_S, &[nan], &[1.0], 0, 1.0, &[1.0]).is_err());
     assert!(
-        ok(DT_S, &[mode], &[1.0], 1, 1.0, &[1.0]).is_err(),
+        ok(DT_2048_S, &[mode], &[1.0], 1, 1.0, &[1.0]).is_err(),
         "dof past floors"
     );
-    assert!(ok(DT_S, &[mode], &[1.0], 0, -1.0, &[1.0]).is_err());
-    assert!(ok(DT_S, &[mode], &[f64::INFINITY], 0, 1.0, &[1.0]).is_err());
+    assert!(ok(DT_2048_S, &[mode], &[1.0], 0, -1.0, &[1.0]).is_err());
+    assert!(ok(DT_2048_S, &[mode], &[f64::INFINITY], 0, 1.0, &[1.0]).is_err());
     assert!(matches!(
-        ok(DT_S, &[mode], &[1.0], 0, 1.0, &[1.0, 2.0]),
+        ok(DT_2048_S, &[mode], &[1.0], 0, 1.0, &[1.0, 2.0]),
         Err(ModelError::Shape {
             expected: 1,
             got: 2,
@@ -96,10 +98,10 @@ fn bad_params_are_refused_with_the_reason() {
         })
     ));
     assert!(
-        ok(DT_S, &[mode], &[1.0; 9], 0, 1.0, &[1.0]).is_err(),
+        ok(DT_2048_S, &[mode], &[1.0; 9], 0, 1.0, &[1.0]).is_err(),
         "9 floors"
     );
-    assert!(ModalHystParams::new(DT_S, &[mode], &[1.0], 0, 1.0, &[], &[]).is_err());
+    assert!(ModalHystParams::new(DT_2048_S, &[mode], &[1.0], 0, 1.0, &[], &[]).is_err());
 }
 
 #[test]
@@ -172,15 +174,13 @@ fn the_step_is_pinned_bit_for_bit() {
         4000.0 * libm::sin(9.0 * t + 0.5 * t * t)
     };
     m.reset_at(ag(0));
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut h = Fnv1a64::new();
     let mut peak: f64 = 0.0;
     for k in 1..20_000 {
         let f = 45.0 * m.target_mm();
         let y = m.step(ag(k), f).expect("finite step");
         for x in [y, m.floor_disp_mm(0), m.floor_disp_mm(1)] {
-            for b in x.to_bits().to_le_bytes() {
-                h = (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
-            }
+            h.write_f64(x);
         }
         peak = peak.max(libm::fabs(m.spring_drift_mm(1)));
     }
@@ -188,5 +188,6 @@ fn the_step_is_pinned_bit_for_bit() {
         peak > 5.0 * 40.0 / 220.0,
         "the bilinear spring yields: {peak}"
     );
+    let h = h.finish();
     assert_eq!(h, 0xece1_0616_2a44_6ac3, "{h:016x}");
 }

@@ -1,0 +1,33 @@
+//! The host side of the command link (`rths link`): open a serial port, a TCP socket (QEMU's serial
+//! port on 127.0.0.1) or a QEMU process of our own, send requests, wait for their answers, and record
+//! the telemetry stream with its sequence numbers checked. The protocol is `rths-link`'s.
+//!
+//! One job a file, imports running one way (down this list):
+//! - [`qemu`]: the QEMU process of the emulated board, its link on a loopback socket;
+//! - [`session`]: a session with a device (requests and answers, uploads, runs, telemetry);
+//! - [`wire`]: the wire layout of uploaded models, records and rig compensations, and the names of
+//!   what the device reports;
+//! - [`recording`]: the recording file format (`rths link run --out`, `rths report`);
+//! - [`transport`]: the byte streams (TCP, serial);
+//! - [`error`]: the link's errors.
+
+pub mod error;
+pub mod qemu;
+pub mod recording;
+pub mod session;
+pub mod transport;
+pub mod wire;
+
+pub use error::LinkHostError;
+pub use qemu::{qemu_args, Qemu};
+pub use recording::{
+    check_named_file, csv_row, read_recording, read_recording_file, Recording, RecordingError,
+    RecordingRow, RunHeader, CSV_HEADER, MAX_NAMED_FILE_BYTES, MAX_RECORDING_BYTES,
+    RECORDING_FORMAT,
+};
+pub use session::{IdentifyStream, Link, RecordSummary};
+pub use transport::Port;
+pub use wire::{
+    fault_name, lrx_rig_extras, model_kind_name, model_messages, model_values, record_messages,
+    record_source_name, rig_message, rig_values, state_name, upload_message,
+};

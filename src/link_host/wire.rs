@@ -1,0 +1,280 @@
+//! The wire layout of what the host uploads (an LR model in one frame, other models and ground-motion
+//! records in chunks, a rig compensation in one frame), and the names of what the device reports
+//! (model kinds, record sources, run states, fault codes).
+
+use rths_link::{
+    HostMsg, ModelKind as WireModelKind, RecordSource, RunState, LR_COEFFS, RECORD_CHUNK,
+};
+
+use super::error::LinkHostError;
+use crate::model_file::{ModelFile, ModelKind};
+use rths_core::supervisor::FaultReason;
+
+/// The upload message of an LR model file (validated here too: kind, 6 coefficients, finite).
+pub fn upload_message(model: &ModelFile) -> Result<HostMsg, LinkHostError> {
+    if model.kind != ModelKind::Lr {
+        return Err(LinkHostError::Model(
+            "only LR models can be uploaded over the link".into(),
+        ));
+    }
+    let theta: [f64; LR_COEFFS] = model
+        .lr
+        .as_ref()
+        .and_then(|w| w.theta.clone().try_into().ok())
+        .ok_or_else(|| LinkHostError::Model(format!("lr.theta must have {LR_COEFFS} values")))?;
+    let delay = u16::try_from(model.delay_steps)
+        .map_err(|_| LinkHostError::Model("delay_steps does not fit 16 bits".into()))?;
+    Ok(HostMsg::UploadLr {
+        features: LR_COEFFS as u8,
+        theta,
+        delay_steps: delay,
+        checksum: rths_link::model_checksum(&theta, delay),
+    })
+}
+
+/// The messages of a record upload: `RecordBegin`, one `RecordChunk` per [`RECORD_CHUNK`] samples
+/// (numbered from 0), `RecordCommit`. Checked here too (≥ 2 finite samples, a finite step and scale)
+/// so that a bad file fails before anything is sent; the device checks again.
+pub fn record_messages(
+    samples_g: &[f64],
+    dt_s: f64,
+    scale: f64,
+) -> Result<Vec<HostMsg>, LinkHostError> {
+    if samples_g.len() < 2 {
+        return Err(LinkHostError::Motion("fewer than 2 samples".into()));
+    }
+    if let Some(i) = samples_g.iter().position(|v| !v.is_finite()) {
+        return Err(LinkHostError::Motion(format!("sample {i} is not finite")));
+    }
+    if !(dt_s.is_finite() && dt_s > 0.0 && scale.is_finite()) {
+        return Err(LinkHostError::Motion(format!(
+            "step {dt_s} s or scale {scale} is not a finite positive number"
+        )));
+    }
+    let samples = u32::try_from(samples_g.len())
+        .map_err(|_| LinkHostError::Motion("more than 2^32 samples".into()))?;
+    let mut out = Vec::with_capacity(samples_g.len() / RECORD_CHUNK + 3);
+    out.push(HostMsg::RecordBegin {
+        samples,
+        dt_s,
+        scale,
+        checksum: rths_link::record_checksum(samples_g, dt_s),
+    });
+    for (i, ch) in samples_g.chunks(RECORD_CHUNK).enumerate() {
+        let mut values = [0.0; RECORD_CHUNK];
+        values
+            .get_mut(..ch.len())
+            .ok_or_else(|| LinkHostError::Motion("chunk".into()))?
+            .copy_from_slice(ch);
+        out.push(HostMsg::RecordChunk {
+            seq: i as u32,
+            count: ch.len() as u8,
+            values,
+        });
+    }
+    out.push(HostMsg::RecordCommit);
+    Ok(out)
+}
+
+/// The flat values of a model file for a chunked upload, and its wire kind: LRX in
+/// `rths_link::lrx_values`' order; an RNN as `w_ih` (row-major), `w_hh` (row-major), `b_h`, `w_ho`,
+/// `b_o`, `input_mean`, `input_std`, `output_mean`, `output_std` (`rths_link::rnn_value_count`'s
+/// order; only an RNN build of the same hidden size takes it, others refuse it).
+pub fn model_values(model: &ModelFile) -> Result<(WireModelKind, Vec<f64>), LinkHostError> {
+    let missing = |what: &str| LinkHostError::Model(format!("no {what} section"));
+    match model.kind {
+        ModelKind::Lrx => {
+            let x = model.lrx.as_ref().ok_or_else(|| missing("lrx"))?;
+            let v = rths_link::lrx_values(
+                &x.coeffs,
+                x.k_corr_kn_per_mm,
+                x.k_adapt_ticks,
+                &x.lead_weights,
+                x.lead_stride,
+            )
+            .ok_or_else(|| LinkHostError::Model("lrx: 9 coefficients and 8 lead weights".into()))?;
+            Ok((WireModelKind::Lrx, v.to_vec()))
+        }
+        ModelKind::Rnn => {
+            let r = model.rnn.as_ref().ok_or_else(|| missing("rnn"))?;
+            let mut v: Vec<f64> = r.w_ih.concat();
+            v.extend(r.w_hh.concat());
+            v.extend(&r.b_h);
+            v.extend(&r.w_ho);
+            v.push(r.b_o);
+            v.extend(&r.input_mean);
+            v.extend(&r.input_std);
+            v.push(r.output_mean);
+            v.push(r.output_std);
+            Ok((WireModelKind::Rnn, v))
+        }
+        ModelKind::Lr => Err(LinkHostError::Model(
+            "an LR model goes in one UploadLr".into(),
+        )),
+    }
+}
+
+/// The rig-compensation values that carry an LRX model's optional lead adaptation and specimen
+/// dynamics (`rths train lrx --rig`), in `rths_link::rig_values`' layout (0: absent, as the device
+/// reads them), or `None` for a model without them (or not LRX).
+pub fn lrx_rig_extras(model: &ModelFile) -> Result<Option<Vec<f64>>, LinkHostError> {
+    let Some(x) = model.lrx.as_ref().filter(|_| model.kind == ModelKind::Lrx) else {
+        return Ok(None);
+    };
+    let extras = [
+        x.lead_adapt_ticks,
+        x.specimen_mass_kn_s2_per_mm,
+        x.specimen_damping_kn_s_per_mm,
+    ];
+    if extras.iter().all(Option::is_none) {
+        return Ok(None);
+    }
+    let [adapt, mass, damping] = extras.map(|v| v.unwrap_or(0.0));
+    rths_link::rig_values(&x.lead_weights, x.lead_stride, adapt, [mass, damping])
+        .map(|v| Some(v.to_vec()))
+        .ok_or_else(|| LinkHostError::Model("lrx: 8 lead weights".into()))
+}
+
+/// The messages of a chunked model upload: `ModelBegin`, the chunks of [`RECORD_CHUNK`] values,
+/// `ModelCommit`.
+pub fn model_messages(model: &ModelFile) -> Result<Vec<HostMsg>, LinkHostError> {
+    let (kind, v) = model_values(model)?;
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return Err(LinkHostError::Model(format!("value {i} is not finite")));
+    }
+    let values = u16::try_from(v.len())
+        .map_err(|_| LinkHostError::Model("more than 65535 values".into()))?;
+    let delay_steps = u16::try_from(model.delay_steps)
+        .map_err(|_| LinkHostError::Model("delay_steps does not fit 16 bits".into()))?;
+    let mut out = vec![HostMsg::ModelBegin {
+        kind,
+        values,
+        delay_steps,
+        checksum: rths_link::model_values_checksum(kind, &v, delay_steps),
+    }];
+    for (i, ch) in v.chunks(RECORD_CHUNK).enumerate() {
+        let mut values = [0.0; RECORD_CHUNK];
+        values
+            .get_mut(..ch.len())
+            .ok_or_else(|| LinkHostError::Model("chunk".into()))?
+            .copy_from_slice(ch);
+        out.push(HostMsg::ModelChunk {
+            seq: i as u32,
+            count: ch.len() as u8,
+            values,
+        });
+    }
+    out.push(HostMsg::ModelCommit);
+    Ok(out)
+}
+
+/// The rig compensation a rig file (`rths identify`) gives a device's analytical part `kind`, in
+/// `rths_link::rig_value_count`'s layout: FE + ATS: the ATS's identified initial [a0, a1, a2] (as
+/// `rths simulate fe-online-ats --rig` starts from); LRX: the identified lead filter, the lead's
+/// adaptation time constant `lead_adapt_ticks`, and the specimen's moving mass and damping at the
+/// prototype's scale (as `rths train lrx --rig` writes them into a model). Another kind has none.
+pub fn rig_values(
+    rig: &crate::identify::RigFile,
+    kind: WireModelKind,
+    lead_adapt_ticks: f64,
+) -> Result<Vec<f64>, LinkHostError> {
+    match kind {
+        WireModelKind::FeAts => Ok(rig.compensation.ats_initial.to_vec()),
+        WireModelKind::Lrx => {
+            let lead = rig
+                .lead_params()
+                .map_err(|e| LinkHostError::Model(format!("rig file: {e}")))?;
+            let dynamics = crate::train::lrx::prototype_dynamics(&rig.specimen_fit);
+            let v =
+                rths_link::rig_values(lead.weights(), lead.stride(), lead_adapt_ticks, dynamics)
+                    .ok_or_else(|| LinkHostError::Model("rig file: 8 lead weights".into()))?;
+            Ok(v.to_vec())
+        }
+        WireModelKind::Lr | WireModelKind::Rnn => Err(LinkHostError::Model(format!(
+            "the device runs {}, which has no rig compensation to upload",
+            model_kind_name(kind)
+        ))),
+    }
+}
+
+/// The `UploadRig` message of a rig compensation for `kind` (its values, one frame).
+pub fn rig_message(kind: WireModelKind, values: &[f64]) -> Result<HostMsg, LinkHostError> {
+    if values.len() > rths_link::RIG_MAX_VALUES {
+        return Err(LinkHostError::Model(format!(
+            "{} rig values, a frame holds {}",
+            values.len(),
+            rths_link::RIG_MAX_VALUES
+        )));
+    }
+    let mut v = [0.0; RECORD_CHUNK];
+    v.get_mut(..values.len())
+        .ok_or_else(|| LinkHostError::Model("rig values".into()))?
+        .copy_from_slice(values);
+    Ok(HostMsg::UploadRig {
+        kind,
+        count: values.len() as u8,
+        values: v,
+        checksum: rths_link::rig_checksum(kind, values),
+    })
+}
+
+/// The name of a model kind as the device reports it.
+pub fn model_kind_name(k: WireModelKind) -> &'static str {
+    match k {
+        WireModelKind::Lr => "lr",
+        WireModelKind::Lrx => "lrx",
+        WireModelKind::Rnn => "rnn",
+        WireModelKind::FeAts => "fe-ats",
+    }
+}
+
+/// The name of a record's source as the device reports it.
+pub fn record_source_name(s: RecordSource) -> &'static str {
+    match s {
+        RecordSource::Compiled => "compiled in",
+        RecordSource::Uploaded => "uploaded",
+    }
+}
+
+/// A state's name in the CSV and the status print.
+pub fn state_name(s: RunState) -> String {
+    match s {
+        RunState::Idle => "idle".into(),
+        RunState::Armed => "armed".into(),
+        RunState::Running => "running".into(),
+        RunState::RampDown => "ramp-down".into(),
+        RunState::Done => "done".into(),
+        RunState::Fault(c) => format!("fault-{}", fault_name(c)),
+    }
+}
+
+/// The name of a fault code (`rths_core::supervisor::FaultReason`'s table); "Unknown" for a code
+/// this host does not know (a newer firmware's).
+pub fn fault_name(code: u8) -> &'static str {
+    FaultReason::from_code(code).map_or("Unknown", FaultReason::name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn record_and_model_messages_chunk_and_check_their_input() {
+        let samples: Vec<f64> = (0..25).map(|i| i as f64 * 0.01).collect();
+        let m = record_messages(&samples, 0.02, 1.0).unwrap();
+        assert_eq!(m.len(), 1 + 3 + 1, "begin, 12 + 12 + 1, commit");
+        match m[3] {
+            HostMsg::RecordChunk { seq, count, .. } => assert_eq!((seq, count), (2, 1)),
+            _ => panic!("{:?}", m[3]),
+        }
+        assert!(record_messages(&samples[..1], 0.02, 1.0).is_err());
+        assert!(record_messages(&[0.0, f64::NAN], 0.02, 1.0).is_err());
+        assert!(record_messages(&samples, 0.0, 1.0).is_err());
+        assert!(record_messages(&samples, 0.02, f64::INFINITY).is_err());
+        let lrx = ModelFile::from_json(include_str!("../../data/models/lrx.json")).unwrap();
+        let m = model_messages(&lrx).unwrap();
+        assert_eq!(m.len(), 1 + 2 + 1, "begin, 12 + 8 values, commit");
+        let lr = ModelFile::from_json(include_str!("../../data/models/lr.json")).unwrap();
+        assert!(model_messages(&lr).is_err(), "LR goes in one UploadLr");
+    }
+}
