@@ -8,8 +8,14 @@ MODEL.py is built as `export_model.py` builds it (run as `rths_export`, its dire
 `sys.path`). AG.txt holds the ground acceleration, one value per line in the model's units,
 sample k at time k*DT. The analysis is Newmark's average acceleration (gamma 1/2, beta 1/4) at
 DT with a linear algorithm factorizing once (`Linear -factorOnce`, a `BandSPD` system, RCM
-numbering), a `UniformExcitation` in `--direction`, the model's own damping; the model starts at
-rest. OUT.csv gets `time_s` and one column `NODE_DOF` of displacements per DOF, a row per sample
+numbering), the model's own damping; the model starts at rest.
+
+The ground motion enters as the effective earthquake loads `-M*iota*ag(t)` on the nodes (a `Plain`
+pattern on a `Path` series), `M` being the mass matrix OpenSees assembles for the model (the one
+its inertia forces use) and `iota` 1 on DOF `--direction` of every node. `--excitation uniform`
+uses OpenSees's `UniformExcitation` instead: openseespy 3.7.1.2 applies the ground force of an
+`elasticBeamColumn`'s `-mass` twice there (measured: twice the response of the same mass given
+with `ops.mass`), so its response to distributed mass is not the model's (docs/opensees.md). OUT.csv gets `time_s` and one column `NODE_DOF` of displacements per DOF, a row per sample
 (row 0: rest). stdout gets one JSON line: steps, seconds in `analyze`, seconds per step.
 """
 
@@ -25,6 +31,36 @@ SERIES_TAG = 987001
 PATTERN_TAG = 987001
 
 
+def ground_loads(ops, direction):
+    """(node, nodal load per unit ground acceleration) for every node with mass: -M*iota."""
+    ops.wipeAnalysis()
+    ops.system("FullGeneral")
+    ops.numberer("RCM")
+    ops.constraints("Transformation")
+    ops.algorithm("Linear")
+    ops.integrator("GimmeMCK", 0.0, 0.0, 1.0)
+    ops.analysis("Transient")
+    if ops.analyze(1, 0.0) != 0:
+        print("transient.py: OpenSees could not assemble the model", file=sys.stderr)
+        sys.exit(2)
+    n = ops.systemSize()
+    eqs = {node: ops.nodeDOFs(node) for node in sorted(ops.getNodeTags())}
+    iota = [0.0] * n
+    for node, dofs in eqs.items():
+        if len(dofs) >= direction and dofs[direction - 1] >= 0:
+            iota[dofs[direction - 1]] = 1.0
+    ops.integrator("GimmeMCK", 1.0, 0.0, 0.0)
+    m = ops.printA("-ret")
+    m_iota = [sum(m[i * n + j] * iota[j] for j in range(n) if iota[j] != 0.0) for i in range(n)]
+    loads = []
+    for node, dofs in eqs.items():
+        values = [-m_iota[e] if e >= 0 else 0.0 for e in dofs]
+        if any(v != 0.0 for v in values):
+            loads.append((node, values))
+    ops.wipeAnalysis()
+    return loads
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("model")
@@ -33,6 +69,7 @@ def main():
     p.add_argument("--dofs", required=True)
     p.add_argument("--out", required=True)
     p.add_argument("--direction", type=int, default=1)
+    p.add_argument("--excitation", choices=("nodal", "uniform"), default="nodal")
     args = p.parse_args()
 
     import openseespy.opensees as ops
@@ -49,7 +86,13 @@ def main():
         dofs.append((int(node), int(dof)))
 
     ops.timeSeries("Path", SERIES_TAG, "-dt", args.dt, "-values", *ag)
-    ops.pattern("UniformExcitation", PATTERN_TAG, args.direction, "-accel", SERIES_TAG)
+    if args.excitation == "uniform":
+        ops.pattern("UniformExcitation", PATTERN_TAG, args.direction, "-accel", SERIES_TAG)
+    else:
+        loads = ground_loads(ops, args.direction)
+        ops.pattern("Plain", PATTERN_TAG, SERIES_TAG)
+        for node, values in loads:
+            ops.load(node, *values)
     ops.wipeAnalysis()
     ops.system("BandSPD")
     ops.numberer("RCM")

@@ -13,4 +13,5 @@ pub mod report;
 pub mod reproduce;
 pub mod robustness;
 pub mod simulate;
+pub mod simulate_imported;
 pub mod train;
