@@ -10,6 +10,7 @@ use rths_core::params::DT_S;
 
 use crate::cmd::simulate::Args;
 use crate::imported::fe;
+use crate::imported::reduced::{self, ReducedModelFile};
 use crate::imported::ImportedStructure;
 use crate::nonlinear::scenario::SimScenario;
 use crate::scenario::ScenarioId;
@@ -27,6 +28,15 @@ struct ImportedJson {
     peak_interface_mm: f64,
     peak_outputs_mm: Vec<(String, f64)>,
     fe_s_per_step: f64,
+    /// `meta-pure`: the reduced model's time per step, s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    meta_s_per_step: Option<f64>,
+    /// `meta-pure`: its modes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    meta_modes: Option<usize>,
+    /// `meta-pure`: its NRMSE against the host FE of the same record, % (interface, largest output).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    meta_nrmse_pct: Option<(f64, f64)>,
 }
 
 fn peak(v: impl Iterator<Item = f64>) -> f64 {
@@ -42,12 +52,14 @@ pub fn run(
     motion_label: &str,
 ) -> anyhow::Result<()> {
     let sc = args.scenario;
-    if sc != SimScenario::Study(ScenarioId::FePure) {
-        anyhow::bail!(
-            "{sc} is not available for an imported structure ({}): run fe-pure",
+    let meta = match sc {
+        SimScenario::Study(ScenarioId::FePure) => false,
+        SimScenario::MetaPure => true,
+        _ => anyhow::bail!(
+            "{sc} is not available for an imported structure ({}): run fe-pure or meta-pure",
             path.display()
-        );
-    }
+        ),
+    };
     let refuse = |flag: &str| {
         anyhow::anyhow!("{flag} does not apply to fe-pure of an imported structure (no rig)")
     };
@@ -68,11 +80,27 @@ pub fn run(
             "--specimen-stiffness-factor (the stand-in is the imported --specimen-stiffness)",
         ));
     }
-    if args.model.is_some() {
+    if args.model.is_some() && !meta {
         return Err(refuse("--model"));
     }
     let s = ImportedStructure::from_json(text)
         .with_context(|| format!("structure file {}", path.display()))?;
+    let reduced = match (&args.model, meta) {
+        (Some(m), true) => {
+            let file = ReducedModelFile::load(m)
+                .with_context(|| format!("reduced model file {}", m.display()))?;
+            let arrays = file
+                .arrays_for(&s)
+                .with_context(|| format!("reduced model file {}", m.display()))?;
+            Some((arrays.spec().params(DT_S)?, file.outputs.clone()))
+        }
+        (None, true) => anyhow::bail!(
+            "meta-pure needs the structure's reduced model: --model M.json from `rths train meta \
+             --structure {}`",
+            path.display()
+        ),
+        _ => None,
+    };
     let bar = if std::io::stderr().is_terminal() && !args.json {
         let b = indicatif::ProgressBar::new(ag_mm_s2.len() as u64);
         if let Ok(style) =
@@ -90,6 +118,22 @@ pub fn run(
     let steps = ag_mm_s2.len().saturating_sub(1);
     let per_step = start.elapsed().as_secs_f64() / steps.max(1) as f64;
     bar.finish_and_clear();
+    // meta-pure: the reduced model's pure loop, scored against the host FE's run just made.
+    let mut meta_figures = None;
+    let history = match reduced {
+        Some((params, columns)) => {
+            let start = Instant::now();
+            let run = reduced::run_pure(params, columns, ag_mm_s2)?;
+            let meta_per_step = start.elapsed().as_secs_f64() / steps.max(1) as f64;
+            meta_figures = Some((
+                meta_per_step,
+                params.modes(),
+                reduced::history_nrmse_pct(&run, &history),
+            ));
+            run
+        }
+        None => history,
+    };
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         let csv = dir.join("history.csv");
@@ -119,6 +163,9 @@ pub fn run(
         peak_interface_mm: peak(history.interface_mm.iter().copied()),
         peak_outputs_mm,
         fe_s_per_step: per_step,
+        meta_s_per_step: meta_figures.map(|m| m.0),
+        meta_modes: meta_figures.map(|m| m.1),
+        meta_nrmse_pct: meta_figures.map(|m| m.2),
     };
     if args.json {
         println!("{}", serde_json::to_string(&json)?);
@@ -142,6 +189,14 @@ pub fn run(
         per_step * 1e6,
         DT_S
     );
+    if let Some((t, r, (ni, no))) = meta_figures {
+        println!(
+            "reduced model       {:.3} us per step ({r} modes; {:.1}x faster than the host FE)",
+            t * 1e6,
+            per_step / t.max(f64::MIN_POSITIVE)
+        );
+        println!("NRMSE vs host FE    interface {ni:.4} %, largest output {no:.4} %");
+    }
     if let Some(dir) = &args.out {
         println!("wrote {}", dir.join("history.csv").display());
     }

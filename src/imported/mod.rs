@@ -18,5 +18,6 @@ pub mod condense;
 pub mod export;
 pub mod fe;
 pub mod file;
+pub mod reduced;
 
 pub use file::{DofLabel, ImportedFile, ImportedStructure, ImportedStructureError};

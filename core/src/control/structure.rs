@@ -11,8 +11,8 @@
 
 use crate::hysteresis::Law;
 use crate::metamodel::{
-    ModalHyst, ModalHystParams, ModalMode, ModelError, ReducedModal, ReducedModalParams, ReducedMode,
-    StaticCorrection, MODAL_MAX_SPRINGS,
+    ModalHyst, ModalHystParams, ModalMode, ModelError, ReducedModal, ReducedModalParams,
+    ReducedMode, StaticCorrection, MODAL_MAX_SPRINGS,
 };
 use crate::params::ParamError;
 use crate::structure_n::{ChangN, StructureN, MAX_DOF};

@@ -117,7 +117,10 @@ impl ReducedModalParams {
         }
         all_finite(output_shape_row_major, "output mode shapes")?;
         let mut output_shape = [[0.0; REDUCED_MAX_MODES]; REDUCED_MAX_OUTPUTS];
-        for (row, src) in output_shape.iter_mut().zip(output_shape_row_major.chunks_exact(r)) {
+        for (row, src) in output_shape
+            .iter_mut()
+            .zip(output_shape_row_major.chunks_exact(r))
+        {
             for (d, s) in row.iter_mut().zip(src) {
                 *d = *s;
             }
@@ -308,8 +311,7 @@ impl ReducedModal {
         if o >= self.p.outputs {
             return 0.0;
         }
-        let (Some(row), Some(s)) = (self.p.output_shape.get(o), self.p.output_static.get(o))
-        else {
+        let (Some(row), Some(s)) = (self.p.output_shape.get(o), self.p.output_static.get(o)) else {
             return 0.0;
         };
         let modal: f64 = row

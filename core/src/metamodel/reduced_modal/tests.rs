@@ -15,7 +15,10 @@ fn one_mode(omega: f64, zeta: f64, gamma: f64, phi: f64) -> ReducedMode {
 fn two_mode_params(g: f64) -> ReducedModalParams {
     ReducedModalParams::new(
         DT_S,
-        &[one_mode(10.0, 0.02, 1.2, 0.8), one_mode(60.0, 0.05, -0.3, 0.5)],
+        &[
+            one_mode(10.0, 0.02, 1.2, 0.8),
+            one_mode(60.0, 0.05, -0.3, 0.5),
+        ],
         &[0.4, -0.2],
         StaticCorrection {
             ground_mm_per_mm_s2: 1e-6,
@@ -53,7 +56,10 @@ fn a_constant_ground_acceleration_settles_at_the_static_response() {
         target = m.step(ag, 0.0).expect("finite");
     }
     let expected = -phi * gamma * ag / (omega * omega) - h * ag;
-    assert!((target - expected).abs() < 1e-9 * expected.abs().max(1.0), "{target} vs {expected}");
+    assert!(
+        (target - expected).abs() < 1e-9 * expected.abs().max(1.0),
+        "{target} vs {expected}"
+    );
     assert!((m.interface_mm() - expected).abs() < 1e-9 * expected.abs().max(1.0));
 }
 
@@ -84,7 +90,10 @@ fn the_nominal_specimen_force_leaves_the_modes_unforced() {
         let ag = 500.0 * libm::sin(k as f64 * 0.01);
         t = fed.step(ag, p.specimen_k_kn_per_mm() * t).expect("finite");
         let t_free = free.step(ag, 0.0).expect("finite");
-        assert!((t - t_free).abs() <= 1e-12 * t_free.abs().max(1e-9), "{t} vs {t_free}");
+        assert!(
+            (t - t_free).abs() <= 1e-12 * t_free.abs().max(1e-9),
+            "{t} vs {t_free}"
+        );
         moved = moved.max(t.abs());
     }
     assert!(moved > 1.0, "the run moved: {moved} mm");
@@ -108,9 +117,15 @@ fn reset_repeats_a_run_bit_for_bit() {
     let run = |m: &mut ReducedModal| -> [u64; 3] {
         let mut last = 0.0;
         for k in 0..5000 {
-            last = m.step(300.0 * libm::cos(k as f64 * 0.003), 0.2).expect("finite");
+            last = m
+                .step(300.0 * libm::cos(k as f64 * 0.003), 0.2)
+                .expect("finite");
         }
-        [last.to_bits(), m.interface_mm().to_bits(), m.output_mm(0).to_bits()]
+        [
+            last.to_bits(),
+            m.interface_mm().to_bits(),
+            m.output_mm(0).to_bits(),
+        ]
     };
     let a = run(&mut m);
     m.reset();
@@ -136,16 +151,40 @@ fn invalid_parameters_are_refused() {
         .is_err()
     };
     assert!(bad(&[], &[], &[], 0.0, 1.0), "no mode");
-    assert!(bad(&[ok; REDUCED_MAX_MODES + 1], &[], &[], 0.0, 1.0), "too many modes");
-    assert!(bad(&[one_mode(0.0, 0.02, 1.0, 1.0)], &[], &[], 0.0, 1.0), "ω = 0");
-    assert!(bad(&[one_mode(1.0, 1.0, 1.0, 1.0)], &[], &[], 0.0, 1.0), "ζ = 1");
-    assert!(bad(&[one_mode(1.0, 0.0, f64::NAN, 1.0)], &[], &[], 0.0, 1.0), "NaN Γ");
+    assert!(
+        bad(&[ok; REDUCED_MAX_MODES + 1], &[], &[], 0.0, 1.0),
+        "too many modes"
+    );
+    assert!(
+        bad(&[one_mode(0.0, 0.02, 1.0, 1.0)], &[], &[], 0.0, 1.0),
+        "ω = 0"
+    );
+    assert!(
+        bad(&[one_mode(1.0, 1.0, 1.0, 1.0)], &[], &[], 0.0, 1.0),
+        "ζ = 1"
+    );
+    assert!(
+        bad(&[one_mode(1.0, 0.0, f64::NAN, 1.0)], &[], &[], 0.0, 1.0),
+        "NaN Γ"
+    );
     assert!(bad(&[ok], &[1.0], &[], 0.0, 1.0), "shapes without outputs");
-    assert!(bad(&[ok], &[], &[none], 0.0, 1.0), "an output without shapes");
-    assert!(bad(&[ok], &[], &[], 0.0, -1.0), "negative specimen stiffness");
-    assert!(bad(&[ok], &[], &[], 0.5, 2.0), "residual flexibility beyond the specimen's");
+    assert!(
+        bad(&[ok], &[], &[none], 0.0, 1.0),
+        "an output without shapes"
+    );
+    assert!(
+        bad(&[ok], &[], &[], 0.0, -1.0),
+        "negative specimen stiffness"
+    );
+    assert!(
+        bad(&[ok], &[], &[], 0.5, 2.0),
+        "residual flexibility beyond the specimen's"
+    );
     assert!(bad(&[ok], &[], &[], f64::NAN, 2.0), "NaN static correction");
-    assert!(ReducedModalParams::new(0.0, &[ok], &[], none, &[], 1.0).is_err(), "dt = 0");
+    assert!(
+        ReducedModalParams::new(0.0, &[ok], &[], none, &[], 1.0).is_err(),
+        "dt = 0"
+    );
 }
 
 proptest! {
