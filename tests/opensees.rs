@@ -237,7 +237,7 @@ fn compare_with_opensees(file: &str, script: &str) {
     let e = nrmse_pct(&ours.interface_mm, &column(&theirs, 0)).expect("nrmse");
     println!(
         "{file}: interface NRMSE {e:.2e} % vs OpenSees; OpenSees {:.1} us/step, rths host FE \
-         {:.1} us/step (test build)",
+         {:.1} us/step (this build, not a benchmark)",
         their_step * 1e6,
         our_step * 1e6
     );

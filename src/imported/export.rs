@@ -192,7 +192,7 @@ fn read_mtx(path: &Path, n: usize) -> Result<Vec<Triplet>, ExportError> {
         });
     }
     let mut t: Vec<Triplet> = coo.triplet_iter().map(|(i, j, v)| (i, j, *v)).collect();
-    t.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
+    t.sort_by_key(|e| (e.0, e.1));
     Ok(t)
 }
 
