@@ -237,7 +237,7 @@ fn compare_with_opensees(file: &str, script: &str) {
     let e = nrmse_pct(&ours.interface_mm, &column(&theirs, 0)).expect("nrmse");
     println!(
         "{file}: interface NRMSE {e:.2e} % vs OpenSees; OpenSees {:.1} us/step, rths host FE \
-         {:.1} us/step (test build)",
+         {:.1} us/step (this build, not a benchmark)",
         their_step * 1e6,
         our_step * 1e6
     );
@@ -267,4 +267,29 @@ fn the_host_fe_equals_opensees_on_the_large_frame() {
 fn the_shipped_large_frame_has_over_500_dofs_with_mass() {
     let s = load(LARGE);
     assert_eq!((s.equations().len(), s.mass_dofs()), (1404, 936));
+}
+
+#[test]
+fn without_python_the_import_says_how_to_install_it() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rths"))
+        .args(["import", "opensees"])
+        .arg(root().join("data/structures/opensees/frame-2x3.py"))
+        .args(["--specimen", "4:1", "--specimen-stiffness", "50", "--out"])
+        .arg(std::env::temp_dir().join("rths-no-python.json"))
+        .env("RTHS_PYTHON", "/nonexistent/python3")
+        .output()
+        .expect("rths runs");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("pip install openseespy==3.7.1.2"), "{err}");
+    assert!(err.contains("RTHS_PYTHON"), "{err}");
+}
+
+#[test]
+fn a_version_1_command_names_what_a_version_2_file_is() {
+    let text = std::fs::read_to_string(root().join(SMALL)).expect("the shipped file");
+    let e = rths_files::structure_file::Structure::from_json(&text)
+        .map(|_| ())
+        .expect_err("version 2 is not a version-1 structure");
+    assert!(e.to_string().contains("rths import opensees"), "{e}");
 }

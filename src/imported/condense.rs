@@ -54,7 +54,7 @@ pub fn cholesky(a: &CscMatrix<f64>) -> Result<CscCholesky<f64>, FactorError> {
         let a_kk = a.get_entry(k, k).map_or(0.0, |e| e.into_value());
         let l_kk = l.get_entry(k, k).map_or(0.0, |e| e.into_value());
         let ratio = l_kk * l_kk / a_kk;
-        if !(ratio > PIVOT_TOLERANCE) {
+        if ratio.is_nan() || ratio <= PIVOT_TOLERANCE {
             return Err(FactorError::Singular { equation: k, ratio });
         }
     }

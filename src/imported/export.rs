@@ -22,7 +22,7 @@ pub const TRANSIENT: &str = include_str!("../../scripts/opensees/transient.py");
 /// The environment variable naming the Python interpreter.
 pub const PYTHON_ENV: &str = "RTHS_PYTHON";
 /// How to install what the scripts need.
-pub const INSTALL_HINT: &str = "install them with `python3 -m venv .venv && .venv/bin/pip install \
+pub const INSTALL_HINT: &str = "python3 and openseespy are needed: install them with `python3 -m venv .venv && .venv/bin/pip install \
      openseespy==3.7.1.2 numpy` and set RTHS_PYTHON=.venv/bin/python (openseespy 3.7.1.2 is the \
      release for Python 3.11; 3.8 needs Python ≥ 3.12)";
 
@@ -30,12 +30,12 @@ pub const INSTALL_HINT: &str = "install them with `python3 -m venv .venv && .ven
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
     /// Python could not be started.
-    #[error("cannot run Python {python:?} ({source}): {INSTALL_HINT}")]
+    #[error("cannot run Python {python:?} ({error}): {INSTALL_HINT}")]
     NoPython {
         /// The interpreter tried.
         python: OsString,
-        /// The cause.
-        source: std::io::Error,
+        /// The cause (in the message).
+        error: std::io::Error,
     },
     /// openseespy is not installed for that Python.
     #[error("Python {python:?} has no openseespy package: {INSTALL_HINT}")]
@@ -99,9 +99,9 @@ pub fn python_command() -> Result<Command, ExportError> {
              print(list(l.submodule_search_locations)[0] if l and l.submodule_search_locations else '')",
         ])
         .output()
-        .map_err(|source| ExportError::NoPython {
+        .map_err(|error| ExportError::NoPython {
             python: py.clone(),
-            source,
+            error,
         })?;
     let out = String::from_utf8_lossy(&probe.stdout);
     let mut lines = out.lines();
@@ -139,9 +139,9 @@ pub fn run_script(
         .arg(&path)
         .args(args)
         .output()
-        .map_err(|source| ExportError::NoPython {
+        .map_err(|error| ExportError::NoPython {
             python: python(),
-            source,
+            error,
         })?;
     if !out.status.success() {
         let err = String::from_utf8_lossy(&out.stderr);
@@ -192,7 +192,7 @@ fn read_mtx(path: &Path, n: usize) -> Result<Vec<Triplet>, ExportError> {
         });
     }
     let mut t: Vec<Triplet> = coo.triplet_iter().map(|(i, j, v)| (i, j, *v)).collect();
-    t.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
+    t.sort_by_key(|e| (e.0, e.1));
     Ok(t)
 }
 

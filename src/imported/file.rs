@@ -713,3 +713,122 @@ impl ImportedStructure {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Node 2's three DOFs: x and y carry mass, the rotation does not.
+    fn file() -> ImportedFile {
+        let l = |dof| DofLabel { node: 2, dof };
+        ImportedFile {
+            format: FORMAT.to_string(),
+            version: VERSION,
+            kind: KIND.to_string(),
+            name: "t".to_string(),
+            description: String::new(),
+            units: Units::MmKn,
+            source: Source {
+                script: "t.py".to_string(),
+                checksum: String::new(),
+            },
+            equations: vec![l(1), l(2), l(3)],
+            influence: vec![1.0, 0.0, 0.0],
+            mass: vec![(0, 0, 0.01), (1, 1, 0.01)],
+            damping: vec![(0, 0, 0.1), (1, 1, 0.1)],
+            stiffness: vec![
+                (0, 0, 100.0),
+                (0, 2, 1000.0),
+                (1, 1, 500.0),
+                (2, 0, 1000.0),
+                (2, 2, 1e5),
+            ],
+            specimen: ImportedSpecimen {
+                at: l(1),
+                stiffness_kn_per_mm: 20.0,
+            },
+            outputs: vec![l(1), l(2)],
+        }
+    }
+
+    fn refused(f: &ImportedFile) -> String {
+        match f.validate() {
+            Ok(_) => "accepted".to_string(),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[test]
+    fn a_good_file_condenses_its_massless_dof() -> std::result::Result<(), ImportedStructureError> {
+        let f = file();
+        let s = ImportedStructure::from_json(&f.to_json()?)?;
+        assert_eq!((s.equations().len(), s.mass_dofs()), (3, 2));
+        let (m, _, k) = s.condensed_dense();
+        // K*₀₀ = 100 − 1000²/1e5 − 20 (the specimen).
+        assert!((k[(0, 0)] - (100.0 - 10.0 - 20.0)).abs() < 1e-12, "{k}");
+        assert_eq!(m[(1, 1)], 0.01);
+        assert_eq!(s.interface_index(), 0);
+        assert_eq!(s.output_indices(), vec![0, 1]);
+        assert_eq!(s.condensed_influence().as_slice(), &[1.0, 0.0]);
+        assert_eq!(s.outputs()[1].column(), "out_2_2_mm");
+        Ok(())
+    }
+
+    #[test]
+    fn bad_models_are_refused_naming_the_entry() {
+        let mut f = file();
+        f.stiffness[1].2 = 999.0;
+        let e = refused(&f);
+        assert!(
+            e.contains("stiffness is not symmetric: entry (2:3, 2:1)"),
+            "{e}"
+        );
+        let mut f = file();
+        f.mass[1].2 = -0.01;
+        assert!(refused(&f).contains("negative mass"));
+        assert!(refused(&f).contains("2:2"));
+        let mut f = file();
+        f.stiffness[0].2 = f64::NAN;
+        assert!(refused(&f).contains("not finite"));
+        let mut f = file();
+        f.stiffness[0].2 = 10.0; // K₀₀·K₂₂ = 1e6 = K₀₂²: singular.
+        assert!(refused(&f).contains("mechanism"), "{}", refused(&f));
+        let mut f = file();
+        f.stiffness.retain(|&(i, j, _)| i != 1 && j != 1);
+        assert!(refused(&f).contains("mechanism: its stiffness is singular at DOF 2:2"));
+        let mut f = file();
+        f.specimen.at = DofLabel { node: 9, dof: 1 };
+        assert!(refused(&f).contains("specimen DOF 9:1 is not a free DOF"));
+        let mut f = file();
+        f.outputs.push(DofLabel { node: 2, dof: 3 });
+        assert!(refused(&f).contains("output DOF 2:3 carries no mass"));
+        let mut f = file();
+        f.outputs.push(DofLabel { node: 2, dof: 4 });
+        assert!(refused(&f).contains("node 2 has no free DOF 4"));
+        let mut f = file();
+        f.specimen.stiffness_kn_per_mm = 95.0;
+        assert!(refused(&f).contains("leaves the numerical part"));
+        let mut f = file();
+        f.stiffness.push((0, 0, 1.0));
+        assert!(refused(&f).contains("given twice"));
+        let mut f = file();
+        f.mass.push((2, 0, 0.001));
+        f.mass.push((0, 2, 0.001));
+        assert!(refused(&f).contains("no mass of its own"));
+        let mut f = file();
+        f.damping[0].0 = 7;
+        assert!(refused(&f).contains("equations 0..3"));
+        assert!(
+            ImportedFile::parse(&file().to_json().unwrap_or_default().replace("sparse", "x"))
+                .is_err()
+        );
+    }
+
+    #[test]
+    fn labels_parse_and_refuse_with_the_reason() {
+        assert_eq!("12:1".parse(), Ok(DofLabel { node: 12, dof: 1 }));
+        assert!("12".parse::<DofLabel>().is_err());
+        assert!("12:0".parse::<DofLabel>().is_err());
+        assert!("a:1".parse::<DofLabel>().is_err());
+    }
+}
