@@ -389,7 +389,7 @@ fn modes_of(s: &ImportedStructure) -> Result<Modes, ReducedError> {
     let mut omega = Vec::with_capacity(n);
     for (col, &i) in order.iter().enumerate() {
         let lambda = eig.eigenvalues[i];
-        if !(lambda > 0.0) {
+        if lambda.is_nan() || lambda <= 0.0 {
             return Err(ReducedError::Stiffness);
         }
         let y = eig.eigenvectors.column(i).into_owned();
