@@ -9,6 +9,7 @@ pub mod cmd;
 pub mod drive;
 pub mod faults;
 pub mod identify;
+pub mod imported;
 pub mod link_host;
 pub mod model_file;
 pub mod models;

@@ -41,6 +41,8 @@ enum Command {
     Benchmark(cmd::benchmark::Args),
     /// Score the nonlinear scenarios on held-out records from elastic to past ductility 4.
     NonlinearStudy(cmd::nonlinear_study::Args),
+    /// Import a lab's finite-element model (OpenSees) as a structure file.
+    Import(cmd::import::Args),
 }
 
 fn main() -> std::process::ExitCode {
@@ -59,6 +61,7 @@ fn main() -> std::process::ExitCode {
         Command::Robustness(a) => cmd::robustness::run(a),
         Command::Benchmark(a) => cmd::benchmark::run(a),
         Command::NonlinearStudy(a) => cmd::nonlinear_study::run(a),
+        Command::Import(a) => cmd::import::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -173,6 +173,10 @@ pub enum Analytical {
     #[cfg(feature = "structures")]
     /// The learned modal-hysteretic metamodel of a yielding numerical substructure (issue 16).
     StructureModal(StructureModal),
+    #[cfg(feature = "structures")]
+    /// The reduced-order modal model of a large linear numerical substructure (an imported
+    /// OpenSees model): constant cost per tick whatever its DOF count.
+    StructureReduced(StructureReduced),
 }
 
 impl Analytical {
@@ -209,6 +213,8 @@ impl Analytical {
                 .map_err(|_| StepError::NonFiniteOutput)?,
             #[cfg(feature = "structures")]
             Analytical::StructureModal(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
+            #[cfg(feature = "structures")]
+            Analytical::StructureReduced(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
         };
         if y.is_finite() {
             Ok(y)
@@ -261,6 +267,8 @@ impl Analytical {
             Analytical::StructureMeta(m) => m.reset(),
             #[cfg(feature = "structures")]
             Analytical::StructureModal(m) => m.reset(),
+            #[cfg(feature = "structures")]
+            Analytical::StructureReduced(m) => m.reset(),
         }
     }
 }
@@ -759,7 +767,8 @@ mod structure;
 use crate::metamodel::DeltaArx;
 pub use correction::ForceCorrection;
 pub use structure::{
-    ModalSpec, StoryLawSpec, StructureFe, StructureModal, StructureNl, StructureSpec,
+    ModalSpec, ReducedSpec, StoryLawSpec, StructureFe, StructureModal, StructureNl,
+    StructureReduced, StructureSpec,
 };
 
 #[cfg(test)]

@@ -10,11 +10,14 @@ use crate::compensator::{
 };
 use crate::control::{Analytical, Controller, FeModel, ReplaceError};
 #[cfg(feature = "structures")]
-use crate::control::{ModalSpec, StructureFe, StructureModal, StructureNl, StructureSpec};
+use crate::control::{
+    ModalSpec, ReducedSpec, StructureFe, StructureModal, StructureNl, StructureReduced,
+    StructureSpec,
+};
 #[cfg(feature = "structures")]
 use crate::hysteresis::Law;
 #[cfg(feature = "structures")]
-use crate::metamodel::{DeltaArx, DeltaArxParams, ModalHystParams};
+use crate::metamodel::{DeltaArx, DeltaArxParams, ModalHystParams, ReducedModalParams};
 use crate::metamodel::{
     Lr, LrParams, Lrx, LrxParams, ModelError, Rnn, RnnParams, RnnScaling, RnnWeights,
 };
@@ -94,6 +97,13 @@ pub enum ModelSpec<'a> {
         /// The model's arrays.
         model: ModalSpec<'a>,
     },
+    #[cfg(feature = "structures")]
+    /// The reduced-order modal model of a large linear structure (`rths train meta` on an
+    /// imported OpenSees model): stepped at the controller's step (continuous-time modes).
+    StructureReduced {
+        /// The model's arrays.
+        model: ReducedSpec<'a>,
+    },
 }
 
 /// A [`ModelSpec`] whose weights passed validation.
@@ -127,6 +137,9 @@ pub enum Model {
     #[cfg(feature = "structures")]
     /// The modal-hysteretic metamodel (validated at [`DT_S`]; assembled at the controller's step).
     StructureModal(ModalHystParams),
+    #[cfg(feature = "structures")]
+    /// The reduced-order modal model (validated at [`DT_S`]; assembled at the controller's step).
+    StructureReduced(ReducedModalParams),
 }
 
 impl ModelSpec<'_> {
@@ -178,6 +191,8 @@ impl ModelSpec<'_> {
             } => Model::StructureMeta(DeltaArxParams::from_slice(theta, k_corr_kn_per_mm)?),
             #[cfg(feature = "structures")]
             ModelSpec::StructureModal { model } => Model::StructureModal(model.params(DT_S)?),
+            #[cfg(feature = "structures")]
+            ModelSpec::StructureReduced { model } => Model::StructureReduced(model.params(DT_S)?),
         })
     }
 }
@@ -210,6 +225,8 @@ impl Model {
             Model::StructureMeta(p) => Ok(meta_parts(p)),
             #[cfg(feature = "structures")]
             Model::StructureModal(p) => Ok(modal_parts(p.at_dt_s(dt_s)?)),
+            #[cfg(feature = "structures")]
+            Model::StructureReduced(p) => Ok(reduced_parts(p.at_dt_s(dt_s)?)),
         }
     }
 }
@@ -324,7 +341,17 @@ pub fn assemble(
         )?)),
         #[cfg(feature = "structures")]
         ModelSpec::StructureModal { model } => Ok(modal_parts(model.params(dt_s)?)),
+        #[cfg(feature = "structures")]
+        ModelSpec::StructureReduced { model } => Ok(reduced_parts(model.params(dt_s)?)),
     }
+}
+
+#[cfg(feature = "structures")]
+fn reduced_parts(p: ReducedModalParams) -> (Analytical, Compensator) {
+    (
+        Analytical::StructureReduced(StructureReduced::new(p)),
+        Compensator::None,
+    )
 }
 
 #[cfg(feature = "structures")]
@@ -399,6 +426,10 @@ pub fn assemble_in(
         #[cfg(feature = "structures")]
         ModelSpec::StructureModal { model } => {
             ctl.install_plain(modal_parts(model.params(dt_s)?).0)
+        }
+        #[cfg(feature = "structures")]
+        ModelSpec::StructureReduced { model } => {
+            ctl.install_plain(reduced_parts(model.params(dt_s)?).0)
         }
     }
 }

@@ -203,7 +203,10 @@ pub enum StructureFileError {
         found: String,
     },
     /// `version` is not supported.
-    #[error("unsupported structure file version {found} (this build reads version {VERSION})")]
+    #[error(
+        "unsupported structure file version {found} (this build reads version {VERSION}){}",
+        imported_hint(*.found)
+    )]
     UnsupportedVersion {
         /// The version found.
         found: u64,
@@ -293,6 +296,16 @@ pub enum StructureFileError {
         /// Why.
         reason: String,
     },
+}
+
+/// What a version-2 file is, for the commands that read version 1 only.
+fn imported_hint(version: u64) -> &'static str {
+    if version == 2 {
+        "; version 2 is an imported sparse structure (`rths import opensees`): `rths simulate \
+         --structure FILE --scenario fe-pure` runs it"
+    } else {
+        ""
+    }
 }
 
 /// `"story N "` for a story's error, nothing for the section's.

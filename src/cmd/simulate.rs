@@ -520,6 +520,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(p) => {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("reading structure file {}", p.display()))?;
+            // An imported (OpenSees) structure: its own host FE (`simulate_imported`).
+            if crate::imported::file::is_imported(&text) {
+                return crate::cmd::simulate_imported::run(&args, p, &text, &ag, &motion_label);
+            }
             let s = Structure::from_json(&text)
                 .with_context(|| format!("structure file {}", p.display()))?;
             Some((s, text))

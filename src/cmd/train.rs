@@ -423,6 +423,11 @@ fn train_meta(args: &Args) -> anyhow::Result<()> {
         .structure
         .as_ref()
         .context("`rths train meta` needs --structure FILE")?;
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading structure file {}", path.display()))?;
+    if crate::imported::file::is_imported(&text) {
+        return train_reduced(args, path, &text);
+    }
     let structure = rths_files::structure_file::Structure::load(path)?;
     let rate = args.rate.unwrap_or(rths_core::params::CONTROL_RATE_HZ);
     anyhow::ensure!(
@@ -551,6 +556,78 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
     t.file
         .save(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
+    println!("wrote {}", args.out.display());
+    Ok(())
+}
+
+/// `rths train meta` on an imported structure: its reduced-order modal model
+/// ([`crate::imported::reduced`]), the mode count chosen on the training records, the error bound
+/// printed.
+fn train_reduced(args: &Args, path: &std::path::Path, text: &str) -> anyhow::Result<()> {
+    use crate::imported::reduced;
+    let structure = crate::imported::ImportedStructure::from_json(text)
+        .with_context(|| format!("structure file {}", path.display()))?;
+    let rate = args.rate.unwrap_or(rths_core::params::CONTROL_RATE_HZ);
+    anyhow::ensure!(
+        rths_core::params::CONTROL_RATES_HZ.contains(&rate),
+        "--rate must be one of {:?} Hz, got {rate}",
+        rths_core::params::CONTROL_RATES_HZ
+    );
+    let dt_s = rths_core::params::dt_s(rate);
+    let records = reduced::training_records(dt_s)?;
+    let bar = if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        indicatif::ProgressBar::new(1)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("{msg:32} {bar:30} {pos}/{len} [{elapsed}]")
+    {
+        bar.set_style(style);
+    }
+    let start = std::time::Instant::now();
+    let file = reduced::train(&structure, &records, dt_s, |stage, done, total| {
+        bar.set_message(stage.to_string());
+        bar.set_length(total);
+        bar.set_position(done);
+    })
+    .with_context(|| format!("training the reduced model of {}", path.display()))?;
+    bar.finish_and_clear();
+    std::fs::write(&args.out, file.to_json()?)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    let t = &file.training;
+    println!(
+        "reduced model of {} ({} DOFs, {} with mass) at {rate} Hz: {} of {} modes kept \
+         (highest {:.2} Hz, lowest left out {}), static correction at the interface and {} outputs",
+        structure.name(),
+        file.dofs,
+        file.mass_dofs,
+        file.modes.len(),
+        t.total_modes,
+        file.modes.last().map_or(0.0, |m| m.frequency_hz),
+        t.lowest_truncated_hz
+            .map_or("none".to_string(), |f| format!("{f:.2} Hz")),
+        file.outputs.len()
+    );
+    for r in &t.per_record {
+        println!(
+            "  {:<12} pure loop vs host FE: interface {:.4} %, largest output {:.4} %",
+            r.record, r.interface_nrmse_pct, r.max_output_nrmse_pct
+        );
+    }
+    println!(
+        "error bound {:.4} % NRMSE (the largest on the training records; target {} %){}; \
+         damping coupling {:.2e}; {:.1} s",
+        t.error_bound_pct,
+        t.target_nrmse_pct,
+        if t.error_bound_pct <= t.target_nrmse_pct {
+            ""
+        } else {
+            ": TARGET NOT MET with the modes the controller holds"
+        },
+        t.damping_coupling,
+        start.elapsed().as_secs_f64()
+    );
     println!("wrote {}", args.out.display());
     Ok(())
 }

@@ -164,6 +164,10 @@ pub enum SimScenario {
     /// The structure's own FE in the hybrid loop with `nl-online`'s compensation (the identified
     /// lead and force correction): the learned model's twin with the exact numerical part.
     FeOnlineLead,
+    /// An imported structure's reduced model alone, coupled with the numerical stand-in specimen.
+    MetaPure,
+    /// An imported structure's reduced model in the hybrid loop on the virtual plant.
+    MetaOnline,
 }
 
 impl SimScenario {
@@ -171,8 +175,8 @@ impl SimScenario {
     pub fn uses_rig(self) -> bool {
         match self {
             SimScenario::Study(id) => id.uses_rig(),
-            SimScenario::NlPure => false,
-            SimScenario::NlOnline | SimScenario::FeOnlineLead => true,
+            SimScenario::NlPure | SimScenario::MetaPure => false,
+            SimScenario::NlOnline | SimScenario::FeOnlineLead | SimScenario::MetaOnline => true,
         }
     }
 }
@@ -184,13 +188,17 @@ impl fmt::Display for SimScenario {
             SimScenario::NlPure => f.write_str("nl-pure"),
             SimScenario::NlOnline => f.write_str("nl-online"),
             SimScenario::FeOnlineLead => f.write_str("fe-online-lead"),
+            SimScenario::MetaPure => f.write_str("meta-pure"),
+            SimScenario::MetaOnline => f.write_str("meta-online"),
         }
     }
 }
 
 /// An unknown scenario name.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{0}; with --structure also nl-pure, nl-online, fe-online-lead")]
+#[error(
+    "{0}; with --structure also nl-pure, nl-online, fe-online-lead (an imported structure: meta-pure, meta-online)"
+)]
 pub struct UnknownSimScenario(scenario::UnknownScenario);
 
 impl FromStr for SimScenario {
@@ -200,6 +208,8 @@ impl FromStr for SimScenario {
             "nl-pure" => Ok(SimScenario::NlPure),
             "nl-online" => Ok(SimScenario::NlOnline),
             "fe-online-lead" => Ok(SimScenario::FeOnlineLead),
+            "meta-pure" => Ok(SimScenario::MetaPure),
+            "meta-online" => Ok(SimScenario::MetaOnline),
             _ => ScenarioId::from_str(s)
                 .map(SimScenario::Study)
                 .map_err(UnknownSimScenario),
@@ -752,7 +762,8 @@ pub fn check_applies(sc: SimScenario, structure: &Structure) -> anyhow::Result<(
         SimScenario::Study(ScenarioId::LrOnline | ScenarioId::LrxOnline) => {
             is_paper_frame(structure)
         }
-        SimScenario::Study(_) => false,
+        // Imported structures only (`rths import opensees`).
+        SimScenario::Study(_) | SimScenario::MetaPure | SimScenario::MetaOnline => false,
     };
     if ok {
         return Ok(());
@@ -762,7 +773,8 @@ pub fn check_applies(sc: SimScenario, structure: &Structure) -> anyhow::Result<(
          need yielding stories (a hysteresis section), lr-online and lrx-online the paper's \
          frame (their shipped models are of that frame), fe-pure, fe-online-ats and \
          fe-online-lead run any \
-         structure, and the other study scenarios run without --structure",
+         structure, meta-pure and meta-online an imported one (`rths import opensees`), and the \
+         other study scenarios run without --structure",
         structure.name()
     )
 }
@@ -782,6 +794,9 @@ pub fn run_scenario(
         )
     };
     let (series, stop) = match sc {
+        SimScenario::MetaPure | SimScenario::MetaOnline => {
+            anyhow::bail!("{sc} runs an imported structure (`rths import opensees`)")
+        }
         SimScenario::Study(ScenarioId::FePure) => {
             run_pure(case, &mut StructureFe::new(&case.structure)?)
         }

@@ -10,7 +10,10 @@
 //! displacement at that DOF. A non-finite input is refused before it touches the state.
 
 use crate::hysteresis::Law;
-use crate::metamodel::{ModalHyst, ModalHystParams, ModalMode, ModelError, MODAL_MAX_SPRINGS};
+use crate::metamodel::{
+    ModalHyst, ModalHystParams, ModalMode, ModelError, ReducedModal, ReducedModalParams,
+    ReducedMode, StaticCorrection, MODAL_MAX_SPRINGS,
+};
 use crate::params::ParamError;
 use crate::structure_n::{ChangN, StructureN, MAX_DOF};
 use crate::structure_nl::NonlinearFrame;
@@ -365,6 +368,81 @@ impl StructureModal {
     }
 
     /// Back to rest, every spring virgin.
+    pub fn reset(&mut self) {
+        self.model.reset();
+        self.started = false;
+    }
+}
+
+/// The reduced-order modal model of a large linear structure (an `rths-reduced-model` file), raw:
+/// the arrays the file stores (validated by [`Self::params`]). The modes are continuous-time, so the
+/// step is the controller's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReducedSpec<'a> {
+    /// The retained modes.
+    pub modes: &'a [ReducedMode],
+    /// The outputs' mode shapes, outputs × modes, row-major.
+    pub output_shape: &'a [f64],
+    /// The interface's static correction.
+    pub interface_static: StaticCorrection,
+    /// The outputs' static corrections.
+    pub output_static: &'a [StaticCorrection],
+    /// The specimen's stiffness the modes include, kN/mm.
+    pub specimen_k_kn_per_mm: f64,
+}
+
+impl ReducedSpec<'_> {
+    /// The validated parameters at control step `dt_s`.
+    pub fn params(&self, dt_s: f64) -> Result<ReducedModalParams, ModelError> {
+        ReducedModalParams::new(
+            dt_s,
+            self.modes,
+            self.output_shape,
+            self.interface_static,
+            self.output_static,
+            self.specimen_k_kn_per_mm,
+        )
+    }
+}
+
+/// The reduced-order modal model ([`ReducedModal`]) as the controller steps it: tick 0 rests it
+/// under `ü_g(0)`, each later tick completes the step with `ü_g(k)` and the measured force.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StructureReduced {
+    model: ReducedModal,
+    started: bool,
+}
+
+impl StructureReduced {
+    /// The model of `params`, at rest.
+    pub fn new(params: ReducedModalParams) -> Self {
+        Self {
+            model: ReducedModal::new(params),
+            started: false,
+        }
+    }
+
+    /// The model (its modes' state and read-outs).
+    pub fn model(&self) -> &ReducedModal {
+        &self.model
+    }
+
+    /// As [`StructureFe::next_target`]; a step that would overflow is refused (state unchanged).
+    #[inline]
+    pub fn next_target(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
+        finite_inputs(ag_mm_s2, force_kn)?;
+        if self.started {
+            self.model
+                .step(ag_mm_s2, force_kn)
+                .map_err(|_| super::StepError::NonFiniteOutput)
+        } else {
+            self.model.reset_at(ag_mm_s2);
+            self.started = true;
+            Ok(self.model.target_mm())
+        }
+    }
+
+    /// Back to rest.
     pub fn reset(&mut self) {
         self.model.reset();
         self.started = false;

@@ -19,12 +19,14 @@ mod delta_arx;
 mod lr;
 mod lrx;
 mod modal_hyst;
+mod reduced_modal;
 mod rnn;
 
 pub use delta_arx::*;
 pub use lr::*;
 pub use lrx::*;
 pub use modal_hyst::*;
+pub use reduced_modal::*;
 pub use rnn::*;
 
 /// A model whose shape or values failed validation.

@@ -1,0 +1,629 @@
+//! The reduced-order model of an imported structure (`rths train meta --structure S.json` on an
+//! imported OpenSees model; docs/opensees.md "The reduced model"): its training from the
+//! structure's matrices and training records, and its model file (`rths-reduced-model`), tied to the
+//! structure by name and checksum.
+//!
+//! Training: the whole structure's modes (the numerical part plus the stand-in specimen's
+//! stiffness `k_e`, mass-normalized, from `M*`'s Cholesky factor and a symmetric eigensolution),
+//! the static correction of the modes left out (from `K⁻¹·M·ι` and `K⁻¹·e`), then the number of
+//! modes kept: the fewest whose pure loop is within [`REDUCED_TARGET_NRMSE_PCT`] of the host FE
+//! ([`super::fe`]) on the training records at every read-out, the interface and each output. The
+//! training records' runs are all it sees; held-out records are scored elsewhere.
+
+use std::path::Path;
+
+use nalgebra::{DMatrix, DVector};
+use rths_core::checksum::{Fnv1a64, Fnv1a64Label};
+use rths_core::control::{ReducedSpec, StructureReduced};
+use rths_core::metamodel::{
+    ModelError, ReducedModalParams, ReducedMode, StaticCorrection, REDUCED_MAX_MODES,
+};
+use rths_core::metrics::nrmse_pct;
+use serde::{Deserialize, Serialize};
+
+use super::fe::{self, FeHistory};
+use super::ImportedStructure;
+
+/// The `format` tag of a reduced model file.
+pub const REDUCED_FORMAT: &str = "rths-reduced-model";
+/// The version of a reduced model file.
+pub const REDUCED_VERSION: u64 = 1;
+/// The records the reduced model is trained (its size chosen) on: the embedded Northridge and
+/// Loma Prieta, the structure metamodel's training records; El Centro, Kobe and Morgan Hill stay
+/// held out.
+pub const REDUCED_TRAINING_RECORDS: [&str; 2] = ["northridge", "loma-prieta"];
+/// The pure-loop error the number of modes is chosen for, % NRMSE at every read-out on every
+/// training record (a fifth of the 0.5 % goal against OpenSees, so held-out records and
+/// the host FE's own difference from OpenSees leave a margin).
+pub const REDUCED_TARGET_NRMSE_PCT: f64 = 0.1;
+
+/// Why a reduced model could not be trained, read or used.
+#[derive(Debug, thiserror::Error)]
+pub enum ReducedError {
+    /// The condensed mass is not positive definite.
+    #[error("the condensed mass matrix is not positive definite (a DOF without mass was kept)")]
+    Mass,
+    /// The whole structure's stiffness is not positive definite.
+    #[error("the structure's stiffness with its specimen is not positive definite (a mechanism)")]
+    Stiffness,
+    /// A training record is missing.
+    #[error("training record {0} is not embedded")]
+    Record(String),
+    /// The host FE failed.
+    #[error(transparent)]
+    Fe(#[from] fe::FeError),
+    /// The parameters failed core's validation.
+    #[error("the reduced model's parameters: {0}")]
+    Model(ModelError),
+    /// The file is not JSON of the right shape.
+    #[error("not a reduced model file: {0}")]
+    Json(#[from] serde_json::Error),
+    /// The file has another format or version.
+    #[error("format {format:?} version {version}, expected {REDUCED_FORMAT:?} version {REDUCED_VERSION}")]
+    Format {
+        /// The file's format tag.
+        format: String,
+        /// The file's version.
+        version: u64,
+    },
+    /// The file was trained for another structure.
+    #[error(
+        "trained for structure {file_name} ({file_checksum}), not {name} ({checksum}): run `rths train meta --structure` on this structure"
+    )]
+    Structure {
+        /// The file's structure name.
+        file_name: String,
+        /// The file's structure checksum.
+        file_checksum: String,
+        /// The structure's name.
+        name: String,
+        /// The structure's checksum.
+        checksum: String,
+    },
+    /// An output's shape array has the wrong length.
+    #[error("mode {mode}: {got} output shapes for {expected} outputs")]
+    Shape {
+        /// Mode index (0-based).
+        mode: usize,
+        /// Shapes given.
+        got: usize,
+        /// Outputs of the file.
+        expected: usize,
+    },
+    /// Reading the file failed.
+    #[error("reading {path}: {source}")]
+    Read {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+}
+
+impl From<ModelError> for ReducedError {
+    fn from(e: ModelError) -> Self {
+        ReducedError::Model(e)
+    }
+}
+
+/// A checksum of what an imported structure *is*: its condensed `M*`, `C*`, `K*` (row-major), the
+/// ground influence, the interface and output DOFs and the specimen's stiffness, as little-endian
+/// f64 bytes ([`rths_core::checksum`]).
+pub fn imported_checksum(s: &ImportedStructure) -> String {
+    let (m, c, k) = s.condensed_dense();
+    let mut h = Fnv1a64::new();
+    h.write_f64(m.nrows() as f64);
+    for a in [&m, &c, &k] {
+        for v in a.transpose().iter() {
+            h.write_f64(*v);
+        }
+    }
+    for v in s.condensed_influence().iter() {
+        h.write_f64(*v);
+    }
+    h.write_f64(s.interface_index() as f64);
+    for o in s.output_indices() {
+        h.write_f64(o as f64);
+    }
+    h.write_f64(s.specimen_stiffness_kn_per_mm());
+    Fnv1a64Label(h.finish()).to_string()
+}
+
+/// One retained mode as the file stores it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReducedModeEntry {
+    /// Natural frequency, Hz (for the reader; `omega_rad_s` is used).
+    pub frequency_hz: f64,
+    /// Natural circular frequency, rad/s.
+    pub omega_rad_s: f64,
+    /// Modal damping ratio.
+    pub damping_ratio: f64,
+    /// Ground participation `φᵀM*ι*`.
+    pub ground_participation: f64,
+    /// The shape at the interface.
+    pub interface_shape: f64,
+    /// The shape at each output, in the file's `outputs` order.
+    pub output_shape: Vec<f64>,
+}
+
+/// A read-out's static correction as the file stores it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StaticEntry {
+    /// The truncated modes' static response to a unit ground acceleration, mm per mm/s².
+    pub ground_mm_per_mm_s2: f64,
+    /// The truncated modes' static response to a unit interface force, mm/kN.
+    pub force_mm_per_kn: f64,
+}
+
+impl From<StaticEntry> for StaticCorrection {
+    fn from(s: StaticEntry) -> Self {
+        StaticCorrection {
+            ground_mm_per_mm_s2: s.ground_mm_per_mm_s2,
+            force_mm_per_kn: s.force_mm_per_kn,
+        }
+    }
+}
+
+/// One training record's pure-loop error against the host FE.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReducedRecordError {
+    /// The record.
+    pub record: String,
+    /// The interface's NRMSE, %.
+    pub interface_nrmse_pct: f64,
+    /// The largest output NRMSE, %.
+    pub max_output_nrmse_pct: f64,
+}
+
+/// How the model was trained, and its error bound.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReducedTraining {
+    /// The training records (embedded names).
+    pub records: Vec<String>,
+    /// The pure-loop target the mode count was chosen for, % NRMSE.
+    pub target_nrmse_pct: f64,
+    /// The largest pure-loop NRMSE over the training records and read-outs, %: the model's error
+    /// bound as measured.
+    pub error_bound_pct: f64,
+    /// Per record.
+    pub per_record: Vec<ReducedRecordError>,
+    /// The structure's modes (all of them: the condensed model's DOF count).
+    pub total_modes: usize,
+    /// The lowest truncated mode's frequency, Hz (none when all are kept).
+    pub lowest_truncated_hz: Option<f64>,
+    /// The largest off-diagonal modal damping `|φᵢᵀCφⱼ| / √(cᵢᵢcⱼⱼ)` among the retained modes:
+    /// how far the damping is from classical (0: the modes decouple exactly).
+    pub damping_coupling: f64,
+}
+
+/// The reduced model's file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReducedModelFile {
+    /// [`REDUCED_FORMAT`].
+    pub format: String,
+    /// [`REDUCED_VERSION`].
+    pub version: u64,
+    /// The structure's name.
+    pub structure: String,
+    /// [`imported_checksum`] of the structure.
+    pub structure_checksum: String,
+    /// The control step it was trained (its size chosen) at, s; the modes are continuous-time and
+    /// run at any step.
+    pub dt_s: f64,
+    /// The whole model's DOFs.
+    pub dofs: usize,
+    /// The DOFs that carry mass.
+    pub mass_dofs: usize,
+    /// The stand-in specimen's stiffness the modes include, kN/mm.
+    pub specimen_k_kn_per_mm: f64,
+    /// The outputs' column names (`out_<NODE>_<DOF>_mm`).
+    pub outputs: Vec<String>,
+    /// The retained modes, lowest first.
+    pub modes: Vec<ReducedModeEntry>,
+    /// The interface's static correction.
+    pub interface_static: StaticEntry,
+    /// The outputs' static corrections.
+    pub output_static: Vec<StaticEntry>,
+    /// How it was trained.
+    pub training: ReducedTraining,
+}
+
+/// The arrays a [`ReducedSpec`] borrows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReducedArrays {
+    modes: Vec<ReducedMode>,
+    output_shape: Vec<f64>,
+    interface_static: StaticCorrection,
+    output_static: Vec<StaticCorrection>,
+    specimen_k_kn_per_mm: f64,
+}
+
+impl ReducedArrays {
+    /// The controller's model spec over these arrays.
+    pub fn spec(&self) -> ReducedSpec<'_> {
+        ReducedSpec {
+            modes: &self.modes,
+            output_shape: &self.output_shape,
+            interface_static: self.interface_static,
+            output_static: &self.output_static,
+            specimen_k_kn_per_mm: self.specimen_k_kn_per_mm,
+        }
+    }
+}
+
+impl ReducedModelFile {
+    /// Parse and check the format.
+    pub fn from_json(text: &str) -> Result<Self, ReducedError> {
+        let f: Self = serde_json::from_str(text)?;
+        if f.format != REDUCED_FORMAT || f.version != REDUCED_VERSION {
+            return Err(ReducedError::Format {
+                format: f.format,
+                version: f.version,
+            });
+        }
+        Ok(f)
+    }
+
+    /// Read `path`.
+    pub fn load(path: &Path) -> Result<Self, ReducedError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ReducedError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_json(&text)
+    }
+
+    /// Pretty JSON (shortest round-trip numbers: the same model gives the same bytes).
+    pub fn to_json(&self) -> Result<String, ReducedError> {
+        Ok(serde_json::to_string_pretty(self)? + "\n")
+    }
+
+    /// Whether `text` looks like a reduced model file.
+    pub fn is_reduced(text: &str) -> bool {
+        #[derive(Deserialize)]
+        struct Header {
+            format: Option<String>,
+        }
+        serde_json::from_str::<Header>(text)
+            .map(|h| h.format.as_deref() == Some(REDUCED_FORMAT))
+            .unwrap_or(false)
+    }
+
+    /// The arrays for the controller, checked against `structure` (name and checksum).
+    pub fn arrays_for(&self, structure: &ImportedStructure) -> Result<ReducedArrays, ReducedError> {
+        let checksum = imported_checksum(structure);
+        if self.structure != structure.name() || self.structure_checksum != checksum {
+            return Err(ReducedError::Structure {
+                file_name: self.structure.clone(),
+                file_checksum: self.structure_checksum.clone(),
+                name: structure.name().to_string(),
+                checksum,
+            });
+        }
+        self.arrays()
+    }
+
+    /// The arrays for the controller (shapes checked; values by core's validation).
+    pub fn arrays(&self) -> Result<ReducedArrays, ReducedError> {
+        let n_out = self.outputs.len();
+        let r = self.modes.len();
+        let mut output_shape = vec![0.0; n_out * r];
+        for (j, m) in self.modes.iter().enumerate() {
+            if m.output_shape.len() != n_out {
+                return Err(ReducedError::Shape {
+                    mode: j,
+                    got: m.output_shape.len(),
+                    expected: n_out,
+                });
+            }
+            for (o, v) in m.output_shape.iter().enumerate() {
+                if let Some(slot) = output_shape.get_mut(o * r + j) {
+                    *slot = *v;
+                }
+            }
+        }
+        let a = ReducedArrays {
+            modes: self
+                .modes
+                .iter()
+                .map(|m| ReducedMode {
+                    omega_rad_s: m.omega_rad_s,
+                    damping_ratio: m.damping_ratio,
+                    ground_participation: m.ground_participation,
+                    interface_shape: m.interface_shape,
+                })
+                .collect(),
+            output_shape,
+            interface_static: self.interface_static.into(),
+            output_static: self.output_static.iter().map(|s| (*s).into()).collect(),
+            specimen_k_kn_per_mm: self.specimen_k_kn_per_mm,
+        };
+        // Validated once here, so a bad file is refused on load, not at the first tick.
+        a.spec().params(self.dt_s)?;
+        Ok(a)
+    }
+}
+
+/// The whole structure's modes and static responses, lowest mode first.
+struct Modes {
+    /// ω, rad/s.
+    omega: Vec<f64>,
+    /// Mass-normalized shapes, one column per mode.
+    shapes: DMatrix<f64>,
+    /// `ζ`.
+    zeta: Vec<f64>,
+    /// `Γ = φᵀMι`.
+    gamma: Vec<f64>,
+    /// `ΦᵀCΦ`.
+    modal_damping: DMatrix<f64>,
+    /// `K⁻¹·M·ι`.
+    static_ground: DVector<f64>,
+    /// `K⁻¹·e`.
+    static_force: DVector<f64>,
+}
+
+fn modes_of(s: &ImportedStructure) -> Result<Modes, ReducedError> {
+    let (m, c, mut k) = s.condensed_dense();
+    let n = m.nrows();
+    let e = s.interface_index();
+    if let Some(kee) = k.get_mut((e, e)) {
+        *kee += s.specimen_stiffness_kn_per_mm();
+    }
+    let l = m.clone().cholesky().ok_or(ReducedError::Mass)?.l();
+    // A = L⁻¹·K·L⁻ᵀ (symmetric): two triangular solves.
+    let lk = l.solve_lower_triangular(&k).ok_or(ReducedError::Mass)?;
+    let a = l
+        .solve_lower_triangular(&lk.transpose())
+        .ok_or(ReducedError::Mass)?;
+    let a = (&a + a.transpose()) * 0.5;
+    let eig = a.symmetric_eigen();
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]));
+    let lt = l.transpose();
+    let mut shapes = DMatrix::zeros(n, n);
+    let mut omega = Vec::with_capacity(n);
+    for (col, &i) in order.iter().enumerate() {
+        let lambda = eig.eigenvalues[i];
+        if lambda.is_nan() || lambda <= 0.0 {
+            return Err(ReducedError::Stiffness);
+        }
+        let y = eig.eigenvectors.column(i).into_owned();
+        let mut phi = lt.solve_upper_triangular(&y).ok_or(ReducedError::Mass)?;
+        // A sign convention (the largest entry positive) so the same structure gives the same file.
+        let imax = phi.iamax();
+        if phi[imax] < 0.0 {
+            phi = -phi;
+        }
+        shapes.set_column(col, &phi);
+        omega.push(lambda.sqrt());
+    }
+    let modal_damping = shapes.transpose() * &c * &shapes;
+    let zeta = omega
+        .iter()
+        .enumerate()
+        .map(|(j, w)| modal_damping[(j, j)] / (2.0 * w))
+        .collect();
+    let iota = s.condensed_influence();
+    let m_iota = &m * &iota;
+    let gamma = (shapes.transpose() * &m_iota).iter().copied().collect();
+    let kc = k.cholesky().ok_or(ReducedError::Stiffness)?;
+    let static_ground = kc.solve(&m_iota);
+    let mut unit = DVector::zeros(n);
+    if let Some(u) = unit.get_mut(e) {
+        *u = 1.0;
+    }
+    let static_force = kc.solve(&unit);
+    Ok(Modes {
+        omega,
+        shapes,
+        zeta,
+        gamma,
+        modal_damping,
+        static_ground,
+        static_force,
+    })
+}
+
+/// The model of the `r` lowest modes (the file without its training record).
+fn reduced_of(s: &ImportedStructure, md: &Modes, r: usize, dt_s: f64) -> ReducedModelFile {
+    let e = s.interface_index();
+    let outs = s.output_indices();
+    let correction = |row: usize| {
+        let mut g = md.static_ground.get(row).copied().unwrap_or(0.0);
+        let mut f = md.static_force.get(row).copied().unwrap_or(0.0);
+        for j in 0..r {
+            let w2 = md.omega[j] * md.omega[j];
+            let phi = md.shapes[(row, j)];
+            g -= phi * md.gamma[j] / w2;
+            f -= phi * md.shapes[(e, j)] / w2;
+        }
+        StaticEntry {
+            ground_mm_per_mm_s2: g,
+            force_mm_per_kn: f,
+        }
+    };
+    let modes = (0..r)
+        .map(|j| ReducedModeEntry {
+            frequency_hz: md.omega[j] / (2.0 * std::f64::consts::PI),
+            omega_rad_s: md.omega[j],
+            damping_ratio: md.zeta[j],
+            ground_participation: md.gamma[j],
+            interface_shape: md.shapes[(e, j)],
+            output_shape: outs.iter().map(|&o| md.shapes[(o, j)]).collect(),
+        })
+        .collect();
+    let mut coupling: f64 = 0.0;
+    for i in 0..r {
+        for j in 0..r {
+            if i != j {
+                let d = (md.modal_damping[(i, i)] * md.modal_damping[(j, j)])
+                    .abs()
+                    .sqrt();
+                if d > 0.0 {
+                    coupling = coupling.max(md.modal_damping[(i, j)].abs() / d);
+                }
+            }
+        }
+    }
+    ReducedModelFile {
+        format: REDUCED_FORMAT.into(),
+        version: REDUCED_VERSION,
+        structure: s.name().to_string(),
+        structure_checksum: imported_checksum(s),
+        dt_s,
+        dofs: s.equations().len(),
+        mass_dofs: s.mass_dofs(),
+        specimen_k_kn_per_mm: s.specimen_stiffness_kn_per_mm(),
+        outputs: s.outputs().iter().map(|o| o.column()).collect(),
+        modes,
+        interface_static: correction(e),
+        output_static: outs.iter().map(|&o| correction(o)).collect(),
+        training: ReducedTraining {
+            records: Vec::new(),
+            target_nrmse_pct: REDUCED_TARGET_NRMSE_PCT,
+            error_bound_pct: f64::NAN,
+            per_record: Vec::new(),
+            total_modes: md.omega.len(),
+            lowest_truncated_hz: md.omega.get(r).map(|w| w / (2.0 * std::f64::consts::PI)),
+            damping_coupling: coupling,
+        },
+    }
+}
+
+/// The pure loop of a reduced model (the controller's analytical part coupled with the numerical
+/// stand-in specimen, `F = k_e·target`) under `ag_mm_s2`, one sample per step (row 0: rest), as
+/// [`fe::run_pure`] gives the host FE's.
+pub fn run_pure(
+    params: ReducedModalParams,
+    output_columns: Vec<String>,
+    ag_mm_s2: &[f64],
+) -> Result<FeHistory, ReducedError> {
+    let k_e = params.specimen_k_kn_per_mm();
+    let n_out = params.outputs();
+    let dt_s = params.dt_s();
+    let mut part = StructureReduced::new(params);
+    let mut interface_mm = Vec::with_capacity(ag_mm_s2.len());
+    let mut outputs_mm = Vec::with_capacity(ag_mm_s2.len());
+    let mut target = 0.0;
+    for &ag in ag_mm_s2 {
+        target = part
+            .next_target(ag, k_e * target)
+            .map_err(|_| ModelError::Param(rths_core::params::ParamError::NotFinite("step")))?;
+        let m = part.model();
+        interface_mm.push(m.interface_mm());
+        outputs_mm.push((0..n_out).map(|o| m.output_mm(o)).collect());
+    }
+    Ok(FeHistory {
+        dt_s,
+        output_columns,
+        interface_mm,
+        outputs_mm,
+    })
+}
+
+/// `(interface, largest output)` NRMSE of `run` against `reference`, %.
+pub fn history_nrmse_pct(run: &FeHistory, reference: &FeHistory) -> (f64, f64) {
+    let n = run.interface_mm.len().min(reference.interface_mm.len());
+    let i = nrmse_pct(&run.interface_mm[..n], &reference.interface_mm[..n]).unwrap_or(f64::NAN);
+    let outs = run.outputs_mm.first().map_or(0, Vec::len);
+    let mut worst: f64 = 0.0;
+    for o in 0..outs {
+        let col = |h: &FeHistory| -> Vec<f64> {
+            h.outputs_mm
+                .iter()
+                .take(n)
+                .map(|row| row.get(o).copied().unwrap_or(f64::NAN))
+                .collect()
+        };
+        let e = nrmse_pct(&col(run), &col(reference)).unwrap_or(f64::NAN);
+        worst = if e.is_nan() { f64::NAN } else { worst.max(e) };
+    }
+    (i, worst)
+}
+
+/// Train the reduced model of `structure` at control step `dt_s` on `records` (name, ground
+/// acceleration at `dt_s`, mm/s²). `progress(stage, done, total)` reports the work.
+pub fn train(
+    structure: &ImportedStructure,
+    records: &[(String, Vec<f64>)],
+    dt_s: f64,
+    mut progress: impl FnMut(&str, u64, u64),
+) -> Result<ReducedModelFile, ReducedError> {
+    progress("modes", 0, 1);
+    let md = modes_of(structure)?;
+    progress("modes", 1, 1);
+    let mut reference = Vec::with_capacity(records.len());
+    for (i, (_, ag)) in records.iter().enumerate() {
+        progress(
+            "host FE on the training records",
+            i as u64,
+            records.len() as u64,
+        );
+        reference.push(fe::run_pure(structure, ag, dt_s, |_| {})?);
+    }
+    progress(
+        "host FE on the training records",
+        records.len() as u64,
+        records.len() as u64,
+    );
+    let max_r = REDUCED_MAX_MODES.min(md.omega.len());
+    let mut best: Option<(f64, ReducedModelFile)> = None;
+    for r in 1..=max_r {
+        progress("modes kept", r as u64, max_r as u64);
+        // A mode whose damping is critical or beyond cannot be kept (core refuses ζ ≥ 1): the
+        // model stops at the last one below.
+        if md.zeta.get(r - 1).is_none_or(|z| !(0.0..1.0).contains(z)) {
+            break;
+        }
+        let mut file = reduced_of(structure, &md, r, dt_s);
+        let Ok(arrays) = file.arrays() else { continue };
+        let params = arrays.spec().params(dt_s)?;
+        let mut per_record = Vec::new();
+        let mut bound: f64 = 0.0;
+        for ((name, ag), reference) in records.iter().zip(&reference) {
+            let run = run_pure(params, file.outputs.clone(), ag)?;
+            let (i, o) = history_nrmse_pct(&run, reference);
+            bound = if i.is_nan() || o.is_nan() {
+                f64::INFINITY
+            } else {
+                bound.max(i).max(o)
+            };
+            per_record.push(ReducedRecordError {
+                record: name.clone(),
+                interface_nrmse_pct: i,
+                max_output_nrmse_pct: o,
+            });
+        }
+        file.training.records = records.iter().map(|(n, _)| n.clone()).collect();
+        file.training.error_bound_pct = bound;
+        file.training.per_record = per_record;
+        let better = best.as_ref().is_none_or(|(b, _)| bound < *b);
+        if better {
+            best = Some((bound, file));
+        }
+        if bound <= REDUCED_TARGET_NRMSE_PCT {
+            break;
+        }
+    }
+    best.map(|(_, f)| f)
+        .ok_or(ReducedError::Model(ModelError::Param(
+            rths_core::params::ParamError::OutOfRange("no mode below critical damping"),
+        )))
+}
+
+/// The embedded training records at `dt_s`, mm/s².
+pub fn training_records(dt_s: f64) -> Result<Vec<(String, Vec<f64>)>, ReducedError> {
+    REDUCED_TRAINING_RECORDS
+        .iter()
+        .map(|name| {
+            rths_files::motion::GroundMotion::embedded(name)
+                .map(|m| (name.to_string(), m.resample_mm_s2(dt_s)))
+                .ok_or_else(|| ReducedError::Record(name.to_string()))
+        })
+        .collect()
+}
