@@ -16,6 +16,7 @@ pub mod nonlinear;
 pub mod plot;
 pub mod robustness;
 pub mod scenario;
+pub mod site;
 pub mod soak;
 pub mod study;
 pub mod sweep;

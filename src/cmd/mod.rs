@@ -12,4 +12,5 @@ pub mod report;
 pub mod reproduce;
 pub mod robustness;
 pub mod simulate;
+pub mod site;
 pub mod train;
