@@ -79,11 +79,20 @@ pub fn run(cfg: &SiteConfig) -> anyhow::Result<Vec<ElementOutcome>> {
         })
         .collect();
     let mut outcomes = Vec::with_capacity(k);
+    let mut first_error = None;
     for (i, h) in handles.into_iter().enumerate() {
-        let (local, proto, r) = h
-            .join()
-            .map_err(|_| anyhow::anyhow!("element {} stopped unexpectedly", i + 1))?;
-        let o = r.with_context(|| format!("element {} ({local})", i + 1))?;
+        let Ok((local, proto, r)) = h.join() else {
+            first_error.get_or_insert(anyhow::anyhow!("element {} stopped unexpectedly", i + 1));
+            continue;
+        };
+        // An element refused before its test began has no recording; the others are kept.
+        let o = match r.with_context(|| format!("element {} ({local})", i + 1)) {
+            Ok(o) => o,
+            Err(e) => {
+                first_error.get_or_insert(e);
+                continue;
+            }
+        };
         if let Some(out) = &cfg.out {
             let path = recording_path(out, i, k);
             let mut hd = crate::link_host::RunHeader::default();
@@ -105,7 +114,10 @@ pub fn run(cfg: &SiteConfig) -> anyhow::Result<Vec<ElementOutcome>> {
         }
         outcomes.push(o);
     }
-    Ok(outcomes)
+    match first_error {
+        Some(e) => Err(e),
+        None => Ok(outcomes),
+    }
 }
 
 type Served = (SocketAddr, &'static str, anyhow::Result<ElementOutcome>);

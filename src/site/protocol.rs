@@ -17,6 +17,18 @@ pub const MAX_DATA_SIZE: usize = 8192;
 /// The largest number of basic DOFs of an element the handshake may announce.
 pub const MAX_BASIC_DOFS: usize = 64;
 
+/// The action codes of the protocol (the client's `RemoteTest_*` values).
+const ACTIONS: [(f64, Action); 8] = [
+    (3.0, Action::SetTrialResponse),
+    (5.0, Action::CommitState),
+    (10.0, Action::GetForce),
+    (12.0, Action::GetInitialStiff),
+    (13.0, Action::GetTangentStiff),
+    (14.0, Action::GetDamp),
+    (15.0, Action::GetMass),
+    (99.0, Action::Die),
+];
+
 /// What a client asked.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Action {
@@ -41,17 +53,7 @@ pub enum Action {
 impl Action {
     /// The action of a code (the message's first f64), `None` for an unknown one.
     pub fn from_code(code: f64) -> Option<Self> {
-        Some(match code {
-            c if c == 3.0 => Action::SetTrialResponse,
-            c if c == 5.0 => Action::CommitState,
-            c if c == 10.0 => Action::GetForce,
-            c if c == 12.0 => Action::GetInitialStiff,
-            c if c == 13.0 => Action::GetTangentStiff,
-            c if c == 14.0 => Action::GetDamp,
-            c if c == 15.0 => Action::GetMass,
-            c if c == 99.0 => Action::Die,
-            _ => return None,
-        })
+        ACTIONS.iter().find(|(c, _)| *c == code).map(|(_, a)| *a)
     }
 
     /// Does the client wait for a reply?
