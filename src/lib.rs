@@ -19,6 +19,7 @@ pub mod plot;
 pub mod reference;
 pub mod robustness;
 pub mod scenario;
+pub mod site;
 pub mod soak;
 pub mod study;
 pub mod sweep;

@@ -39,6 +39,8 @@ enum Command {
     Report(cmd::report::Args),
     /// The vRTHS benchmark problem: one case × record with J1-J9, or the whole grid's table.
     Benchmark(cmd::benchmark::Args),
+    /// Be the experimental site of an OpenSees analysis (its genericClient elements).
+    Site(cmd::site::Args),
     /// Score the nonlinear scenarios on held-out records from elastic to past ductility 4.
     NonlinearStudy(cmd::nonlinear_study::Args),
     /// Import a lab's finite-element model (OpenSees) as a structure file.
@@ -60,6 +62,7 @@ fn main() -> std::process::ExitCode {
         Command::Identify(a) => cmd::identify::run(a),
         Command::Robustness(a) => cmd::robustness::run(a),
         Command::Benchmark(a) => cmd::benchmark::run(a),
+        Command::Site(a) => cmd::site::run(a),
         Command::NonlinearStudy(a) => cmd::nonlinear_study::run(a),
         Command::Import(a) => cmd::import::run(a),
     };

@@ -25,6 +25,7 @@ pub mod metrics;
 pub mod model;
 pub mod motion;
 pub mod params;
+pub mod predictor_corrector;
 pub mod reference;
 pub mod structure;
 pub mod structure_n;

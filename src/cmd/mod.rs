@@ -14,4 +14,5 @@ pub mod reproduce;
 pub mod robustness;
 pub mod simulate;
 pub mod simulate_imported;
+pub mod site;
 pub mod train;

@@ -97,6 +97,9 @@ pub fn history_of(
 /// The figures of a recording, and the run (history) they come from.
 pub fn analyze(rec: &Recording, scenario: Option<ScenarioId>) -> anyhow::Result<ScenarioRun> {
     let hd = &rec.header;
+    if hd.get("source") == Some("site") {
+        return analyze_site(rec);
+    }
     let field = |k: &str| {
         hd.get(k).with_context(|| {
             format!("the recording's header has no `{k}` (record it with `rths link run`)")
@@ -142,6 +145,36 @@ pub fn analyze(rec: &Recording, scenario: Option<ScenarioId>) -> anyhow::Result<
     let reference = study::reference_for(&ag, specimen, f)?;
     let (history, stop) = history_of(&rec.rows, &ag, &reference)?;
     let report: ScenarioReport = scenario::figures(id, &history, stop);
+    Ok(ScenarioRun { report, history })
+}
+
+/// The figures of an `rths site` recording (docs/site.md): the structure lives in the client's
+/// analysis, so its reference is the analysis's own targets (the rows while the test ran): the
+/// measured figures are the actuator's tracking of them; the target's NRMSE is not a figure here.
+fn analyze_site(rec: &Recording) -> anyhow::Result<ScenarioRun> {
+    let running = rec
+        .rows
+        .iter()
+        .rposition(|r| r.state == "running")
+        .map_or(0, |i| i + 1);
+    let rows = &rec.rows[..running];
+    let zeros = vec![0.0; rows.len()];
+    let (mut history, _) = history_of(rows, &zeros, &zeros)?;
+    history.reference_mm = history.target_mm.clone();
+    let stop = rec
+        .header
+        .get("stop_reason")
+        .map(|r| (r.to_string(), rows.len() as f64 * DT_S));
+    let mut report = scenario::figures_of_series(
+        "site",
+        true,
+        &history.target_mm,
+        &history.command_mm,
+        &history.measured_mm,
+        &history.reference_mm,
+        stop,
+    );
+    report.nrmse_pct = None;
     Ok(ScenarioRun { report, history })
 }
 

@@ -1,0 +1,422 @@
+//! `rths site` end to end: OpenSees (openseespy, the shipped scripts) as the client of the virtual
+//! rig, against the same OpenSees model with elastic braces; and the faults of a raw client.
+//!
+//! Python is `RTHS_PYTHON` (default `python3`); without openseespy the OpenSees tests print
+//! `SKIPPED: ...`, and fail instead with `RTHS_REQUIRE_OPENSEES=1`.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+
+const RTHS: &str = env!("CARGO_BIN_EXE_rths");
+/// The prototype brace's stiffness, kN/mm (the rig's nominal specimen × the force scale).
+const BRACE_K: &str = "1224.1";
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn record() -> PathBuf {
+    root().join("data/ground_motions/IELC180.AT2")
+}
+
+/// Python with openseespy, and the LD_LIBRARY_PATH its library needs; `None` (after a loud
+/// SKIPPED line) when missing, a panic when `RTHS_REQUIRE_OPENSEES=1`.
+fn opensees(test: &str) -> Option<(String, Option<String>)> {
+    let py = std::env::var("RTHS_PYTHON").unwrap_or_else(|_| "python3".into());
+    let find = Command::new(&py)
+        .args([
+            "-c",
+            "import importlib.util, os; s = importlib.util.find_spec('openseespy'); \
+             print(os.path.dirname(s.origin) if s else '')",
+        ])
+        .output();
+    let dir = match find {
+        Ok(o) if o.status.success() => String::from_utf8_lossy(&o.stdout).trim().to_string(),
+        _ => String::new(),
+    };
+    let lib = Path::new(&dir)
+        .parent()
+        .map(|p| p.join("openseespylinux/lib"));
+    let ld = lib.filter(|l| l.is_dir()).map(|l| l.display().to_string());
+    let ok = !dir.is_empty() && {
+        let mut c = Command::new(&py);
+        c.args(["-c", "import openseespy.opensees"]);
+        if let Some(l) = &ld {
+            c.env("LD_LIBRARY_PATH", l);
+        }
+        c.output().map(|o| o.status.success()).unwrap_or(false)
+    };
+    if ok {
+        return Some((py, ld));
+    }
+    let why = format!("{py} has no working openseespy (set RTHS_PYTHON)");
+    if std::env::var("RTHS_REQUIRE_OPENSEES").as_deref() == Ok("1") {
+        panic!("{test}: RTHS_REQUIRE_OPENSEES=1 but {why}");
+    }
+    println!("SKIPPED: {test} (openseespy: {why})");
+    None
+}
+
+/// `rths site ARGS`, started; its element addresses once it prints them.
+fn start_site(args: &[&str], elements: usize) -> (Child, Vec<SocketAddr>) {
+    let mut child = Command::new(RTHS)
+        .arg("site")
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("rths site starts");
+    let mut out = BufReader::new(child.stdout.take().expect("stdout"));
+    let mut addrs = Vec::new();
+    while addrs.len() < elements {
+        let mut l = String::new();
+        if out.read_line(&mut l).expect("reading rths site") == 0 {
+            let mut e = String::new();
+            let _ = child.stderr.take().map(|mut s| s.read_to_string(&mut e));
+            panic!("rths site ended before listening: {e}");
+        }
+        if let Some(a) = l.trim().strip_prefix("listening on ") {
+            addrs.push(a.parse().expect("an address"));
+        }
+    }
+    // Keep draining stdout so the site never blocks on a full pipe.
+    let mut rest = String::new();
+    std::thread::spawn(move || {
+        let _ = out.read_to_string(&mut rest);
+        print!("{rest}");
+    });
+    (child, addrs)
+}
+
+/// Wait for the site; its exit success and stderr.
+fn finish(mut child: Child) -> (bool, String) {
+    let mut err = String::new();
+    if let Some(mut s) = child.stderr.take() {
+        let _ = s.read_to_string(&mut err);
+    }
+    let ok = child.wait().expect("rths site ends").success();
+    (ok, err)
+}
+
+/// A free port with the next one free too (two elements).
+fn free_ports() -> u16 {
+    for _ in 0..50 {
+        let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+        let p = l.local_addr().expect("addr").port();
+        if p < 65000 && std::net::TcpListener::bind(("127.0.0.1", p + 1)).is_ok() {
+            return p;
+        }
+    }
+    panic!("no two free ports")
+}
+
+struct ScriptRun {
+    disp: Vec<Vec<f64>>,
+    wall_per_step_s: f64,
+}
+
+fn run_script(
+    py: &(String, Option<String>),
+    script: &str,
+    extra: &[String],
+    out: &Path,
+) -> ScriptRun {
+    let mut c = Command::new(&py.0);
+    c.arg(root().join("scripts/opensees").join(script))
+        .arg("--record")
+        .arg(record())
+        .args(extra)
+        .arg("--out")
+        .arg(out);
+    if let Some(l) = &py.1 {
+        c.env("LD_LIBRARY_PATH", l);
+    }
+    let o = c.output().expect("python runs");
+    assert!(
+        o.status.success(),
+        "{script} failed: {}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out).expect("script output")).expect("json");
+    let disp = v["disp_mm"]
+        .as_array()
+        .expect("disp")
+        .iter()
+        .map(|x| match x.as_array() {
+            Some(a) => a.iter().map(|y| y.as_f64().unwrap_or(f64::NAN)).collect(),
+            None => vec![x.as_f64().unwrap_or(f64::NAN)],
+        })
+        .collect();
+    let steps = v["steps"].as_f64().unwrap_or(1.0);
+    ScriptRun {
+        disp,
+        wall_per_step_s: v["wall_s"].as_f64().unwrap_or(f64::NAN) / steps,
+    }
+}
+
+/// NRMSE of column `j` of `x` against `reference`, % of the reference's range.
+fn nrmse_pct(x: &[Vec<f64>], reference: &[Vec<f64>], j: usize) -> f64 {
+    assert_eq!(x.len(), reference.len());
+    let (a, b): (Vec<f64>, Vec<f64>) = x.iter().zip(reference).map(|(p, q)| (p[j], q[j])).unzip();
+    rths_core::metrics::nrmse_pct(&a, &b).expect("nrmse")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rths-site-{}", std::process::id()));
+    std::fs::create_dir_all(&d).expect("tmp dir");
+    d.join(name)
+}
+
+/// The paper's frame with its brace on the virtual rig (unr-compact, identified at start):
+/// slowed down ×10 within 0.1 % NRMSE of the elastic brace, real time (TCP and UDP) within 2 %,
+/// and `rths report` reads the recording.
+#[test]
+fn the_paper_frame_from_opensees() {
+    let Some(py) = opensees("the_paper_frame_from_opensees") else {
+        return;
+    };
+    let reference = run_script(
+        &py,
+        "site_paper_frame.py",
+        &["--elastic".into(), BRACE_K.into()],
+        &tmp("elastic.json"),
+    );
+    let mut overhead = Vec::new();
+    for (udp, rate, limit_pct) in [(false, "10", 0.1), (false, "1", 2.0), (true, "1", 2.0)] {
+        let rec = tmp(&format!("run-{udp}-{rate}.csv"));
+        let rec_s = rec.display().to_string();
+        let mut args = vec![
+            "--listen",
+            "127.0.0.1:0",
+            "--preset",
+            "unr-compact",
+            "--rate-factor",
+            rate,
+            "--out",
+            &rec_s,
+        ];
+        if udp {
+            args.push("--udp");
+        }
+        let (child, addrs) = start_site(&args, 1);
+        let mut extra = vec!["--port".to_string(), addrs[0].port().to_string()];
+        if udp {
+            extra.push("--udp".into());
+        }
+        let run = run_script(&py, "site_paper_frame.py", &extra, &tmp("client.json"));
+        let (ok, err) = finish(child);
+        assert!(ok, "rths site failed: {err}");
+        let e = nrmse_pct(&run.disp, &reference.disp, 0);
+        let added_ms = (run.wall_per_step_s - reference.wall_per_step_s) * 1e3;
+        println!(
+            "paper frame, {} rate factor {rate}: NRMSE {e:.4} % (limit {limit_pct} %), added \
+             latency {added_ms:.4} ms per step",
+            if udp { "UDP" } else { "TCP" }
+        );
+        assert!(e < limit_pct, "NRMSE {e} % ≥ {limit_pct} %");
+        if rate == "1" {
+            overhead.push(added_ms);
+        }
+        let rep = Command::new(RTHS)
+            .args(["report", &rec_s, "--json"])
+            .output()
+            .expect("rths report");
+        assert!(
+            rep.status.success(),
+            "rths report: {}",
+            String::from_utf8_lossy(&rep.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&rep.stdout).expect("report json");
+        assert_eq!(v["scenarios"][0]["stable"], true, "{v}");
+        assert_eq!(v["recording"]["source"], "site");
+        assert!(v["scenarios"][0]["nrmse_measured_pct"].as_f64().is_some());
+    }
+    // Loopback; the goal is ≤ 1 ms per step. A loaded CI machine may be slower: reported, with a
+    // generous bound that still catches a stall on delayed ACKs (tens of ms).
+    for ms in overhead {
+        assert!(ms < 10.0, "added latency {ms} ms per step");
+    }
+}
+
+/// The 3-story frame with two genericClient elements (two actuators): real time within 2 % of
+/// the elastic braces at every floor.
+#[test]
+fn the_three_story_frame_with_two_actuators() {
+    let Some(py) = opensees("the_three_story_frame_with_two_actuators") else {
+        return;
+    };
+    let scale = ["--scale".to_string(), "0.3".to_string()];
+    let mut e_args = vec!["--elastic".to_string(), BRACE_K.to_string()];
+    e_args.extend(scale.clone());
+    let reference = run_script(&py, "site_3story.py", &e_args, &tmp("elastic3.json"));
+    let port = free_ports();
+    let listen = format!("127.0.0.1:{port}");
+    let rec = tmp("run3.csv").display().to_string();
+    let (child, addrs) = start_site(&["--listen", &listen, "--elements", "2", "--out", &rec], 2);
+    assert_eq!(addrs[1].port(), port + 1);
+    let mut extra = vec!["--port".to_string(), port.to_string()];
+    extra.extend(scale);
+    let run = run_script(&py, "site_3story.py", &extra, &tmp("client3.json"));
+    let (ok, err) = finish(child);
+    assert!(ok, "rths site failed: {err}");
+    for j in 0..3 {
+        let e = nrmse_pct(&run.disp, &reference.disp, j);
+        println!("3-story, floor {}: NRMSE {e:.4} %", j + 1);
+        assert!(e < 2.0, "floor {}: NRMSE {e} %", j + 1);
+    }
+    for i in 1..=2 {
+        let p = tmp(&format!("run3-{i}.csv"));
+        assert!(p.exists(), "{} written", p.display());
+    }
+}
+
+// ---- faults, from a raw client (no OpenSees needed) ----
+
+fn handshake() -> Vec<u8> {
+    [1i32, 1, 1, 0, 1, 0, 0, 0, 1, 0, 8]
+        .iter()
+        .flat_map(|x| x.to_le_bytes())
+        .collect()
+}
+
+fn msg(action: f64, d: f64, t: f64) -> Vec<u8> {
+    let mut v = [0.0f64; 8];
+    v[0] = action;
+    v[1] = d;
+    v[4] = t;
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// Drive a site with `script` (messages), then close; the site's success, stderr, recording.
+fn raw_client(name: &str, script: &[Vec<u8>]) -> (bool, String, String) {
+    let rec = tmp(&format!("{name}.csv"));
+    let rec_s = rec.display().to_string();
+    let (child, addrs) = start_site(&["--listen", "127.0.0.1:0", "--out", &rec_s], 1);
+    {
+        let mut s = TcpStream::connect(addrs[0]).expect("connect");
+        s.write_all(&handshake()).expect("handshake");
+        for m in script {
+            if s.write_all(m).is_err() {
+                break;
+            }
+            if m[..8] == 10.0f64.to_le_bytes() {
+                let mut r = [0u8; 64];
+                if s.read_exact(&mut r).is_err() {
+                    break;
+                }
+            }
+        }
+    }
+    let (ok, err) = finish(child);
+    let text = std::fs::read_to_string(&rec).unwrap_or_default();
+    (ok, err, text)
+}
+
+/// The last row's command, mm.
+fn last_command(recording: &str) -> f64 {
+    let l = recording.lines().last().expect("rows");
+    l.split(',')
+        .nth(4)
+        .and_then(|x| x.parse().ok())
+        .expect("command")
+}
+
+const DT: f64 = 4.0 / 2048.0;
+
+#[test]
+fn faults_bring_the_actuator_to_its_safe_position_and_keep_the_recording() {
+    // Some steps to 2 mm (a smooth start: the lead filter in front of the actuator amplifies a
+    // sudden velocity), then each fault.
+    let steps: Vec<Vec<u8>> = (1..=20)
+        .flat_map(|i| {
+            let t = i as f64 * DT;
+            let d = 1.0 - (std::f64::consts::PI * i as f64 / 20.0).cos();
+            [msg(3.0, d, t), msg(10.0, d, t), msg(5.0, d, t)]
+        })
+        .collect();
+    let t = 21.0 * DT;
+    let cases: [(&str, Vec<Vec<u8>>, &str); 4] = [
+        ("vanished", vec![msg(3.0, 2.0, t)], "vanished"),
+        ("unknown", vec![msg(42.0, 2.0, t)], "unknown action 42"),
+        (
+            "velocity",
+            vec![msg(3.0, 5.0, t), msg(10.0, 5.0, t)],
+            "CommandVelocity",
+        ),
+        (
+            "iterative",
+            vec![msg(3.0, 2.0, t), msg(3.0, 2.01, t)],
+            "iterative",
+        ),
+    ];
+    for (name, tail, why) in cases {
+        let mut script = steps.clone();
+        script.extend(tail);
+        let (ok, err, rec) = raw_client(name, &script);
+        assert!(!ok, "{name}: the site must report the stop");
+        assert!(err.contains(why), "{name}: `{why}` not in: {err}");
+        assert!(
+            rec.contains("fault-"),
+            "{name}: the recording shows the fault"
+        );
+        assert!(
+            rec.contains("# stop_reason:"),
+            "{name}: the reason is recorded"
+        );
+        // The supervisor's ramp ended at the safe position (where the test was armed: 0).
+        assert_eq!(last_command(&rec), 0.0, "{name}");
+        let rows = rec.lines().filter(|l| l.contains(",running,")).count();
+        assert!(rows >= 80, "{name}: {rows} running rows kept");
+    }
+    // A target beyond the stroke, approached within the velocity limit (1000 ticks a step).
+    let (ok, err, rec) = raw_client("stroke", &[msg(3.0, 30.0, 1000.0 / 2048.0)]);
+    assert!(!ok);
+    assert!(err.contains("CommandStroke"), "{err}");
+    assert!(rec.contains("fault-CommandStroke"));
+    assert_eq!(last_command(&rec), 0.0);
+}
+
+#[test]
+fn a_malformed_handshake_is_refused_and_a_second_client_too() {
+    let (child, addrs) = start_site(&["--listen", "127.0.0.1:0"], 1);
+    let mut first = TcpStream::connect(addrs[0]).expect("connect");
+    first.write_all(&handshake()).expect("handshake");
+    // A second client while the first's test runs: closed at once.
+    let mut second = TcpStream::connect(addrs[0]).expect("connect");
+    second
+        .set_read_timeout(Some(std::time::Duration::from_secs(10)))
+        .expect("timeout");
+    let mut b = [0u8; 1];
+    assert_eq!(
+        second.read(&mut b).unwrap_or(0),
+        0,
+        "the second client is closed"
+    );
+    first.write_all(&msg(99.0, 0.0, 0.0)).expect("die");
+    let (ok, err) = finish(child);
+    assert!(ok, "{err}");
+    assert!(err.contains("refused a second client"), "{err}");
+
+    let (child, addrs) = start_site(&["--listen", "127.0.0.1:0"], 1);
+    let mut s = TcpStream::connect(addrs[0]).expect("connect");
+    let mut bad = handshake();
+    bad[40..44].copy_from_slice(&(1i32 << 24).to_le_bytes());
+    s.write_all(&bad).expect("bad handshake");
+    let (ok, err) = finish(child);
+    assert!(!ok);
+    assert!(err.contains("dataSize"), "{err}");
+}
+
+#[test]
+fn the_board_is_not_yet_a_site() {
+    let o = Command::new(RTHS)
+        .args(["site", "--link", "--qemu", "x.elf"])
+        .output()
+        .expect("rths");
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not yet supported"));
+}
