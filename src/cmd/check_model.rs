@@ -118,6 +118,6 @@ pub fn check(path: &std::path::Path, kind: Option<ModelKind>) -> Result<String, 
 /// Print the summary, or fail with the reason.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let summary = check(&args.file, args.kind.map(ModelKind::from))?;
-    print!("{summary}");
+    crate::out!("{summary}");
     Ok(())
 }

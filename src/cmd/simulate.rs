@@ -216,16 +216,16 @@ pub fn print_figures(r: &crate::scenario::ScenarioReport) {
     let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
     match (&r.stop_reason, r.stop_time_s) {
         (Some(why), Some(t)) => {
-            println!("stable              no: the supervisor stopped it ({why} at {t:.3} s)")
+            crate::outln!("stable              no: the supervisor stopped it ({why} at {t:.3} s)")
         }
-        _ => println!("stable              yes"),
+        _ => crate::outln!("stable              yes"),
     }
-    println!("NRMSE command       {} %", o(r.nrmse_pct));
-    println!("NRMSE measured      {} %", o(r.nrmse_measured_pct));
-    println!("J1 delay            {} ms", o(r.j1_ms));
-    println!("J2 / J3             {} / {} %", o(r.j2_pct), o(r.j3_pct));
-    println!("J4 / J5             {} / {} %", o(r.j4_pct), o(r.j5_pct));
-    println!("peak command        {} mm", o(r.peak_disp_mm));
+    crate::outln!("NRMSE command       {} %", o(r.nrmse_pct));
+    crate::outln!("NRMSE measured      {} %", o(r.nrmse_measured_pct));
+    crate::outln!("J1 delay            {} ms", o(r.j1_ms));
+    crate::outln!("J2 / J3             {} / {} %", o(r.j2_pct), o(r.j3_pct));
+    crate::outln!("J4 / J5             {} / {} %", o(r.j4_pct), o(r.j5_pct));
+    crate::outln!("peak command        {} mm", o(r.peak_disp_mm));
 }
 
 /// The metamodels a study scenario runs (none for the FE scenarios), from `--model` or shipped.
@@ -445,49 +445,49 @@ fn run_structure(
             beyond_rig,
             compensation: comp,
         };
-        println!("{}", serde_json::to_string(&json)?);
+        crate::outln!("{}", serde_json::to_string(&json)?);
         return Ok(());
     }
     let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
-    println!(
+    crate::outln!(
         "scenario            {sc} ({motion_label}, structure {name}, {}, seed {})",
         preset.name(),
         args.seed
     );
     if let Some(why) = &beyond_rig {
-        println!("beyond the rig      {why}");
+        crate::outln!("beyond the rig      {why}");
     }
     if let Some(l) = report.length_scale.filter(|l| *l != 1.0) {
-        println!(
+        crate::outln!(
             "length scale        L = {l}: the rig imposes the structure's displacement / {l} (its \
              sensor noise is {l} × larger relative to the signal)"
         );
     }
     print_figures(&report.report);
     let f = &report.figures;
-    println!(
+    crate::outln!(
         "peak ductility      {} reference, {} run (all stories); specimen story {} reference",
         o(f.peak_ductility),
         o(f.peak_ductility_model),
         o(f.peak_ductility_specimen_story)
     );
     match f.residual_drift_mm {
-        Some(r) => println!(
+        Some(r) => crate::outln!(
             "residual drift      story {}: {:.4} mm reference, {:.4} mm run (error {} %)",
             r.story,
             r.reference,
             r.model,
             o(f.residual_drift_error_pct)
         ),
-        None => println!("residual drift      —"),
+        None => crate::outln!("residual drift      —"),
     }
-    println!(
+    crate::outln!(
         "start-up ratio      {} (RMS error first 2 s / after)",
         o(f.startup_error_ratio)
     );
     if let Some(dir) = &args.out {
-        println!("wrote {}", dir.join("history.csv").display());
-        println!("wrote {}", dir.join(format!("{sc}.png")).display());
+        crate::outln!("wrote {}", dir.join("history.csv").display());
+        crate::outln!("wrote {}", dir.join(format!("{sc}.png")).display());
     }
     Ok(())
 }
@@ -623,11 +623,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ats_initial,
     };
     if args.json {
-        println!("{}", serde_json::to_string(&json)?);
+        crate::outln!("{}", serde_json::to_string(&json)?);
         return Ok(());
     }
     let r = &report;
-    println!(
+    crate::outln!(
         "scenario            {id} ({}, {}, {}, F = {f}, seed {})",
         motion_label,
         preset.name(),
@@ -635,7 +635,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.seed
     );
     match &plant {
-        Some(d) => println!(
+        Some(d) => crate::outln!(
             "plant               {}: beta1 {:.3} 1/s, beta2 {:.5e} 1/s^2, a3 {:.4} 1/s, specimen k {:.1} N/m (effective F = {:.4})",
             if d.uncertainty {
                 format!("drawn with seed {}", d.seed)
@@ -648,17 +648,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             d.specimen_stiffness_n_per_m,
             d.specimen_stiffness_factor
         ),
-        None => println!("plant               none in the loop (pure run)"),
+        None => crate::outln!("plant               none in the loop (pure run)"),
     }
     if let Some([a0, a1, a2]) = ats_initial {
-        println!(
+        crate::outln!(
             "ATS start           from the rig file: a0 {a0:.4}, a1 {a1:.5} s, a2 {a2:.3e} s^2"
         );
     }
     print_figures(r);
     if let Some(dir) = &args.out {
-        println!("wrote {}", dir.join("history.csv").display());
-        println!("wrote {}", dir.join(format!("{id}.png")).display());
+        crate::outln!("wrote {}", dir.join("history.csv").display());
+        crate::outln!("wrote {}", dir.join(format!("{id}.png")).display());
     }
     Ok(())
 }
