@@ -118,3 +118,130 @@ fn a_closed_stdout_ends_quietly() {
         assert!(!err.contains("panicked"), "{err}");
     }
 }
+
+#[test]
+fn silently_accepted_inputs_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("x.json").display().to_string();
+    let o = out.as_str();
+    // A model made at another rate: refused with the command that makes one at this rate.
+    let lr = std::fs::read_to_string(repo().join("data/models/lr.json")).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&lr).unwrap();
+    v["dt_s"] = (1.0 / 4096.0).into();
+    let lr4096 = write(d, "lr4096.json", &v.to_string());
+    refused(
+        &["simulate", "--scenario", "lr-online", "--model", &lr4096],
+        &["4096", "`rths train lr --out FILE`"],
+    );
+    refused(&["check-model", &lr4096], &["`rths train lr --out FILE`"]);
+    // A model the scenario does not run.
+    refused(
+        &[
+            "simulate",
+            "--scenario",
+            "fe-online",
+            "--model",
+            "data/models/lr.json",
+        ],
+        &["runs no metamodel"],
+    );
+    // Flags a kind ignores or values out of range.
+    refused(
+        &["train", "lr", "--rate", "4096", "--out", o],
+        &["--rate 4096"],
+    );
+    refused(
+        &["train", "lr", "--delay-steps", "100000", "--out", o],
+        &["delay_steps 100000 exceeds the controller's maximum 64"],
+    );
+    refused(
+        &["train", "lrx", "--perturbation=-1", "--out", o],
+        &["--perturbation -1"],
+    );
+    refused(
+        &[
+            "train",
+            "nonlinear",
+            "--structure",
+            "data/structures/shear3-yielding.json",
+            "--modes",
+            "0",
+            "--out",
+            o,
+        ],
+        &["--modes 0", "1..=3"],
+    );
+    refused(
+        &["analyze", "--scale", "0"],
+        &["--scale must be a positive"],
+    );
+    refused(&["analyze", "--scale=-1"], &["--scale must be a positive"]);
+    // Rig files: another rate, values out of physical range (named, with the limit).
+    let rig = d.join("rig.json").display().to_string();
+    let (code, _, err) = rths(&["identify", "--out", &rig]);
+    assert_eq!(code, Some(0), "{err}");
+    let text = std::fs::read_to_string(&rig).unwrap();
+    let edits: [(&str, fn(&mut serde_json::Value), &str); 4] = [
+        (
+            "dt",
+            |v| v["actuator"]["dt_s"] = (1.0 / 4096.0).into(),
+            "rths identify",
+        ),
+        (
+            "lead",
+            |v| v["compensation"]["lead_weights"][0] = 1e308.into(),
+            "compensation.lead_weights",
+        ),
+        (
+            "k",
+            |v| v["specimen_fit"]["stiffness_kn_per_mm"] = 1e300.into(),
+            "specimen_fit.stiffness_kn_per_mm",
+        ),
+        (
+            "m",
+            |v| v["specimen_fit"]["mass_kn_s2_per_mm"] = (-1.0).into(),
+            "specimen_fit.mass_kn_s2_per_mm",
+        ),
+    ];
+    for (name, edit, field) in edits {
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        edit(&mut v);
+        let p = write(d, &format!("rig-{name}.json"), &v.to_string());
+        let err = refused(
+            &["simulate", "--scenario", "fe-online-ats", "--rig", &p],
+            &[field],
+        );
+        assert!(err.len() < 600, "compact: {err}");
+    }
+}
+
+#[test]
+fn check_model_takes_every_kind_and_agrees_with_the_runs() {
+    for m in [
+        "lr",
+        "lrx",
+        "rnn-5",
+        "nl-paper-frame-yielding",
+        "nl-shear3-yielding",
+        "nl-shear8-yielding",
+    ] {
+        let (code, out, err) = rths(&["check-model", &format!("data/models/{m}.json")]);
+        assert_eq!(code, Some(0), "{m}: {err}");
+        assert!(out.contains("valid rths model file"), "{out}");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let meta = dir.path().join("meta.json").display().to_string();
+    let (code, _, err) = rths(&[
+        "train",
+        "meta",
+        "--structure",
+        "data/structures/shear8.json",
+        "--out",
+        &meta,
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    let (code, out, err) = rths(&["check-model", &meta]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("structure-meta"), "{out}");
+}

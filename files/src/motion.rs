@@ -163,7 +163,7 @@ pub enum MotionError {
         limit_bytes: u64,
     },
     /// More samples than [`MAX_RECORD_SAMPLES`].
-    #[error("line {line}: {samples} samples, more than the limit of {limit} samples per record")]
+    #[error("line {line}: {samples} samples (NPTS or rows), more than the limit of {limit} samples per record")]
     TooManySamples {
         /// Line number (the AT2 header, or the CSV row past the limit; 0 for `validate`).
         line: usize,

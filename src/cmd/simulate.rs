@@ -342,6 +342,19 @@ fn run_structure(
     }
     let sc = args.scenario;
     nl::check_applies(sc, &structure)?;
+    let uses_model = matches!(
+        sc,
+        SimScenario::NlPure
+            | SimScenario::NlOnline
+            | SimScenario::Study(ScenarioId::LrOnline | ScenarioId::LrxOnline)
+    );
+    if let (Some(m), false) = (&args.model, uses_model) {
+        anyhow::bail!(
+            "--model {}: scenario {sc} runs no metamodel with --structure (the model scenarios: \
+             nl-pure, nl-online, lr-online, lrx-online); drop --model",
+            m.display()
+        );
+    }
     let length = LengthScale::new(args.length_scale)?;
     if length != LengthScale::unit() && !sc.uses_rig() {
         anyhow::bail!("--length-scale scales the rig's specimen; {sc} runs without a rig");
@@ -544,6 +557,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
              FILE (a structure with yielding stories) and --model M.json"
         ),
     };
+    let uses_model = id == ScenarioId::LrxOnline || id.uses_lr() || id.rnn_hidden().is_some();
+    if let (Some(m), false) = (&args.model, uses_model) {
+        anyhow::bail!(
+            "--model {}: scenario {id} runs no metamodel (the model scenarios: lr-pure, \
+             lr-offline, lr-online, rnn-pure-H, rnn-online-H, lrx-online); drop --model",
+            m.display()
+        );
+    }
     let mut rig = scenario::rig_config(preset, specimen, f, args.seed);
     rig.uncertainty = args.uncertainty;
     rig.drift = rths_hal_sim::Drift::over(args.drift, ag.len() as u64);

@@ -174,6 +174,44 @@ pub struct Args {
     pub out: PathBuf,
 }
 
+/// Largest `--perturbation` (RMS force perturbation / RMS brace force): beyond 2 the runs are
+/// mostly perturbation, no longer the frame's response.
+const MAX_PERTURBATION: f64 = 2.0;
+
+/// Refuse the flags `kind` does not use (they would be silently ignored) and a `--delay-steps` the
+/// controller cannot run, before any training.
+fn check_flags(args: &Args) -> anyhow::Result<()> {
+    let build_hz = rths_core::params::CONTROL_RATE_HZ;
+    if let (Some(rate), false) = (args.rate, args.kind == Kind::Meta) {
+        if rate != build_hz {
+            anyhow::bail!(
+                "--rate {rate}: `rths train {}` trains at this build's controller rate, {build_hz} \
+                 Hz (`--rate` chooses the rate of `rths train meta` only); for 4096 Hz build with \
+                 `cargo build --release --features rate-4096`",
+                kind_name(args.kind)
+            );
+        }
+    }
+    if matches!(args.kind, Kind::Lr | Kind::Rnn) {
+        crate::model_file::check_delay_steps(args.delay_steps)
+            .map_err(|e| anyhow::anyhow!("--delay-steps: {e}"))?;
+    }
+    if args.modes.is_some() && args.kind != Kind::Nonlinear {
+        anyhow::bail!("--modes applies to `rths train nonlinear` only");
+    }
+    Ok(())
+}
+
+fn kind_name(kind: Kind) -> &'static str {
+    match kind {
+        Kind::Lr => "lr",
+        Kind::Rnn => "rnn",
+        Kind::Lrx => "lrx",
+        Kind::Meta => "meta",
+        Kind::Nonlinear => "nonlinear",
+    }
+}
+
 fn fmt_opt(v: f64) -> Option<f64> {
     v.is_finite().then_some(v)
 }
@@ -208,6 +246,12 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
     } else {
         0.0
     });
+    anyhow::ensure!(
+        args.perturbation.is_finite() && (0.0..=MAX_PERTURBATION).contains(&args.perturbation),
+        "--perturbation {}: the RMS force perturbation is a fraction of the RMS brace force, \
+         0..={MAX_PERTURBATION}",
+        args.perturbation
+    );
     cfg.perturbation = args.perturbation;
     anyhow::ensure!(
         args.lrx_rcond.is_finite() && args.lrx_rcond > 0.0 && args.lrx_rcond < 1.0,
@@ -292,6 +336,7 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
 
 /// Run `rths train`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    check_flags(&args)?;
     if args.kind == Kind::Meta {
         return train_meta(&args);
     }
