@@ -119,6 +119,9 @@ fn a_closed_stdout_ends_quietly() {
     }
 }
 
+/// An edit of a rig file's JSON.
+type Edit = fn(&mut serde_json::Value);
+
 #[test]
 fn silently_accepted_inputs_are_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -182,7 +185,7 @@ fn silently_accepted_inputs_are_refused() {
     let (code, _, err) = rths(&["identify", "--out", &rig]);
     assert_eq!(code, Some(0), "{err}");
     let text = std::fs::read_to_string(&rig).unwrap();
-    let edits: [(&str, fn(&mut serde_json::Value), &str); 4] = [
+    let edits: [(&str, Edit, &str); 4] = [
         (
             "dt",
             |v| v["actuator"]["dt_s"] = (1.0 / 4096.0).into(),

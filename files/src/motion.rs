@@ -438,7 +438,7 @@ fn check_samples(samples: usize, line: usize) -> Result<(), MotionError> {
 }
 
 fn check_duration(duration_s: f64, line: usize) -> Result<(), MotionError> {
-    if !(duration_s <= MAX_RECORD_DURATION_S) {
+    if duration_s.is_nan() || duration_s > MAX_RECORD_DURATION_S {
         return Err(MotionError::TooLong {
             line,
             duration_s,
