@@ -16,12 +16,38 @@ pub enum ToParamsError {
     /// The core validation refused the weights.
     #[error("model rejected by the controller: {0:?}")]
     Core(ModelError),
+    /// Made at another controller rate than this build's.
+    #[error(transparent)]
+    Rate(#[from] rths_files::rate::OtherRate),
+}
+
+/// The command that trains a model of `m`'s kind at this build's rate.
+fn train_command(m: &ModelFile) -> String {
+    match (m.kind, &m.rnn) {
+        (ModelKind::Rnn, Some(w)) => format!("rths train rnn --hidden {} --out FILE", w.hidden),
+        (kind, _) => format!("rths train {kind} --out FILE"),
+    }
+}
+
+/// The checks every model file passes before the controller runs it, whoever loads it (`rths
+/// simulate`, `rths check-model`, the studies): [`ModelFile::validate`] (format, shapes, weights,
+/// `delay_steps` ≤ the controller's maximum) and a `dt_s` equal to this build's
+/// [`rths_core::params::DT_S`] (else refused with the command that trains one at this rate).
+pub fn check_for_controller(m: &ModelFile) -> Result<(), ToParamsError> {
+    m.validate()?;
+    rths_files::rate::check_dt(
+        &format!("the {} model", m.kind),
+        m.dt_s,
+        rths_core::params::DT_S,
+        &train_command(m),
+    )?;
+    Ok(())
 }
 
 /// The validated controller model of a model file of any kind: the file's weights as a
 /// `rths_core::model::ModelSpec`, checked by the same `ModelSpec::validate` the firmware runs.
 pub fn model(m: &ModelFile) -> Result<Model, ToParamsError> {
-    m.validate()?;
+    check_for_controller(m)?;
     let missing = || ModelFileError::MissingSection { kind: m.kind };
     let spec_result = match m.kind {
         ModelKind::Lr => {
@@ -110,7 +136,11 @@ mod tests {
 
     #[test]
     fn lr_file_to_params_and_kind_checks() {
-        let m = ModelFile::new_lr(vec![0.0, 1e-7, 0.0, 0.0, 2.0, -1.0], 28, 1.0 / 2048.0);
+        let m = ModelFile::new_lr(
+            vec![0.0, 1e-7, 0.0, 0.0, 2.0, -1.0],
+            28,
+            rths_core::params::DT_S,
+        );
         assert_eq!(lr_params(&m).unwrap().theta()[4], 2.0);
         assert!(matches!(
             rnn_params(&m),
@@ -133,7 +163,7 @@ mod tests {
             output_mean: 0.0,
             output_std: 2.0,
         };
-        let m = ModelFile::new_rnn(w, 28, 1.0 / 2048.0);
+        let m = ModelFile::new_rnn(w, 28, rths_core::params::DT_S);
         let p = rnn_params(&m).unwrap();
         assert_eq!(p.hidden(), h);
         let mut bad = m.clone();
@@ -144,5 +174,24 @@ mod tests {
             rnn_params(&bad),
             Err(ToParamsError::File(ModelFileError::WrongShape { .. }))
         ));
+    }
+
+    #[test]
+    fn another_rate_or_a_long_delay_is_refused() {
+        let dt = rths_core::params::DT_S;
+        let theta = vec![0.0, 1e-7, 0.0, 0.0, 2.0, -1.0];
+        let e = lr_params(&ModelFile::new_lr(theta.clone(), 28, dt / 2.0)).unwrap_err();
+        assert!(matches!(e, ToParamsError::Rate(_)), "{e}");
+        assert!(e.to_string().contains("`rths train lr --out FILE`"), "{e}");
+        let max = rths_core::control::MAX_DELAY_STEPS;
+        lr_params(&ModelFile::new_lr(theta.clone(), max, dt)).unwrap();
+        let e = lr_params(&ModelFile::new_lr(theta, 100_000, dt)).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                ToParamsError::File(ModelFileError::DelayTooLong { found: 100_000, .. })
+            ),
+            "{e}"
+        );
     }
 }

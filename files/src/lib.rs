@@ -6,6 +6,7 @@
 //!   checks are `rths_core`'s, the order the `no_std` inference takes its coefficients in.
 //! - [`nl_model_file`]: model files of the nonlinear (modal-hysteretic) metamodel, tied to their
 //!   structure file by a checksum.
+//! - [`rate`]: the rule that a file made at a controller rate runs only at that rate.
 //! - [`structure_file`]: structure files (an N-DOF linear analytical part and its specimen).
 //! - [`structure_meta`]: a structure as the controller runs it, and the structure metamodel's file.
 #![forbid(unsafe_code)]
@@ -14,5 +15,6 @@
 pub mod model_file;
 pub mod motion;
 pub mod nl_model_file;
+pub mod rate;
 pub mod structure_file;
 pub mod structure_meta;

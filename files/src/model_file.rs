@@ -293,6 +293,19 @@ pub struct ModelFile {
     pub scores: Scores,
 }
 
+/// The one check of a feedback delay, ticks (model files, `rths train --delay-steps`): at most
+/// [`rths_core::control::MAX_DELAY_STEPS`], what the controller's ring holds.
+pub fn check_delay_steps(delay_steps: usize) -> Result<(), ModelFileError> {
+    let max = rths_core::control::MAX_DELAY_STEPS;
+    if delay_steps > max {
+        return Err(ModelFileError::DelayTooLong {
+            found: delay_steps,
+            max,
+        });
+    }
+    Ok(())
+}
+
 /// Why a model file was rejected.
 #[derive(Debug, thiserror::Error)]
 pub enum ModelFileError {
@@ -361,6 +374,17 @@ pub enum ModelFileError {
         field: String,
         /// Value found.
         value: f64,
+    },
+    /// The feedback delay is longer than the controller's ring holds.
+    #[error(
+        "delay_steps {found} exceeds the controller's maximum {max} (rths_core::control::\
+         MAX_DELAY_STEPS)"
+    )]
+    DelayTooLong {
+        /// The file's delay, ticks.
+        found: usize,
+        /// [`rths_core::control::MAX_DELAY_STEPS`].
+        max: usize,
     },
     /// The feature list differs from what the kind requires.
     #[error(
@@ -534,6 +558,7 @@ impl ModelFile {
             });
         }
         positive("dt_s", &[self.dt_s])?;
+        check_delay_steps(self.delay_steps)?;
         check_features(self.kind, &self.features)?;
         match self.kind {
             ModelKind::Lr => self

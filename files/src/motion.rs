@@ -12,6 +12,12 @@
 //! - **CSV**: two columns `time_s, accel_g` (comma, semicolon or tab separated), an optional header
 //!   line, `#` comment lines. Time must increase uniformly: every step within
 //!   [`CSV_DT_TOLERANCE`] (1%) of the median step. Times are taken relative to the first row.
+//!
+//! Limits (every reader, checked before the samples are stored or resampled, so a corrupt header
+//! or a typo in a time column cannot ask for gigabytes): a file of at most [`MAX_RECORD_FILE_BYTES`],
+//! at most [`MAX_RECORD_SAMPLES`] samples, a duration of at most [`MAX_RECORD_DURATION_S`] and every
+//! value within ±[`MAX_RECORD_ACCEL_G`]. [`GroundMotion::validate`] checks the same limits on a
+//! record built in code (or scaled).
 
 use std::path::{Path, PathBuf};
 
@@ -21,6 +27,21 @@ use rths_core::motion::Record;
 /// step; the record's step is then the mean `(t_last − t_first)/(n − 1)`. Loose enough for times printed with few decimals, tight enough
 /// to reject a record with a dropped or duplicated sample.
 pub const CSV_DT_TOLERANCE: f64 = 0.01;
+
+/// Largest record file read, bytes (64 MiB: ten minutes at 4096 Hz in the most verbose AT2 text
+/// fits; a file that never ends, such as `/dev/zero`, is refused at this size).
+pub const MAX_RECORD_FILE_BYTES: u64 = 64 << 20;
+
+/// Most samples in one record (2^22: more than [`MAX_RECORD_DURATION_S`] at 4096 Hz).
+pub const MAX_RECORD_SAMPLES: usize = 1 << 22;
+
+/// Longest record, s (time of the last sample): ten minutes, longer than any earthquake record a
+/// lab runs, and the histories of a run at 4096 Hz stay in tens of MB.
+pub const MAX_RECORD_DURATION_S: f64 = 600.0;
+
+/// Largest ground acceleration accepted, g (the strongest records ever measured peak near 4 g; a
+/// value beyond this is a unit mistake, such as a record in cm/s² read as g).
+pub const MAX_RECORD_ACCEL_G: f64 = 20.0;
 
 /// A ground-motion acceleration record sampled uniformly: `accel_g[k]` is the acceleration in g at
 /// `t = k·dt_s`.
@@ -135,6 +156,48 @@ pub enum MotionError {
         /// The median step of the record, s.
         median_step_s: f64,
     },
+    /// The file is larger than [`MAX_RECORD_FILE_BYTES`].
+    #[error("the file is larger than the {limit_bytes}-byte limit of a record file")]
+    FileTooLarge {
+        /// The limit, bytes.
+        limit_bytes: u64,
+    },
+    /// More samples than [`MAX_RECORD_SAMPLES`].
+    #[error("line {line}: {samples} samples (NPTS or rows), more than the limit of {limit} samples per record")]
+    TooManySamples {
+        /// Line number (the AT2 header, or the CSV row past the limit; 0 for `validate`).
+        line: usize,
+        /// Samples in (or announced by) the file.
+        samples: usize,
+        /// [`MAX_RECORD_SAMPLES`].
+        limit: usize,
+    },
+    /// A duration beyond [`MAX_RECORD_DURATION_S`].
+    #[error(
+        "line {line}: the record lasts {duration_s:.6e} s, longer than the limit of {limit_s} s \
+         (check the time step and the time column's units)"
+    )]
+    TooLong {
+        /// Line number (the AT2 header, or the CSV's last row; 0 for `validate`).
+        line: usize,
+        /// Duration `(n − 1)·dt_s`, s.
+        duration_s: f64,
+        /// [`MAX_RECORD_DURATION_S`].
+        limit_s: f64,
+    },
+    /// An acceleration beyond ±[`MAX_RECORD_ACCEL_G`].
+    #[error(
+        "line {line}: acceleration {value_g:.6e} g is beyond the limit of ±{limit_g} g (is the \
+         record in g?)"
+    )]
+    AccelOutOfRange {
+        /// Line number (0 for `validate`).
+        line: usize,
+        /// The value, g.
+        value_g: f64,
+        /// [`MAX_RECORD_ACCEL_G`].
+        limit_g: f64,
+    },
     /// No embedded record has this name.
     #[error("no embedded ground motion named `{name}` (known: {known})")]
     UnknownRecord {
@@ -231,10 +294,7 @@ impl GroundMotion {
     /// Read a record file: `.at2` (any case) as AT2, `.csv` as CSV; any other extension is sniffed
     /// (AT2 if one of its first 4 lines mentions `NPTS`). The name is the file stem.
     pub fn from_path(path: &Path) -> Result<GroundMotion, MotionError> {
-        let text = std::fs::read_to_string(path).map_err(|source| MotionError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = read_bounded(path)?;
         let name = path
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
@@ -289,6 +349,11 @@ impl GroundMotion {
         if self.accel_g.iter().any(|a| !a.is_finite()) {
             return Err(MotionError::NonFinite { line: 0 });
         }
+        check_samples(self.accel_g.len(), 0)?;
+        check_duration(self.duration_s(), 0)?;
+        for a in &self.accel_g {
+            check_accel(*a, 0)?;
+        }
         Ok(())
     }
 
@@ -334,6 +399,64 @@ impl GroundMotion {
         }
         s
     }
+}
+
+/// The text of a record file, refusing one larger than [`MAX_RECORD_FILE_BYTES`] before reading
+/// it whole (the read itself is bounded too, for a file whose size is not known up front).
+fn read_bounded(path: &Path) -> Result<String, MotionError> {
+    use std::io::Read as _;
+    let io = |source| MotionError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let too_large = MotionError::FileTooLarge {
+        limit_bytes: MAX_RECORD_FILE_BYTES,
+    };
+    if file.metadata().map_err(io)?.len() > MAX_RECORD_FILE_BYTES {
+        return Err(too_large);
+    }
+    let mut text = String::new();
+    file.take(MAX_RECORD_FILE_BYTES + 1)
+        .read_to_string(&mut text)
+        .map_err(io)?;
+    if text.len() as u64 > MAX_RECORD_FILE_BYTES {
+        return Err(too_large);
+    }
+    Ok(text)
+}
+
+fn check_samples(samples: usize, line: usize) -> Result<(), MotionError> {
+    if samples > MAX_RECORD_SAMPLES {
+        return Err(MotionError::TooManySamples {
+            line,
+            samples,
+            limit: MAX_RECORD_SAMPLES,
+        });
+    }
+    Ok(())
+}
+
+fn check_duration(duration_s: f64, line: usize) -> Result<(), MotionError> {
+    if duration_s.is_nan() || duration_s > MAX_RECORD_DURATION_S {
+        return Err(MotionError::TooLong {
+            line,
+            duration_s,
+            limit_s: MAX_RECORD_DURATION_S,
+        });
+    }
+    Ok(())
+}
+
+fn check_accel(value_g: f64, line: usize) -> Result<(), MotionError> {
+    if value_g.abs() > MAX_RECORD_ACCEL_G {
+        return Err(MotionError::AccelOutOfRange {
+            line,
+            value_g,
+            limit_g: MAX_RECORD_ACCEL_G,
+        });
+    }
+    Ok(())
 }
 
 /// Lines with their 1-based numbers, without the line terminator (LF or CRLF).
@@ -444,21 +567,30 @@ pub fn parse_at2(text: &str, name: &str) -> Result<GroundMotion, MotionError> {
     if dt_s <= 0.0 {
         return Err(MotionError::BadDt { line: hline, dt_s });
     }
+    check_samples(npts, hline)?;
+    check_duration((npts - 1) as f64 * dt_s, hline)?;
     // NPTS comes from the file: never reserve more than the text can hold (a value takes at least
     // two bytes), so a corrupt header cannot ask for gigabytes (found by `cargo fuzz`).
     let mut accel_g = Vec::with_capacity(npts.min(text.len() / 2 + 1));
+    let mut found = 0_usize;
     for (line, l) in lines {
         for token in l
             .split(|c: char| c.is_whitespace() || c == ',')
             .filter(|t| !t.is_empty())
         {
-            accel_g.push(parse_value(token, line)?);
+            let a = parse_value(token, line)?;
+            check_accel(a, line)?;
+            // Values past NPTS are counted for the error, never stored.
+            if found < npts {
+                accel_g.push(a);
+            }
+            found += 1;
         }
     }
-    if accel_g.len() != npts {
+    if found != npts {
         return Err(MotionError::PointCount {
             expected: npts,
-            found: accel_g.len(),
+            found,
         });
     }
     Ok(GroundMotion {
@@ -497,7 +629,10 @@ pub fn parse_csv(text: &str, name: &str) -> Result<GroundMotion, MotionError> {
                 found: fields.len(),
             });
         };
-        rows.push((line, parse_value(t, line)?, parse_value(a, line)?));
+        let a = parse_value(a, line)?;
+        check_accel(a, line)?;
+        rows.push((line, parse_value(t, line)?, a));
+        check_samples(rows.len(), line)?;
     }
     match rows.len() {
         0 => return Err(MotionError::NoData),
@@ -519,6 +654,7 @@ pub fn parse_csv(text: &str, name: &str) -> Result<GroundMotion, MotionError> {
             }
         }
     }
+    check_duration(last.1 - first.1, last.0)?;
     // Judge each step against the median step, so a dropped sample is reported on its own line
     // rather than wherever the mean (which it shifts) first disagrees.
     let mut steps: Vec<f64> = rows
@@ -750,6 +886,73 @@ mod tests {
     }
 
     #[test]
+    fn limits_refused_before_storing() {
+        // A DT typo (100 s or 10 s for 0.01 s) makes a record of days: refused from the header.
+        for dt in ["100", "10"] {
+            let text = format!("{H3}NPTS= 4000, DT= {dt} SEC\n{}", "0.1\n".repeat(4000));
+            assert!(matches!(
+                parse_at2(&text, "x").unwrap_err(),
+                MotionError::TooLong { line: 4, .. }
+            ));
+        }
+        // NPTS past the sample limit: refused from the header, whatever follows.
+        assert!(matches!(
+            parse_at2(&format!("{H3}NPTS= 99999999, DT= 0.000001\n1\n"), "x").unwrap_err(),
+            MotionError::TooManySamples { line: 4, .. }
+        ));
+        // A CSV time column in the wrong units: 3 rows spanning 2e6 s.
+        let e = parse_csv("time_s,accel_g\n0,0.1\n1e6,0.2\n2e6,0.1\n", "x").unwrap_err();
+        assert!(matches!(e, MotionError::TooLong { line: 4, .. }), "{e}");
+        assert!(e.to_string().contains("2.000000e6 s"), "{e}");
+        // Values beyond ±20 g, named by line and printed compactly.
+        let e = parse_csv("0,0.1\n0.01,1e308\n", "x").unwrap_err();
+        assert!(
+            matches!(e, MotionError::AccelOutOfRange { line: 2, .. }),
+            "{e}"
+        );
+        assert!(e.to_string().contains("1.000000e308 g"), "{e}");
+        assert!(matches!(
+            parse_at2(&format!("{H3}NPTS= 2, DT= 0.01\n0.1 -981\n"), "x").unwrap_err(),
+            MotionError::AccelOutOfRange { line: 5, .. }
+        ));
+        // At the limits: accepted.
+        let n = (MAX_RECORD_DURATION_S / 0.5) as usize + 1;
+        let m = parse_at2(
+            &format!("{H3}NPTS= {n}, DT= 0.5\n{}", "20\n".repeat(n)),
+            "x",
+        )
+        .unwrap();
+        assert_eq!(m.duration_s(), MAX_RECORD_DURATION_S);
+        m.validate().unwrap();
+        // `validate` holds records built or scaled in code to the same limits.
+        assert!(matches!(
+            m.scaled(1.5).validate().unwrap_err(),
+            MotionError::AccelOutOfRange { .. }
+        ));
+        let long = GroundMotion {
+            name: "l".into(),
+            dt_s: 1.0,
+            accel_g: vec![0.0; 700],
+        };
+        assert!(matches!(
+            long.validate().unwrap_err(),
+            MotionError::TooLong { .. }
+        ));
+    }
+
+    #[test]
+    fn file_that_never_ends_is_refused() {
+        // /dev/zero has no size up front: the bounded read stops at the limit.
+        let p = Path::new("/dev/zero");
+        if p.exists() {
+            assert!(matches!(
+                GroundMotion::from_path(p).unwrap_err(),
+                MotionError::FileTooLarge { .. }
+            ));
+        }
+    }
+
+    #[test]
     fn scale_duration_pga() {
         let m = GroundMotion {
             name: "m".into(),
@@ -814,7 +1017,7 @@ mod tests {
         (
             prop::collection::vec(-5.0f64..5.0, 2..300),
             1e-4f64..0.1,
-            prop::sample::select(vec![1e-300, 1e-6, 1.0, 1e3]),
+            prop::sample::select(vec![1e-300, 1e-6, 1.0, 4.0]),
         )
             .prop_map(|(a, dt_s, mag)| GroundMotion {
                 name: "p".into(),

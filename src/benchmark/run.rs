@@ -329,7 +329,7 @@ fn check_intensity(intensity: f64) -> anyhow::Result<()> {
 pub const MIN_RECORD_S: f64 = 2.0;
 
 /// Longest record the benchmark runs, s (the histories of one run are kept in memory).
-pub const MAX_RECORD_S: f64 = 600.0;
+pub const MAX_RECORD_S: f64 = rths_files::motion::MAX_RECORD_DURATION_S;
 
 /// Whether a ground-motion record matches the benchmark: a uniform step (the CSV reader refuses
 /// any other, with its line) no finer than the benchmark's 4096 Hz tick (a finer record would be

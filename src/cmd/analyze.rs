@@ -20,7 +20,8 @@ pub struct Args {
     /// (el-centro, northridge, loma-prieta, kobe). Default: the embedded 1940 El Centro NS.
     #[arg(long, value_name = "PATH|NAME")]
     pub motion: Option<String>,
-    /// Scale factor on the ground acceleration.
+    /// Scale factor on the ground acceleration (positive; the scaled record must stay within
+    /// ±20 g).
     #[arg(long, default_value_t = 1.0, value_name = "F")]
     pub scale: f64,
     /// Integration method.
@@ -60,8 +61,8 @@ pub fn load_motion(spec: Option<&str>) -> anyhow::Result<GroundMotion> {
 
 /// Run `rths analyze`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if !args.scale.is_finite() {
-        anyhow::bail!("--scale must be a finite number, got {}", args.scale);
+    if !(args.scale.is_finite() && args.scale > 0.0) {
+        anyhow::bail!("--scale must be a positive number, got {}", args.scale);
     }
     let motion = load_motion(args.motion.as_deref())?.scaled(args.scale);
     motion.validate().context("ground motion")?;
@@ -73,7 +74,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let r = pure_response(&proto, &ag, DT_S, args.method).context("analysis")?;
     let summary = Summary::new(&proto, &r, DT_S);
 
-    println!(
+    crate::outln!(
         "ground motion          {}: {} points at {} s ({:.3} s), PGA {:.4} g",
         motion.name,
         motion.accel_g.len(),
@@ -81,15 +82,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         motion.duration_s(),
         motion.pga_g()
     );
-    println!("method                 {}", args.method);
-    println!("{summary}");
+    crate::outln!("method                 {}", args.method);
+    crate::outln!("{summary}");
     for warning in actuator_warnings(&summary, args.scale) {
-        println!("note: {warning}");
+        crate::outln!("note: {warning}");
     }
 
     if let Some(out) = &args.out {
         write_csv(&r, out)?;
-        println!("wrote {} ({} rows)", out.display(), r.len());
+        crate::outln!("wrote {} ({} rows)", out.display(), r.len());
     }
     if let Some(png) = &args.plot {
         let ag_g: Vec<f64> = r.ground_accel_mm_s2.iter().map(|a| a / G_MM_S2).collect();
@@ -106,7 +107,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 Panel::single("Brace force (kN)", &r.time_s, &r.brace_force_kn),
             ],
         )?;
-        println!("wrote {}", png.display());
+        crate::outln!("wrote {}", png.display());
     }
     Ok(())
 }
@@ -155,27 +156,27 @@ fn nonlinear(args: &Args, path: &Path, motion: &GroundMotion) -> anyhow::Result<
     let structure = rths_files::structure_file::Structure::load(path)?;
     let ag = motion.resample_mm_s2(DT_S);
     let r = crate::nonlinear::fe_reference(&structure, &ag, DT_S)?;
-    println!(
+    crate::outln!(
         "ground motion          {}: PGA {:.4} g, {:.3} s (+{} s free vibration)",
         motion.name,
         motion.pga_g(),
         motion.duration_s(),
         crate::nonlinear::FREE_VIBRATION_S
     );
-    println!(
+    crate::outln!(
         "structure              {} ({} DOFs, Chang explicit at {} Hz)",
         structure.name(),
         structure.dofs(),
         1.0 / DT_S
     );
-    println!("peak ductility         {:.3}", r.peak_ductility());
+    crate::outln!("peak ductility         {:.3}", r.peak_ductility());
     let residual = r.residual_drift_mm(DT_S);
     let peaks = r.peak_story_force_kn();
     for (j, uy) in r.yield_drift_mm.iter().enumerate() {
         let peak_drift = r.story_drift_mm[j]
             .iter()
             .fold(0.0_f64, |m, v| m.max(v.abs()));
-        println!(
+        crate::outln!(
             "story {}                yield drift {:.3} mm, peak drift {:.3} mm (ductility {:.2}), \
              peak force {:.1} kN, residual drift {:.3} mm",
             j + 1,
@@ -194,7 +195,7 @@ fn nonlinear(args: &Args, path: &Path, motion: &GroundMotion) -> anyhow::Result<
     }
     .residual_drift_mm(DT_S);
     for (j, (e, res)) in err.iter().zip(&residual_lin).enumerate() {
-        println!(
+        crate::outln!(
             "elastic path, story {}  drift NRMSE {e:.2} % against the nonlinear reference, \
              residual drift {res:.3} mm",
             j + 1
@@ -218,7 +219,7 @@ fn nonlinear(args: &Args, path: &Path, motion: &GroundMotion) -> anyhow::Result<
             writeln!(w)?;
         }
         w.flush()?;
-        println!("wrote {} ({} rows)", out.display(), r.time_s.len());
+        crate::outln!("wrote {} ({} rows)", out.display(), r.time_s.len());
     }
     if let Some(png) = &args.plot {
         let title = format!(
@@ -228,7 +229,7 @@ fn nonlinear(args: &Args, path: &Path, motion: &GroundMotion) -> anyhow::Result<
             r.peak_ductility()
         );
         crate::nonlinear::plot::hysteresis(png, &title, &r)?;
-        println!("wrote {}", png.display());
+        crate::outln!("wrote {}", png.display());
     }
     Ok(())
 }

@@ -116,7 +116,7 @@ fn single(args: &Args, case: u8, record: Record) -> anyhow::Result<()> {
 
 fn finish_single(args: &Args, r: &RunResult) -> anyhow::Result<()> {
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&single_json(r))?);
+        crate::outln!("{}", serde_json::to_string_pretty(&single_json(r))?);
     } else {
         print_single(r);
     }
@@ -127,7 +127,7 @@ fn finish_single(args: &Args, r: &RunResult) -> anyhow::Result<()> {
         let png = dir.join("benchmark.png");
         draw(r, &png)?;
         if !args.json {
-            println!("wrote {} and {}", csv.display(), png.display());
+            crate::outln!("wrote {} and {}", csv.display(), png.display());
         }
     }
     if let Some(why) = &r.unstable {
@@ -169,7 +169,7 @@ fn single_json(r: &RunResult) -> serde_json::Value {
 
 fn print_single(r: &RunResult) {
     let c = &r.config;
-    println!(
+    crate::outln!(
         "vRTHS benchmark: {}, {} ×{}, {:?} plant (k_e {:.0} N/m), controller {}, {} ticks at 4096 Hz",
         r.structure_name,
         r.record_name,
@@ -180,7 +180,7 @@ fn print_single(r: &RunResult) {
         r.history.time_s.len()
     );
     if let Some(a) = r.ats_coefficients {
-        println!(
+        crate::outln!(
             "ATS coefficients at the end: a0 {:.4}, a1 {:.2} ms, a2 {:.3e} s²",
             a[0],
             a[1] * 1e3,
@@ -188,7 +188,7 @@ fn print_single(r: &RunResult) {
         );
     }
     if let Some(id) = &r.identification {
-        println!(
+        crate::outln!(
             "identified rig: delay {:.2} ms, gain {:.4}, lead residual {:.1} %, specimen k {:.4} kN/mm \
              c {:.3e} kN·s/mm m {:.3e} kN·s²/mm (R² {:.4}); {:.1} s to identify",
             id.delay_s * 1e3,
@@ -202,20 +202,20 @@ fn print_single(r: &RunResult) {
         );
     }
     if let Some([g, d]) = r.lead_adaptation {
-        println!(
+        crate::outln!(
             "lead correction at the end: gain {g:.4}, delay {:.3} ms",
             d * 1e3
         );
     }
     if r.clipped_force_ticks > 0 {
-        println!(
+        crate::outln!(
             "WARNING: the load cell clipped at its ±8900 N range on {} ticks: the force fed back \
              is wrong there (the specimen moves more than the benchmark's actuator can load)",
             r.clipped_force_ticks
         );
     }
     if let Some(k) = r.force_correction_kn_per_mm {
-        println!("force correction stiffness {k:.4} kN/mm");
+        crate::outln!("force correction stiffness {k:.4} kN/mm");
     }
     match (&r.criteria, &r.unstable) {
         (Some(j), _) => {
@@ -227,28 +227,32 @@ fn print_single(r: &RunResult) {
                 .map(|f| f.to_string())
                 .collect();
             let others = others.join(", ");
-            println!("J1 {:.2} ms (delay)", j.j1_ms);
-            println!(
+            crate::outln!("J1 {:.2} ms (delay)", j.j1_ms);
+            crate::outln!(
                 "J2 {:.2} %  J3 {:.2} %  (tracking, floor {d})",
-                j.j2_pct, j.j3_pct
+                j.j2_pct,
+                j.j3_pct
             );
             if let Some(j2) = r.j2_noise_free_pct {
-                println!("   J2 of the noise-free displacement {j2:.2} % (evaluation only)");
+                crate::outln!("   J2 of the noise-free displacement {j2:.2} % (evaluation only)");
             }
-            println!(
+            crate::outln!(
                 "J4 {:.2} %  J5 {:.2} %  (floor {d} vs reference)",
-                j.j4_pct, j.j5_pct
+                j.j4_pct,
+                j.j5_pct
             );
-            println!(
+            crate::outln!(
                 "J6 {:.2} %  J7 {:.2} %  (floors {others} vs reference)",
-                j.j6_pct, j.j7_pct
+                j.j6_pct,
+                j.j7_pct
             );
-            println!(
+            crate::outln!(
                 "J8 {:.2} %  J9 {:.2} %  (floors {others} peak vs reference)",
-                j.j8_pct, j.j9_pct
+                j.j8_pct,
+                j.j9_pct
             );
         }
-        (None, Some(why)) => println!("UNSTABLE: {why}"),
+        (None, Some(why)) => crate::outln!("UNSTABLE: {why}"),
         (None, None) => {}
     }
 }
@@ -361,10 +365,10 @@ fn grid(args: &Args) -> anyhow::Result<()> {
     let g = run_grid(args.controller, args.intensity, n)?;
     let table = g.table();
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&g)?);
+        crate::outln!("{}", serde_json::to_string_pretty(&g)?);
     } else {
-        println!("{table}");
-        println!(
+        crate::outln!("{table}");
+        crate::outln!(
             "({} runs in {:.1} s)",
             12 * (n + 1),
             start.elapsed().as_secs_f64()

@@ -1,5 +1,6 @@
-//! `rths check-model FILE`: validate a model file the way the controller will load it, and say why it
-//! is rejected (exit status 1) or summarize it (exit status 0).
+//! `rths check-model FILE`: validate a model file of any kind (LR, RNN, LRX, the structure
+//! metamodel of `rths train meta`, the nonlinear model of `rths train nonlinear`) the way the
+//! controller will load it, and say why it is rejected (exit status 1) or summarize it (exit 0).
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -16,16 +17,30 @@ pub enum ModelKindArg {
     Rnn,
     /// Specimen-faithful frame metamodel.
     Lrx,
+    /// Structure metamodel (`rths train meta`).
+    Meta,
+    /// Nonlinear modal-hysteretic metamodel (`rths train nonlinear`).
+    Nonlinear,
 }
 
-impl From<ModelKindArg> for ModelKind {
-    fn from(k: ModelKindArg) -> Self {
-        match k {
-            ModelKindArg::Lr => ModelKind::Lr,
-            ModelKindArg::Rnn => ModelKind::Rnn,
-            ModelKindArg::Lrx => ModelKind::Lrx,
+impl ModelKindArg {
+    /// The kind as the file names it (`lr`, `rnn`, `lrx`, `structure-meta`, `modal-hysteretic`).
+    pub fn file_kind(self) -> &'static str {
+        match self {
+            ModelKindArg::Lr => "lr",
+            ModelKindArg::Rnn => "rnn",
+            ModelKindArg::Lrx => "lrx",
+            ModelKindArg::Meta => rths_files::structure_meta::KIND,
+            ModelKindArg::Nonlinear => rths_files::nl_model_file::NL_KIND,
         }
     }
+}
+
+/// The `format` and `kind` tags of any model file, read first to pick its reader.
+#[derive(serde::Deserialize)]
+struct Tags {
+    format: Option<String>,
+    kind: Option<String>,
 }
 
 /// Arguments of `rths check-model`.
@@ -48,26 +63,69 @@ pub struct Rejected {
     pub reason: String,
 }
 
-/// Validate `path` as a model file (format, version, features, shapes, finite weights, and the
-/// controller's own parameter checks); a summary of the model if it is accepted.
-pub fn check(path: &std::path::Path, kind: Option<ModelKind>) -> Result<String, Rejected> {
+/// Validate `path` as a model file of any kind (its `format` and `kind` tags pick the reader; the
+/// same checks as the commands that run it: [`models::check_for_controller`] for LR, RNN and LRX,
+/// [`crate::nonlinear::model::check_rate`] for the nonlinear model); a summary if it is accepted.
+pub fn check(path: &std::path::Path, kind: Option<ModelKindArg>) -> Result<String, Rejected> {
     let reject = |reason: String| Rejected {
         path: path.display().to_string(),
         reason,
     };
-    let m = ModelFile::load(path).map_err(|e| reject(e.to_string()))?;
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| reject(format!("cannot access model file: {e}")))?;
+    let tags: Tags =
+        serde_json::from_str(&text).map_err(|e| reject(format!("malformed model file: {e}")))?;
+    let file_kind = tags.kind.unwrap_or_default();
     if let Some(k) = kind {
-        m.expect_kind(k).map_err(|e| reject(e.to_string()))?;
-    }
-    if m.delay_steps > rths_core::control::MAX_DELAY_STEPS {
-        return Err(reject(format!(
-            "delay_steps {} exceeds the controller's maximum {}",
-            m.delay_steps,
-            rths_core::control::MAX_DELAY_STEPS
-        )));
+        if file_kind != k.file_kind() {
+            return Err(reject(format!(
+                "wrong model kind: expected {}, file holds {file_kind}",
+                k.file_kind()
+            )));
+        }
     }
     let mut s = String::new();
     let _ = writeln!(s, "{}: valid rths model file", path.display());
+    match (tags.format.as_deref(), file_kind.as_str()) {
+        (Some(rths_files::nl_model_file::NL_FORMAT), _) => {
+            let m = rths_files::nl_model_file::NlModelFile::from_json(&text)
+                .map_err(|e| reject(e.to_string()))?;
+            crate::nonlinear::model::check_rate(&m).map_err(|e| reject(e.to_string()))?;
+            let _ = writeln!(s, "format / version  {} / {}", m.format, m.version);
+            let _ = writeln!(s, "kind              {}", m.kind);
+            let _ = writeln!(
+                s,
+                "structure         {} ({})",
+                m.structure.name, m.structure.checksum
+            );
+            let _ = writeln!(s, "dt_s              {:e}", m.dt_s);
+            let _ = writeln!(
+                s,
+                "modes / springs   {} / {}",
+                m.modes.len(),
+                m.springs.len()
+            );
+            return Ok(s);
+        }
+        (Some(crate::model_file::FORMAT), rths_files::structure_meta::KIND) => {
+            let m = rths_files::structure_meta::MetaFile::from_json(&text)
+                .map_err(|e| reject(e.to_string()))?;
+            m.params().map_err(|e| reject(e.to_string()))?;
+            let _ = writeln!(s, "format / version  {} / {}", m.format, m.version);
+            let _ = writeln!(s, "kind              {}", m.kind);
+            let _ = writeln!(
+                s,
+                "structure         {} ({}); run with that structure file only",
+                m.structure.name, m.structure.checksum
+            );
+            let _ = writeln!(s, "dt_s              {:e} ({:.0} Hz)", m.dt_s, 1.0 / m.dt_s);
+            let _ = writeln!(s, "order             {}", m.order);
+            return Ok(s);
+        }
+        _ => {}
+    }
+    let m = ModelFile::from_json(&text).map_err(|e| reject(e.to_string()))?;
+    models::check_for_controller(&m).map_err(|e| reject(e.to_string()))?;
     let _ = writeln!(s, "format / version  {} / {}", m.format, m.version);
     let _ = writeln!(s, "kind              {}", m.kind);
     let _ = writeln!(s, "features          {}", m.features.join(", "));
@@ -117,7 +175,7 @@ pub fn check(path: &std::path::Path, kind: Option<ModelKind>) -> Result<String, 
 
 /// Print the summary, or fail with the reason.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let summary = check(&args.file, args.kind.map(ModelKind::from))?;
-    print!("{summary}");
+    let summary = check(&args.file, args.kind)?;
+    crate::out!("{summary}");
     Ok(())
 }

@@ -22,9 +22,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let m = faults::run_matrix()?;
     let md = m.to_markdown();
     if args.json {
-        println!("{}", serde_json::to_string(&m)?);
+        crate::outln!("{}", serde_json::to_string(&m)?);
     } else {
-        print!("{md}");
+        crate::out!("{md}");
     }
     if let Some(path) = &args.out {
         std::fs::write(path, &md).with_context(|| format!("writing {}", path.display()))?;

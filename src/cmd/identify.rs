@@ -201,7 +201,7 @@ fn print_summary(r: &RigFile, out: &Path, plot: &Path) {
     let a = &r.actuator;
     let q = &r.quality;
     let s = &r.specimen_fit;
-    println!(
+    crate::outln!(
         "identified {} ({} specimen) in {:.1} s of rig time, peak {:.2} mm, {:.0} mm/s",
         r.preset,
         r.specimen,
@@ -209,7 +209,7 @@ fn print_summary(r: &RigFile, out: &Path, plot: &Path) {
         r.excitation.peak_command_mm,
         r.excitation.peak_velocity_mm_s
     );
-    println!(
+    crate::outln!(
         "  actuator: delay {:.2} ms (model: dead time {:.2} ms, lag {:.2} ms), gain {:.4}; coherence min {:.4} mean {:.4}; model error {:.2}%",
         a.delay_ms, a.dead_time_ms, a.lag_ms, a.gain, q.min_coherence, q.mean_coherence, q.frf_fit_error_pct
     );
@@ -219,13 +219,16 @@ fn print_summary(r: &RigFile, out: &Path, plot: &Path) {
             .iter()
             .min_by(|x, y| (x.freq_hz - f).abs().total_cmp(&(y.freq_hz - f).abs()))
         {
-            println!(
+            crate::outln!(
                 "    {:>5.1} Hz  gain {:.4}  phase {:8.2} deg  coherence {:.4}",
-                l.freq_hz, l.gain, l.phase_deg, l.coherence
+                l.freq_hz,
+                l.gain,
+                l.phase_deg,
+                l.coherence
             );
         }
     }
-    println!(
+    crate::outln!(
         "  lead (stride {}): fit NRMSE {:.3}%, compensated residual {:.2}%; ATS a0 {:.4} a1 {:.5} s a2 {:.3e} s²",
         r.compensation.lead_stride,
         q.lead_fit_nrmse_pct,
@@ -234,9 +237,12 @@ fn print_summary(r: &RigFile, out: &Path, plot: &Path) {
         r.compensation.ats_initial[1],
         r.compensation.ats_initial[2]
     );
-    println!(
+    crate::outln!(
         "  specimen: k {:.4} kN/mm (R² {:.4}), c {:.3e} kN·s/mm, m {:.3e} kN·s²/mm",
-        s.stiffness_kn_per_mm, s.r2, s.damping_kn_s_per_mm, s.mass_kn_s2_per_mm
+        s.stiffness_kn_per_mm,
+        s.r2,
+        s.damping_kn_s_per_mm,
+        s.mass_kn_s2_per_mm
     );
-    println!("rig file {}, figure {}", out.display(), plot.display());
+    crate::outln!("rig file {}, figure {}", out.display(), plot.display());
 }

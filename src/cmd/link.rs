@@ -191,9 +191,9 @@ pub fn record_csv_with(
 }
 
 fn report(s: &RecordSummary, out: &std::path::Path) -> anyhow::Result<()> {
-    println!("wrote {} ({} records)", out.display(), s.records);
+    crate::outln!("wrote {} ({} records)", out.display(), s.records);
     if let Some((state, ticks, sent, dropped)) = s.end {
-        println!(
+        crate::outln!(
             "run ended: {} after {ticks} ticks; device sent {sent} records, its queue dropped {dropped}",
             link_host::state_name(state)
         );
@@ -242,7 +242,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             let s = link.status()?;
             let h = link.holdings()?;
             if json {
-                println!("{}", status_json(&s, &h));
+                crate::outln!("{}", status_json(&s, &h));
             } else {
                 print_status(&s, &h);
             }
@@ -270,22 +270,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             force_kn,
         } => {
             link.set_limits(stroke_mm, velocity_mm_s, force_kn)?;
-            println!("limits set");
+            crate::outln!("limits set");
         }
         LinkCommand::Arm {
             telemetry_every,
             on_link_loss,
         } => {
             link.arm_with(telemetry_every, on_link_loss.into())?;
-            println!("armed");
+            crate::outln!("armed");
         }
         LinkCommand::Start => {
             link.start()?;
-            println!("started");
+            crate::outln!("started");
         }
         LinkCommand::Abort => {
             link.abort()?;
-            println!("aborting: ramp to zero");
+            crate::outln!("aborting: ramp to zero");
         }
         LinkCommand::Record {
             out,
@@ -369,7 +369,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             // refused; an abort is not).
             link.arm_owned(telemetry_every, on_link_loss.into())?;
             link.start()?;
-            println!("running");
+            crate::outln!("running");
             let s = record_csv_with(
                 &mut link,
                 &out,
@@ -404,7 +404,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(q) = qemu {
         let out = q.stdout();
         if let Some(line) = out.lines().rev().find(|l| l.starts_with("RESULT ")) {
-            println!("{line}");
+            crate::outln!("{line}");
         }
         drop(q);
         let _ = std::fs::remove_dir_all(&dir);
@@ -443,15 +443,15 @@ fn scenario_of(kind: rths_link::ModelKind) -> &'static str {
 
 /// The status table of `rths link status`.
 fn print_status(s: &rths_link::Status, h: &rths_link::Holdings) {
-    println!("state            {}", link_host::state_name(s.state));
-    println!(
+    crate::outln!("state            {}", link_host::state_name(s.state));
+    crate::outln!(
         "model            {}, {}, checksum {:08x}",
         link_host::model_kind_name(h.model_kind),
         link_host::record_source_name(h.model_source),
         h.model_checksum
     );
     let r = s.record;
-    println!(
+    crate::outln!(
         "record           {}: {} samples at {} s ({:.2} s, {} ticks), scale {}, checksum {:08x}",
         link_host::record_source_name(r.source),
         r.samples,
@@ -461,33 +461,36 @@ fn print_status(s: &rths_link::Status, h: &rths_link::Holdings) {
         r.scale,
         r.checksum
     );
-    println!(
+    crate::outln!(
         "record capacity  {} samples ({:.1} s at 0.01 s, {:.1} s at 0.02 s)",
         s.record_capacity,
         f64::from(s.record_capacity.saturating_sub(1)) * 0.01,
         f64::from(s.record_capacity.saturating_sub(1)) * 0.02
     );
     if h.rig_checksum == 0 {
-        println!("rig compensation none (this analytical part has none)");
+        crate::outln!("rig compensation none (this analytical part has none)");
     } else {
-        println!(
+        crate::outln!(
             "rig compensation {}, checksum {:08x}",
             link_host::record_source_name(h.rig_source),
             h.rig_checksum
         );
     }
-    println!(
+    crate::outln!(
         "limits           ±{} mm, {} mm/s, ±{} kN",
-        s.stroke_mm, s.velocity_mm_s, s.force_kn
+        s.stroke_mm,
+        s.velocity_mm_s,
+        s.force_kn
     );
-    println!("rate             {} Hz", h.rate_hz);
-    println!("build            {:08x}", h.build_id);
-    println!("tick             {}", s.tick);
-    println!(
+    crate::outln!("rate             {} Hz", h.rate_hz);
+    crate::outln!("build            {:08x}", h.build_id);
+    crate::outln!("tick             {}", s.tick);
+    crate::outln!(
         "records sent     {} (dropped by the device: {})",
-        s.records_sent, s.records_dropped
+        s.records_sent,
+        s.records_dropped
     );
-    println!("bad frames       {}", s.bad_frames);
+    crate::outln!("bad frames       {}", s.bad_frames);
 }
 
 /// The JSON of `rths link status --json`.
@@ -540,7 +543,7 @@ fn upload_rig(link: &mut Link, p: &std::path::Path, lead_adapt_ticks: f64) -> an
     let kind = link.status()?.model_kind;
     let v = link_host::rig_values(&rig, kind, lead_adapt_ticks)?;
     let c = link.upload_rig(kind, &v)?;
-    println!(
+    crate::outln!(
         "uploaded the rig compensation of {} for {} (checksum {c:08x})",
         p.display(),
         link_host::model_kind_name(kind)
@@ -551,7 +554,7 @@ fn upload_rig(link: &mut Link, p: &std::path::Path, lead_adapt_ticks: f64) -> an
 fn upload_model(link: &mut Link, p: &std::path::Path) -> anyhow::Result<()> {
     let m = ModelFile::load(p)?;
     let c = link.upload(&m)?;
-    println!("uploaded {} (checksum {c:08x})", p.display());
+    crate::outln!("uploaded {} (checksum {c:08x})", p.display());
     Ok(())
 }
 
@@ -563,7 +566,7 @@ fn upload_motion(link: &mut Link, spec: &str, scale: f64) -> anyhow::Result<Stri
     let m = load_motion(Some(spec))?;
     let scaled = m.scaled(scale);
     let c = link.upload_record(&scaled.accel_g, scaled.dt_s, scale)?;
-    println!(
+    crate::outln!(
         "uploaded ground motion {} ({} samples at {} s, checksum {c:08x})",
         scaled.name,
         scaled.accel_g.len(),
@@ -643,7 +646,7 @@ fn identify(
     // (analysed window, lines) for the estimators and its figures for the rig file.
     let exc = excitation::generate(&cfg.excitation).context("excitation")?;
     let st = link.status()?;
-    println!(
+    crate::outln!(
         "identifying through the board: {} s of excitation at {:.0} Hz, peak {:.2} mm",
         cfg.excitation.duration_s(),
         1.0 / cfg.excitation.dt_s,
@@ -651,7 +654,7 @@ fn identify(
     );
     let s = link.identify(amplitude_mm, idle)?;
     let (state, ticks, sent, dropped) = s.end;
-    println!(
+    crate::outln!(
         "identification ended: {} after {ticks} ticks; device sent {sent} samples, its queue \
          dropped {dropped}; received {}",
         link_host::state_name(state),

@@ -181,14 +181,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let m = dir.join("nonlinear-study.md");
         std::fs::write(&m, &md).with_context(|| format!("writing {}", m.display()))?;
         if !args.json {
-            println!("wrote {}", j.display());
-            println!("wrote {}", m.display());
+            crate::outln!("wrote {}", j.display());
+            crate::outln!("wrote {}", m.display());
         }
     }
     if args.json {
-        println!("{}", serde_json::to_string(&report)?);
+        crate::outln!("{}", serde_json::to_string(&report)?);
     } else {
-        print!("{md}");
+        crate::out!("{md}");
     }
     Ok(())
 }

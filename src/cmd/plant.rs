@@ -103,7 +103,7 @@ const DELAY_FREQ_HZ: f64 = 0.5;
 /// Run `rths plant`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let p = params(&args)?;
-    println!(
+    crate::outln!(
         "plant: preset {}, specimen {}, {}",
         p.preset().name(),
         p.specimen().name(),
@@ -112,55 +112,55 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             None => "nominal parameters".to_string(),
         }
     );
-    println!("  time scale r      {:.4} (s -> s/r)", p.time_scale());
-    println!("  gain              {:.4}", p.gain());
-    println!("  a1*b0             {:.5e}", p.a1_beta0());
-    println!("  a2                {:.5e} N/m", p.a2());
-    println!("  b1                {:.3} 1/s", p.beta1());
-    println!("  b2                {:.5e} 1/s^2", p.beta2());
-    println!("  a3                {:.4} 1/s", p.a3());
-    println!("  specimen mass     {:.3} kg", p.specimen_mass_kg());
+    crate::outln!("  time scale r      {:.4} (s -> s/r)", p.time_scale());
+    crate::outln!("  gain              {:.4}", p.gain());
+    crate::outln!("  a1*b0             {:.5e}", p.a1_beta0());
+    crate::outln!("  a2                {:.5e} N/m", p.a2());
+    crate::outln!("  b1                {:.3} 1/s", p.beta1());
+    crate::outln!("  b2                {:.5e} 1/s^2", p.beta2());
+    crate::outln!("  a3                {:.4} 1/s", p.a3());
+    crate::outln!("  specimen mass     {:.3} kg", p.specimen_mass_kg());
     // What a run's fair reference would use: the structure with this brace.
     let draw = crate::study::DrawnPlant::of(&config(&args), 1.0)?;
-    println!(
+    crate::outln!(
         "  specimen k        {:.4} kN/mm ({:.1} N/m, F = {:.4} of the paper's brace)",
         p.specimen_stiffness_kn_per_mm(),
         draw.specimen_stiffness_n_per_m,
         draw.specimen_stiffness_factor
     );
-    println!(
+    crate::outln!(
         "  specimen c        {:.1} N*s/m",
         p.specimen_damping_n_s_per_m()
     );
-    println!(
+    crate::outln!(
         "  limits            stroke +/-{} mm, velocity {} mm/s, force {} kN",
         p.stroke_mm(),
         p.velocity_limit_mm_s(),
         p.capacity_kn()
     );
-    println!(
+    crate::outln!(
         "  RK4 sub-steps     {} per {:.1} us tick",
         p.substeps(),
         p.dt_s() * 1e6
     );
     let delay_s = p.phase_delay_s(DELAY_FREQ_HZ);
-    println!(
+    crate::outln!(
         "delay (phase slope at {DELAY_FREQ_HZ} Hz): {:.2} ms = {:.1} controller steps",
         delay_s * 1e3,
         delay_s / p.dt_s()
     );
     let tr = el_centro_tracking(p)?;
-    println!(
+    crate::outln!(
         "El Centro brace deformation, no compensation: J1 = {} steps ({:.2} ms), J2 = {:.2}%, J3 = {:.2}%",
         tr.j1_steps,
         tr.j1_steps as f64 * p.dt_s() * 1e3,
         tr.j2_pct,
         tr.j3_pct
     );
-    println!("frequency response x/u:");
+    crate::outln!("frequency response x/u:");
     for f in [1.0, 5.0, 10.0] {
         let r = p.frequency_response(f);
-        println!(
+        crate::outln!(
             "  {f:>4} Hz  gain {:.4}  phase {:8.2} deg  (delay {:.2} ms)",
             r.gain,
             r.phase_deg,
@@ -169,7 +169,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(path) = &args.bode {
         bode(&p, path).with_context(|| format!("drawing {}", path.display()))?;
-        println!("Bode plot written to {}", path.display());
+        crate::outln!("Bode plot written to {}", path.display());
     }
     Ok(())
 }

@@ -208,10 +208,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             },
             recording: rec.header.fields.iter().cloned().collect(),
         };
-        println!("{}", serde_json::to_string(&json)?);
+        crate::outln!("{}", serde_json::to_string(&json)?);
         return Ok(());
     }
-    println!(
+    crate::outln!(
         "scenario            {id} ({}, recorded: model {} {}, record {})",
         motion.unwrap_or("?"),
         rec.header.get("model_kind").unwrap_or("?"),
@@ -220,8 +220,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     crate::cmd::simulate::print_figures(&run.report);
     if let Some(dir) = &args.out {
-        println!("wrote {}", dir.join("history.csv").display());
-        println!("wrote {}", dir.join(format!("{id}.png")).display());
+        crate::outln!("wrote {}", dir.join("history.csv").display());
+        crate::outln!("wrote {}", dir.join(format!("{id}.png")).display());
     }
     Ok(())
 }

@@ -37,11 +37,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let started = std::time::Instant::now();
     let result = study::run(&cfg)?;
     if args.json {
-        println!("{}", serde_json::to_string(&result.json)?);
+        crate::outln!("{}", serde_json::to_string(&result.json)?);
         return Ok(());
     }
-    print!("{}", study::report_md(&cfg, &result));
-    println!(
+    crate::out!("{}", study::report_md(&cfg, &result));
+    crate::outln!(
         "\n{} files in {} ({:.1} s)",
         result.files.len(),
         args.out.display(),

@@ -57,17 +57,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let json = report::json(&result, rayon::current_num_threads(), wall_time_s);
     let files = report::write(&result, &json, &cfg.out_dir)?;
     if args.json {
-        println!("{}", serde_json::to_string(&json)?);
+        crate::outln!("{}", serde_json::to_string(&json)?);
         return Ok(());
     }
-    print!("{}", report::markdown(&result, &json));
-    println!(
+    crate::out!("{}", report::markdown(&result, &json));
+    crate::outln!(
         "\nwrote {} files in {}:",
         files.len(),
         cfg.out_dir.display()
     );
     for f in files {
-        println!("  {}", f.display());
+        crate::outln!("  {}", f.display());
     }
     Ok(())
 }

@@ -216,16 +216,16 @@ pub fn print_figures(r: &crate::scenario::ScenarioReport) {
     let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
     match (&r.stop_reason, r.stop_time_s) {
         (Some(why), Some(t)) => {
-            println!("stable              no: the supervisor stopped it ({why} at {t:.3} s)")
+            crate::outln!("stable              no: the supervisor stopped it ({why} at {t:.3} s)")
         }
-        _ => println!("stable              yes"),
+        _ => crate::outln!("stable              yes"),
     }
-    println!("NRMSE command       {} %", o(r.nrmse_pct));
-    println!("NRMSE measured      {} %", o(r.nrmse_measured_pct));
-    println!("J1 delay            {} ms", o(r.j1_ms));
-    println!("J2 / J3             {} / {} %", o(r.j2_pct), o(r.j3_pct));
-    println!("J4 / J5             {} / {} %", o(r.j4_pct), o(r.j5_pct));
-    println!("peak command        {} mm", o(r.peak_disp_mm));
+    crate::outln!("NRMSE command       {} %", o(r.nrmse_pct));
+    crate::outln!("NRMSE measured      {} %", o(r.nrmse_measured_pct));
+    crate::outln!("J1 delay            {} ms", o(r.j1_ms));
+    crate::outln!("J2 / J3             {} / {} %", o(r.j2_pct), o(r.j3_pct));
+    crate::outln!("J4 / J5             {} / {} %", o(r.j4_pct), o(r.j5_pct));
+    crate::outln!("peak command        {} mm", o(r.peak_disp_mm));
 }
 
 /// The metamodels a study scenario runs (none for the FE scenarios), from `--model` or shipped.
@@ -342,6 +342,19 @@ fn run_structure(
     }
     let sc = args.scenario;
     nl::check_applies(sc, &structure)?;
+    let uses_model = matches!(
+        sc,
+        SimScenario::NlPure
+            | SimScenario::NlOnline
+            | SimScenario::Study(ScenarioId::LrOnline | ScenarioId::LrxOnline)
+    );
+    if let (Some(m), false) = (&args.model, uses_model) {
+        anyhow::bail!(
+            "--model {}: scenario {sc} runs no metamodel with --structure (the model scenarios: \
+             nl-pure, nl-online, lr-online, lrx-online); drop --model",
+            m.display()
+        );
+    }
     let length = LengthScale::new(args.length_scale)?;
     if length != LengthScale::unit() && !sc.uses_rig() {
         anyhow::bail!("--length-scale scales the rig's specimen; {sc} runs without a rig");
@@ -445,49 +458,49 @@ fn run_structure(
             beyond_rig,
             compensation: comp,
         };
-        println!("{}", serde_json::to_string(&json)?);
+        crate::outln!("{}", serde_json::to_string(&json)?);
         return Ok(());
     }
     let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
-    println!(
+    crate::outln!(
         "scenario            {sc} ({motion_label}, structure {name}, {}, seed {})",
         preset.name(),
         args.seed
     );
     if let Some(why) = &beyond_rig {
-        println!("beyond the rig      {why}");
+        crate::outln!("beyond the rig      {why}");
     }
     if let Some(l) = report.length_scale.filter(|l| *l != 1.0) {
-        println!(
+        crate::outln!(
             "length scale        L = {l}: the rig imposes the structure's displacement / {l} (its \
              sensor noise is {l} × larger relative to the signal)"
         );
     }
     print_figures(&report.report);
     let f = &report.figures;
-    println!(
+    crate::outln!(
         "peak ductility      {} reference, {} run (all stories); specimen story {} reference",
         o(f.peak_ductility),
         o(f.peak_ductility_model),
         o(f.peak_ductility_specimen_story)
     );
     match f.residual_drift_mm {
-        Some(r) => println!(
+        Some(r) => crate::outln!(
             "residual drift      story {}: {:.4} mm reference, {:.4} mm run (error {} %)",
             r.story,
             r.reference,
             r.model,
             o(f.residual_drift_error_pct)
         ),
-        None => println!("residual drift      —"),
+        None => crate::outln!("residual drift      —"),
     }
-    println!(
+    crate::outln!(
         "start-up ratio      {} (RMS error first 2 s / after)",
         o(f.startup_error_ratio)
     );
     if let Some(dir) = &args.out {
-        println!("wrote {}", dir.join("history.csv").display());
-        println!("wrote {}", dir.join(format!("{sc}.png")).display());
+        crate::outln!("wrote {}", dir.join("history.csv").display());
+        crate::outln!("wrote {}", dir.join(format!("{sc}.png")).display());
     }
     Ok(())
 }
@@ -548,6 +561,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
              FILE (a structure with yielding stories) and --model M.json"
         ),
     };
+    let uses_model = id == ScenarioId::LrxOnline || id.uses_lr() || id.rnn_hidden().is_some();
+    if let (Some(m), false) = (&args.model, uses_model) {
+        anyhow::bail!(
+            "--model {}: scenario {id} runs no metamodel (the model scenarios: lr-pure, \
+             lr-offline, lr-online, rnn-pure-H, rnn-online-H, lrx-online); drop --model",
+            m.display()
+        );
+    }
     let mut rig = scenario::rig_config(preset, specimen, f, args.seed);
     rig.uncertainty = args.uncertainty;
     rig.drift = rths_hal_sim::Drift::over(args.drift, ag.len() as u64);
@@ -627,11 +648,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ats_initial,
     };
     if args.json {
-        println!("{}", serde_json::to_string(&json)?);
+        crate::outln!("{}", serde_json::to_string(&json)?);
         return Ok(());
     }
     let r = &report;
-    println!(
+    crate::outln!(
         "scenario            {id} ({}, {}, {}, F = {f}, seed {})",
         motion_label,
         preset.name(),
@@ -639,7 +660,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.seed
     );
     match &plant {
-        Some(d) => println!(
+        Some(d) => crate::outln!(
             "plant               {}: beta1 {:.3} 1/s, beta2 {:.5e} 1/s^2, a3 {:.4} 1/s, specimen k {:.1} N/m (effective F = {:.4})",
             if d.uncertainty {
                 format!("drawn with seed {}", d.seed)
@@ -652,17 +673,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             d.specimen_stiffness_n_per_m,
             d.specimen_stiffness_factor
         ),
-        None => println!("plant               none in the loop (pure run)"),
+        None => crate::outln!("plant               none in the loop (pure run)"),
     }
     if let Some([a0, a1, a2]) = ats_initial {
-        println!(
+        crate::outln!(
             "ATS start           from the rig file: a0 {a0:.4}, a1 {a1:.5} s, a2 {a2:.3e} s^2"
         );
     }
     print_figures(r);
     if let Some(dir) = &args.out {
-        println!("wrote {}", dir.join("history.csv").display());
-        println!("wrote {}", dir.join(format!("{id}.png")).display());
+        crate::outln!("wrote {}", dir.join("history.csv").display());
+        crate::outln!("wrote {}", dir.join(format!("{id}.png")).display());
     }
     Ok(())
 }

@@ -174,6 +174,44 @@ pub struct Args {
     pub out: PathBuf,
 }
 
+/// Largest `--perturbation` (RMS force perturbation / RMS brace force): beyond 2 the runs are
+/// mostly perturbation, no longer the frame's response.
+const MAX_PERTURBATION: f64 = 2.0;
+
+/// Refuse the flags `kind` does not use (they would be silently ignored) and a `--delay-steps` the
+/// controller cannot run, before any training.
+fn check_flags(args: &Args) -> anyhow::Result<()> {
+    let build_hz = rths_core::params::CONTROL_RATE_HZ;
+    if let (Some(rate), false) = (args.rate, args.kind == Kind::Meta) {
+        if rate != build_hz {
+            anyhow::bail!(
+                "--rate {rate}: `rths train {}` trains at this build's controller rate, {build_hz} \
+                 Hz (`--rate` chooses the rate of `rths train meta` only); for 4096 Hz build with \
+                 `cargo build --release --features rate-4096`",
+                kind_name(args.kind)
+            );
+        }
+    }
+    if matches!(args.kind, Kind::Lr | Kind::Rnn) {
+        crate::model_file::check_delay_steps(args.delay_steps)
+            .map_err(|e| anyhow::anyhow!("--delay-steps: {e}"))?;
+    }
+    if args.modes.is_some() && args.kind != Kind::Nonlinear {
+        anyhow::bail!("--modes applies to `rths train nonlinear` only");
+    }
+    Ok(())
+}
+
+fn kind_name(kind: Kind) -> &'static str {
+    match kind {
+        Kind::Lr => "lr",
+        Kind::Rnn => "rnn",
+        Kind::Lrx => "lrx",
+        Kind::Meta => "meta",
+        Kind::Nonlinear => "nonlinear",
+    }
+}
+
 fn fmt_opt(v: f64) -> Option<f64> {
     v.is_finite().then_some(v)
 }
@@ -208,6 +246,12 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
     } else {
         0.0
     });
+    anyhow::ensure!(
+        args.perturbation.is_finite() && (0.0..=MAX_PERTURBATION).contains(&args.perturbation),
+        "--perturbation {}: the RMS force perturbation is a fraction of the RMS brace force, \
+         0..={MAX_PERTURBATION}",
+        args.perturbation
+    );
     cfg.perturbation = args.perturbation;
     anyhow::ensure!(
         args.lrx_rcond.is_finite() && args.lrx_rcond > 0.0 && args.lrx_rcond < 1.0,
@@ -243,7 +287,7 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
             rig.board,
             crate::identify::rig_file::checksum_hex(&bytes)
         ));
-        println!(
+        crate::outln!(
             "lead filter from rig file {} ({} on {}, stride {})",
             path.display(),
             rig.preset,
@@ -253,43 +297,46 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
     }
     let mut t = crate::train::lrx::train(&cfg)?;
     t.file.training.rig = rig_identity;
-    println!("LRX fit on {} (seed {})", t.file.training.motion, cfg.seed);
+    crate::outln!("LRX fit on {} (seed {})", t.file.training.motion, cfg.seed);
     for (name, c) in crate::model_file::LRX_FEATURES.iter().zip(&t.coeffs) {
-        println!("  {name:<24} {c:+.10e}");
+        crate::outln!("  {name:<24} {c:+.10e}");
     }
-    println!(
+    crate::outln!(
         "  frame fit: one-step NRMSE {:.3e}%, condition number {:.3e}",
-        t.frame_fit_nrmse_pct, t.frame_condition
+        t.frame_fit_nrmse_pct,
+        t.frame_condition
     );
-    println!(
+    crate::outln!(
         "  lead filter (stride {}): {:?}",
         cfg.given_lead.map_or(cfg.lead_stride, |g| g.stride),
         t.lead_weights
     );
-    println!(
+    crate::outln!(
         "  lead fit: NRMSE {:.3}%, condition number {:.3e}",
-        t.lead_fit_nrmse_pct, t.lead_condition
+        t.lead_fit_nrmse_pct,
+        t.lead_condition
     );
     for (m, e) in &t.pure_nrmse_pct {
-        println!("  lrx-pure NRMSE on {m}: {e:.3e}%");
+        crate::outln!("  lrx-pure NRMSE on {m}: {e:.3e}%");
     }
     // Generalization of the frame model: lrx-pure on every shipped record.
     let (frame, _) = crate::models::lrx_params(&t.file)?;
-    println!("  lrx-pure NRMSE on the shipped records:");
+    crate::outln!("  lrx-pure NRMSE on the shipped records:");
     for name in crate::motion::GroundMotion::embedded_names() {
         let m = crate::motion::GroundMotion::try_embedded(name)?;
         let e = crate::train::lrx::pure_nrmse_pct(frame, &m.resample_mm_s2(DT_S))?;
-        println!("    {name:<16} {e:.3e}%");
+        crate::outln!("    {name:<16} {e:.3e}%");
     }
     t.file
         .save(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
-    println!("wrote {}", args.out.display());
+    crate::outln!("wrote {}", args.out.display());
     Ok(())
 }
 
 /// Run `rths train`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    check_flags(&args)?;
     if args.kind == Kind::Meta {
         return train_meta(&args);
     }
@@ -311,26 +358,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Kind::Lr => {
             let fit = lr::fit_pure(&response, args.delay_steps, k_b, args.rcond)?;
             let s = &fit.solution;
-            println!(
+            crate::outln!(
                 "LR fit on {motion_name} ({} steps, delay {} steps)",
                 response.len(),
                 args.delay_steps
             );
             for (name, t) in crate::model_file::LR_FEATURES.iter().zip(&s.theta) {
-                println!("  {name:<20} {t:+.10e}");
+                crate::outln!("  {name:<20} {t:+.10e}");
             }
-            println!(
+            crate::outln!(
                 "  condition number (normalized, before cut-off): {:.3e}",
                 s.condition_number
             );
-            println!(
+            crate::outln!(
                 "  effective rank: {} of {} (rcond {:e})",
                 s.effective_rank,
                 s.theta.len(),
                 args.rcond
             );
-            println!("  train NRMSE (one step): {:.3e}%", fit.train_nrmse_pct);
-            println!("  lr-pure NRMSE: {:.4}% (paper 0.15%)", fit.pure_nrmse_pct);
+            crate::outln!("  train NRMSE (one step): {:.3e}%", fit.train_nrmse_pct);
+            crate::outln!("  lr-pure NRMSE: {:.4}% (paper 0.15%)", fit.pure_nrmse_pct);
             let mut f = ModelFile::new_lr(s.theta.to_vec(), args.delay_steps, DT_S);
             f.training = Training {
                 motion: motion_name,
@@ -375,30 +422,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             cfg.arx_state_scale = args.state_scale;
             cfg.arx_rcond = args.rcond;
             let t = rnn::train(&response, k_b, &cfg)?;
-            println!(
+            crate::outln!(
                 "RNN H={} on {motion_name} ({} steps, delay {} steps, seed {})",
                 args.hidden,
                 response.len(),
                 args.delay_steps,
                 args.seed
             );
-            println!(
+            crate::outln!(
                 "  epochs: {} (best {}), best validation loss {:.4e}",
-                t.epochs, t.best_epoch, t.best_validation_loss
+                t.epochs,
+                t.best_epoch,
+                t.best_validation_loss
             );
-            println!("  train NRMSE (teacher forcing): {:.3}%", t.train_nrmse_pct);
-            println!(
+            crate::outln!("  train NRMSE (teacher forcing): {:.3}%", t.train_nrmse_pct);
+            crate::outln!(
                 "  rnn-pure NRMSE: initial weights {:.4}%, trained {:.4}%",
-                t.init_pure_nrmse_pct, t.pure_nrmse_pct
+                t.init_pure_nrmse_pct,
+                t.pure_nrmse_pct
             );
-            println!("  wall time: {:.1} s", t.wall_time_s);
+            crate::outln!("  wall time: {:.1} s", t.wall_time_s);
             // Generalization: the same closed loop on every shipped record (ms each).
-            println!("  rnn-pure NRMSE on the shipped records (generalization):");
+            crate::outln!("  rnn-pure NRMSE on the shipped records (generalization):");
             for name in crate::motion::GroundMotion::embedded_names() {
                 let m = crate::motion::GroundMotion::try_embedded(name)?;
                 let r = data::pure_response(&prototype, &m.resample_mm_s2(DT_S), DT_S)?;
                 let e = rnn::rnn_pure_nrmse_pct(&t.model, &r, args.delay_steps, k_b)?;
-                println!("    {name:<16} {e:.4}%");
+                crate::outln!("    {name:<16} {e:.4}%");
             }
             rnn::model_file(&t, &cfg, motion_name, response.len())
         }
@@ -409,7 +459,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     file.training.records = response.len();
     file.save(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
-    println!("wrote {}", args.out.display());
+    crate::outln!("wrote {}", args.out.display());
     Ok(())
 }
 
@@ -454,7 +504,7 @@ fn train_meta(args: &Args) -> anyhow::Result<()> {
     );
     std::fs::write(&args.out, file.to_json()?)
         .with_context(|| format!("writing {}", args.out.display()))?;
-    println!(
+    crate::outln!(
         "structure metamodel of {} ({} DOFs, specimen at DOF {}) at {rate} Hz: wrote {}",
         structure.name(),
         structure.dofs(),
@@ -513,7 +563,7 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
     })?;
     bar.finish_and_clear();
     let tr = &t.file.training;
-    println!(
+    crate::outln!(
         "modal-hysteretic model of {} ({} modes, {} springs), seed {}: stage 1 {} generations \
          per spring, stage 2 CMA-ES {} generations × {}; specimen force {}",
         t.file.structure.name,
@@ -529,7 +579,7 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
             "exact"
         }
     );
-    println!(
+    crate::outln!(
         "  {} springs; loss (mean floor NRMSE over the runs): initial {:.3}%, after stage 1 \
          {:.3}%, trained {:.3}%",
         t.file.springs.first().map_or("?", |s| s.law.as_str()),
@@ -538,10 +588,10 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
         tr.final_loss_pct
     );
     for (label, mu, e) in &t.runs {
-        println!("  {label:<24} ductility {mu:5.2}  specimen-DOF pure-loop NRMSE {e:.3}%");
+        crate::outln!("  {label:<24} ductility {mu:5.2}  specimen-DOF pure-loop NRMSE {e:.3}%");
     }
     for (k, s) in t.file.springs.iter().enumerate() {
-        println!(
+        crate::outln!(
             "  spring {}: fy {:.1} kN, k0 {:.2} kN/mm, α {:.3}, n {:.2}, β {:.3}, γ {:.3}",
             k + 1,
             s.yield_force_kn,
@@ -552,11 +602,11 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
             s.gamma
         );
     }
-    println!("  wall time: {:.1} s", t.wall_time_s);
+    crate::outln!("  wall time: {:.1} s", t.wall_time_s);
     t.file
         .save(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
-    println!("wrote {}", args.out.display());
+    crate::outln!("wrote {}", args.out.display());
     Ok(())
 }
 
@@ -658,14 +708,14 @@ fn evaluate_nonlinear(args: &Args, path: &std::path::Path, text: &str) -> anyhow
             crate::train::nonlinear::eval::evaluate(&file, &s, m, scale, DT_S)
         })
         .collect::<Result<Vec<_>, _>>()?;
-    println!(
+    crate::outln!(
         "pure loop of {} on {} (FE reference, {} Hz):",
         args.out.display(),
         s.name(),
         (1.0 / DT_S).round()
     );
-    println!("| run | ductility FE / model | NRMSE (%) | residual drift FE / model (mm) | first 2 s / rest RMS error (%) |");
-    println!("|---|---|---|---|---|");
+    crate::outln!("| run | ductility FE / model | NRMSE (%) | residual drift FE / model (mm) | first 2 s / rest RMS error (%) |");
+    crate::outln!("|---|---|---|---|---|");
     let mut e: Vec<f64> = Vec::new();
     for r in &rows {
         let res = |v: &[f64]| {
@@ -674,7 +724,7 @@ fn evaluate_nonlinear(args: &Args, path: &std::path::Path, text: &str) -> anyhow
                 .collect::<Vec<_>>()
                 .join(" / ")
         };
-        println!(
+        crate::outln!(
             "| {} | {:.2} / {:.2} | {:.3} | {} vs {} | {:.3} / {:.3} |",
             r.label,
             r.ductility_ref,
@@ -688,7 +738,7 @@ fn evaluate_nonlinear(args: &Args, path: &std::path::Path, text: &str) -> anyhow
         e.push(r.nrmse_pct);
     }
     e.sort_by(f64::total_cmp);
-    println!(
+    crate::outln!(
         "NRMSE median {:.3}%, max {:.3}%",
         e.get(e.len() / 2).copied().unwrap_or(f64::NAN),
         e.last().copied().unwrap_or(f64::NAN)

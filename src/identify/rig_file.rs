@@ -183,6 +183,19 @@ pub enum RigFileError {
     },
 }
 
+/// Largest magnitude of a lead-filter weight, ATS initial value or a filter's gain in a rig file
+/// (an identified lead has weights of a few units; beyond this the fit is broken or the file edited).
+pub const MAX_COMPENSATION_VALUE: f64 = 1e3;
+/// Specimen stiffness range of a rig file, kN/mm (a lab specimen: from a soft coupon to a stiff
+/// brace).
+pub const SPECIMEN_STIFFNESS_RANGE_KN_PER_MM: (f64, f64) = (1e-6, 1e5);
+/// Largest specimen mass of a rig file, kN·s²/mm (10⁶ t: no specimen on a rig weighs more).
+pub const MAX_SPECIMEN_MASS_KN_S2_PER_MM: f64 = 1e3;
+/// Largest specimen damping of a rig file, kN·s/mm.
+pub const MAX_SPECIMEN_DAMPING_KN_S_PER_MM: f64 = 1e5;
+/// Largest actuator delay of a rig file, ms (a second: far beyond any servo-hydraulic rig).
+pub const MAX_ACTUATOR_DELAY_MS: f64 = 1e3;
+
 #[derive(Deserialize)]
 struct Header {
     format: Option<String>,
@@ -203,8 +216,26 @@ fn finite(field: &'static str, v: &[f64]) -> Result<(), RigFileError> {
     }
 }
 
+/// Refuse `value` of `field` outside `[lo, hi]`, naming both limits (values printed compactly).
+fn within(
+    field: &'static str,
+    value: f64,
+    lo: f64,
+    hi: f64,
+    unit: &str,
+) -> Result<(), RigFileError> {
+    if !(lo..=hi).contains(&value) {
+        return Err(invalid(
+            field,
+            format!("{value:.6e}{unit} is outside the physical range [{lo:e}, {hi:e}]{unit}"),
+        ));
+    }
+    Ok(())
+}
+
 impl RigFile {
-    /// Check tags, shapes, finiteness and ranges.
+    /// Check tags, shapes, finiteness and physical ranges (refused with the field and the limit,
+    /// never clamped), and that it was identified at this build's controller rate.
     pub fn validate(&self) -> Result<(), RigFileError> {
         if self.format != FORMAT {
             return Err(RigFileError::UnknownFormat {
@@ -236,6 +267,21 @@ impl RigFile {
                 "dt_s and gain must be > 0, delay_ms ≥ 0",
             ));
         }
+        rths_files::rate::check_dt(
+            "the rig file",
+            a.dt_s,
+            rths_core::params::DT_S,
+            "rths identify --preset PRESET --out RIG.json",
+        )
+        .map_err(|e| invalid("actuator.dt_s", e.to_string()))?;
+        within("actuator.gain", a.gain, 1e-3, MAX_COMPENSATION_VALUE, "")?;
+        within(
+            "actuator.delay_ms",
+            a.delay_ms,
+            0.0,
+            MAX_ACTUATOR_DELAY_MS,
+            " ms",
+        )?;
         if a.frf.is_empty() {
             return Err(invalid("actuator.frf", "empty"));
         }
@@ -253,6 +299,10 @@ impl RigFile {
             ));
         }
         finite("compensation.lead_weights", &c.lead_weights)?;
+        for w in &c.lead_weights {
+            let m = MAX_COMPENSATION_VALUE;
+            within("compensation.lead_weights", *w, -m, m, "")?;
+        }
         if !(1..=LEAD_MAX_STRIDE).contains(&c.lead_stride) {
             return Err(invalid(
                 "compensation.lead_stride",
@@ -260,6 +310,10 @@ impl RigFile {
             ));
         }
         finite("compensation.ats_initial", &c.ats_initial)?;
+        for a in &c.ats_initial {
+            let m = MAX_COMPENSATION_VALUE;
+            within("compensation.ats_initial", *a, -m, m, "")?;
+        }
         let s = &self.specimen_fit;
         finite(
             "specimen_fit",
@@ -270,9 +324,31 @@ impl RigFile {
                 s.r2,
             ],
         )?;
-        if s.stiffness_kn_per_mm <= 0.0 {
-            return Err(invalid("specimen_fit.stiffness_kn_per_mm", "must be > 0"));
-        }
+        let (k_lo, k_hi) = SPECIMEN_STIFFNESS_RANGE_KN_PER_MM;
+        within(
+            "specimen_fit.stiffness_kn_per_mm",
+            s.stiffness_kn_per_mm,
+            k_lo,
+            k_hi,
+            " kN/mm",
+        )?;
+        // A fit's mass and damping may come out a hair below zero (noise on a negligible term);
+        // a negative value larger than that is not a specimen: refused, not clamped to 0.
+        let tol = 1e-6 * s.stiffness_kn_per_mm;
+        within(
+            "specimen_fit.mass_kn_s2_per_mm",
+            s.mass_kn_s2_per_mm,
+            -tol,
+            MAX_SPECIMEN_MASS_KN_S2_PER_MM,
+            " kN·s²/mm",
+        )?;
+        within(
+            "specimen_fit.damping_kn_s_per_mm",
+            s.damping_kn_s_per_mm,
+            -tol,
+            MAX_SPECIMEN_DAMPING_KN_S_PER_MM,
+            " kN·s/mm",
+        )?;
         let q = &self.quality;
         finite(
             "quality",

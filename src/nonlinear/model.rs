@@ -19,11 +19,26 @@ pub struct LearnedModel {
     params: Box<ModalHystParams>,
 }
 
+/// Refuse a nonlinear model trained at another controller rate than this build's (its springs were
+/// fitted on the pure loop at its own step), with the command that trains one at this rate.
+pub fn check_rate(file: &NlModelFile) -> Result<(), rths_files::rate::OtherRate> {
+    rths_files::rate::check_dt(
+        "the nonlinear model",
+        file.dt_s,
+        DT_S,
+        &format!(
+            "rths train nonlinear --structure {}.json --out FILE",
+            file.structure.name
+        ),
+    )
+}
+
 impl LearnedModel {
     /// The model file `file` for the structure file whose text is `structure_json`: refused with
     /// the reason unless it was trained for that structure (name and checksum of its content).
     pub fn new(file: &NlModelFile, structure_json: &str) -> anyhow::Result<Self> {
         file.check_structure(structure_json)?;
+        check_rate(file)?;
         // The parameters are continuous-time: built for this build's controller step.
         Ok(Self {
             params: Box::new(file.params(DT_S)?),

@@ -58,7 +58,13 @@ pub fn elastic_modes(s: &Structure, modes: usize) -> Result<ElasticModes, TrainE
     order.sort_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]));
     let phi_all = l_inv.transpose() * &eig.eigenvectors;
     let iota = nalgebra::DVector::from_element(n, 1.0);
-    let r = modes.clamp(1, n);
+    if !(1..=n).contains(&modes) {
+        return Err(TrainError::Setting(format!(
+            "--modes {modes}: structure {} has {n} DOFs, so 1..={n} modes",
+            s.name()
+        )));
+    }
+    let r = modes;
     let mut out = ElasticModes {
         omega_rad_s: Vec::with_capacity(r),
         damping_ratio: Vec::with_capacity(r),
