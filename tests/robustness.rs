@@ -36,7 +36,12 @@ fn check_model(text: &str) {
             ModelKind::Rnn => rths::models::rnn_params(&m).is_ok(),
             ModelKind::Lrx => rths::models::lrx_params(&m).is_ok(),
         };
-        assert!(ok, "a validated model was refused by the controller");
+        // A file made at another controller rate is valid but refused to run (issue 27).
+        let at_rate = rths_files::rate::check_dt("m", m.dt_s, rths_core::params::DT_S, "").is_ok();
+        assert_eq!(
+            ok, at_rate,
+            "a validated model at the controller's rate was refused (or one at another accepted)"
+        );
     }
 }
 
