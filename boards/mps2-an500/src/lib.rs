@@ -19,7 +19,7 @@ pub mod pac;
 
 pub use rths_board_emulated::logger;
 use rths_board_emulated::CountingTimer;
-pub use rths_board_emulated::{calibrate, exit, BoardError, SysTickCalibration, Harness, Plant};
+pub use rths_board_emulated::{calibrate, exit, BoardError, Harness, Plant, SysTickCalibration};
 use rths_hal_sim::SimError;
 
 /// The MPS2's core and peripheral clock in QEMU (`SYSCLK_FRQ`), Hz.

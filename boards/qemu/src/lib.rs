@@ -17,7 +17,7 @@
 pub use rths_board_emulated::logger;
 
 use rths_board_emulated::CountingTimer;
-pub use rths_board_emulated::{calibrate, exit, BoardError, SysTickCalibration, Harness, Plant};
+pub use rths_board_emulated::{calibrate, exit, BoardError, Harness, Plant, SysTickCalibration};
 use rths_hal_sim::SimError;
 /// The device crate (STM32F405) the firmware's RTIC app is built on.
 pub use stm32f4::stm32f405 as pac;

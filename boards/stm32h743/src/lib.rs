@@ -31,7 +31,7 @@ use embedded_hal::delay::DelayNs;
 use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
 use rths_board_drivers::ad5754::{Ad5754, Ad5754Error};
 use rths_board_drivers::ad7606::{Ad7606, Ad7606Config, Ad7606Error};
-use rths_board_drivers::{ActiveLevel, ConverterCalibration, CalibrationConfig, EStop, Rig};
+use rths_board_drivers::{ActiveLevel, CalibrationConfig, ConverterCalibration, EStop, Rig};
 use stm32h7xx_hal::gpio::{Input, Output, Pin, PushPull};
 use stm32h7xx_hal::independent_watchdog::IndependentWatchdog;
 pub use stm32h7xx_hal::pac;
