@@ -9,7 +9,7 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use rths::imported::fe::SparseNewmark;
 use rths::imported::ImportedStructure;
 
-const DT_S: f64 = 1.0 / 4096.0;
+const DT_4096_S: f64 = 1.0 / 4096.0;
 
 fn frames(c: &mut Criterion) {
     let mut g = c.benchmark_group("imported_fe");
@@ -22,7 +22,7 @@ fn frames(c: &mut Criterion) {
     ] {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(file);
         let s = ImportedStructure::load(&path).expect("the shipped frame loads");
-        let mut fe = SparseNewmark::new(&s, DT_S).expect("the host FE builds");
+        let mut fe = SparseNewmark::new(&s, DT_4096_S).expect("the host FE builds");
         let mut k = 0u32;
         g.bench_function(name, |b| {
             b.iter(|| {

@@ -19,7 +19,7 @@ use rths_hal_sim::rig::{quantize_bits, SimError};
 use rths_hal_sim::VirtualRig;
 
 use super::run::{plant_params, PlantDraw};
-use super::{ACTUATOR_CAPACITY_N, CONVERTER_BITS, DT_S};
+use super::{ACTUATOR_CAPACITY_N, BENCHMARK_DT_S, CONVERTER_BITS};
 use crate::identify::estimate::{lead, lead_residual_pct, SpecimenFit};
 use crate::identify::{identify_rig_with_limits, IdentifyConfig};
 use rths_core::supervisor::Limits;
@@ -118,7 +118,7 @@ pub struct RigIdentification {
 /// The time constant of the lead's online correction: `rths train lrx --rig`'s, in seconds
 /// (its ticks are the controller's 2048 Hz ticks), in 4096 Hz ticks.
 pub fn lead_adapt_ticks() -> f64 {
-    crate::train::lrx::RIG_LEAD_ADAPT_TICKS * rths_core::params::DT_S / DT_S
+    crate::train::lrx::RIG_LEAD_ADAPT_TICKS * rths_core::params::DT_S / BENCHMARK_DT_S
 }
 
 /// Identify the rig of `plant` holding a specimen of `specimen_kn_per_mm` through the benchmark's
@@ -128,7 +128,7 @@ pub fn identify_plant(
     specimen_kn_per_mm: f64,
 ) -> anyhow::Result<RigIdentification> {
     let start = std::time::Instant::now();
-    let cfg = IdentifyConfig::at_tick(DT_S);
+    let cfg = IdentifyConfig::at_tick(BENCHMARK_DT_S);
     let mut rig = Converters::new(VirtualRig::new(plant_params(plant, specimen_kn_per_mm)?));
     // The paper actuator's limits with their per-tick steps at 2048 Hz: at 4096 Hz the per-tick
     // plausibility check (1.5 × 322 mm/s × Δt = 0.118 mm) is 4.3σ of the difference of two

@@ -18,7 +18,7 @@ use rths_core::structure_n::{ChangN, MAX_DOF};
 use rths_files::structure_file::Structure;
 
 use super::run::META_FORCE_CORRECTION;
-use super::DT_S;
+use super::BENCHMARK_DT_S;
 use crate::motion::GroundMotion;
 
 /// Lags of each input (and of the output).
@@ -45,7 +45,7 @@ fn random_force(k: usize, dt_s: f64, amp_kn: f64, phases: &[(f64, f64)]) -> f64 
 /// Train for `structure` (numerical part at its specimen DOF) at `intensity`, at the benchmark's
 /// 4096 Hz.
 pub fn train(structure: &Structure, intensity: f64) -> anyhow::Result<Meta> {
-    train_at(structure, intensity, DT_S)
+    train_at(structure, intensity, BENCHMARK_DT_S)
 }
 
 /// Train for `structure` at `intensity` for a controller step `dt_s`.

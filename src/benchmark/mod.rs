@@ -19,9 +19,9 @@ use rths_files::motion::{parse_csv, GroundMotion};
 use rths_files::structure_file::Structure;
 
 /// The benchmark's control and sampling rate, Hz.
-pub const RATE_HZ: f64 = 4096.0;
+pub const BENCHMARK_RATE_HZ: f64 = 4096.0;
 /// The benchmark's step, s.
-pub const DT_S: f64 = 1.0 / RATE_HZ;
+pub const BENCHMARK_DT_S: f64 = 1.0 / BENCHMARK_RATE_HZ;
 /// Default intensity: the factor on the records' ground acceleration.
 pub const DEFAULT_INTENSITY: f64 = 0.4;
 /// Noise power of the displacement sensor's band-limited white noise, m² (benchmark).

@@ -33,7 +33,8 @@ use crate::motion::GroundMotion;
 
 use super::ident::Converters;
 use super::{
-    noise_sigma, Record, ACTUATOR_CAPACITY_N, DISP_NOISE_POWER_M2, DT_S, FORCE_NOISE_POWER_N2,
+    noise_sigma, Record, ACTUATOR_CAPACITY_N, BENCHMARK_DT_S, DISP_NOISE_POWER_M2,
+    FORCE_NOISE_POWER_N2,
 };
 use crate::drive;
 
@@ -167,11 +168,11 @@ pub fn plant_params(plant: PlantDraw, specimen_kn_per_mm: f64) -> anyhow::Result
 /// The configuration of [`plant_params`].
 pub fn rig_config(plant: PlantDraw, specimen_kn_per_mm: f64) -> RigConfig {
     let mut cfg = RigConfig::new(Preset::Benchmark);
-    cfg.dt_s = DT_S;
+    cfg.dt_s = BENCHMARK_DT_S;
     cfg.specimen_stiffness_kn_per_mm = specimen_kn_per_mm;
     cfg.sensors = Sensors {
-        disp_noise_mm: noise_sigma(DISP_NOISE_POWER_M2, DT_S) * 1e3,
-        force_noise_kn: noise_sigma(FORCE_NOISE_POWER_N2, DT_S) * 1e-3,
+        disp_noise_mm: noise_sigma(DISP_NOISE_POWER_M2, BENCHMARK_DT_S) * 1e3,
+        force_noise_kn: noise_sigma(FORCE_NOISE_POWER_N2, BENCHMARK_DT_S) * 1e-3,
         quantize: false,
     };
     match plant {
@@ -239,7 +240,7 @@ fn reference_n<const N: usize>(
     c[(d, d)] += plant.specimen_damping_n_s_per_m() * SI_TO_MM_KN - c_e;
     let model =
         LinearStructure::new(m(structure.mass()), c, k, k).context("reference structure")?;
-    let mut nm = Newmark::new(model, DT_S).context("reference integrator")?;
+    let mut nm = Newmark::new(model, BENCHMARK_DT_S).context("reference integrator")?;
     let mut out: Vec<Vec<f64>> = (0..N).map(|_| Vec::with_capacity(ag_mm_s2.len())).collect();
     for (k, &ag) in ag_mm_s2.iter().enumerate() {
         let d = if k == 0 {
@@ -272,9 +273,9 @@ pub fn actuator_limits(specimen_kn_per_mm: f64) -> anyhow::Result<Limits> {
         4,
         20.0,
         10.0,
-        DT_S,
+        BENCHMARK_DT_S,
     )
-    .and_then(|l| l.with_sensor_noise_mm(noise_sigma(DISP_NOISE_POWER_M2, DT_S) * 1e3))
+    .and_then(|l| l.with_sensor_noise_mm(noise_sigma(DISP_NOISE_POWER_M2, BENCHMARK_DT_S) * 1e3))
     .map_err(|e| anyhow::anyhow!("the benchmark actuator's limits: {e}"))
 }
 
@@ -340,12 +341,12 @@ pub fn check_record(motion: &GroundMotion) -> anyhow::Result<()> {
         .validate()
         .with_context(|| format!("record {}", motion.name))?;
     let rate_hz = 1.0 / motion.dt_s;
-    if motion.dt_s < DT_S * (1.0 - 1e-9) {
+    if motion.dt_s < BENCHMARK_DT_S * (1.0 - 1e-9) {
         anyhow::bail!(
             "record {}: sampled at {rate_hz:.1} Hz, above the benchmark's {} Hz: the 4096 Hz \
              interpolation would drop samples (resample it to 4096 Hz or below)",
             motion.name,
-            super::RATE_HZ
+            super::BENCHMARK_RATE_HZ
         );
     }
     let duration_s = motion.duration_s();
@@ -370,7 +371,7 @@ pub fn run_on(
 ) -> anyhow::Result<RunResult> {
     check_intensity(cfg.intensity)?;
     check_record(motion)?;
-    let ag = motion.scaled(cfg.intensity).resample_mm_s2(DT_S);
+    let ag = motion.scaled(cfg.intensity).resample_mm_s2(BENCHMARK_DT_S);
     // The rig holds the file's specimen (for the four cases, the benchmark's own).
     let (_, k_e_file, _) = structure.specimen();
     let params = plant_params(cfg.plant, k_e_file)?;
@@ -400,8 +401,11 @@ pub fn run_on(
     let compensator = match cfg.controller {
         ControllerKind::Fe => Compensator::None,
         ControllerKind::FeAts | ControllerKind::MetaAts => Compensator::Ats(Ats::new(
-            AtsParams::new(AtsConfig::paper(DT_S, nominal_delay_s(structure)?))
-                .context("ATS parameters")?,
+            AtsParams::new(AtsConfig::paper(
+                BENCHMARK_DT_S,
+                nominal_delay_s(structure)?,
+            ))
+            .context("ATS parameters")?,
         )),
         ControllerKind::FeId | ControllerKind::MetaId => Compensator::Lead(Lead::new(
             identification.as_ref().context("the identified lead")?.lead,
@@ -414,11 +418,14 @@ pub fn run_on(
     let (analytical, mut beside) = match meta {
         Some(m) => (
             Analytical::StructureMeta(m),
-            Some(ChangN::new(structure.numerical()?, DT_S).context("numerical substructure")?),
+            Some(
+                ChangN::new(structure.numerical()?, BENCHMARK_DT_S)
+                    .context("numerical substructure")?,
+            ),
         ),
         None => (
             Analytical::StructureFe(
-                core_control::StructureFe::new(structure.numerical()?, dof, DT_S)
+                core_control::StructureFe::new(structure.numerical()?, dof, BENCHMARK_DT_S)
                     .context("numerical substructure")?,
             ),
             None,
@@ -441,55 +448,65 @@ pub fn run_on(
     };
     let mut unstable = None;
     let mut clipped_force_ticks = 0;
-    drive::run(&mut ctl, Some(&mut rig), &ag, None, DT_S, |st, ctl, rig| {
-        if rig.is_some_and(Converters::force_clipped) {
-            clipped_force_ticks += 1;
-        }
-        h.time_s.push(st.k as f64 * DT_S);
-        h.measured_mm.push(st.measured_mm);
-        h.true_disp_mm.push(st.true_disp_mm);
-        h.target_mm.push(st.target_mm);
-        let floors = match (beside.as_mut(), ctl.analytical()) {
-            (Some(integ), _) => {
-                if st.k == 0 {
-                    integ.reset(st.ground_accel_mm_s2);
-                } else {
-                    let mut r = [0.0; MAX_DOF];
-                    if let Some(ri) = r.get_mut(dof) {
-                        *ri = st.measured_force_kn;
-                    }
-                    integ.advance(st.ground_accel_mm_s2, &r);
-                }
-                *integ.disp()
+    drive::run(
+        &mut ctl,
+        Some(&mut rig),
+        &ag,
+        None,
+        BENCHMARK_DT_S,
+        |st, ctl, rig| {
+            if rig.is_some_and(Converters::force_clipped) {
+                clipped_force_ticks += 1;
             }
-            (None, Analytical::StructureFe(m)) => *m.chang().disp(),
-            (None, _) => [f64::NAN; MAX_DOF],
-        };
-        for (f, x) in h.floors_mm.iter_mut().zip(floors) {
-            f.push(x);
-        }
-        if let State::Fault(reason) = st.out.state {
-            unstable = Some(format!(
+            h.time_s.push(st.k as f64 * BENCHMARK_DT_S);
+            h.measured_mm.push(st.measured_mm);
+            h.true_disp_mm.push(st.true_disp_mm);
+            h.target_mm.push(st.target_mm);
+            let floors = match (beside.as_mut(), ctl.analytical()) {
+                (Some(integ), _) => {
+                    if st.k == 0 {
+                        integ.reset(st.ground_accel_mm_s2);
+                    } else {
+                        let mut r = [0.0; MAX_DOF];
+                        if let Some(ri) = r.get_mut(dof) {
+                            *ri = st.measured_force_kn;
+                        }
+                        integ.advance(st.ground_accel_mm_s2, &r);
+                    }
+                    *integ.disp()
+                }
+                (None, Analytical::StructureFe(m)) => *m.chang().disp(),
+                (None, _) => [f64::NAN; MAX_DOF],
+            };
+            for (f, x) in h.floors_mm.iter_mut().zip(floors) {
+                f.push(x);
+            }
+            if let State::Fault(reason) = st.out.state {
+                unstable = Some(format!(
                 "the supervisor stopped the run at t = {:.3} s: {reason:?} (requested {:.3} mm, \
                  measured {:.3} mm; stroke ±{:.2} mm, {:.1} mm/s, ±{:.2} kN)",
-                st.k as f64 * DT_S,
+                st.k as f64 * BENCHMARK_DT_S,
                 st.out.requested_mm,
                 st.measured_mm,
                 limits.stroke_mm(),
                 limits.velocity_mm_s(),
                 limits.force_kn(),
             ));
-            return ControlFlow::Break(());
-        }
-        ControlFlow::Continue(())
-    });
+                return ControlFlow::Break(());
+            }
+            ControlFlow::Continue(())
+        },
+    );
     let (ats_coefficients, lead_adaptation) = match ctl.compensator() {
         Compensator::Ats(a) => (Some(a.coefficients()), None),
         Compensator::Lead(l) => {
             let st = l.adaptation_state();
             (
                 None,
-                Some([f64::from(st.gain), f64::from(st.delay_ticks) * DT_S]),
+                Some([
+                    f64::from(st.gain),
+                    f64::from(st.delay_ticks) * BENCHMARK_DT_S,
+                ]),
             )
         }
         _ => (None, None),
@@ -543,7 +560,7 @@ fn criteria(h: &History, dof: usize) -> anyhow::Result<BenchmarkCriteria> {
         &h.target_mm,
         [&h.floors_mm[a], &h.floors_mm[b]],
         [&h.reference_mm[dof], &h.reference_mm[a], &h.reference_mm[b]],
-        DT_S,
+        BENCHMARK_DT_S,
     )
     .map_err(|e| anyhow::anyhow!("J1-J9: {e}"))?;
     if others.is_empty() {

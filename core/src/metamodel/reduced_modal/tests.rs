@@ -1,7 +1,7 @@
 use super::*;
 use proptest::prelude::*;
 
-const DT_S: f64 = 1.0 / 4096.0;
+const DT_4096_S: f64 = 1.0 / 4096.0;
 
 fn one_mode(omega: f64, zeta: f64, gamma: f64, phi: f64) -> ReducedMode {
     ReducedMode {
@@ -14,7 +14,7 @@ fn one_mode(omega: f64, zeta: f64, gamma: f64, phi: f64) -> ReducedMode {
 
 fn two_mode_params(g: f64) -> ReducedModalParams {
     ReducedModalParams::new(
-        DT_S,
+        DT_4096_S,
         &[
             one_mode(10.0, 0.02, 1.2, 0.8),
             one_mode(60.0, 0.05, -0.3, 0.5),
@@ -38,7 +38,7 @@ fn a_constant_ground_acceleration_settles_at_the_static_response() {
     // One mode, no specimen: q → −Γ·ü_g/ω², the interface → φ·q − h·ü_g.
     let (omega, gamma, phi, h) = (20.0, 1.5, 0.7, 3e-5);
     let p = ReducedModalParams::new(
-        DT_S,
+        DT_4096_S,
         &[one_mode(omega, 0.2, gamma, phi)],
         &[],
         StaticCorrection {
@@ -68,7 +68,7 @@ fn the_nominal_specimen_force_leaves_the_modes_unforced() {
     // Fed back F = k_e·target, ΔF = 0: the same response as the same modes with no specimen.
     let p = two_mode_params(1e-3);
     let unloaded = ReducedModalParams::new(
-        DT_S,
+        DT_4096_S,
         p.mode_list(),
         &[0.4, -0.2],
         StaticCorrection {
@@ -138,7 +138,7 @@ fn invalid_parameters_are_refused() {
     let none = StaticCorrection::default();
     let bad = |modes: &[ReducedMode], shapes: &[f64], outs: &[StaticCorrection], g: f64, k: f64| {
         ReducedModalParams::new(
-            DT_S,
+            DT_4096_S,
             modes,
             shapes,
             StaticCorrection {
