@@ -1,8 +1,9 @@
 //! Identification on the device (`rths link ... identify`): at rest, the supervisor is armed and
 //! started exactly as for a test (the limits in force, faults trip and ramp down), and the control
 //! task plays the identification excitation tick by tick, without the host in the loop, reading the
-//! DAQ and writing the supervisor's command as the host's `rths identify` runner does. Every tick's
-//! command, displacement and force are queued for the link as an `IdentifySample`.
+//! DAQ and writing the supervisor's command with core's `IdentifySession`, the tick the host's
+//! `rths identify` runs. Every tick's command, displacement and force are queued for the link as an
+//! `IdentifySample`.
 //!
 //! The excitation is `rths_core::identify_excitation`'s: one period of the unit multisine and the
 //! ramp's cosines are tabulated by the firmware's build script with the same functions and the same
@@ -14,6 +15,7 @@ use heapless::spsc::Producer;
 use rths_core::control::Controller;
 use rths_core::hal::{Actuator, Daq, Error};
 use rths_core::identify_excitation::{ExcitationConfig, Player, Schedule, Tables, UnitStats};
+use rths_core::identify_session::{IdentifyPhase, IdentifySession};
 use rths_core::params::DT_S;
 use rths_core::supervisor::State;
 use rths_link::NackReason;
@@ -91,27 +93,10 @@ impl Tables for FlashTables {
     }
 }
 
-/// Where an identification is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Phase {
-    /// None in progress.
-    Idle,
-    /// Playing the excitation.
-    Excite,
-    /// The excitation ended: `finish()` given, ticking at 0 until `Done`.
-    Finish,
-    /// Tripped: ticking at 0 while the supervisor ramps to its safe position.
-    Settle,
-    /// Over (done or tripped and at rest).
-    Ended,
-}
-
 /// The identification in progress (a shared resource of the control and link tasks).
 #[derive(Debug, Clone, Copy)]
 pub struct Identification {
-    player: Option<Player>,
-    /// Where it is.
-    pub phase: Phase,
+    session: Option<IdentifySession>,
     /// Ticks run (= samples queued or dropped).
     pub ticks: u32,
     /// Samples the full queue dropped.
@@ -139,8 +124,7 @@ impl Identification {
     /// None in progress.
     pub const fn new() -> Self {
         Self {
-            player: None,
-            phase: Phase::Idle,
+            session: None,
             ticks: 0,
             dropped: 0,
             state: State::Idle,
@@ -150,15 +134,19 @@ impl Identification {
     /// Begin playing `player` (the supervisor is already running: [`begin`]).
     pub fn start(&mut self, player: Player) {
         *self = Self {
-            player: Some(player),
-            phase: Phase::Excite,
+            session: Some(IdentifySession::new(player, DT_S)),
             ..Self::new()
         };
     }
 
+    /// Where it is (`None`: none started since power-up).
+    pub fn phase(&self) -> Option<IdentifyPhase> {
+        self.session.as_ref().map(IdentifySession::phase)
+    }
+
     /// An identification is under way.
     pub fn active(&self) -> bool {
-        matches!(self.phase, Phase::Excite | Phase::Finish | Phase::Settle)
+        self.phase().is_some_and(|p| p != IdentifyPhase::Ended)
     }
 }
 
@@ -200,10 +188,9 @@ pub fn begin(
     Ok(Player::new(schedule))
 }
 
-/// One tick of an identification, as the host's runner (`rths identify`) does it: read the DAQ,
-/// `Supervisor::tick(excitation, sample, overrun)`, write the command, queue the sample. After the
-/// excitation: `finish()` and tick at 0 until `Done`; after a trip: tick at 0 until the fault ramp
-/// is at rest. The record's `target_mm` is the excitation's request.
+/// One tick of an identification: core's [`IdentifySession::step`] (the tick `rths identify` runs
+/// on the host too) on the controller's supervisor, its record queued for the link. The record's
+/// `target_mm` is the excitation's request.
 pub fn identify_step<D, A>(
     id: &mut Identification,
     ctl: &mut Controller,
@@ -216,89 +203,35 @@ where
     D: Daq<Error = A> + Actuator<Error = A>,
     A: Error,
 {
-    let idle = IdentifyTick {
-        ticked: false,
-        ended: false,
+    let Some(session) = id.session.as_mut() else {
+        return IdentifyTick {
+            ticked: false,
+            ended: false,
+        };
     };
-    // Before the tick: is there one to run?
-    let requested = match id.phase {
-        Phase::Idle => return idle,
-        Phase::Ended => {
-            return IdentifyTick {
-                ticked: false,
-                ended: true,
-            }
-        }
-        // Past the end (cannot happen: `Finish` follows the last tick) a NaN trips the supervisor.
-        Phase::Excite => id
-            .player
-            .as_mut()
-            .and_then(|p| p.next(tables))
-            .unwrap_or(f64::NAN),
-        Phase::Finish => match ctl.supervisor().state() {
-            State::Done => return end(id, ctl),
-            State::Fault(_) => {
-                id.phase = Phase::Settle;
-                if ctl.supervisor().at_rest() {
-                    return end(id, ctl);
-                }
-                0.0
-            }
-            _ => 0.0,
-        },
-        Phase::Settle => {
-            if ctl.supervisor().at_rest() {
-                return end(id, ctl);
-            }
-            0.0
-        }
-    };
-    let sample = daq_act.read().map_err(|e| e.kind());
-    let d = ctl.supervisor_mut().tick(requested, sample, overrun);
-    // The supervisor's command is finite and within the stroke (see `control_step`).
-    let _ = daq_act.command(d.command_mm);
-    let (m, f) = match sample {
-        Ok(s) => (s.disp_mm, s.force_kn),
-        Err(_) => (f64::NAN, f64::NAN),
+    let Some(r) = session.step(ctl.supervisor_mut(), daq_act, tables, overrun) else {
+        id.state = ctl.supervisor().state();
+        return IdentifyTick {
+            ticked: false,
+            ended: true,
+        };
     };
     let rec = TelemetryRecord {
-        tick: id.ticks,
-        command_mm: d.command_mm,
-        target_mm: requested,
-        measured_mm: m,
-        force_kn: f,
-        state: d.state,
+        tick: r.tick,
+        command_mm: r.command_mm,
+        target_mm: r.requested_mm,
+        measured_mm: r.measured_mm,
+        force_kn: r.force_kn,
+        state: r.state,
     };
     if producer.enqueue(rec).is_err() {
         id.dropped = id.dropped.saturating_add(1);
     }
-    id.ticks = id.ticks.saturating_add(1);
-    id.state = d.state;
-    if let State::Fault(_) = d.state {
-        id.phase = Phase::Settle;
-    } else if id.phase == Phase::Excite {
-        let played = id
-            .player
-            .as_ref()
-            .is_none_or(|p| p.tick() >= p.schedule.ticks());
-        if played {
-            // The excitation ends at 0: the end ramp is immediate.
-            let _ = ctl.supervisor_mut().finish();
-            id.phase = Phase::Finish;
-        }
-    }
+    id.ticks = session.ticks();
+    id.state = r.state;
     IdentifyTick {
         ticked: true,
         ended: false,
-    }
-}
-
-fn end(id: &mut Identification, ctl: &Controller) -> IdentifyTick {
-    id.phase = Phase::Ended;
-    id.state = ctl.supervisor().state();
-    IdentifyTick {
-        ticked: false,
-        ended: true,
     }
 }
 

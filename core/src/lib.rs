@@ -19,6 +19,7 @@ pub mod filter;
 pub mod hal;
 pub mod hysteresis;
 pub mod identify_excitation;
+pub mod identify_session;
 pub mod integrator;
 pub mod metamodel;
 pub mod metrics;

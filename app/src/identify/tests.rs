@@ -123,7 +123,7 @@ fn an_identification_plays_the_whole_excitation_and_ends_done() {
     let (recs, id, ctl) = run(u32::MAX);
     let t = tables();
     let s = t.schedule(2.0).unwrap();
-    assert_eq!(id.phase, Phase::Ended);
+    assert_eq!(id.phase(), Some(IdentifyPhase::Ended));
     assert_eq!(id.state, State::Done);
     assert_eq!(ctl.supervisor().state(), State::Done);
     assert_eq!(id.dropped, 0);
@@ -145,7 +145,7 @@ fn an_identification_plays_the_whole_excitation_and_ends_done() {
 #[test]
 fn a_nan_trips_the_supervisor_and_the_identification_ends_at_rest() {
     let (recs, id, ctl) = run(30_000);
-    assert_eq!(id.phase, Phase::Ended);
+    assert_eq!(id.phase(), Some(IdentifyPhase::Ended));
     assert!(
         matches!(id.state, State::Fault(FaultReason::NonFiniteSample)),
         "{:?}",
