@@ -196,7 +196,7 @@ pub fn identified(
 /// higher modes; with the benchmark's σ = 0.016 mm the raw fit leaves a residual of 40.6 % over
 /// the band, the averaged one 28.2 % (case 1 El Centro nominal: `meta-id` J4 3.60 % → 3.33 %).
 fn averaged_lead(
-    rec: &crate::identify::Record,
+    rec: &crate::identify::IdentificationRecord,
     e: &crate::identify::Excitation,
     stride: usize,
 ) -> anyhow::Result<[f64; rths_core::compensator::LEAD_TAPS]> {

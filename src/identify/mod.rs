@@ -31,8 +31,6 @@ pub use estimate::{Design, Identification, Signals};
 pub use excitation::{Excitation, ExcitationConfig};
 pub use rig_file::RigFile;
 pub use runner::IdentificationRecord;
-/// The old name of [`IdentificationRecord`], kept until `benchmark::ident` follows the rename.
-pub use runner::IdentificationRecord as Record;
 
 /// Why an identification did not produce a rig file.
 #[derive(Debug, thiserror::Error)]
