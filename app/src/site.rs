@@ -5,15 +5,12 @@
 
 use rths_core::compensator::{LeadParams, LEAD_TAPS};
 use rths_core::control::{Controller, SiteError};
-use rths_core::predictor_corrector::{PcError, PcParams};
+use rths_core::predictor_corrector::{PcError, PcParams, SITE_ORDER};
 use rths_core::supervisor::State;
 use rths_link::{DeviceMsg, LinkLoss, NackReason};
 
 use crate::link::{Effect, Rearm, Session};
 use crate::{Run, TelemetryRecord};
-
-/// Polynomial order of the site's predictor-corrector (cubic, as the host's `rths site`).
-pub const SITE_PC_ORDER: usize = 3;
 
 /// `SiteBegin`: at rest, the controller becomes a site of `ticks_per_step` with the lead of
 /// `lead_weights` / `lead_stride` (stride 0: none), armed (the emulated plant once per power-up; a
@@ -38,7 +35,7 @@ pub fn begin(
     if lead_weights.iter().any(|w| !w.is_finite()) {
         return Err(NackReason::NotFinite);
     }
-    let pc = PcParams::new(ticks_per_step, SITE_PC_ORDER).map_err(|_| NackReason::OutOfRange)?;
+    let pc = PcParams::new(ticks_per_step, SITE_ORDER).map_err(|_| NackReason::OutOfRange)?;
     let lead = match lead_stride {
         0 => None,
         n => Some(

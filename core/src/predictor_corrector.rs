@@ -24,6 +24,9 @@ use crate::params::ParamError;
 /// Highest polynomial order (3: cubic, as the usual xPC predictor-correctors use).
 pub const PC_MAX_ORDER: usize = 3;
 
+/// The order an experimental site uses (cubic), on the host's virtual rig and on the board.
+pub const SITE_ORDER: usize = 3;
+
 /// Largest integration step, controller ticks.
 pub const PC_MAX_TICKS_PER_STEP: u32 = 1 << 20;
 
