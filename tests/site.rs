@@ -507,3 +507,45 @@ fn udp_datagrams_lost_reordered_or_malformed_stop_the_test_safely() {
     assert!(ok, "{err}");
     assert!(rec.contains("# steps: 20"), "{rec:.400}");
 }
+
+#[test]
+fn real_time_holds_the_virtual_rig_to_the_wall_clock() {
+    let rec = tmp("real-time.csv");
+    let rec_s = rec.display().to_string();
+    let (child, addrs) = start_site(
+        &["--listen", "127.0.0.1:0", "--real-time", "--out", &rec_s],
+        1,
+    );
+    let steps = 100;
+    let start;
+    {
+        let mut s = TcpStream::connect(addrs[0]).expect("connect");
+        s.write_all(&handshake()).expect("handshake");
+        start = std::time::Instant::now();
+        for i in 1..=steps {
+            let t = i as f64 * DT;
+            // A small, smooth motion: a late client (a loaded host) must not trip the velocity.
+            let d = 0.1 * (1.0 - (std::f64::consts::PI * i as f64 / 50.0).cos());
+            for m in [msg(3.0, d, t), msg(10.0, d, t)] {
+                s.write_all(&m).expect("send");
+            }
+            let mut r = [0u8; 64];
+            s.read_exact(&mut r).expect("the force");
+            s.write_all(&msg(5.0, d, t)).expect("commit");
+        }
+        s.write_all(&msg(99.0, 0.0, 0.0)).expect("die");
+    }
+    let elapsed = start.elapsed().as_secs_f64();
+    let (ok, err) = finish(child);
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(&rec).expect("recording");
+    assert!(text.contains("# pacing: wall-clock"));
+    // Paced, the client cannot get its steps faster than the rig's clock: 4 ticks each.
+    let floor = steps as f64 * 4.0 / 2048.0;
+    assert!(
+        elapsed >= floor,
+        "{elapsed} s for {steps} steps, at least {floor} s"
+    );
+    let rows = text.lines().filter(|l| l.contains(",running,")).count();
+    assert!(rows >= steps * 4, "{rows} running ticks");
+}

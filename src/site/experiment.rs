@@ -42,6 +42,9 @@ pub enum ExperimentError {
     /// The board sent something the site cannot use.
     #[error("the board: {0}")]
     Board(String),
+    /// The site's controller refused (a target, a step size).
+    #[error("the site's controller: {0}")]
+    Controller(String),
 }
 
 /// Wall-clock pacing of a site's ticks, measured.

@@ -158,10 +158,10 @@ impl VirtualExperiment {
 impl Experiment for VirtualExperiment {
     fn begin(&mut self, ticks_per_step: u32) -> Result<(), ExperimentError> {
         let pc = PcParams::new(ticks_per_step, SITE_ORDER)
-            .map_err(|e| ExperimentError::Board(format!("predictor-corrector: {e:?}")))?;
+            .map_err(|e| ExperimentError::Controller(format!("predictor-corrector: {e:?}")))?;
         self.ctl
             .install_site(pc, Some(self.lead))
-            .map_err(|e| ExperimentError::Board(format!("the site's controller: {e:?}")))?;
+            .map_err(|e| ExperimentError::Controller(format!("{e:?}")))?;
         self.driver = Some(Driver::start(&mut self.ctl, DT_S));
         if self.real_time {
             self.pacer = Some(Pacer::new());
@@ -170,13 +170,17 @@ impl Experiment for VirtualExperiment {
     }
 
     fn step(&mut self, target_mm: f64) -> Result<Reading, ExperimentError> {
+        // A paced rig may have tripped while it waited for this target.
+        if let Some(e) = self.tripped() {
+            return Err(e);
+        }
         let (_, done0) = self
             .ctl
             .site_progress()
-            .ok_or_else(|| ExperimentError::Board("not a site".into()))?;
+            .ok_or_else(|| ExperimentError::Controller("not a site".into()))?;
         self.ctl
             .site_target(target_mm)
-            .map_err(|e| ExperimentError::Board(format!("the target was refused: {e:?}")))?;
+            .map_err(|e| ExperimentError::Controller(format!("the target was refused: {e:?}")))?;
         loop {
             self.tick();
             if let Some(e) = self.tripped() {
