@@ -79,6 +79,99 @@ pub struct Step {
 /// Ticks on which the controller is told the previous tick overran: (first tick, count).
 pub type Overruns = Option<(u64, u64)>;
 
+/// The host's tick, one at a time: for a study whose inputs arrive as it runs (`rths site`),
+/// the same tick [`run`] loops over. [`Driver::tick`] reads the plant and ticks the controller;
+/// [`Driver::actuate`] then sends the command to the plant and moves it one tick.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Driver {
+    k: usize,
+    command: f64,
+    target: f64,
+    stop: Stop,
+    dt_s: f64,
+}
+
+impl Driver {
+    /// Arm and start `ctl` (at rest): tick 0 comes next.
+    pub fn start(ctl: &mut Controller, dt_s: f64) -> Self {
+        // Idle → Armed → Running cannot fail on a controller at rest; a failure would be a logic
+        // error the run shows as an immediate stop.
+        let _ = ctl.supervisor_mut().arm();
+        let _ = ctl.supervisor_mut().start();
+        Self {
+            k: 0,
+            command: 0.0,
+            target: 0.0,
+            stop: None,
+            dt_s,
+        }
+    }
+
+    /// The supervisor's first stop so far.
+    pub fn stop(&self) -> &Stop {
+        &self.stop
+    }
+
+    /// Ticks done.
+    pub fn ticks(&self) -> usize {
+        self.k
+    }
+
+    /// Tick k: the plant's sample (`None`: a pure run, a zero sample), `ctl.tick(ü_g, sample,
+    /// overrun)`; the [`Step`] as the study sees it.
+    pub fn tick<P: Plant>(
+        &mut self,
+        ctl: &mut Controller,
+        mut plant: Option<&mut P>,
+        ag: f64,
+        overrun: bool,
+    ) -> Step {
+        let k = self.k;
+        let sample = match plant.as_deref_mut() {
+            Some(p) => p.read().map_err(|e| e.kind()),
+            None => Ok(Sample::default()),
+        };
+        let (measured_mm, measured_force_kn) = match (&plant, sample) {
+            (Some(_), Ok(s)) => (s.disp_mm, s.force_kn),
+            _ => (f64::NAN, f64::NAN),
+        };
+        let out = ctl.tick(ag, sample, overrun);
+        let truth = |f: fn(&P) -> f64| plant.as_deref().map_or(f64::NAN, f);
+        let step = Step {
+            k,
+            ground_accel_mm_s2: ag,
+            target_mm: self.target,
+            command_mm: self.command,
+            sample,
+            measured_mm,
+            measured_force_kn,
+            out,
+            true_disp_mm: truth(P::true_disp_mm),
+            true_force_kn: truth(P::true_force_kn),
+            servo_command_mm: truth(P::held_command_mm),
+        };
+        self.command = out.command_mm;
+        if out.target_mm.is_finite() {
+            self.target = out.target_mm;
+        }
+        if let (State::Fault(reason), None) = (out.state, &self.stop) {
+            self.stop = Some((format!("{reason:?}"), k as f64 * self.dt_s));
+        }
+        self.k += 1;
+        step
+    }
+
+    /// The command of the last tick to the plant, which holds it for one tick.
+    pub fn actuate<P: Plant>(&self, plant: Option<&mut P>) {
+        if let Some(p) = plant {
+            // The supervisor's command is finite and within the stroke, so the actuator accepts
+            // it; an error would only report a clip, which the next reading shows.
+            let _ = p.command(self.command);
+            p.advance_tick();
+        }
+    }
+}
+
 /// Arm and start `ctl` (at rest), then run it over `ground_accel_mm_s2` against `plant` (`None`:
 /// a pure run, the DAQ a zero sample): one tick per sample, as the firmware's control step. After
 /// each tick `observe` sees the [`Step`], the controller and the plant, and may end the run
@@ -91,53 +184,14 @@ pub fn run<P: Plant>(
     dt_s: f64,
     mut observe: impl FnMut(&Step, &Controller, Option<&P>) -> ControlFlow<()>,
 ) -> Stop {
-    // Idle → Armed → Running cannot fail on a controller at rest; a failure would be a logic
-    // error the run shows as an immediate stop.
-    let _ = ctl.supervisor_mut().arm();
-    let _ = ctl.supervisor_mut().start();
-    let (mut command, mut target) = (0.0, 0.0);
-    let mut stop: Stop = None;
+    let mut d = Driver::start(ctl, dt_s);
     for (k, &ag) in ground_accel_mm_s2.iter().enumerate() {
-        let sample = match plant.as_deref_mut() {
-            Some(p) => p.read().map_err(|e| e.kind()),
-            None => Ok(Sample::default()),
-        };
-        let (measured_mm, measured_force_kn) = match (&plant, sample) {
-            (Some(_), Ok(s)) => (s.disp_mm, s.force_kn),
-            _ => (f64::NAN, f64::NAN),
-        };
         let overrun = overruns.is_some_and(|(first, count)| (k as u64).wrapping_sub(first) < count);
-        let out = ctl.tick(ag, sample, overrun);
-        let truth = |f: fn(&P) -> f64| plant.as_deref().map_or(f64::NAN, f);
-        let step = Step {
-            k,
-            ground_accel_mm_s2: ag,
-            target_mm: target,
-            command_mm: command,
-            sample,
-            measured_mm,
-            measured_force_kn,
-            out,
-            true_disp_mm: truth(P::true_disp_mm),
-            true_force_kn: truth(P::true_force_kn),
-            servo_command_mm: truth(P::held_command_mm),
-        };
-        command = out.command_mm;
-        if out.target_mm.is_finite() {
-            target = out.target_mm;
-        }
-        if let (State::Fault(reason), None) = (out.state, &stop) {
-            stop = Some((format!("{reason:?}"), k as f64 * dt_s));
-        }
+        let step = d.tick(ctl, plant.as_deref_mut(), ag, overrun);
         if observe(&step, ctl, plant.as_deref()).is_break() {
             break;
         }
-        if let Some(p) = plant.as_deref_mut() {
-            // The supervisor's command is finite and within the stroke, so the actuator accepts
-            // it; an error would only report a clip, which the next reading shows.
-            let _ = p.command(command);
-            p.advance_tick();
-        }
+        d.actuate(plant.as_deref_mut());
     }
-    stop
+    d.stop
 }

@@ -411,12 +411,141 @@ fn a_malformed_handshake_is_refused_and_a_second_client_too() {
     assert!(err.contains("dataSize"), "{err}");
 }
 
+// ---- UDP: a datagram lost, duplicated, reordered or malformed ----
+
+/// Drive a UDP site with `script` (datagrams, after the 'a'/'b' exchange and the handshake),
+/// reading a reply to every getForce; the site's success, stderr, recording.
+fn udp_client(name: &str, script: &[Vec<u8>]) -> (bool, String, String) {
+    let rec = tmp(&format!("udp-{name}.csv"));
+    let rec_s = rec.display().to_string();
+    let (child, addrs) = start_site(&["--listen", "127.0.0.1:0", "--udp", "--out", &rec_s], 1);
+    {
+        let s = std::net::UdpSocket::bind("127.0.0.1:0").expect("bind");
+        s.connect(addrs[0]).expect("connect");
+        s.set_read_timeout(Some(std::time::Duration::from_secs(5)))
+            .expect("timeout");
+        s.send(b"a").expect("a");
+        let mut b = [0u8; 64];
+        assert_eq!(s.recv(&mut b).expect("b"), 1);
+        s.send(&handshake()).expect("handshake");
+        for m in script {
+            s.send(m).expect("send");
+            if m.len() >= 8 && m[..8] == 10.0f64.to_le_bytes() && s.recv(&mut b).is_err() {
+                break;
+            }
+        }
+    }
+    let (ok, err) = finish(child);
+    let text = std::fs::read_to_string(&rec).unwrap_or_default();
+    (ok, err, text)
+}
+
 #[test]
-fn the_board_is_not_yet_a_site() {
-    let o = Command::new(RTHS)
-        .args(["site", "--link", "--qemu", "x.elf"])
-        .output()
-        .expect("rths");
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("not yet supported"));
+fn udp_datagrams_lost_reordered_or_malformed_stop_the_test_safely() {
+    let step = |i: usize| {
+        let t = i as f64 * DT;
+        let d = 1.0 - (std::f64::consts::PI * i as f64 / 20.0).cos();
+        (d, t)
+    };
+    let steps: Vec<Vec<u8>> = (1..=20)
+        .flat_map(|i| {
+            let (d, t) = step(i);
+            [
+                msg(3.0, d, t),
+                msg(10.0, d, t),
+                msg(3.0, d, t),
+                msg(5.0, d, t),
+            ]
+        })
+        .collect();
+    let (d20, t20) = step(20);
+    let (d21, t21) = step(21);
+    let (d22, t22) = step(22);
+    let cases: [(&str, Vec<Vec<u8>>, &str); 4] = [
+        // Step 21's trial lost: its getForce arrives for a trial the site never imposed.
+        ("lost", vec![msg(10.0, d21, t21)], "never received"),
+        // Step 20's trial again, late, after step 21's.
+        (
+            "reordered",
+            vec![msg(3.0, d21, t21), msg(3.0, d20, t20)],
+            "out of order",
+        ),
+        // A datagram cut short.
+        (
+            "malformed",
+            vec![msg(3.0, d21, t21)[..40].to_vec()],
+            "40 bytes",
+        ),
+        // A step lost whole: the next one is two steps on.
+        ("step-lost", vec![msg(3.0, d22, t22)], "changed from 4 to 8"),
+    ];
+    for (name, tail, why) in cases {
+        let mut script = steps.clone();
+        script.extend(tail);
+        let (ok, err, rec) = udp_client(name, &script);
+        assert!(!ok, "{name}: the site must report the stop");
+        assert!(err.contains(why), "{name}: `{why}` not in: {err}");
+        assert!(rec.contains("fault-EmergencyStop"), "{name}: {rec:.300}");
+        assert!(rec.contains("# stop_reason:"), "{name}");
+        assert_eq!(last_command(&rec), 0.0, "{name}: at the safe position");
+    }
+    // Duplicated setTrialResponse and commitState datagrams are the same trial again: ignored,
+    // and the test ends normally.
+    let mut script = Vec::new();
+    for i in 1..=20 {
+        let (d, t) = step(i);
+        script.extend([
+            msg(3.0, d, t),
+            msg(3.0, d, t),
+            msg(10.0, d, t),
+            msg(5.0, d, t),
+            msg(5.0, d, t),
+        ]);
+    }
+    script.push(msg(99.0, 0.0, 0.0));
+    let (ok, err, rec) = udp_client("duplicated", &script);
+    assert!(ok, "{err}");
+    assert!(rec.contains("# steps: 20"), "{rec:.400}");
+}
+
+#[test]
+fn real_time_holds_the_virtual_rig_to_the_wall_clock() {
+    let rec = tmp("real-time.csv");
+    let rec_s = rec.display().to_string();
+    let (child, addrs) = start_site(
+        &["--listen", "127.0.0.1:0", "--real-time", "--out", &rec_s],
+        1,
+    );
+    let steps = 100;
+    let start;
+    {
+        let mut s = TcpStream::connect(addrs[0]).expect("connect");
+        s.write_all(&handshake()).expect("handshake");
+        start = std::time::Instant::now();
+        for i in 1..=steps {
+            let t = i as f64 * DT;
+            // A small, smooth motion: a late client (a loaded host) must not trip the velocity.
+            let d = 0.1 * (1.0 - (std::f64::consts::PI * i as f64 / 50.0).cos());
+            for m in [msg(3.0, d, t), msg(10.0, d, t)] {
+                s.write_all(&m).expect("send");
+            }
+            let mut r = [0u8; 64];
+            s.read_exact(&mut r).expect("the force");
+            s.write_all(&msg(5.0, d, t)).expect("commit");
+        }
+        s.write_all(&msg(99.0, 0.0, 0.0)).expect("die");
+    }
+    let elapsed = start.elapsed().as_secs_f64();
+    let (ok, err) = finish(child);
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(&rec).expect("recording");
+    assert!(text.contains("# pacing: wall-clock"));
+    // Paced, the client cannot get its steps faster than the rig's clock: 4 ticks each.
+    let floor = steps as f64 * 4.0 / 2048.0;
+    assert!(
+        elapsed >= floor,
+        "{elapsed} s for {steps} steps, at least {floor} s"
+    );
+    let rows = text.lines().filter(|l| l.contains(",running,")).count();
+    assert!(rows >= steps * 4, "{rows} running ticks");
 }

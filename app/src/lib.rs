@@ -12,6 +12,7 @@
 //! - [`model_upload`]: chunked model uploads (LRX, RNN), validated on the device; [`chunks`]: the
 //!   chunk bookkeeping it shares with [`record`].
 //! - [`rig_upload`]: the rig compensation upload (LRX lead and specimen dynamics, ATS start).
+//! - [`site`]: the board as an experimental site (targets streamed over the link).
 //! - [`record`]: the ground-motion record in force (compiled in or uploaded) and upload validation.
 //!
 //! The firmware binary (`firmware/src/main.rs`) is the RTIC shell around these.
@@ -29,6 +30,7 @@ pub mod record;
 pub mod report;
 pub mod rig_upload;
 pub mod run;
+pub mod site;
 
 pub use control::{control_step, TelemetryRecord};
 pub use run::Run;

@@ -139,6 +139,8 @@ pub struct Session<'a> {
     pub rig_source: RecordSource,
     /// The firmware build's identity (reported in [`Holdings`]).
     pub build_id: u32,
+    /// A site's next step number (`HostMsg::SiteTarget`).
+    pub site_step: u32,
 }
 
 impl<'a> Session<'a> {
@@ -167,6 +169,7 @@ impl<'a> Session<'a> {
             model_source: RecordSource::Compiled,
             rig_source: RecordSource::Compiled,
             build_id: 0,
+            site_step: 0,
         }
     }
 
@@ -359,6 +362,21 @@ pub fn handle(
             Ok(Effect::None)
         }
         HostMsg::Identify { amplitude_mm } => identify_request(ctl, run, s, finished, amplitude_mm),
+        HostMsg::SiteBegin {
+            ticks_per_step,
+            lead_weights,
+            lead_stride,
+        } => crate::site::begin(
+            ctl,
+            run,
+            s,
+            finished,
+            ticks_per_step,
+            &lead_weights,
+            lead_stride,
+        ),
+        HostMsg::SiteTarget { step, target_mm } => crate::site::target(ctl, s, step, target_mm),
+        HostMsg::SiteEnd { fault } => crate::site::end(ctl, fault),
     };
     match result {
         Ok(e) => (DeviceMsg::Ack(req), e),

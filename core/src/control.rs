@@ -25,6 +25,7 @@ use crate::hal::{ErrorKind, Sample};
 use crate::integrator::{Chang, ExplicitIntegrator};
 use crate::metamodel::{Features, Lr, Lrx, LrxInputs, Rnn, RnnInputs};
 use crate::params::{ParamError, Prototype, SpecimenScale};
+use crate::predictor_corrector::{PcError, PcParams, PredictorCorrector};
 use crate::structure::{LinearStructure, Vector};
 use crate::supervisor::{Busy, Decision, Limits, State, Supervisor};
 
@@ -56,6 +57,17 @@ impl From<ParamError> for ReplaceError {
     fn from(e: ParamError) -> Self {
         Self::Model(e.into())
     }
+}
+
+/// Why a site's target was refused (nothing changed).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SiteError {
+    /// The controller's analytical part is not a site.
+    NotASite,
+    /// The supervisor is not running (armed, ramping or stopped).
+    NotRunning,
+    /// The predictor-corrector refused it.
+    Target(PcError),
 }
 
 /// Longest feedback delay a controller can hold, ticks (the paper's is 28).
@@ -157,6 +169,11 @@ pub enum Analytical {
     Rnn(Rnn),
     /// The specimen-faithful linear metamodel of the frame alone (measured force as an input).
     Lrx(Lrx),
+    /// An experimental site (docs/site.md): the targets come from an outside integrator
+    /// ([`Controller::site_target`]), one per integration step, and the predictor-corrector turns
+    /// them into a target at every tick; the ground motion and the feedback are the outside
+    /// analysis's business.
+    Site(PredictorCorrector),
     // ---- structure files (issues 15, 16): the feedback is the specimen's measured displacement
     // and force at the structure's specimen DOF (a unit [`SpecimenScale`]), the target the
     // displacement there.
@@ -203,6 +220,7 @@ impl Analytical {
                     brace_force_fb_kn: fb.brace_force_kn,
                 })
                 .map_err(|_| StepError::NonFiniteOutput)?,
+            Analytical::Site(pc) => pc.tick().command_mm,
             #[cfg(feature = "structures")]
             Analytical::StructureFe(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
             #[cfg(feature = "structures")]
@@ -259,6 +277,7 @@ impl Analytical {
             Analytical::Lr(m) => m.reset(),
             Analytical::Rnn(m) => m.reset(),
             Analytical::Lrx(m) => m.reset(),
+            Analytical::Site(pc) => pc.reset(),
             #[cfg(feature = "structures")]
             Analytical::StructureFe(m) => m.reset(),
             #[cfg(feature = "structures")]
@@ -524,6 +543,45 @@ impl Controller {
             a.configure(params);
         }
         self.start_over()
+    }
+
+    /// Make the controller an experimental site: the analytical part the predictor-corrector of
+    /// `pc`, the compensator the rig's identified `lead` (`None`: none); only at rest, then start
+    /// over. Targets then come from [`Self::site_target`].
+    pub fn install_site(
+        &mut self,
+        pc: PcParams,
+        lead: Option<crate::compensator::LeadParams>,
+    ) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        self.analytical = Analytical::Site(PredictorCorrector::new(pc));
+        self.compensator = match lead {
+            Some(l) => Compensator::Lead(crate::compensator::Lead::new(l)),
+            None => Compensator::None,
+        };
+        self.start_over()
+    }
+
+    /// A site's next target (the analytical part's coordinates, mm), for the step under way.
+    /// Refused (nothing changes): not a site, not running, a non-finite target or one already
+    /// pending.
+    pub fn site_target(&mut self, target_mm: f64) -> Result<(), SiteError> {
+        if self.supervisor.state() != State::Running {
+            return Err(SiteError::NotRunning);
+        }
+        let Analytical::Site(pc) = &mut self.analytical else {
+            return Err(SiteError::NotASite);
+        };
+        pc.set_target(target_mm).map_err(SiteError::Target)
+    }
+
+    /// A site's progress: (a target is pending, steps ended since the start); `None` if the
+    /// controller is not a site.
+    pub fn site_progress(&self) -> Option<(bool, u32)> {
+        match &self.analytical {
+            Analytical::Site(pc) => Some((pc.is_pending(), pc.steps_done())),
+            _ => None,
+        }
     }
 
     /// Back to rest: model, compensator and supervisor state cleared, parameters kept, the command

@@ -24,6 +24,9 @@ use crate::params::ParamError;
 /// Highest polynomial order (3: cubic, as the usual xPC predictor-correctors use).
 pub const PC_MAX_ORDER: usize = 3;
 
+/// The order an experimental site uses (cubic), on the host's virtual rig and on the board.
+pub const SITE_ORDER: usize = 3;
+
 /// Largest integration step, controller ticks.
 pub const PC_MAX_TICKS_PER_STEP: u32 = 1 << 20;
 
@@ -92,14 +95,17 @@ pub struct PredictorCorrector {
     arrival: (f64, f64),
     /// The last command, mm.
     last_mm: f64,
+    /// Steps ended since rest (a site reports each one's measurement).
+    steps_done: u32,
 }
 
-/// Lagrange polynomial through `(xs[i], ys[i])`, `i < n`, evaluated at `x`.
-fn lagrange(xs: &[f64], ys: &[f64], x: f64) -> f64 {
+/// Lagrange polynomial through `(xs[i], ys[i])`, `i < n`, evaluated at `x`. Iterators, not
+/// slices: the firmware's control task must reach no bounds-check panic.
+fn lagrange(xs: &[f64], ys: &[f64], n: usize, x: f64) -> f64 {
     let mut sum = 0.0;
-    for (i, (&xi, &yi)) in xs.iter().zip(ys).enumerate() {
+    for (i, (&xi, &yi)) in xs.iter().zip(ys).take(n).enumerate() {
         let mut w = 1.0;
-        for (j, &xj) in xs.iter().enumerate() {
+        for (j, &xj) in xs.iter().take(n).enumerate() {
             if j != i {
                 w *= (x - xj) / (xi - xj);
             }
@@ -123,6 +129,7 @@ impl PredictorCorrector {
             tick: 0,
             arrival: (0.0, 0.0),
             last_mm: 0.0,
+            steps_done: 0,
         }
     }
 
@@ -151,11 +158,23 @@ impl PredictorCorrector {
         self.pending.is_some()
     }
 
+    /// Steps ended since rest (wrapping).
+    pub fn steps_done(&self) -> u32 {
+        self.steps_done
+    }
+
     fn corrector_poly(&self, target_mm: f64, x: f64) -> f64 {
-        let n = self.params.order + 1;
-        let mut ys = [target_mm; PC_MAX_ORDER + 1];
-        ys[1..].copy_from_slice(&self.targets[..PC_MAX_ORDER]);
-        lagrange(&X_CORR[..n], &ys[..n], x)
+        let ys = Self::shifted(target_mm, &self.targets);
+        lagrange(&X_CORR, &ys, self.params.order + 1, x)
+    }
+
+    /// `[newest, targets[0], targets[1], …]`: the targets once `newest` is reached.
+    fn shifted(newest: f64, targets: &[f64; PC_MAX_ORDER + 1]) -> [f64; PC_MAX_ORDER + 1] {
+        let mut ys = [newest; PC_MAX_ORDER + 1];
+        for (y, t) in ys.iter_mut().skip(1).zip(targets) {
+            *y = *t;
+        }
+        ys
     }
 
     fn x_of(&self, tick: u32) -> f64 {
@@ -192,9 +211,8 @@ impl PredictorCorrector {
             // Predictor, then hold past the step's end.
             if self.tick < n_ticks {
                 self.tick += 1;
-                let n = self.params.order + 1;
                 let x = self.x_of(self.tick);
-                let u = lagrange(&X_PRED[..n], &self.targets[..n], x);
+                let u = lagrange(&X_PRED, &self.targets, self.params.order + 1, x);
                 if u.is_finite() {
                     self.last_mm = u;
                 }
@@ -218,10 +236,10 @@ impl PredictorCorrector {
             self.last_mm = u;
         }
         if step_done {
-            self.targets.copy_within(0..PC_MAX_ORDER, 1);
-            self.targets[0] = target;
+            self.targets = Self::shifted(target, &self.targets);
             self.pending = None;
             self.tick = 0;
+            self.steps_done = self.steps_done.wrapping_add(1);
         }
         PcTick {
             command_mm: self.last_mm,

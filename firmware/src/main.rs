@@ -123,6 +123,8 @@ const TELEMETRY_IRQ: board::pac::Interrupt = board::pac::Interrupt::USART3;
 
 /// Telemetry queue depth (records).
 const QUEUE: usize = 64;
+/// A site's step-end queue depth (one per step; drained with the telemetry).
+const STEP_QUEUE: usize = 16;
 
 /// Stop at boot with a message (init errors): nothing was started.
 fn die(msg: &str) -> ! {
@@ -251,6 +253,9 @@ mod app {
         watchdog: <B as Board>::Watchdog,
         producer: Producer<'static, TelemetryRecord>,
         consumer: Consumer<'static, TelemetryRecord>,
+        /// A site's step ends, control task → telemetry task (sent after their tick's record).
+        step_ends: Producer<'static, rths_app::site::StepEnd>,
+        step_ends_rx: Consumer<'static, rths_app::site::StepEnd>,
         /// ü_g for the coming tick of a run, mm/s².
         ag: f64,
         /// The instruction counter's own overhead, subtracted from each tick's count.
@@ -261,6 +266,7 @@ mod app {
     }
 
     #[init(local = [queue: Queue<TelemetryRecord, QUEUE> = Queue::new(),
+                    step_queue: Queue<rths_app::site::StepEnd, STEP_QUEUE> = Queue::new(),
                     staging: [f64; analytical::STAGING] = [0.0; analytical::STAGING],
                     controller: MaybeUninit<Controller> = MaybeUninit::uninit()])]
     fn init(cx: init::Context) -> (Shared, Local) {
@@ -294,6 +300,7 @@ mod app {
             Err(e) => die(e),
         };
         let (producer, consumer) = cx.local.queue.split();
+        let (step_ends, step_ends_rx) = cx.local.step_queue.split();
         defmt::info!(
             "rths firmware: {=str}, model {=str}, {=u32} ticks, tick {=f64} Hz",
             analytical::SCENARIO_PREFIX,
@@ -344,6 +351,8 @@ mod app {
                 watchdog: parts.watchdog,
                 producer,
                 consumer,
+                step_ends,
+                step_ends_rx,
                 ag: ag0,
                 overhead_instr: parts.calibration.counter_overhead_instr(),
                 #[cfg(feature = "link")]
@@ -368,7 +377,8 @@ mod app {
     /// it overran, which the run counts and the supervisor sees (4 in a row trip it).
     #[task(binds = TIM2, priority = 3, shared = [ctl, timer, run, store, ident],
            local = [rig, counter, estop, harness, producer, ag, overhead_instr, watchdog,
-                    k: u32 = 0, overrun: bool = false, watching: bool = false])]
+                    step_ends, k: u32 = 0, overrun: bool = false, watching: bool = false,
+                    site_steps: u32 = 0])]
     fn control(mut cx: control::Context) {
         cx.shared.timer.lock(TickTimer::clear);
         feed_watchdog(cx.local.watchdog, cx.local.watching);
@@ -407,6 +417,11 @@ mod app {
         let running = RUNNING.load(Ordering::Acquire);
         // The emulated plant moves only during its run (it must match the host simulation's).
         if !running && B::EMULATED_PLANT {
+            return;
+        }
+        if running && B::EMULATED_PLANT && cx.shared.ctl.lock(|c| rths_app::site::waits(c)) {
+            // A site between two targets: the emulated plant holds, as the host's virtual rig
+            // waits for its client (a real rig's predictor runs instead).
             return;
         }
         let k = if running { *cx.local.k } else { 0 };
@@ -458,7 +473,19 @@ mod app {
         // only the DAQ read, the control step, the command write and the log record).
         *cx.local.ag = cx.shared.store.lock(|s| s.accel_mm_s2(next_k));
         let state = step.out.state;
-        let record_end = running && next_k >= record_ticks && state == State::Running;
+        let site_steps = cx.local.site_steps;
+        let (site, step_end) = cx.shared.ctl.lock(|c| {
+            (
+                c.site_progress().is_some(),
+                rths_app::site::step_ended(c, k, site_steps),
+            )
+        });
+        if let Some(e) = step_end {
+            // Full only if the telemetry task stalls: the host then misses the step and stops.
+            let _ = cx.local.step_ends.enqueue(e);
+        }
+        // A site's test ends when its client's analysis does, not with the record.
+        let record_end = running && !site && next_k >= record_ticks && state == State::Running;
         let ended = cx.shared.ctl.lock(|c| {
             if record_end {
                 let _ = c.supervisor_mut().finish();
@@ -588,10 +615,11 @@ mod app {
     /// Drains the telemetry queue at the lowest priority. With `link` it streams every `every`-th
     /// record to the host, numbered, and after the run's last record `RunEnded`; without, it logs
     /// one record per second of test time.
-    #[task(binds = USART3, priority = 1, shared = [link, run, ident], local = [consumer])]
+    #[task(binds = USART3, priority = 1, shared = [link, run, ident], local = [consumer, step_ends_rx])]
     fn telemetry(mut cx: telemetry::Context) {
         use rths_app::link::send;
         let consumer = cx.local.consumer;
+        let steps = cx.local.step_ends_rx;
         if !cfg!(feature = "link") {
             while let Some(r) = consumer.dequeue() {
                 if r.tick % rths_app::ONE_SECOND_TICKS == 0 {
@@ -610,9 +638,7 @@ mod app {
         }
         cx.shared.link.lock(|l| {
             while let Some(r) = consumer.dequeue() {
-                if let Some(m) = l.session.telemetry(&r) {
-                    send(&mut l.port, &m);
-                }
+                send_record(l, &r, steps);
             }
         });
         if RUN_ENDED.swap(false, Ordering::AcqRel) {
@@ -621,9 +647,7 @@ mod app {
             cx.shared.link.lock(|l| {
                 // Records queued after the drain above (before the end was seen) go first.
                 while let Some(r) = consumer.dequeue() {
-                    if let Some(m) = l.session.telemetry(&r) {
-                        send(&mut l.port, &m);
-                    }
+                    send_record(l, &r, steps);
                 }
                 let end = if l.session.identifying {
                     l.session.identify_ended(&id)
@@ -632,6 +656,36 @@ mod app {
                 };
                 send(&mut l.port, &end);
             });
+        }
+    }
+
+    /// Send record `r`'s telemetry, then the `SiteStep` of a site's step that ended at its tick
+    /// (one whose record the queue dropped goes with no reading: the host stops on it).
+    fn send_record(
+        l: &mut Link,
+        r: &TelemetryRecord,
+        steps: &mut Consumer<'static, rths_app::site::StepEnd>,
+    ) {
+        use rths_app::link::send;
+        if let Some(m) = l.session.telemetry(r) {
+            send(&mut l.port, &m);
+        }
+        while let Some(e) = steps.peek().copied() {
+            if e.tick > r.tick {
+                break;
+            }
+            let _ = steps.dequeue();
+            let m = if e.tick == r.tick {
+                rths_app::site::step_message(e, r)
+            } else {
+                rths_link::DeviceMsg::SiteStep {
+                    step: e.step,
+                    tick: e.tick,
+                    measured_mm: f64::NAN,
+                    force_kn: f64::NAN,
+                }
+            };
+            send(&mut l.port, &m);
         }
     }
 

@@ -272,6 +272,32 @@ pub enum HostMsg {
         /// [`rig_checksum`] of the kind and the first `count` values.
         checksum: u32,
     },
+    // ---- the board as an experimental site (issue 26, docs/site.md) ----
+    /// Become an experimental site: at rest, make the controller's analytical part the
+    /// predictor-corrector of `ticks_per_step` and its compensator the rig's lead filter, arm at
+    /// rest and start; targets then come as [`HostMsg::SiteTarget`], each step's measurement goes
+    /// back as [`DeviceMsg::SiteStep`] after the step's telemetry.
+    SiteBegin {
+        /// Controller ticks per integration step (≥ 1).
+        ticks_per_step: u32,
+        /// The lead filter's weights (the rig file's identified lead).
+        lead_weights: [f64; 8],
+        /// The lead filter's tap stride, ticks (0: no lead, the command is the target).
+        lead_stride: u16,
+    },
+    /// The target of the next integration step, the site's coordinates (mm).
+    SiteTarget {
+        /// Step number, from 0, no gap.
+        step: u32,
+        /// The target, mm.
+        target_mm: f64,
+    },
+    /// The test is over: `fault` false, the supervisor's end ramp to zero (the analysis ended);
+    /// true, its fault ramp to the armed position (the client failed).
+    SiteEnd {
+        /// Bring the actuator to its safe state as on a fault.
+        fault: bool,
+    },
 }
 
 /// Which request an answer is about.
@@ -308,6 +334,13 @@ pub enum Request {
     Holdings,
     /// [`HostMsg::UploadRig`].
     UploadRig,
+    // ---- the board as an experimental site ----
+    /// [`HostMsg::SiteBegin`].
+    SiteBegin,
+    /// [`HostMsg::SiteTarget`].
+    SiteTarget,
+    /// [`HostMsg::SiteEnd`].
+    SiteEnd,
 }
 
 impl HostMsg {
@@ -329,6 +362,9 @@ impl HostMsg {
             Self::Identify { .. } => Request::Identify,
             Self::Holdings => Request::Holdings,
             Self::UploadRig { .. } => Request::UploadRig,
+            Self::SiteBegin { .. } => Request::SiteBegin,
+            Self::SiteTarget { .. } => Request::SiteTarget,
+            Self::SiteEnd { .. } => Request::SiteEnd,
         }
     }
 }
@@ -593,6 +629,19 @@ pub enum DeviceMsg {
     },
     /// The answer to [`HostMsg::Holdings`].
     Holdings(Holdings),
+    // ---- the board as an experimental site ----
+    /// A site's integration step ended (sent after the telemetry of its last tick): the DAQ's
+    /// reading at that tick.
+    SiteStep {
+        /// Step number, from 0 (as its [`HostMsg::SiteTarget`]).
+        step: u32,
+        /// The tick the step ended at.
+        tick: u32,
+        /// Measured displacement, mm (NaN on a DAQ error).
+        measured_mm: f64,
+        /// Measured force, kN (NaN on a DAQ error).
+        force_kn: f64,
+    },
 }
 
 /// What the controller saw at one tick of an identification: 32 bytes on the wire (postcard: tag,

@@ -109,6 +109,19 @@ fn any_host() -> impl Strategy<Value = HostMsg> {
                 values: v.try_into().unwrap(),
                 checksum,
             }),
+        (
+            any::<u32>(),
+            prop::collection::vec(any_f64(), 8),
+            any::<u16>()
+        )
+            .prop_map(|(ticks_per_step, w, lead_stride)| HostMsg::SiteBegin {
+                ticks_per_step,
+                lead_weights: w.try_into().unwrap(),
+                lead_stride,
+            }),
+        (any::<u32>(), any_f64())
+            .prop_map(|(step, target_mm)| HostMsg::SiteTarget { step, target_mm }),
+        any::<bool>().prop_map(|fault| HostMsg::SiteEnd { fault }),
     ]
 }
 
@@ -154,6 +167,9 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
         Just(Request::ModelCommit),
         Just(Request::Holdings),
         Just(Request::UploadRig),
+        Just(Request::SiteBegin),
+        Just(Request::SiteTarget),
+        Just(Request::SiteEnd),
     ];
     let reason = prop_oneof![
         Just(NackReason::Shape),
@@ -256,6 +272,14 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
                     build_id: u[3],
                 })
             }),
+        (any::<[u32; 2]>(), any_f64(), any_f64()).prop_map(|(u, measured_mm, force_kn)| {
+            DeviceMsg::SiteStep {
+                step: u[0],
+                tick: u[1],
+                measured_mm,
+                force_kn,
+            }
+        }),
     ]
 }
 
@@ -601,6 +625,12 @@ fn rig_values_layout_checksum_and_frame() {
         build_id: u32::MAX,
     });
     assert!(encode(&h, &mut buf).unwrap() <= MAX_FRAME + 1);
+    let b = HostMsg::SiteBegin {
+        ticks_per_step: u32::MAX,
+        lead_weights: [f64::MAX; 8],
+        lead_stride: u16::MAX,
+    };
+    assert!(encode(&b, &mut buf).unwrap() <= MAX_FRAME + 1);
 }
 
 #[test]

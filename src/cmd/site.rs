@@ -1,5 +1,5 @@
 //! `rths site`: be the experimental site of an OpenSees analysis (its `genericClient` elements),
-//! on the virtual rig (docs/site.md).
+//! on the virtual rig or the board (docs/site.md).
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -10,7 +10,11 @@ use rths_hal_sim::{FaultPlan, Specimen};
 
 use crate::cmd::plant::PresetArg;
 use crate::identify::{identify_virtual, IdentifyConfig, RigFile};
+use crate::link_host::{Link, Qemu};
+use crate::site::board::{BoardExperiment, BoardLink};
 use crate::site::element::{median_max, ElementSetup};
+use crate::site::experiment::Experiment;
+use crate::site::virtual_rig::VirtualExperiment;
 use crate::site::{self, SiteConfig};
 
 /// The board of a virtual-rig site.
@@ -32,18 +36,29 @@ pub struct Args {
     /// Plant preset of the virtual rig (identified at start).
     #[arg(long, value_enum, conflicts_with = "rig")]
     pub preset: Option<PresetArg>,
-    /// Rig file (`rths identify`) of the virtual rig: its identified lead and specimen stiffness.
+    /// Rig file (`rths identify`, or `rths link ... identify` for the board): its identified lead
+    /// and specimen stiffness.
     #[arg(long, value_name = "RIG.json")]
     pub rig: Option<PathBuf>,
-    /// The board through the command link (not yet supported by `rths site`).
-    #[arg(long, conflicts_with_all = ["preset", "rig"])]
+    /// The board through the command link (`--qemu ELF` or `--port TTY`; its rig file is
+    /// `--rig`, by default `rig.json`).
+    #[arg(long, conflicts_with = "preset")]
     pub link: bool,
-    /// With --link: the emulated board's ELF.
-    #[arg(long, value_name = "ELF", requires = "link")]
+    /// With --link: the emulated board's ELF (a `--features link` build).
+    #[arg(long, value_name = "ELF", requires = "link", conflicts_with = "port")]
     pub qemu: Option<PathBuf>,
     /// With --link: the board's serial port.
     #[arg(long, value_name = "TTY", requires = "link")]
     pub port: Option<PathBuf>,
+    /// With --port: the serial port's baud rate.
+    #[arg(long, default_value_t = 2_000_000, requires = "port")]
+    pub baud: u32,
+    /// Hold the virtual rig's ticks to the wall clock (2048 per second), as a lab's rig runs: the
+    /// rig never waits for its client, the predictor runs while the client computes. Without it
+    /// the virtual rig runs in simulated time, as fast as the host computes. (A real board always
+    /// keeps its own time; the emulated one waits for its targets.)
+    #[arg(long, conflicts_with = "link")]
+    pub real_time: bool,
     /// Rig time over analysis time (≥ 1): each integration step imposed over F times its
     /// duration (a slowed-down test). F × Δt_analysis must be a whole number of controller ticks.
     #[arg(long, default_value_t = 1.0, value_name = "F")]
@@ -57,13 +72,78 @@ pub struct Args {
     pub seed: u64,
 }
 
+/// The rig file a board site uses when `--rig` is not given.
+const DEFAULT_BOARD_RIG: &str = "rig.json";
+
+/// The board's element: its link and its rig file's compensation.
+fn board_element(
+    args: &Args,
+    header: &mut Vec<(String, String)>,
+) -> anyhow::Result<(ElementSetup, Box<dyn Experiment>)> {
+    if args.elements != 1 {
+        anyhow::bail!(
+            "--link --elements {}: the board drives one actuator (--elements 1)",
+            args.elements
+        );
+    }
+    let path = args
+        .rig
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(DEFAULT_BOARD_RIG));
+    let file = RigFile::load(&path).with_context(|| {
+        format!(
+            "rig file {} (the board's identification: `rths link ... identify --out {}`, or \
+             --rig RIG.json)",
+            path.display(),
+            path.display()
+        )
+    })?;
+    if file.specimen != "linear" {
+        anyhow::bail!(
+            "rig file {}: the {} specimen (the site returns the force corrected with a linear \
+             specimen's stiffness)",
+            path.display(),
+            file.specimen
+        );
+    }
+    let lead = file
+        .lead_params()
+        .with_context(|| format!("rig file {}: its lead", path.display()))?;
+    let k = file.specimen_fit.stiffness_kn_per_mm;
+    let conn = match (&args.qemu, &args.port) {
+        (Some(elf), None) => {
+            let dir = std::env::temp_dir().join(format!("rths-site-qemu-{}", std::process::id()));
+            std::fs::create_dir_all(&dir)?;
+            header.push(("link".into(), "qemu".into()));
+            BoardLink::Qemu(Box::new(
+                Qemu::start(elf, &dir).with_context(|| format!("the board {}", elf.display()))?,
+            ))
+        }
+        (None, Some(port)) => {
+            let p = port.display().to_string();
+            let mut l = Link::serial(&p, args.baud)?;
+            l.wait_ready(std::time::Duration::from_secs(10))
+                .with_context(|| format!("the board on {p}"))?;
+            header.push(("link".into(), format!("serial {p}")));
+            BoardLink::Port(Box::new(l))
+        }
+        _ => anyhow::bail!("--link needs the board: --qemu ELF or --port TTY"),
+    };
+    header.push(("rig".into(), path.display().to_string()));
+    header.push(("preset".into(), file.preset.clone()));
+    Ok((
+        ElementSetup {
+            specimen_k_kn_per_mm: k,
+            rate_factor: args.rate_factor,
+        },
+        Box::new(BoardExperiment::new(conn, lead)),
+    ))
+}
+
 /// Run `rths site`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if args.link || args.qemu.is_some() || args.port.is_some() {
-        anyhow::bail!(
-            "rths site --link (--qemu ELF | --port TTY): the board's site mode is not yet \
-             supported; use the virtual rig (--preset P or --rig RIG.json)"
-        );
+    if !args.link && (args.qemu.is_some() || args.port.is_some()) {
+        anyhow::bail!("--qemu and --port are the board's: add --link");
     }
     if !(args.rate_factor.is_finite() && args.rate_factor >= 1.0) {
         anyhow::bail!("--rate-factor {} must be ≥ 1", args.rate_factor);
@@ -71,9 +151,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.elements == 0 || args.elements > 64 {
         anyhow::bail!("--elements {} must be in 1..=64", args.elements);
     }
-    let mut header = vec![("rate_factor".to_string(), args.rate_factor.to_string())];
-    let mut elements = Vec::with_capacity(args.elements);
+    let mut header = vec![
+        ("rate_factor".to_string(), args.rate_factor.to_string()),
+        (
+            "pacing".to_string(),
+            if args.link {
+                "board"
+            } else if args.real_time {
+                "wall-clock"
+            } else {
+                "simulated"
+            }
+            .to_string(),
+        ),
+    ];
+    let mut elements: Vec<(ElementSetup, Box<dyn Experiment>)> = Vec::with_capacity(args.elements);
+    if args.link {
+        elements.push(board_element(&args, &mut header)?);
+    }
     for i in 0..args.elements {
+        if args.link {
+            break;
+        }
         let seed = args.seed + i as u64;
         let (rig, lead, k, source) = match &args.rig {
             Some(path) => {
@@ -141,12 +240,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             header.push(("preset".into(), rig.preset.name().into()));
             header.push(("rig".into(), source));
         }
-        elements.push(ElementSetup {
-            rig,
-            lead,
-            specimen_k_kn_per_mm: k,
-            rate_factor: args.rate_factor,
-        });
+        elements.push((
+            ElementSetup {
+                specimen_k_kn_per_mm: k,
+                rate_factor: args.rate_factor,
+            },
+            Box::new(VirtualExperiment::new(&rig, lead, args.real_time)?),
+        ));
     }
     let cfg = SiteConfig {
         listen: args.listen,
@@ -155,24 +255,35 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         out: args.out,
         header,
     };
-    let outcomes = site::run(&cfg)?;
+    let outcomes = site::run(cfg)?;
     let mut failed = false;
     for (i, o) in outcomes.iter().enumerate() {
         let (med, max) = median_max(&o.step_latency_s);
         println!(
             "element {}: {} steps of {} ticks, latency per step median {:.3} ms max {:.3} ms, \
-             supervisor {:?}{}",
+             supervisor {}{}",
             i + 1,
             o.steps,
             o.ticks_per_step,
             med * 1e3,
             max * 1e3,
-            o.state,
+            crate::link_host::state_name(o.state),
             o.stop_reason
                 .as_ref()
                 .map(|r| format!(", stopped: {r}"))
                 .unwrap_or_default()
         );
+        if let Some(p) = &o.pacing {
+            println!(
+                "element {}: wall clock: {} ticks at {:.2} Hz (goal 2048), each tick's start \
+                 after its deadline RMS {:.1} µs, max {:.1} µs",
+                i + 1,
+                p.ticks,
+                p.rate_hz,
+                p.jitter_rms_s * 1e6,
+                p.late_max_s * 1e6
+            );
+        }
         failed |= o.stop_reason.is_some();
     }
     if failed {

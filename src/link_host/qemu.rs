@@ -12,7 +12,8 @@ use super::session::Link;
 /// port) connected, as a client, to `127.0.0.1:port` (the runner of `firmware/.cargo/config.toml`
 /// with `-serial tcp:` after its `-serial null`).
 pub fn qemu_args(elf: &Path, port: u16) -> Vec<String> {
-    let serial = format!("tcp:127.0.0.1:{port}");
+    // nodelay: the board's small frames (a site's step end) must not wait on Nagle.
+    let serial = format!("tcp:127.0.0.1:{port},nodelay=on");
     [
         "-cpu",
         "cortex-m4",

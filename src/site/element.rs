@@ -1,52 +1,26 @@
-//! One experimental element of `rths site`: a client's connection (TCP or UDP), its own actuator
-//! on the virtual rig, the predictor-corrector, the identified rig's lead compensation and the
-//! supervisor, every controller tick recorded (docs/site.md).
+//! One experimental element of `rths site`: a client's connection (TCP or UDP) served to its
+//! DIE, its targets imposed by the element's [`Experiment`] (the virtual rig or the board), the
+//! force returned, every controller tick recorded (docs/site.md).
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream, UdpSocket};
+use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use rths_core::compensator::{Compensator, Lead, LeadParams};
-use rths_core::hal::{Actuator, Daq, Error as _, Sample};
 use rths_core::params::{SpecimenScale, DT_S};
-use rths_core::predictor_corrector::{PcParams, PredictorCorrector};
-use rths_core::supervisor::{Limits, State, Supervisor};
-use rths_hal_sim::{RigConfig, VirtualRig};
+use rths_link::RunState;
 
+use super::experiment::{Experiment, PacingStats, SiteRow};
 use super::protocol::{self, Action, Handshake, Message, HANDSHAKE_BYTES};
 use crate::link_host;
 
-/// Polynomial order of the predictor-corrector (cubic).
-pub const PC_ORDER: usize = 3;
-
-/// What an element knows of its rig before the test: what was identified.
+/// What an element knows of its rig before the test: what was identified, and the pace.
 #[derive(Debug, Clone, Copy)]
 pub struct ElementSetup {
-    /// The virtual rig.
-    pub rig: RigConfig,
-    /// The identified lead filter (the rig's delay compensation).
-    pub lead: LeadParams,
     /// The identified specimen stiffness at the actuator, kN/mm (specimen scale).
     pub specimen_k_kn_per_mm: f64,
     /// Rig time over analysis time (≥ 1: a slowed-down test).
     pub rate_factor: f64,
-}
-
-/// One controller tick, as `rths link run --out` records it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SiteRow {
-    /// Tick from the start.
-    pub tick: u32,
-    /// Supervisor state after the tick.
-    pub state: State,
-    /// Command sent at this tick, mm.
-    pub command_mm: f64,
-    /// Target (the predictor-corrector's) at this tick, mm.
-    pub target_mm: f64,
-    /// Measured displacement read at this tick, mm.
-    pub measured_mm: f64,
-    /// Measured force read at this tick, kN.
-    pub force_kn: f64,
 }
 
 /// How an element's test ended.
@@ -59,13 +33,15 @@ pub struct ElementOutcome {
     /// Server time per step (a new target received → its force replied), s, each step.
     pub step_latency_s: Vec<f64>,
     /// The supervisor's last state.
-    pub state: State,
+    pub state: RunState,
     /// Why the test stopped early (the client's fault or a supervisor trip), if it did.
     pub stop_reason: Option<String>,
     /// Every tick.
     pub rows: Vec<SiteRow>,
     /// The client's DOFs.
     pub dofs: usize,
+    /// The wall-clock pacing achieved (a paced virtual rig).
+    pub pacing: Option<PacingStats>,
 }
 
 /// A client's connection: whole messages in, replies out.
@@ -101,6 +77,13 @@ impl Channel {
         }
     }
 
+    fn try_clone(&self) -> std::io::Result<Self> {
+        Ok(match self {
+            Channel::Tcp(s) => Channel::Tcp(s.try_clone()?),
+            Channel::Udp(s, peer) => Channel::Udp(s.try_clone()?, *peer),
+        })
+    }
+
     fn send(&mut self, bytes: &[u8]) -> std::io::Result<()> {
         match self {
             Channel::Tcp(s) => s.write_all(bytes),
@@ -113,98 +96,6 @@ impl Channel {
 pub fn tune_tcp(s: &TcpStream) {
     let _ = s.set_nodelay(true);
     let _ = socket2::SockRef::from(s).set_quickack(true);
-}
-
-/// The actuator of one element and its control: rig, predictor-corrector, lead, supervisor.
-struct Actuation {
-    rig: VirtualRig,
-    supervisor: Supervisor,
-    lead: Compensator,
-    pc: Option<PredictorCorrector>,
-    scale: SpecimenScale,
-    last: Sample,
-    rows: Vec<SiteRow>,
-    tick: u32,
-    stop: Option<String>,
-}
-
-impl Actuation {
-    /// One controller tick: read the DAQ, ask for `requested_mm` (specimen), the supervisor
-    /// decides, the rig holds the command for the tick.
-    fn tick(&mut self, requested_mm: f64, target_mm: f64) {
-        let sample = self.rig.read().map_err(|e| e.kind());
-        if let Ok(s) = sample {
-            self.last = s;
-        }
-        let d = self.supervisor.tick(requested_mm, sample, false);
-        let (m, f) = sample.map_or((f64::NAN, f64::NAN), |s| (s.disp_mm, s.force_kn));
-        self.rows.push(SiteRow {
-            tick: self.tick,
-            state: d.state,
-            command_mm: d.command_mm,
-            target_mm,
-            measured_mm: m,
-            force_kn: f,
-        });
-        if let (State::Fault(r), None) = (d.state, &self.stop) {
-            self.stop = Some(format!("supervisor: {}", r.name()));
-        }
-        self.tick = self.tick.saturating_add(1);
-        // The supervisor's command is finite and within the stroke: the rig takes it.
-        let _ = self.rig.command(d.command_mm);
-        self.rig.advance_tick();
-    }
-
-    /// The step to `target_mm` (specimen) over the predictor-corrector's ticks; false if the
-    /// supervisor tripped.
-    fn step_to(&mut self, target_mm: f64) -> bool {
-        let Some(pc) = self.pc.as_mut() else {
-            return false;
-        };
-        if pc.set_target(target_mm).is_err() {
-            return false;
-        }
-        loop {
-            let Some(pc) = self.pc.as_mut() else {
-                return false;
-            };
-            let t = pc.tick();
-            let requested = self
-                .lead
-                .compensate(t.command_mm, self.last.disp_mm)
-                .unwrap_or(f64::NAN);
-            self.tick(requested, t.command_mm);
-            if matches!(self.supervisor.state(), State::Fault(_)) {
-                return false;
-            }
-            if t.step_done {
-                return true;
-            }
-        }
-    }
-
-    /// Bring the actuator to a safe state: trip the supervisor (its ramp to the safe position)
-    /// with `reason` logged, and run the ramp to its end.
-    fn safe_stop(&mut self, reason: String) {
-        eprintln!("site: {reason}: the actuator ramps to its safe position");
-        if self.stop.is_none() {
-            self.stop = Some(reason);
-        }
-        self.supervisor.emergency_stop();
-        self.settle();
-    }
-
-    /// Tick (holding the request) until the supervisor is at rest; bounded (a ramp over the whole
-    /// stroke at the slowest rate is well inside).
-    fn settle(&mut self) {
-        let out = self.supervisor.output_mm();
-        for _ in 0..(120.0 / DT_S) as usize {
-            if self.supervisor.at_rest() {
-                break;
-            }
-            self.tick(out, f64::NAN);
-        }
-    }
 }
 
 /// The element's force of the actuator's measured force at the target (corrected to the
@@ -237,8 +128,56 @@ fn deformation(m: &Message) -> f64 {
     }
 }
 
+/// The client's messages, read by their own thread (so that a paced rig ticks while it waits).
+fn reader(mut ch: Channel, len: usize) -> mpsc::Receiver<std::io::Result<Vec<u8>>> {
+    let (tx, rx) = mpsc::sync_channel(64);
+    std::thread::spawn(move || loop {
+        let r = ch.recv(len);
+        let failed = r.is_err();
+        if tx.send(r).is_err() || failed {
+            break;
+        }
+    });
+    rx
+}
+
+/// The next message: waiting for it, a paced rig ticks at its deadlines.
+fn next_message(
+    rx: &mpsc::Receiver<std::io::Result<Vec<u8>>>,
+    exp: &mut dyn Experiment,
+) -> std::io::Result<Vec<u8>> {
+    loop {
+        let wait = match exp.idle_deadline() {
+            Some(dl) => dl.saturating_duration_since(Instant::now()),
+            None => SILENT_CLIENT,
+        };
+        match rx.recv_timeout(wait) {
+            Ok(r) => return r,
+            Err(mpsc::RecvTimeoutError::Timeout) if exp.idle_deadline().is_some() => {
+                exp.idle_tick()
+            }
+            Err(mpsc::RecvTimeoutError::Timeout) => {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::TimedOut,
+                    "no message for 60 s",
+                ))
+            }
+            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::UnexpectedEof,
+                    "the connection's reader ended",
+                ))
+            }
+        }
+    }
+}
+
 /// Serve one client on `channel` to its DIE (or a fault): the whole test of one element.
-pub fn serve(mut channel: Channel, setup: &ElementSetup) -> anyhow::Result<ElementOutcome> {
+pub fn serve(
+    mut channel: Channel,
+    setup: &ElementSetup,
+    exp: &mut dyn Experiment,
+) -> anyhow::Result<ElementOutcome> {
     let hs_bytes = channel.recv(HANDSHAKE_BYTES)?;
     let hs: Handshake = protocol::parse_handshake(&hs_bytes)?;
     if hs.dofs > 2 {
@@ -248,28 +187,10 @@ pub fn serve(mut channel: Channel, setup: &ElementSetup) -> anyhow::Result<Eleme
             hs.dofs
         );
     }
-    let params = setup.rig.build()?;
-    let mut a = Actuation {
-        rig: VirtualRig::new(params),
-        supervisor: Supervisor::new(Limits::paper_actuator()),
-        lead: Compensator::Lead(Lead::new(setup.lead)),
-        pc: None,
-        scale: SpecimenScale::default(),
-        last: Sample::default(),
-        rows: Vec::new(),
-        tick: 0,
-        stop: None,
-    };
-    // The supervisor armed from the start: its checks run while the client connects.
-    a.supervisor
-        .arm()
-        .map_err(|e| anyhow::anyhow!("arming: {e:?}"))?;
-    a.supervisor
-        .start()
-        .map_err(|e| anyhow::anyhow!("starting: {e:?}"))?;
-    a.tick(0.0, 0.0);
+    let rx = reader(channel.try_clone()?, hs.message_bytes());
+    let scale = SpecimenScale::default();
     let k_proto =
-        a.scale.prototype_force_kn(setup.specimen_k_kn_per_mm) / a.scale.prototype_disp_mm(1.0);
+        scale.prototype_force_kn(setup.specimen_k_kn_per_mm) / scale.prototype_disp_mm(1.0);
     let (mut steps, mut ticks_per_step) = (0u64, 0u32);
     let mut latency = Vec::new();
     // (time, deformation) of the step under way: at rest at time 0 (the analysis's first update).
@@ -277,19 +198,25 @@ pub fn serve(mut channel: Channel, setup: &ElementSetup) -> anyhow::Result<Eleme
     let mut t_prev = 0.0f64;
     let mut force_proto = 0.0f64;
     let mut step_started: Option<Instant> = None;
+    let mut stop: Option<String> = None;
+    let mut stop_with = |exp: &mut dyn Experiment, reason: String| {
+        eprintln!("site: {reason}: the actuator ramps to its safe position");
+        exp.safe_stop();
+        stop.get_or_insert(reason);
+    };
     let zero = vec![0.0; hs.dofs * hs.dofs];
     loop {
-        let bytes = match channel.recv(hs.message_bytes()) {
+        let bytes = match next_message(&rx, exp) {
             Ok(b) => b,
             Err(e) => {
-                a.safe_stop(format!("the client vanished mid-test ({e})"));
+                stop_with(exp, format!("the client vanished mid-test ({e})"));
                 break;
             }
         };
         let msg = match protocol::parse_message(&bytes, &hs) {
             Ok(m) => m,
             Err(e) => {
-                a.safe_stop(format!("bad message from the client: {e}"));
+                stop_with(exp, format!("bad message from the client: {e}"));
                 break;
             }
         };
@@ -300,10 +227,22 @@ pub fn serve(mut channel: Channel, setup: &ElementSetup) -> anyhow::Result<Eleme
                     // The corrected velocity and acceleration of the same target: nothing to do.
                     Some((t, d0)) if t == msg.time_s && d0.to_bits() == d.to_bits() => continue,
                     Some((t, _)) if t == msg.time_s => {
-                        a.safe_stop(
+                        stop_with(
+                            exp,
                             "a second trial displacement within a step (an iterative algorithm: \
                              use an explicit integrator with algorithm Linear)"
                                 .into(),
+                        );
+                        break;
+                    }
+                    Some((t, _)) if msg.time_s < t => {
+                        stop_with(
+                            exp,
+                            format!(
+                                "a trial at time {} s after one at {t} s (a datagram out of order \
+                                 or repeated)",
+                                msg.time_s
+                            ),
                         );
                         break;
                     }
@@ -313,49 +252,71 @@ pub fn serve(mut channel: Channel, setup: &ElementSetup) -> anyhow::Result<Eleme
                 let ticks = dt * setup.rate_factor / DT_S;
                 let n = ticks.round();
                 if !(n >= 1.0 && (ticks - n).abs() < 1e-3 && n <= f64::from(u32::MAX)) {
-                    a.safe_stop(format!(
-                        "the integration step {dt} s × rate factor {} is {ticks:.4} controller \
-                         ticks, not a whole number ≥ 1 (Δt = 1/2048 s)",
-                        setup.rate_factor
-                    ));
+                    stop_with(
+                        exp,
+                        format!(
+                            "the integration step {dt} s × rate factor {} is {ticks:.4} controller \
+                             ticks, not a whole number ≥ 1 (Δt = 1/2048 s)",
+                            setup.rate_factor
+                        ),
+                    );
                     break;
                 }
                 let n = n as u32;
-                match a.pc {
-                    None => {
-                        a.pc = Some(PredictorCorrector::new(
-                            PcParams::new(n, PC_ORDER)
-                                .map_err(|e| anyhow::anyhow!("predictor-corrector: {e:?}"))?,
-                        ));
-                        ticks_per_step = n;
-                    }
-                    Some(_) if n != ticks_per_step => {
-                        a.safe_stop(format!(
-                            "the integration step changed from {ticks_per_step} to {n} ticks"
-                        ));
+                if ticks_per_step == 0 {
+                    if let Err(e) = exp.begin(n) {
+                        stop_with(exp, format!("the site could not start: {e}"));
                         break;
                     }
-                    Some(_) => {}
+                    ticks_per_step = n;
+                } else if n != ticks_per_step {
+                    stop_with(
+                        exp,
+                        format!(
+                            "the integration step changed from {ticks_per_step} to {n} ticks (a \
+                             datagram lost, or a variable step)"
+                        ),
+                    );
+                    break;
                 }
                 step_started = Some(Instant::now());
                 last_trial = Some((msg.time_s, d));
                 t_prev = msg.time_s;
-                let target = a.scale.specimen_disp_mm(d);
-                if !a.step_to(target) {
-                    let why = a
-                        .stop
-                        .clone()
-                        .unwrap_or_else(|| "the step was refused".into());
-                    a.safe_stop(why);
+                let target = scale.specimen_disp_mm(d);
+                let r = match exp.step(d) {
+                    Ok(r) => r,
+                    Err(e) => {
+                        stop_with(exp, e.to_string());
+                        break;
+                    }
+                };
+                if !(r.measured_mm.is_finite() && r.force_kn.is_finite()) {
+                    stop_with(exp, "no DAQ reading at the step's end".into());
                     break;
                 }
                 steps += 1;
-                let f_spec =
-                    a.last.force_kn + setup.specimen_k_kn_per_mm * (target - a.last.disp_mm);
-                force_proto = a.scale.prototype_force_kn(f_spec);
+                let f_spec = r.force_kn + setup.specimen_k_kn_per_mm * (target - r.measured_mm);
+                force_proto = scale.prototype_force_kn(f_spec);
             }
             Action::CommitState => {}
             Action::GetForce => {
+                // The client sends the last trial's response with every action: a getForce of
+                // another trial means that trial never arrived (UDP: a datagram lost or
+                // reordered), and the force of the last one would be taken for it.
+                let d = deformation(&msg);
+                if let Some((t, d0)) = last_trial {
+                    if t != msg.time_s || d0.to_bits() != d.to_bits() {
+                        stop_with(
+                            exp,
+                            format!(
+                                "a getForce for the trial at {} s that the site never received \
+                                 (the last was at {t} s: a datagram lost or reordered)",
+                                msg.time_s
+                            ),
+                        );
+                        break;
+                    }
+                }
                 channel.send(&protocol::encode_reply(
                     &element_force(hs.dofs, force_proto),
                     hs.data_size,
@@ -373,8 +334,7 @@ pub fn serve(mut channel: Channel, setup: &ElementSetup) -> anyhow::Result<Eleme
             }
             Action::Die => {
                 // The end of the test: the supervisor ramps the actuator to zero.
-                let _ = a.supervisor.finish();
-                a.settle();
+                exp.finish();
                 break;
             }
         }
@@ -383,10 +343,11 @@ pub fn serve(mut channel: Channel, setup: &ElementSetup) -> anyhow::Result<Eleme
         steps,
         ticks_per_step,
         step_latency_s: latency,
-        state: a.supervisor.state(),
-        stop_reason: a.stop,
-        rows: a.rows,
+        state: exp.state(),
+        stop_reason: stop,
+        rows: exp.take_rows(),
         dofs: hs.dofs,
+        pacing: exp.pacing(),
     })
 }
 
@@ -419,7 +380,7 @@ pub fn write_recording(
         let t = rths_link::Telemetry {
             seq: r.tick,
             tick: r.tick,
-            state: run_state(r.state),
+            state: r.state,
             command_mm: r.command_mm,
             target_mm: r.target_mm,
             measured_mm: r.measured_mm,
@@ -428,19 +389,6 @@ pub fn write_recording(
         writeln!(w, "{}", link_host::csv_row(&t))?;
     }
     w.flush()
-}
-
-/// The link's state of a supervisor state (the recording's names).
-fn run_state(s: State) -> rths_link::RunState {
-    use rths_link::RunState as R;
-    match s {
-        State::Idle => R::Idle,
-        State::Armed => R::Armed,
-        State::Running => R::Running,
-        State::RampDown => R::RampDown,
-        State::Done => R::Done,
-        State::Fault(r) => R::Fault(r.code()),
-    }
 }
 
 /// Median and largest of `xs`, s (0 for none).

@@ -1,9 +1,12 @@
 //! `rths site`: the experimental site an unmodified OpenSees drives through its `genericClient`
 //! element (docs/site.md). Each element is its own connection (port PORT + i) and its own actuator
-//! on the virtual rig; the test of each runs in its own thread, in simulated time.
+//! (the virtual rig, or the board over the link); the test of each runs in its own thread.
 
+pub mod board;
 pub mod element;
+pub mod experiment;
 pub mod protocol;
+pub mod virtual_rig;
 
 use std::io::Write;
 use std::net::{SocketAddr, TcpListener, UdpSocket};
@@ -12,16 +15,16 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use element::{ElementOutcome, ElementSetup};
+use experiment::Experiment;
 
 /// What `rths site` serves.
-#[derive(Debug, Clone)]
 pub struct SiteConfig {
     /// The first element's address (element i: port + i).
     pub listen: SocketAddr,
     /// UDP instead of TCP.
     pub udp: bool,
-    /// One setup per element.
-    pub elements: Vec<ElementSetup>,
+    /// One setup and experimental side per element.
+    pub elements: Vec<(ElementSetup, Box<dyn Experiment>)>,
     /// Where the recording goes (element i > 0 of several: `STEM-i.EXT`, the first `STEM-1.EXT`).
     pub out: Option<PathBuf>,
     /// Header fields every recording gets (the rig's provenance).
@@ -50,7 +53,7 @@ enum Bound {
 
 /// Serve every element to its client's DIE; prints `listening on ADDRESS` per element when
 /// ready. Returns each element's outcome (recordings written, whatever happened).
-pub fn run(cfg: &SiteConfig) -> anyhow::Result<Vec<ElementOutcome>> {
+pub fn run(cfg: SiteConfig) -> anyhow::Result<Vec<ElementOutcome>> {
     let k = cfg.elements.len();
     let mut bound = Vec::with_capacity(k);
     for i in 0..k {
@@ -72,10 +75,10 @@ pub fn run(cfg: &SiteConfig) -> anyhow::Result<Vec<ElementOutcome>> {
     std::io::stdout().flush()?;
     let handles: Vec<_> = bound
         .into_iter()
-        .zip(cfg.elements.iter().copied())
+        .zip(cfg.elements)
         .enumerate()
-        .map(|(i, ((b, local), setup))| {
-            std::thread::spawn(move || serve_element(i, b, local, &setup))
+        .map(|(i, ((b, local), (setup, mut exp)))| {
+            std::thread::spawn(move || serve_element(i, b, local, &setup, exp.as_mut()))
         })
         .collect();
     let mut outcomes = Vec::with_capacity(k);
@@ -122,7 +125,13 @@ pub fn run(cfg: &SiteConfig) -> anyhow::Result<Vec<ElementOutcome>> {
 
 type Served = (SocketAddr, &'static str, anyhow::Result<ElementOutcome>);
 
-fn serve_element(i: usize, b: Bound, local: SocketAddr, setup: &ElementSetup) -> Served {
+fn serve_element(
+    i: usize,
+    b: Bound,
+    local: SocketAddr,
+    setup: &ElementSetup,
+    exp: &mut dyn Experiment,
+) -> Served {
     match b {
         Bound::Tcp(l) => {
             let r = (|| {
@@ -144,7 +153,7 @@ fn serve_element(i: usize, b: Bound, local: SocketAddr, setup: &ElementSetup) ->
                         }
                     });
                 }
-                element::serve(element::Channel::Tcp(stream), setup)
+                element::serve(element::Channel::Tcp(stream), setup, exp)
             })();
             (local, "tcp", r)
         }
@@ -154,7 +163,7 @@ fn serve_element(i: usize, b: Bound, local: SocketAddr, setup: &ElementSetup) ->
                 if let element::Channel::Udp(s, _) = &ch {
                     s.set_read_timeout(Some(element::SILENT_CLIENT))?;
                 }
-                element::serve(ch, setup)
+                element::serve(ch, setup, exp)
             })();
             (local, "udp", r)
         }

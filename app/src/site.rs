@@ -1,0 +1,150 @@
+//! The board as an experimental site (docs/site.md): the host's `rths site` streams an outside
+//! integrator's targets over the link, one per integration step; the control task's controller
+//! (core's predictor-corrector as its analytical part, the rig's lead as its compensator, the
+//! supervisor) imposes them tick by tick, and each step's end goes back with the DAQ's reading.
+
+use rths_core::compensator::{LeadParams, LEAD_TAPS};
+use rths_core::control::{Controller, SiteError};
+use rths_core::predictor_corrector::{PcError, PcParams, SITE_ORDER};
+use rths_core::supervisor::State;
+use rths_link::{DeviceMsg, LinkLoss, NackReason};
+
+use crate::link::{Effect, Rearm, Session};
+use crate::{Run, TelemetryRecord};
+
+/// `SiteBegin`: at rest, the controller becomes a site of `ticks_per_step` with the lead of
+/// `lead_weights` / `lead_stride` (stride 0: none), armed (the emulated plant once per power-up; a
+/// real rig after a finished test, at its measured position) and started. The stream restarts at
+/// `seq` 0, every tick. A real rig ramps down if the host falls silent; the emulated board waits
+/// for each target (its plant holds), so its virtual clock is no host's silence.
+pub fn begin(
+    ctl: &mut Controller,
+    run: &mut Run,
+    s: &mut Session<'_>,
+    finished: bool,
+    ticks_per_step: u32,
+    lead_weights: &[f64; LEAD_TAPS],
+    lead_stride: u16,
+) -> Result<Effect, NackReason> {
+    if !ctl.supervisor().at_rest() {
+        return Err(NackReason::Busy);
+    }
+    if finished && s.rearm == Rearm::OncePerPowerUp {
+        return Err(NackReason::Unsupported);
+    }
+    if lead_weights.iter().any(|w| !w.is_finite()) {
+        return Err(NackReason::NotFinite);
+    }
+    let pc = PcParams::new(ticks_per_step, SITE_ORDER).map_err(|_| NackReason::OutOfRange)?;
+    let lead = match lead_stride {
+        0 => None,
+        n => Some(
+            LeadParams::new(*lead_weights, usize::from(n)).map_err(|_| NackReason::OutOfRange)?,
+        ),
+    };
+    ctl.install_site(pc, lead).map_err(|_| NackReason::Busy)?;
+    match s.rearm {
+        Rearm::OncePerPowerUp => ctl.supervisor_mut().arm(),
+        Rearm::AtMeasured => ctl.supervisor_mut().arm_at(run.last_disp_mm),
+    }
+    .map_err(|_| NackReason::InvalidState)?;
+    ctl.supervisor_mut()
+        .start()
+        .map_err(|_| NackReason::InvalidState)?;
+    s.identifying = false;
+    s.every = 1;
+    s.seq = 0;
+    s.site_step = 0;
+    s.owner = 0;
+    s.link_loss = match s.rearm {
+        Rearm::OncePerPowerUp => LinkLoss::Complete,
+        Rearm::AtMeasured => LinkLoss::RampDown,
+    };
+    run.restart();
+    Ok(Effect::Started)
+}
+
+/// `SiteTarget`: the next step's target, numbered from 0 without a gap (`Sequence`); refused when
+/// the controller is no site or not running (`InvalidState`), for a non-finite target
+/// (`NotFinite`), or while the previous step is under way (`Busy`).
+pub fn target(
+    ctl: &mut Controller,
+    s: &mut Session<'_>,
+    step: u32,
+    target_mm: f64,
+) -> Result<Effect, NackReason> {
+    if ctl.site_progress().is_none() {
+        return Err(NackReason::InvalidState);
+    }
+    if step != s.site_step {
+        return Err(NackReason::Sequence);
+    }
+    ctl.site_target(target_mm).map_err(|e| match e {
+        SiteError::NotASite | SiteError::NotRunning => NackReason::InvalidState,
+        SiteError::Target(PcError::NonFinite) => NackReason::NotFinite,
+        SiteError::Target(PcError::Pending) => NackReason::Busy,
+    })?;
+    s.site_step = s.site_step.wrapping_add(1);
+    Ok(Effect::None)
+}
+
+/// `SiteEnd`: the end of the test: the supervisor's end ramp to zero, or (`fault`) its emergency
+/// ramp to the armed position. Refused when the controller is no site (`InvalidState`).
+pub fn end(ctl: &mut Controller, fault: bool) -> Result<Effect, NackReason> {
+    if ctl.site_progress().is_none() {
+        return Err(NackReason::InvalidState);
+    }
+    let sup = ctl.supervisor_mut();
+    if fault {
+        sup.emergency_stop();
+    } else if sup.state() == State::Running {
+        sup.finish().map_err(|_| NackReason::InvalidState)?;
+    }
+    Ok(Effect::None)
+}
+
+/// The emulated plant waits for the site's next target: the controller is a running site with no
+/// target pending, so the control task leaves the plant where it is (as the host's virtual rig
+/// waits for its client). A real rig never waits: its predictor runs.
+pub fn waits(ctl: &Controller) -> bool {
+    ctl.supervisor().state() == State::Running && matches!(ctl.site_progress(), Some((false, _)))
+}
+
+/// A step's end, noted by the control task: the step's number and the tick it ended at.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StepEnd {
+    /// Step number, from 0.
+    pub step: u32,
+    /// The run's tick.
+    pub tick: u32,
+}
+
+/// After a control tick `k`: the step that ended at it, if one did. `seen` is the count of steps
+/// ended so far (the control task's; 0 at the run's first tick).
+pub fn step_ended(ctl: &Controller, k: u32, seen: &mut u32) -> Option<StepEnd> {
+    if k == 0 {
+        *seen = 0;
+    }
+    let (_, done) = ctl.site_progress()?;
+    if done == *seen {
+        return None;
+    }
+    *seen = done;
+    Some(StepEnd {
+        step: done.wrapping_sub(1),
+        tick: k,
+    })
+}
+
+/// The `SiteStep` of a step that ended at the tick of record `r` (its DAQ reading).
+pub fn step_message(end: StepEnd, r: &TelemetryRecord) -> DeviceMsg {
+    DeviceMsg::SiteStep {
+        step: end.step,
+        tick: end.tick,
+        measured_mm: r.measured_mm,
+        force_kn: r.force_kn,
+    }
+}
+
+#[cfg(test)]
+mod tests;
