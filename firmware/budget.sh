@@ -29,7 +29,11 @@
 # `STRUCTURE` line each ("structure_rows" in the JSON). Checks: each within 10 % of the 4096 Hz tick
 # at 480 MHz; the structure metamodel cheaper than the linear FE for N ≥ 3, and its cost
 # independent of N (max within 10 % of the N = 1 one); the modal metamodel cheaper than the
-# yielding FE for N ≥ 3; no panic reachable from its tick.
+# yielding FE for N ≥ 3; no panic reachable from its tick. The same run steps the reduced-order
+# models of three imported OpenSees frames, N = 10, 104 and 936 DOFs with mass (data/structures/
+# opensees-frame-{1x1,2x4,5x12}.json, trained at 4096 Hz here): "reduced_rows", each within 10 %,
+# beside the dense FE of the same model (core's FE holds 8 DOFs at most: its count per step
+# estimated from the N = 1, 3, 8 rows, its matrices' bytes against the H743's 1 MiB of RAM).
 #
 #   ./budget.sh                the human-readable table (needs qemu-system-arm)
 #   ./budget.sh --json         one JSON object {"rows": [...], ...} on stdout (progress on stderr)
@@ -246,12 +250,16 @@ chain() {
   for r in "${ROWS[@]}"; do echo "$r"; done >"$OUT/chain-$core.rows"
   for r in "${REFUSED[@]}"; do echo "$r"; done >"$OUT/chain-$core.refused"
   for r in "${STRUCT_ROWS[@]}"; do echo "$r"; done >"$OUT/chain-$core.structures"
+  for r in "${REDUCED_ROWS[@]}"; do echo "$r"; done >"$OUT/chain-$core.reduced"
   return "$fail"
 }
 
 # The structure budget: the metamodels of the three linear structures trained at 4096 Hz, one M7
 # build, one QEMU run.
 STRUCT_ROWS=()
+REDUCED_LINES=()
+REDUCED_ROWS=()
+REDUCED_FRAMES="frame-1x1 frame-2x4 frame-5x12"
 structures() {
   local dir=$PWD/../data/structures metas=() s line path name n min mean max pct fits=true p
   mkdir -p "$M4096"
@@ -260,8 +268,17 @@ structures() {
       --structure "$dir/$s.json" --out "$M4096/meta-$s.json" >&2)
     metas+=("$M4096/meta-$s.json")
   done
+  # The imported OpenSees frames' reduced-order models, N = 10, 104 and 936 DOFs with mass
+  # (docs/opensees.md "The reduced model"), trained at 4096 Hz like the metamodels above.
+  local reduced=()
+  for s in $REDUCED_FRAMES; do
+    (cd .. && cargo run --release --quiet --features rate-4096 -- train meta --rate 4096 \
+      --structure "$dir/opensees-$s.json" --out "$M4096/reduced-$s.json" >&2)
+    reduced+=("$M4096/reduced-$s.json")
+  done
   say "building qemu-mps2-an500 budget-structures at 4096 Hz"
-  RTHS_BUDGET_METAS=$(IFS=,; echo "${metas[*]}") cargo build-m7 --quiet --no-default-features \
+  RTHS_BUDGET_METAS=$(IFS=,; echo "${metas[*]}") RTHS_BUDGET_REDUCED=$(IFS=,; echo "${reduced[*]}") \
+    cargo build-m7 --quiet --no-default-features \
     --features board-mps2-an500,budget-structures,rate-4096 >&2
   cp target/m7/thumbv7em-none-eabihf/release/rths-firmware "$OUT/qemu-mps2-an500-structures-4096.elf"
   p=$(panics "$OUT/qemu-mps2-an500-structures-4096.elf" cortex-m7 budget_tick)
@@ -277,6 +294,7 @@ structures() {
     name=$(sed -n 's/.*"structure":"\([^"]*\)".*/\1/p' <<<"$line")
     fnv=$(sed -n 's/.*"command_fnv":"\([^"]*\)".*/\1/p' <<<"$line")
     n=$(field "$line" n)
+    modes=$(field "$line" modes)
     ip=$(sed -n 's/.*"instr_per_tick":{\([^}]*\)}.*/\1/p' <<<"$line")
     min=$(field "$ip" min); mean=$(field "$ip" mean); max=$(field "$ip" max)
     pct=$(awk -v m="$max" -v c="$CPI" 'BEGIN { printf "%.2f", 100 * m * c * 4096 / 480000000 }')
@@ -288,9 +306,30 @@ structures() {
     [ "$path" = structure-meta ] && META_MAX[$n]=$max
     [ "$path" = structure-nl ] && NL_MAX[$n]=$max
     [ "$path" = structure-modal ] && MODAL_MAX[$n]=$max
-    STRUCT_ROWS+=("$path|$name|$n|$min|$mean|$max|$pct|$fits|$fnv")
+    if [ "$path" = structure-reduced ]; then
+      REDUCED_LINES+=("$name|$n|$modes|$min|$mean|$max|$pct|$fits|$fnv")
+    else
+      STRUCT_ROWS+=("$path|$name|$n|$min|$mean|$max|$pct|$fits|$fnv")
+    fi
   done < <(grep '^STRUCTURE ' <<<"$out")
   if [ "${#STRUCT_ROWS[@]}" != 12 ]; then say "FAIL: structure budget: ${#STRUCT_ROWS[@]} rows, 12 expected"; fail=1; fi
+  if [ "${#REDUCED_LINES[@]}" != 3 ]; then say "FAIL: structure budget: ${#REDUCED_LINES[@]} reduced rows, 3 expected"; fail=1; fi
+  # The linear FE of the same models on the M7: core's FE holds at most 8 DOFs, and a dense
+  # N-DOF Chang step is O(N²), so its count per step is estimated from the measured N = 1, 3, 8
+  # rows (the quadratic through them) and its memory is 8 dense N×N f64 matrices (the FE's
+  # parameters and Chang's coefficients, 64·N² bytes) against the STM32H743's 1 MiB of RAM.
+  local row rn rmodes rmin rmean rmax rpct rfits rfnv est est_pct mem fits_mem
+  for row in "${REDUCED_LINES[@]}"; do
+    IFS='|' read -r name rn rmodes rmin rmean rmax rpct rfits rfnv <<<"$row"
+    est=$(awk -v n="$rn" -v a="${FE_MAX[1]:-0}" -v b="${FE_MAX[3]:-0}" -v c="${FE_MAX[8]:-0}" 'BEGIN {
+      printf "%.0f", a * (n - 3) * (n - 8) / 14 - b * (n - 1) * (n - 8) / 10 + c * (n - 1) * (n - 3) / 35 }')
+    est_pct=$(awk -v m="$est" -v c="$CPI" 'BEGIN { printf "%.2f", 100 * m * c * 4096 / 480000000 }')
+    mem=$((64 * rn * rn))
+    fits_mem=true
+    if [ "$mem" -gt $((1024 * 1024)) ]; then fits_mem=false; fi
+    REDUCED_ROWS+=("$name|$rn|$rmodes|$rmin|$rmean|$rmax|$rpct|$rfits|$rfnv|$est|$est_pct|$mem|$fits_mem")
+    say "reduced model of $name (N = $rn with mass, $rmodes modes): $rmax instructions per tick, $rpct% of the 4096 Hz tick; its dense FE: about $est instructions per step ($est_pct% of the tick), $mem bytes of matrices"
+  done
   for n in 3 8; do
     if [ "${META_MAX[$n]:-0}" -ge "${FE_MAX[$n]:-0}" ]; then
       say "FAIL: structure budget: the metamodel (${META_MAX[$n]:-?}) is not cheaper than the FE (${FE_MAX[$n]:-?}) at N = $n"; fail=1
@@ -321,6 +360,7 @@ done
 mapfile -t ROWS < <(cat "$OUT"/chain-*.rows 2>/dev/null | sort -t'|' -k1,1n -k2,2n -k3,3n -k4,4n | cut -d'|' -f5-)
 mapfile -t REFUSED < <(cat "$OUT"/chain-*.refused 2>/dev/null)
 mapfile -t STRUCT_ROWS < <(cat "$OUT"/chain-*.structures 2>/dev/null)
+mapfile -t REDUCED_ROWS < <(cat "$OUT"/chain-*.reduced 2>/dev/null | grep . || true)
 
 if [ "$JSON" = 1 ]; then
   printf '{"cycles_per_instr":%s,"budget_pct":%s,"rows":[' "$CPI" "$LIMIT_PCT"
@@ -346,6 +386,14 @@ if [ "$JSON" = 1 ]; then
       "$sep" "$path" "$name" "$n" "$min" "$mean" "$max" "$pct" "$fits" "$fnv"
     sep=,
   done
+  printf '\n],"reduced_rows":['
+  sep=
+  for row in "${REDUCED_ROWS[@]}"; do
+    IFS='|' read -r name n modes min mean max pct fits fnv est est_pct mem fits_mem <<<"$row"
+    printf '%s\n{"board":"qemu-mps2-an500","core":"cortex-m7","rate_hz":4096,"clock_hz":480000000,"path":"structure-reduced","structure":"%s","mass_dofs":%s,"modes":%s,"instr_min":%s,"instr_mean":%s,"instr_max":%s,"pct_tick":%s,"fits":%s,"command_fnv":"%s","fe_instr_per_step_estimated":%s,"fe_pct_tick_estimated":%s,"fe_matrix_bytes":%s,"fe_fits_memory":%s}' \
+      "$sep" "$name" "$n" "$modes" "$min" "$mean" "$max" "$pct" "$fits" "$fnv" "$est" "$est_pct" "$mem" "$fits_mem"
+    sep=,
+  done
   printf '\n]}\n'
 else
   if [ "$STRUCTURES_ONLY" = 0 ]; then
@@ -363,6 +411,12 @@ else
   for row in "${STRUCT_ROWS[@]}"; do
     IFS='|' read -r path name n min mean max pct fits fnv <<<"$row"
     printf '%-15s %-21s %3s %7s %8s %7s %6s%%\n' "$path" "$name" "$n" "$min" "$mean" "$max" "$pct"
+  done
+  printf '\nreduced models of the imported frames (N: DOFs with mass), beside their dense FE (estimated)\n'
+  printf '%-11s %4s %5s %7s %8s %7s %7s %12s %9s %11s\n' structure N modes min mean max "% tick" "FE instr est" "FE % est" "FE bytes"
+  for row in "${REDUCED_ROWS[@]}"; do
+    IFS='|' read -r name n modes min mean max pct fits fnv est est_pct mem fits_mem <<<"$row"
+    printf '%-11s %4s %5s %7s %8s %7s %6s%% %12s %8s%% %11s%s\n' "$name" "$n" "$modes" "$min" "$mean" "$max" "$pct" "$est" "$est_pct" "$mem" "$([ "$fits_mem" = true ] || echo ' (past 1 MiB)')"
   done
 fi
 

@@ -13,7 +13,12 @@
 //!   structure file (`data/structures/`), whose numerical part the controller integrates (linear,
 //!   or with its yielding stories) or, with `structure-meta`, `RTHS_STRUCTURE_MODEL=path`, its
 //!   structure metamodel (`rths train meta --structure path --rate R`), refused if trained for
-//!   another structure (name and checksum) or rate.
+//!   another structure (name and checksum) or rate. An imported structure (`rths import
+//!   opensees`) with its reduced-order model (an `rths-reduced-model` file, `rths train meta` on it)
+//!   takes the same path: the build embeds the model's modes and static corrections, refused if
+//!   trained for a structure of another name (the checksum of the condensed matrices is the host's:
+//!   this script cannot condense) or if core's validation refuses it at this build's step; its
+//!   modes are continuous-time, so any training rate runs.
 //! - With feature `structure-modal`: `RTHS_STRUCTURE=path` (a yielding structure file) and
 //!   `RTHS_STRUCTURE_MODEL=path`, its learned modal-hysteretic metamodel (an `rths-nl-model` file,
 //!   `rths train nonlinear`), refused if trained for another structure (name and checksum of its
@@ -25,7 +30,9 @@
 //!   `paper-frame,vrths-case1,shear8` and `paper-frame-yielding,shear3-yielding,shear8-yielding` in
 //!   `data/structures/`), `RTHS_BUDGET_METAS` (the linear ones' metamodels at this build's rate,
 //!   required: `budget.sh` trains them) and `RTHS_BUDGET_MODALS` (the yielding ones' modal models;
-//!   default `nl-S.json` in `data/models/`).
+//!   default `nl-S.json` in `data/models/`), `RTHS_BUDGET_REDUCED` (three reduced-order models of
+//!   imported structures, N ≈ 10, 100, 1,000 DOFs with mass, comma-separated: `budget.sh` trains
+//!   them; without it the budget has no reduced rows).
 //!
 //! The files are read by the host's own readers (`rths-files`): a model file is checked exactly as
 //! `rths check-model` checks it (feature names included), the record parsed as `rths analyze` parses
@@ -42,6 +49,7 @@ use rths_core::params::{dt_s, CONTROL_RATES_HZ};
 use rths_files::model_file::{ModelFile, ModelKind};
 use rths_files::motion::parse_at2;
 use rths_files::nl_model_file::NlModelFile;
+use rths_files::reduced_model_file::{imported_structure_name, ReducedModelFile};
 use rths_files::structure_file::Structure;
 use rths_files::structure_meta::{MetaFile, StructureArrays};
 
@@ -582,6 +590,61 @@ fn modal_spec(path: &Path, model: &Path) -> String {
     )
 }
 
+/// A reduced-order model file (`rths-reduced-model`), read and validated by the host's reader at
+/// this build's step, as a `ModelSpec::StructureReduced` expression; `structure`: the imported
+/// structure file whose name it must carry (the budget's rows name none).
+fn reduced_spec(model: &Path, structure: Option<&Path>) -> (String, ReducedModelFile) {
+    let text = read(model);
+    let f = ReducedModelFile::from_json(&text)
+        .unwrap_or_else(|e| fail(format!("{}: {e}", model.display())));
+    let arrays = match structure {
+        Some(p) => {
+            let name = imported_structure_name(&read(p))
+                .unwrap_or_else(|e| fail(format!("{}: {e}", p.display())));
+            f.arrays_for_name(&name)
+        }
+        None => f.arrays(),
+    }
+    .unwrap_or_else(|e| fail(format!("{}: {e}", model.display())));
+    let spec = arrays.spec();
+    spec.params(dt_s(rate_hz()))
+        .unwrap_or_else(|e| fail(format!("{}: {e}", model.display())));
+    let mut modes = String::from("&[");
+    for m in spec.modes {
+        let _ = write!(
+            modes,
+            "rths_core::metamodel::ReducedMode {{ omega_rad_s: {}, damping_ratio: {}, \
+             ground_participation: {}, interface_shape: {} }},",
+            lit(m.omega_rad_s),
+            lit(m.damping_ratio),
+            lit(m.ground_participation),
+            lit(m.interface_shape)
+        );
+    }
+    modes.push(']');
+    let correction = |c: &rths_core::metamodel::StaticCorrection| {
+        format!(
+            "rths_core::metamodel::StaticCorrection {{ ground_mm_per_mm_s2: {}, force_mm_per_kn: {} }}",
+            lit(c.ground_mm_per_mm_s2),
+            lit(c.force_mm_per_kn)
+        )
+    };
+    let mut outputs = String::from("&[");
+    for c in spec.output_static {
+        let _ = write!(outputs, "{},", correction(c));
+    }
+    outputs.push(']');
+    let expr = format!(
+        "rths_core::model::ModelSpec::StructureReduced {{ model: rths_core::control::ReducedSpec {{ \
+         modes: {modes}, output_shape: &{}, interface_static: {}, output_static: {outputs}, \
+         specimen_k_kn_per_mm: {} }} }}",
+        array(spec.output_shape),
+        correction(&spec.interface_static),
+        lit(spec.specimen_k_kn_per_mm)
+    );
+    (expr, f)
+}
+
 /// The `ModelSpec` of one structure path: `fe`, `nl`, `meta` or `modal` (`model`: the metamodel
 /// file of `meta` and `modal`).
 fn structure_model_spec(path: &Path, kind: &str, model: Option<&Path>) -> String {
@@ -641,7 +704,15 @@ fn structure(out: &mut String, kind: &str) {
             path.display()
         ));
     }
-    let spec = structure_model_spec(&path, kind, meta.as_deref());
+    let reduced = kind == "meta"
+        && meta
+            .as_deref()
+            .is_some_and(|m| ReducedModelFile::is_reduced(&read(m)));
+    let spec = match meta.as_deref() {
+        // An imported structure's reduced-order model: the model file carries the whole part.
+        Some(m) if reduced => reduced_spec(m, Some(&path)).0,
+        _ => structure_model_spec(&path, kind, meta.as_deref()),
+    };
     let _ = writeln!(out, "/// The structure (and model) compiled in.");
     let _ = writeln!(
         out,
@@ -748,23 +819,50 @@ fn budget_structures(out: &mut String, root: &Path) {
             let _ = writeln!(
                 rows,
                 "    crate::analytical::BudgetRow {{ path: {path_name:?}, structure: {:?}, dofs: {}, \
-                 specimen_kn_per_mm: {}, build: || rths_core::model::assemble(&BUDGET_SPEC_{id}, \
-                 rths_core::params::Prototype::paper(), rths_core::params::DT_S) }},",
+                 specimen_kn_per_mm: {}, modes: 0, build: || rths_core::model::assemble(\
+                 &BUDGET_SPEC_{id}, rths_core::params::Prototype::paper(), rths_core::params::DT_S) }},",
                 s.name(),
                 s.dofs(),
                 lit(k_e)
             );
         }
     }
-    let _ = writeln!(out, "/// The budget's twelve controllers.");
+    // The imported structures' reduced-order models (N ≈ 10, 100, 1,000 DOFs with mass).
+    println!("cargo:rerun-if-env-changed=RTHS_BUDGET_REDUCED");
+    let reduced: Vec<PathBuf> = std::env::var("RTHS_BUDGET_REDUCED")
+        .map(|l| l.split(',').map(PathBuf::from).collect())
+        .unwrap_or_default();
+    for m in &reduced {
+        let (spec, f) = reduced_spec(m, None);
+        let id = rows.matches("BudgetRow").count();
+        let _ = writeln!(
+            out,
+            "const BUDGET_SPEC_{id}: rths_core::model::ModelSpec<'static> = {spec};"
+        );
+        let _ = writeln!(
+            rows,
+            "    crate::analytical::BudgetRow {{ path: \"structure-reduced\", structure: {:?}, \
+             dofs: {}, specimen_kn_per_mm: {}, modes: {}, build: || rths_core::model::assemble(\
+             &BUDGET_SPEC_{id}, rths_core::params::Prototype::paper(), rths_core::params::DT_S) }},",
+            f.structure,
+            f.mass_dofs,
+            lit(f.specimen_k_kn_per_mm),
+            f.modes.len()
+        );
+    }
+    let n_rows = rows.matches("BudgetRow").count();
     let _ = writeln!(
         out,
-        "pub const BUDGET_ROWS: [crate::analytical::BudgetRow; 12] = [\n{rows}];"
+        "/// The budget's controllers: twelve, and the reduced models of `RTHS_BUDGET_REDUCED`."
+    );
+    let _ = writeln!(
+        out,
+        "pub const BUDGET_ROWS: [crate::analytical::BudgetRow; {n_rows}] = [\n{rows}];"
     );
     let _ = writeln!(out, "/// The model file compiled in.");
     let _ = writeln!(
         out,
-        "pub const MODEL_SOURCE: &str = \"budget: FE linear, FE yielding, metamodel, modal metamodel; N = 1, 3, 8\";"
+        "pub const MODEL_SOURCE: &str = \"budget: FE linear, FE yielding, metamodel, modal metamodel; N = 1, 3, 8; reduced models\";"
     );
 }
 

@@ -76,6 +76,18 @@ fn build_on(
     features: &str,
     fault: Option<&str>,
 ) -> PathBuf {
+    build_on_env(on, name, no_default, features, fault, &[])
+}
+
+/// [`build_on`] with the build-time inputs `env` (e.g. `RTHS_STRUCTURE`) set; unset otherwise.
+fn build_on_env(
+    on: Emulated,
+    name: &str,
+    no_default: bool,
+    features: &str,
+    fault: Option<&str>,
+    env: &[(&str, &Path)],
+) -> PathBuf {
     let _guard = BUILD.lock().unwrap_or_else(|e| e.into_inner());
     let (sub, elf) = on.build_cmd();
     let mut cmd = Command::new(env!("CARGO"));
@@ -90,6 +102,12 @@ fn build_on(
         Some(f) => cmd.env("RTHS_FAULT", f),
         None => cmd.env_remove("RTHS_FAULT"),
     };
+    for var in ["RTHS_STRUCTURE", "RTHS_STRUCTURE_MODEL"] {
+        cmd.env_remove(var);
+    }
+    for (var, value) in env {
+        cmd.env(var, value);
+    }
     let features = if no_default && on == Emulated::M7 {
         features.replace("board-qemu", on.board())
     } else {
@@ -483,4 +501,115 @@ fn fault_matrix_subset_in_qemu_matches_the_host() {
             r["fault_reason"], host.reason, host.time_to_trip_ms, r["max_step_mm"]
         );
     }
+}
+
+/// An imported OpenSees frame's reduced-order model on the emulated Cortex-M7 against the emulated
+/// plant (`structure-meta` with an `rths-reduced-model` file) and the host's run of the same
+/// controller (`rths::drive`, the same `VirtualRig` and seed, the same El Centro ticks): the
+/// command of every tick of the record, bit for bit (the RESULT line's `command_fnv` against the
+/// host's, both through `rths_app::run::Run`), and the same trip, if any, at the same tick.
+#[test]
+fn reduced_model_on_the_m7_matches_the_host_tick_by_tick() {
+    use rths::imported::reduced::{self, ReducedModelFile};
+    use rths::imported::ImportedStructure;
+    use rths_app::run::{Run, TickFacts};
+    use rths_core::control::{ControlConfig, Controller, FeedbackSource};
+    use rths_core::model::{assemble, ModelSpec};
+    use rths_core::params::SpecimenScale;
+    use rths_core::supervisor::{Limits, State};
+    use std::ops::ControlFlow;
+
+    if qemu_missing("firmware-in-the-loop test (Cortex-M7, reduced model)") {
+        return;
+    }
+    // The small frame (10 DOFs with mass): its reduced model trains in a fraction of a second.
+    let structure_path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("data/structures/opensees-frame-1x1.json");
+    let structure =
+        ImportedStructure::from_json(&std::fs::read_to_string(&structure_path).unwrap()).unwrap();
+    let records = reduced::training_records(DT_S).unwrap();
+    let file = reduced::train(&structure, &records, DT_S, |_, _, _| {}).unwrap();
+    let model_path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("reduced-frame-1x1.json");
+    std::fs::write(&model_path, file.to_json().unwrap()).unwrap();
+    let elf = build_on_env(
+        Emulated::M7,
+        "m7-reduced",
+        true,
+        "board-qemu,structure-meta",
+        None,
+        &[
+            ("RTHS_STRUCTURE", &structure_path),
+            ("RTHS_STRUCTURE_MODEL", &model_path),
+        ],
+    );
+    let (r, _) = run_on(Emulated::M7, &elf);
+    assert_eq!(r["scenario"], "structure-meta", "{r}");
+    assert_eq!(r["overruns"], 0, "{r}");
+
+    // The host: the firmware's controller (`firmware/src/analytical.rs`) from the same file.
+    let arrays = ReducedModelFile::load(&model_path)
+        .unwrap()
+        .arrays_for(&structure)
+        .unwrap();
+    let spec = ModelSpec::StructureReduced {
+        model: arrays.spec(),
+    };
+    let (analytical, compensator) = assemble(&spec, Prototype::paper(), DT_S).unwrap();
+    let cfg = ControlConfig::new(
+        Prototype::paper().with_brace_factor(1.0).unwrap(),
+        SpecimenScale::default(),
+        FeedbackSource::Measured,
+        Limits::paper_actuator(),
+    )
+    .unwrap();
+    let mut ctl = Controller::new(cfg, analytical, compensator);
+    let mut rig = rths_hal_sim::VirtualRig::new(
+        scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
+            .build()
+            .unwrap(),
+    );
+    let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let mut run = Run::new();
+    rths::drive::run(&mut ctl, Some(&mut rig), &ag, None, DT_S, |st, _, _| {
+        let notify = run.after_tick(&TickFacts {
+            k: st.k as u32,
+            counted: true,
+            row: None,
+            instr: 0,
+            command_mm: st.out.command_mm,
+            measured_mm: st.measured_mm,
+            state: st.out.state,
+            overrun: false,
+            queued: true,
+        });
+        // The emulated board stops once a fault has held still (its supervisor task).
+        if notify && run.fault_settled() {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    });
+    let host_fnv = format!("{:016x}", run.command_fnv.finish());
+    println!(
+        "reduced model ({} modes) on the M7: {} ticks, {}; host {} ticks, {:?}; command FNV firmware \
+         {} host {host_fnv}; max {} instructions per tick",
+        file.modes.len(),
+        r["ticks"],
+        r["end_state"],
+        run.ticks,
+        run.state,
+        r["command_fnv"],
+        r["instr_per_tick"]["max"]
+    );
+    assert_eq!(r["ticks"], run.ticks, "ticks: firmware {r}, host {run:?}");
+    assert_eq!(
+        r["fault_tick"].as_u64(),
+        run.fault_tick.map(u64::from),
+        "the trip: firmware {r}, host {run:?}"
+    );
+    assert_eq!(
+        r["command_fnv"], host_fnv,
+        "the command streams differ: firmware {r}, host {run:?}"
+    );
+    assert!(run.ticks > 0 && run.state != State::Idle, "{run:?}");
 }

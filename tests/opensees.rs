@@ -82,6 +82,15 @@ fn the_shipped_frames_import_to_the_shipped_bytes() {
             request("frame-5x12.py", "7:1", &["7:1", "43:1", "73:1"]),
             LARGE,
         ),
+        // The firmware budget's small and middle frames (docs/firmware.md, the structure budget).
+        (
+            request("frame-1x1.py", "3:1", &["3:1"]),
+            "data/structures/opensees-frame-1x1.json",
+        ),
+        (
+            request("frame-2x4.py", "4:1", &["4:1", "7:1", "10:1", "13:1"]),
+            "data/structures/opensees-frame-2x4.json",
+        ),
     ] {
         let dir = tempfile::tempdir().expect("a temporary directory");
         export::export(&req, dir.path()).expect("the export runs");

@@ -2,8 +2,9 @@
 //! the same twelve controllers (FE linear, FE yielding, structure metamodel, modal-hysteretic
 //! metamodel of `data/models/nl-S.json`; N = 1, 3, 8), the same
 //! El Centro ticks at 4096 Hz, the same ideal rig, and the same FNV-1a checksum of each command
-//! stream. The expected checksums are the emulated Cortex-M7's (`STRUCTURE` lines of its QEMU run,
-//! docs/firmware.md#the-structure-budget): host and firmware step these controllers bit for bit.
+//! stream; and two of its reduced-model rows (imported frames). The expected checksums are the
+//! emulated Cortex-M7's (`STRUCTURE` lines of its QEMU run, docs/firmware.md#the-structure-budget):
+//! host and firmware step these controllers bit for bit.
 
 use rths::benchmark::meta::train_at;
 use rths_core::checksum::Fnv1a64;
@@ -161,5 +162,32 @@ fn the_host_steps_the_structure_budget_as_the_m7_does() {
             }
         };
         assert_eq!(fnv, expected, "{kind} {name}: {fnv:016x}");
+    }
+}
+
+/// The budget's reduced-model rows (`RTHS_BUDGET_REDUCED`, `budget.sh`: the imported frames'
+/// reduced-order models trained at 4096 Hz) rerun on the host: the M7's command checksums. The
+/// small and the middle frame (10 and 104 DOFs with mass); the 936-DOF frame's training takes
+/// half a minute of CPU and is left to `budget.sh`.
+#[test]
+fn the_host_steps_the_reduced_rows_as_the_m7_does() {
+    use rths::imported::reduced;
+    use rths::imported::ImportedStructure;
+    let dt = dt_s(4096);
+    let ag = GroundMotion::try_el_centro().unwrap().resample_mm_s2(dt);
+    let records = reduced::training_records(dt).unwrap();
+    for (name, expected) in [
+        ("opensees-frame-1x1", 0x58f2e4fe753d96d4_u64),
+        ("opensees-frame-2x4", 0x5e6efc6bbca05ed5),
+    ] {
+        let text = std::fs::read_to_string(structure_path(name)).unwrap();
+        let s = ImportedStructure::from_json(&text).unwrap();
+        let file = reduced::train(&s, &records, dt, |_, _, _| {}).unwrap();
+        let arrays = file.arrays_for(&s).unwrap();
+        let spec = ModelSpec::StructureReduced {
+            model: arrays.spec(),
+        };
+        let fnv = run(&spec, file.specimen_k_kn_per_mm, &ag);
+        assert_eq!(fnv, expected, "reduced {name}: {fnv:016x}");
     }
 }

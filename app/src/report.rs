@@ -97,8 +97,10 @@ pub fn write_result<W: Write>(
         ))?;
     }
     w.write_fmt(format_args!(
-        ",\"max_step_mm\":{:?},\"peak_cmd_mm\":{:?}",
-        r.max_step_mm, r.peak_cmd_mm
+        ",\"max_step_mm\":{:?},\"peak_cmd_mm\":{:?},\"command_fnv\":\"{:016x}\"",
+        r.max_step_mm,
+        r.peak_cmd_mm,
+        r.command_fnv.finish()
     ))?;
     if let Some(spec) = info.fault_spec {
         w.write_fmt(format_args!(",\"fault\":\"{spec}\""))?;

@@ -1,6 +1,7 @@
 //! The run's statistics, updated by the control task after every tick (outside the measured
 //! section) and read by the report, the link's status and its `RunEnded`.
 
+use rths_core::checksum::Fnv1a64;
 use rths_core::supervisor::State;
 
 use crate::ONE_SECOND_TICKS;
@@ -77,6 +78,9 @@ pub struct Run {
     pub peak_cmd_mm: f64,
     /// Last finite measured displacement, mm (where a real rig arms).
     pub last_disp_mm: f64,
+    /// FNV-1a of the counted ticks' commands (their bits): a host run of the same controller on
+    /// the same plant must give the same (tests/firmware.rs).
+    pub command_fnv: Fnv1a64,
 }
 
 impl Default for Run {
@@ -110,6 +114,7 @@ impl Run {
             max_step_mm: 0.0,
             peak_cmd_mm: 0.0,
             last_disp_mm: 0.0,
+            command_fnv: Fnv1a64::new(),
         }
     }
 
@@ -142,6 +147,7 @@ impl Run {
             self.instr_max = self.instr_max.max(t.instr);
             self.instr_sum += u64::from(t.instr);
             self.instr_n = self.instr_n.saturating_add(1);
+            self.command_fnv.write_f64(t.command_mm);
         }
         if t.overrun {
             self.overruns = self.overruns.saturating_add(1);

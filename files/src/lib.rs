@@ -6,6 +6,7 @@
 //!   checks are `rths_core`'s, the order the `no_std` inference takes its coefficients in.
 //! - [`nl_model_file`]: model files of the nonlinear (modal-hysteretic) metamodel, tied to their
 //!   structure file by a checksum.
+//! - [`reduced_model_file`]: the reduced-order model's file of an imported structure.
 //! - [`rate`]: the rule that a file made at a controller rate runs only at that rate.
 //! - [`structure_file`]: structure files (an N-DOF linear analytical part and its specimen).
 //! - [`structure_meta`]: a structure as the controller runs it, and the structure metamodel's file.
@@ -16,5 +17,6 @@ pub mod model_file;
 pub mod motion;
 pub mod nl_model_file;
 pub mod rate;
+pub mod reduced_model_file;
 pub mod structure_file;
 pub mod structure_meta;

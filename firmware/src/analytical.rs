@@ -250,17 +250,21 @@ pub fn faults() -> rths_hal_sim::FaultPlan {
     }
 }
 
-/// One controller of the structure budget (build.rs generates the twelve of `gen::BUDGET_ROWS`).
+/// One controller of the structure budget (build.rs generates the rows of `gen::BUDGET_ROWS`).
 #[cfg(feature = "budget-structures")]
 pub struct BudgetRow {
-    /// The budget path: `structure-fe`, `structure-nl`, `structure-meta` or `structure-modal`.
+    /// The budget path: `structure-fe`, `structure-nl`, `structure-meta`, `structure-modal` or
+    /// `structure-reduced` (an imported structure's reduced-order model).
     pub path: &'static str,
     /// The structure file's name.
     pub structure: &'static str,
-    /// Its DOFs.
+    /// Its DOFs (an imported structure's: those with mass, the reduced model's N).
     pub dofs: usize,
     /// The specimen's stiffness, kN/mm (the ideal rig holds it).
     pub specimen_kn_per_mm: f64,
+    /// The retained modes of a reduced-order model (`structure-reduced`; 0 for the other paths):
+    /// its cost per tick is set by them, not by `dofs`.
+    pub modes: usize,
     /// Its analytical part and compensator, assembled by core from the row's constant spec.
     pub build: fn() -> Result<
         (
@@ -289,8 +293,9 @@ fn budget_tick(
     c.tick(ag_mm_s2, Ok(s), false)
 }
 
-/// The structure budget: each of the twelve controllers of `gen::BUDGET_ROWS` (FE linear, FE
-/// yielding, the structure metamodel and the modal-hysteretic metamodel for N = 1, 3, 8) runs the whole record (`ag_mm_s2(k)`,
+/// The structure budget: each controller of `gen::BUDGET_ROWS` (FE linear, FE yielding, the
+/// structure metamodel and the modal-hysteretic metamodel for N = 1, 3, 8, then the imported
+/// structures' reduced-order models) runs the whole record (`ag_mm_s2(k)`,
 /// `ticks`) from rest, one after the other, on an ideal rig: the measured displacement is the
 /// command in force, the measured force the structure file's linear specimen at it (the plant does
 /// not change the instruction count of these controllers: no branch depends on it). Counted per
@@ -379,11 +384,13 @@ fn budget_row<C: rths_app::board::InstrCounter>(
     let mut l = heapless::String::<320>::new();
     let _ = write!(
         l,
-        "STRUCTURE {{\"path\":\"{}\",\"structure\":\"{}\",\"n\":{},\"ticks\":{},\"running\":{},\
-         \"command_fnv\":\"{:016x}\",\"instr_per_tick\":{{\"min\":{},\"mean\":{:.1},\"max\":{}}}}}",
+        "STRUCTURE {{\"path\":\"{}\",\"structure\":\"{}\",\"n\":{},\"modes\":{},\"ticks\":{},\
+         \"running\":{},\"command_fnv\":\"{:016x}\",\"instr_per_tick\":{{\"min\":{},\"mean\":{:.1},\
+         \"max\":{}}}}}",
         row.path,
         row.structure,
         row.dofs,
+        row.modes,
         n,
         ok,
         fnv.finish(),

@@ -10,24 +10,19 @@
 //! ([`super::fe`]) on the training records at every read-out, the interface and each output. The
 //! training records' runs are all it sees; held-out records are scored elsewhere.
 
-use std::path::Path;
-
 use nalgebra::{DMatrix, DVector};
 use rths_core::checksum::{Fnv1a64, Fnv1a64Label};
-use rths_core::control::{ReducedSpec, StructureReduced};
-use rths_core::metamodel::{
-    ModelError, ReducedModalParams, ReducedMode, StaticCorrection, REDUCED_MAX_MODES,
-};
+use rths_core::control::StructureReduced;
+use rths_core::metamodel::{ModelError, ReducedModalParams, REDUCED_MAX_MODES};
 use rths_core::metrics::nrmse_pct;
-use serde::{Deserialize, Serialize};
+pub use rths_files::reduced_model_file::{
+    ReducedArrays, ReducedFileError, ReducedModeEntry, ReducedModelFile, ReducedRecordError,
+    ReducedTraining, StaticEntry, StructureIdentity, REDUCED_FORMAT, REDUCED_VERSION,
+};
 
 use super::fe::{self, FeHistory};
 use super::ImportedStructure;
 
-/// The `format` tag of a reduced model file.
-pub const REDUCED_FORMAT: &str = "rths-reduced-model";
-/// The version of a reduced model file.
-pub const REDUCED_VERSION: u64 = 1;
 /// The records the reduced model is trained (its size chosen) on: the embedded Northridge and
 /// Loma Prieta, the structure metamodel's training records; El Centro, Kobe and Morgan Hill stay
 /// held out.
@@ -55,49 +50,9 @@ pub enum ReducedError {
     /// The parameters failed core's validation.
     #[error("the reduced model's parameters: {0}")]
     Model(ModelError),
-    /// The file is not JSON of the right shape.
-    #[error("not a reduced model file: {0}")]
-    Json(#[from] serde_json::Error),
-    /// The file has another format or version.
-    #[error("format {format:?} version {version}, expected {REDUCED_FORMAT:?} version {REDUCED_VERSION}")]
-    Format {
-        /// The file's format tag.
-        format: String,
-        /// The file's version.
-        version: u64,
-    },
-    /// The file was trained for another structure.
-    #[error(
-        "trained for structure {file_name} ({file_checksum}), not {name} ({checksum}): run `rths train meta --structure` on this structure"
-    )]
-    Structure {
-        /// The file's structure name.
-        file_name: String,
-        /// The file's structure checksum.
-        file_checksum: String,
-        /// The structure's name.
-        name: String,
-        /// The structure's checksum.
-        checksum: String,
-    },
-    /// An output's shape array has the wrong length.
-    #[error("mode {mode}: {got} output shapes for {expected} outputs")]
-    Shape {
-        /// Mode index (0-based).
-        mode: usize,
-        /// Shapes given.
-        got: usize,
-        /// Outputs of the file.
-        expected: usize,
-    },
-    /// Reading the file failed.
-    #[error("reading {path}: {source}")]
-    Read {
-        /// The file.
-        path: std::path::PathBuf,
-        /// Why.
-        source: std::io::Error,
-    },
+    /// The model file (its format, its structure, its arrays).
+    #[error(transparent)]
+    File(#[from] ReducedFileError),
 }
 
 impl From<ModelError> for ReducedError {
@@ -129,223 +84,12 @@ pub fn imported_checksum(s: &ImportedStructure) -> String {
     Fnv1a64Label(h.finish()).to_string()
 }
 
-/// One retained mode as the file stores it.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ReducedModeEntry {
-    /// Natural frequency, Hz (for the reader; `omega_rad_s` is used).
-    pub frequency_hz: f64,
-    /// Natural circular frequency, rad/s.
-    pub omega_rad_s: f64,
-    /// Modal damping ratio.
-    pub damping_ratio: f64,
-    /// Ground participation `φᵀM*ι*`.
-    pub ground_participation: f64,
-    /// The shape at the interface.
-    pub interface_shape: f64,
-    /// The shape at each output, in the file's `outputs` order.
-    pub output_shape: Vec<f64>,
-}
-
-/// A read-out's static correction as the file stores it.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct StaticEntry {
-    /// The truncated modes' static response to a unit ground acceleration, mm per mm/s².
-    pub ground_mm_per_mm_s2: f64,
-    /// The truncated modes' static response to a unit interface force, mm/kN.
-    pub force_mm_per_kn: f64,
-}
-
-impl From<StaticEntry> for StaticCorrection {
-    fn from(s: StaticEntry) -> Self {
-        StaticCorrection {
-            ground_mm_per_mm_s2: s.ground_mm_per_mm_s2,
-            force_mm_per_kn: s.force_mm_per_kn,
-        }
+impl StructureIdentity for ImportedStructure {
+    fn name(&self) -> &str {
+        ImportedStructure::name(self)
     }
-}
-
-/// One training record's pure-loop error against the host FE.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ReducedRecordError {
-    /// The record.
-    pub record: String,
-    /// The interface's NRMSE, %.
-    pub interface_nrmse_pct: f64,
-    /// The largest output NRMSE, %.
-    pub max_output_nrmse_pct: f64,
-}
-
-/// How the model was trained, and its error bound.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ReducedTraining {
-    /// The training records (embedded names).
-    pub records: Vec<String>,
-    /// The pure-loop target the mode count was chosen for, % NRMSE.
-    pub target_nrmse_pct: f64,
-    /// The largest pure-loop NRMSE over the training records and read-outs, %: the model's error
-    /// bound as measured.
-    pub error_bound_pct: f64,
-    /// Per record.
-    pub per_record: Vec<ReducedRecordError>,
-    /// The structure's modes (all of them: the condensed model's DOF count).
-    pub total_modes: usize,
-    /// The lowest truncated mode's frequency, Hz (none when all are kept).
-    pub lowest_truncated_hz: Option<f64>,
-    /// The largest off-diagonal modal damping `|φᵢᵀCφⱼ| / √(cᵢᵢcⱼⱼ)` among the retained modes:
-    /// how far the damping is from classical (0: the modes decouple exactly).
-    pub damping_coupling: f64,
-}
-
-/// The reduced model's file.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ReducedModelFile {
-    /// [`REDUCED_FORMAT`].
-    pub format: String,
-    /// [`REDUCED_VERSION`].
-    pub version: u64,
-    /// The structure's name.
-    pub structure: String,
-    /// [`imported_checksum`] of the structure.
-    pub structure_checksum: String,
-    /// The control step it was trained (its size chosen) at, s; the modes are continuous-time and
-    /// run at any step.
-    pub dt_s: f64,
-    /// The whole model's DOFs.
-    pub dofs: usize,
-    /// The DOFs that carry mass.
-    pub mass_dofs: usize,
-    /// The stand-in specimen's stiffness the modes include, kN/mm.
-    pub specimen_k_kn_per_mm: f64,
-    /// The outputs' column names (`out_<NODE>_<DOF>_mm`).
-    pub outputs: Vec<String>,
-    /// The retained modes, lowest first.
-    pub modes: Vec<ReducedModeEntry>,
-    /// The interface's static correction.
-    pub interface_static: StaticEntry,
-    /// The outputs' static corrections.
-    pub output_static: Vec<StaticEntry>,
-    /// How it was trained.
-    pub training: ReducedTraining,
-}
-
-/// The arrays a [`ReducedSpec`] borrows.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ReducedArrays {
-    modes: Vec<ReducedMode>,
-    output_shape: Vec<f64>,
-    interface_static: StaticCorrection,
-    output_static: Vec<StaticCorrection>,
-    specimen_k_kn_per_mm: f64,
-}
-
-impl ReducedArrays {
-    /// The controller's model spec over these arrays.
-    pub fn spec(&self) -> ReducedSpec<'_> {
-        ReducedSpec {
-            modes: &self.modes,
-            output_shape: &self.output_shape,
-            interface_static: self.interface_static,
-            output_static: &self.output_static,
-            specimen_k_kn_per_mm: self.specimen_k_kn_per_mm,
-        }
-    }
-}
-
-impl ReducedModelFile {
-    /// Parse and check the format.
-    pub fn from_json(text: &str) -> Result<Self, ReducedError> {
-        let f: Self = serde_json::from_str(text)?;
-        if f.format != REDUCED_FORMAT || f.version != REDUCED_VERSION {
-            return Err(ReducedError::Format {
-                format: f.format,
-                version: f.version,
-            });
-        }
-        Ok(f)
-    }
-
-    /// Read `path`.
-    pub fn load(path: &Path) -> Result<Self, ReducedError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ReducedError::Read {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Self::from_json(&text)
-    }
-
-    /// Pretty JSON (shortest round-trip numbers: the same model gives the same bytes).
-    pub fn to_json(&self) -> Result<String, ReducedError> {
-        Ok(serde_json::to_string_pretty(self)? + "\n")
-    }
-
-    /// Whether `text` looks like a reduced model file.
-    pub fn is_reduced(text: &str) -> bool {
-        #[derive(Deserialize)]
-        struct Header {
-            format: Option<String>,
-        }
-        serde_json::from_str::<Header>(text)
-            .map(|h| h.format.as_deref() == Some(REDUCED_FORMAT))
-            .unwrap_or(false)
-    }
-
-    /// The arrays for the controller, checked against `structure` (name and checksum).
-    pub fn arrays_for(&self, structure: &ImportedStructure) -> Result<ReducedArrays, ReducedError> {
-        let checksum = imported_checksum(structure);
-        if self.structure != structure.name() || self.structure_checksum != checksum {
-            return Err(ReducedError::Structure {
-                file_name: self.structure.clone(),
-                file_checksum: self.structure_checksum.clone(),
-                name: structure.name().to_string(),
-                checksum,
-            });
-        }
-        self.arrays()
-    }
-
-    /// The arrays for the controller (shapes checked; values by core's validation).
-    pub fn arrays(&self) -> Result<ReducedArrays, ReducedError> {
-        let n_out = self.outputs.len();
-        let r = self.modes.len();
-        let mut output_shape = vec![0.0; n_out * r];
-        for (j, m) in self.modes.iter().enumerate() {
-            if m.output_shape.len() != n_out {
-                return Err(ReducedError::Shape {
-                    mode: j,
-                    got: m.output_shape.len(),
-                    expected: n_out,
-                });
-            }
-            for (o, v) in m.output_shape.iter().enumerate() {
-                if let Some(slot) = output_shape.get_mut(o * r + j) {
-                    *slot = *v;
-                }
-            }
-        }
-        let a = ReducedArrays {
-            modes: self
-                .modes
-                .iter()
-                .map(|m| ReducedMode {
-                    omega_rad_s: m.omega_rad_s,
-                    damping_ratio: m.damping_ratio,
-                    ground_participation: m.ground_participation,
-                    interface_shape: m.interface_shape,
-                })
-                .collect(),
-            output_shape,
-            interface_static: self.interface_static.into(),
-            output_static: self.output_static.iter().map(|s| (*s).into()).collect(),
-            specimen_k_kn_per_mm: self.specimen_k_kn_per_mm,
-        };
-        // Validated once here, so a bad file is refused on load, not at the first tick.
-        a.spec().params(self.dt_s)?;
-        Ok(a)
+    fn checksum(&self) -> String {
+        imported_checksum(self)
     }
 }
 

@@ -123,6 +123,11 @@ fn result_line_is_json_with_every_field() {
     assert_eq!(v["step_limits_mm"]["fault"], lim.fault_step_mm());
     assert_eq!(v["step_limits_mm"]["end"], 10.0 * DT_S);
     assert_eq!(v["final_cmd_mm"], 0.25);
+    // The counted ticks' commands, FNV-1a of their bits, as a host run computes it.
+    let mut fnv = rths_core::checksum::Fnv1a64::new();
+    fnv.write_f64(0.5);
+    fnv.write_f64(0.25);
+    assert_eq!(v["command_fnv"], std::format!("{:016x}", fnv.finish()));
 
     // A completed run: the NRMSE in full precision, no fault fields.
     let mut r = Run::new();
