@@ -248,3 +248,52 @@ fn check_model_takes_every_kind_and_agrees_with_the_runs() {
     assert_eq!(code, Some(0), "{err}");
     assert!(out.contains("structure-meta"), "{out}");
 }
+
+/// Every test that returns early without QEMU or openseespy is also marked `#[ignore]`d when the
+/// tool was absent at build time (build.rs), so `cargo test` counts it as ignored, with the reason,
+/// instead of printing "ok" for a test that did not run.
+#[test]
+fn every_test_that_needs_qemu_or_openseespy_is_ignored_without_it() {
+    let marks = [
+        ("qemu_missing(", "#[cfg_attr(rths_no_qemu, ignore = "),
+        (
+            "opensees_available(",
+            "#[cfg_attr(rths_no_opensees, ignore = ",
+        ),
+        ("opensees(\"", "#[cfg_attr(rths_no_opensees, ignore = "),
+    ];
+    let mut checked = 0;
+    for entry in std::fs::read_dir(repo().join("tests")).unwrap() {
+        let path = entry.unwrap().path();
+        // This file names the calls without making them.
+        if path.extension().is_none_or(|e| e != "rs") || path.ends_with("inputs.rs") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        for (i, line) in lines.iter().enumerate() {
+            for (call, mark) in marks {
+                if !line.contains(call)
+                    || line.contains("fn ")
+                    || line.trim_start().starts_with("//")
+                {
+                    continue;
+                }
+                // The attributes above the enclosing test function.
+                let test = lines[..i]
+                    .iter()
+                    .rposition(|l| l.trim() == "#[test]")
+                    .unwrap_or_else(|| panic!("{}:{}: not in a test", path.display(), i + 1));
+                let attrs = &lines[test..i];
+                assert!(
+                    attrs.iter().any(|l| l.trim_start().starts_with(mark)),
+                    "{}:{}: a test that skips without the tool has no `{mark}...)]`",
+                    path.display(),
+                    i + 1
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked >= 27, "only {checked} tests found");
+}
