@@ -15,6 +15,7 @@ pub mod model_file;
 pub mod models;
 pub mod motion;
 pub mod nonlinear;
+pub mod output;
 pub mod plot;
 pub mod reference;
 pub mod robustness;

@@ -255,12 +255,9 @@ fn check_model_takes_every_kind_and_agrees_with_the_runs() {
 #[test]
 fn every_test_that_needs_qemu_or_openseespy_is_ignored_without_it() {
     let marks = [
-        ("qemu_missing(", "#[cfg_attr(rths_no_qemu, ignore = "),
-        (
-            "opensees_available(",
-            "#[cfg_attr(rths_no_opensees, ignore = ",
-        ),
-        ("opensees(\"", "#[cfg_attr(rths_no_opensees, ignore = "),
+        ("qemu_missing(", "#[cfg_attr(rths_no_qemu,ignore="),
+        ("opensees_available(", "#[cfg_attr(rths_no_opensees,ignore="),
+        ("opensees(\"", "#[cfg_attr(rths_no_opensees,ignore="),
     ];
     let mut checked = 0;
     for entry in std::fs::read_dir(repo().join("tests")).unwrap() {
@@ -284,9 +281,10 @@ fn every_test_that_needs_qemu_or_openseespy_is_ignored_without_it() {
                     .iter()
                     .rposition(|l| l.trim() == "#[test]")
                     .unwrap_or_else(|| panic!("{}:{}: not in a test", path.display(), i + 1));
-                let attrs = &lines[test..i];
+                // Whitespace-free, as formatted on one line or several.
+                let attrs: String = lines[test..i].concat().split_whitespace().collect();
                 assert!(
-                    attrs.iter().any(|l| l.trim_start().starts_with(mark)),
+                    attrs.contains(mark),
                     "{}:{}: a test that skips without the tool has no `{mark}...)]`",
                     path.display(),
                     i + 1
@@ -296,4 +294,64 @@ fn every_test_that_needs_qemu_or_openseespy_is_ignored_without_it() {
         }
     }
     assert!(checked >= 27, "only {checked} tests found");
+}
+
+/// Each cause is printed once, naming the file; huge values in exponent form; no Debug structs.
+#[test]
+fn errors_print_each_cause_once_and_readably() {
+    let err = refused(
+        &["analyze", "--motion", "data/"],
+        &["data/", "Is a directory"],
+    );
+    assert_eq!(err.matches("Is a directory").count(), 1, "{err}");
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(dir.path(), "file", "not a folder");
+    let rig = format!("{file}/rig.json");
+    let err = refused(&["identify", "--out", &rig], &["cannot write", "rig.json"]);
+    assert!(!err.contains("Os {") && !err.contains("IoError("), "{err}");
+    let png = format!("{file}/bode.png");
+    let err = refused(&["plant", "--bode", &png], &["cannot write", "bode.png"]);
+    assert!(!err.contains("Os {") && !err.contains("IoError("), "{err}");
+    let out = dir.path().join("rig.json").display().to_string();
+    let err = refused(
+        &["identify", "--amplitude-mm", "1e300", "--out", &out],
+        &["--amplitude-mm", "got 1e300"],
+    );
+    assert!(!err.contains("0000000000"), "{err}");
+    refused(
+        &[
+            "link",
+            "--tcp",
+            "127.0.0.1:9",
+            "--timeout-s",
+            "1e300",
+            "status",
+        ],
+        &["--timeout-s must be a positive number of seconds, got 1e300"],
+    );
+}
+
+/// The long commands refuse an output folder they cannot write before computing (their first line
+/// of output is the refusal).
+#[test]
+fn long_commands_check_their_output_folder_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(dir.path(), "file", "not a folder");
+    let out = format!("{file}/out");
+    for args in [
+        vec!["robustness", "--quick", "--out", &out],
+        vec!["nonlinear-study", "--out", &out],
+        vec!["benchmark", "--out", &out],
+    ] {
+        let (code, stdout, err) = rths(&args);
+        assert_eq!(code, Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("cannot create the output folder") && err.contains(&out),
+            "{args:?}: {err}"
+        );
+        assert!(
+            stdout.is_empty(),
+            "{args:?} printed before refusing: {stdout}"
+        );
+    }
 }

@@ -7,6 +7,7 @@
 //! - [`nl_model_file`]: model files of the nonlinear (modal-hysteretic) metamodel, tied to their
 //!   structure file by a checksum.
 //! - [`rate`]: the rule that a file made at a controller rate runs only at that rate.
+//! - [`readable`]: numbers in messages, never with hundreds of digits.
 //! - [`structure_file`]: structure files (an N-DOF linear analytical part and its specimen).
 //! - [`structure_meta`]: a structure as the controller runs it, and the structure metamodel's file.
 #![forbid(unsafe_code)]
@@ -16,5 +17,8 @@ pub mod model_file;
 pub mod motion;
 pub mod nl_model_file;
 pub mod rate;
+pub mod readable;
 pub mod structure_file;
 pub mod structure_meta;
+
+pub use readable::readable;

@@ -319,7 +319,10 @@ pub fn run(cfg: &RunConfig) -> anyhow::Result<RunResult> {
 
 fn check_intensity(intensity: f64) -> anyhow::Result<()> {
     if !(intensity.is_finite() && intensity > 0.0) {
-        anyhow::bail!("--intensity must be a positive number, got {intensity}");
+        anyhow::bail!(
+            "--intensity must be a positive number, got {}",
+            rths_files::readable(intensity)
+        );
     }
     Ok(())
 }

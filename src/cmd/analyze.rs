@@ -62,7 +62,10 @@ pub fn load_motion(spec: Option<&str>) -> anyhow::Result<GroundMotion> {
 /// Run `rths analyze`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if !(args.scale.is_finite() && args.scale > 0.0) {
-        anyhow::bail!("--scale must be a positive number, got {}", args.scale);
+        anyhow::bail!(
+            "--scale must be a positive number, got {}",
+            rths_files::readable(args.scale)
+        );
     }
     let motion = load_motion(args.motion.as_deref())?.scaled(args.scale);
     motion.validate().context("ground motion")?;

@@ -59,6 +59,9 @@ pub struct Args {
 
 /// Run `rths benchmark`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(dir) = &args.out {
+        crate::output::writable_dir(dir)?;
+    }
     if let Some(path) = &args.structure {
         return structure_run(&args, path);
     }

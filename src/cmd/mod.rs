@@ -59,3 +59,21 @@ macro_rules! out {
         $crate::cmd::write_stdout(format_args!($($arg)*))
     };
 }
+
+/// An error as one line, `error: ` excluded: each context and cause once. A cause whose text its
+/// context already quotes (`cannot read x: Is a directory (os error 21)` over the io error itself)
+/// is left out, so no cause is printed twice.
+pub fn error_text(e: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in e.chain() {
+        let s = cause.to_string();
+        if s.is_empty() || text.contains(&s) {
+            continue;
+        }
+        if !text.is_empty() {
+            text.push_str(": ");
+        }
+        text.push_str(&s);
+    }
+    text
+}

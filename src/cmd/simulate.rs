@@ -509,17 +509,23 @@ fn run_structure(
 pub fn run(args: Args) -> anyhow::Result<()> {
     let f = args.specimen_stiffness_factor;
     if !(f.is_finite() && f > 0.0) {
-        anyhow::bail!("--specimen-stiffness-factor must be a positive number, got {f}");
+        anyhow::bail!(
+            "--specimen-stiffness-factor must be a positive number, got {}",
+            rths_files::readable(f)
+        );
     }
     if !(args.scale.is_finite() && args.scale > 0.0) {
-        anyhow::bail!("--scale must be a positive number, got {}", args.scale);
+        anyhow::bail!(
+            "--scale must be a positive number, got {}",
+            rths_files::readable(args.scale)
+        );
     }
     let motion = load_motion(args.motion.as_deref())?;
     let ag = motion.scaled(args.scale).resample_mm_s2(DT_S);
     let motion_label = if args.scale == 1.0 {
         motion.name.clone()
     } else {
-        format!("{} × {}", motion.name, args.scale)
+        format!("{} × {}", motion.name, rths_files::readable(args.scale))
     };
     let preset = match args.preset {
         PresetArg::Benchmark => Preset::Benchmark,
