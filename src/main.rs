@@ -68,6 +68,10 @@ fn main() -> std::process::ExitCode {
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) if e.downcast_ref::<cmd::RunStopped>().is_some() => {
+            eprintln!("stopped: {}", cmd::error_text(&e));
+            std::process::ExitCode::from(cmd::EXIT_RUN_STOPPED)
+        }
         Err(e) => {
             eprintln!("error: {}", cmd::error_text(&e));
             std::process::ExitCode::FAILURE

@@ -355,3 +355,35 @@ fn long_commands_check_their_output_folder_first() {
         );
     }
 }
+
+/// One exit status for a stopped run (docs/commands.md): 3 from `simulate` and `benchmark` alike,
+/// after the figures; 0 for a run to its end.
+#[test]
+fn a_stopped_run_exits_3_from_every_command() {
+    let (code, out, err) = rths(&["simulate", "--scenario", "fe-online"]);
+    assert_eq!(code, Some(3), "{err}");
+    assert!(out.contains("stable              no"), "{out}");
+    assert!(
+        err.starts_with("stopped: the supervisor stopped the run: CommandVelocity at 2.35"),
+        "{err}"
+    );
+    let (code, _, err) = rths(&["simulate", "--scenario", "fe-pure"]);
+    assert_eq!(code, Some(0), "{err}");
+    // The benchmark's frame without delay compensation goes unstable (as `fe-online` does).
+    let (code, out, err) = rths(&[
+        "benchmark",
+        "--case",
+        "1",
+        "--record",
+        "el-centro",
+        "--controller",
+        "fe",
+    ]);
+    assert_eq!(code, Some(3), "{err}");
+    assert!(out.contains("UNSTABLE"), "{out}");
+    assert_eq!(
+        err.matches("the supervisor stopped the run").count(),
+        1,
+        "{err}"
+    );
+}

@@ -134,7 +134,7 @@ fn finish_single(args: &Args, r: &RunResult) -> anyhow::Result<()> {
         }
     }
     if let Some(why) = &r.unstable {
-        anyhow::bail!("the run went unstable: {why}");
+        return Err(crate::cmd::RunStopped(why.clone()).into());
     }
     Ok(())
 }

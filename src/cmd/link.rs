@@ -207,7 +207,16 @@ fn report(s: &RecordSummary, out: &std::path::Path) -> anyhow::Result<()> {
             s.end
         );
     }
-    Ok(())
+    match s.end {
+        Some((state, ticks, _, _)) if link_host::state_name(state).starts_with("fault-") => {
+            Err(crate::cmd::RunStopped(format!(
+                "the device's run ended in {} after {ticks} ticks",
+                link_host::state_name(state)
+            ))
+            .into())
+        }
+        _ => Ok(()),
+    }
 }
 
 /// The duration of a `--…-s` flag: a positive number of seconds that a `Duration` holds (a

@@ -229,7 +229,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             recording: rec.header.fields.iter().cloned().collect(),
         };
         crate::outln!("{}", serde_json::to_string(&json)?);
-        return Ok(());
+        return crate::cmd::RunStopped::check(&run.report);
     }
     crate::outln!(
         "scenario            {id} ({}, recorded: model {} {}, record {})",
@@ -243,7 +243,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         crate::outln!("wrote {}", dir.join("history.csv").display());
         crate::outln!("wrote {}", dir.join(format!("{id}.png")).display());
     }
-    Ok(())
+    crate::cmd::RunStopped::check(&run.report)
 }
 
 #[cfg(test)]

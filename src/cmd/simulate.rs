@@ -459,7 +459,7 @@ fn run_structure(
             compensation: comp,
         };
         crate::outln!("{}", serde_json::to_string(&json)?);
-        return Ok(());
+        return crate::cmd::RunStopped::check(&json.scenarios[0].report);
     }
     let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
     crate::outln!(
@@ -502,7 +502,7 @@ fn run_structure(
         crate::outln!("wrote {}", dir.join("history.csv").display());
         crate::outln!("wrote {}", dir.join(format!("{sc}.png")).display());
     }
-    Ok(())
+    crate::cmd::RunStopped::check(&report.report)
 }
 
 /// Run `rths simulate`.
@@ -655,7 +655,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     if args.json {
         crate::outln!("{}", serde_json::to_string(&json)?);
-        return Ok(());
+        return crate::cmd::RunStopped::check(&report);
     }
     let r = &report;
     crate::outln!(
@@ -691,5 +691,5 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         crate::outln!("wrote {}", dir.join("history.csv").display());
         crate::outln!("wrote {}", dir.join(format!("{id}.png")).display());
     }
-    Ok(())
+    crate::cmd::RunStopped::check(r)
 }
