@@ -34,8 +34,9 @@ pub struct Args {
     /// with `--structure`, the hysteresis (story force against drift) of every story.
     #[arg(long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
-    /// Analyze this structure file instead of the prototype; with a `hysteresis` section, the
-    /// nonlinear FE response (peak ductility, residual drift; docs/nonlinear.md).
+    /// Analyze this yielding structure file (one with a `hysteresis` section; a linear one is
+    /// refused) instead of the prototype: the nonlinear FE response (peak ductility, residual
+    /// drift; docs/nonlinear.md).
     #[arg(long, value_name = "FILE.json")]
     pub structure: Option<PathBuf>,
 }

@@ -3,6 +3,7 @@
 pub mod analyze;
 pub mod benchmark;
 pub mod check_model;
+pub mod cli;
 pub mod faults;
 pub mod identify;
 pub mod import;

@@ -35,10 +35,8 @@ const DEFAULT_RNN: [(usize, &str); 3] = [
 /// Arguments of `rths simulate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Scenario: fe-pure, fe-offline, fe-online, fe-online-ats, lr-pure, lr-offline, lr-online,
-    /// rnn-pure-H, rnn-online-H, lrx-online; with --structure: nl-pure, nl-online, fe-pure,
-    /// fe-online-ats, lr-online, lrx-online.
-    #[arg(long)]
+    /// Scenario (the help lists them: [`scenario_help`]).
+    #[arg(long, help = scenario_help())]
     pub scenario: SimScenario,
     /// Structure file (`data/structures/`): run the scenario on this structure and judge it
     /// against the structure's FE reference (the whole yielding structure for a file with a
@@ -97,6 +95,21 @@ pub struct Args {
     /// Print one JSON object on stdout and nothing else.
     #[arg(long)]
     pub json: bool,
+}
+
+/// `--scenario`'s help, from the scenario lists themselves (a new scenario is named at once).
+fn scenario_help() -> String {
+    let study: Vec<String> = ScenarioId::ALL.iter().map(|s| s.to_string()).collect();
+    let structure: Vec<String> = crate::nonlinear::scenario::STRUCTURE_SCENARIOS
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    format!(
+        "Scenario: {} (rnn-pure-H / rnn-online-H for another hidden size H); with --structure: {}; \
+         with an imported structure: fe-pure, meta-pure",
+        study.join(", "),
+        structure.join(", ")
+    )
 }
 
 /// The JSON of `rths simulate`: the study's object and the plant the run really had.

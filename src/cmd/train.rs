@@ -76,9 +76,8 @@ pub struct Args {
     /// RNN initial-weight seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// RNN maximum epochs of fine-tuning/training (early stopping may end sooner; 0: ARX
-    /// initialization only). Default 100 (`--init arx`) or 400 (`--init random`).
-    #[arg(long)]
+    /// RNN maximum epochs of fine-tuning/training (the help's defaults: [`epochs_help`]).
+    #[arg(long, help = epochs_help())]
     pub epochs: Option<usize>,
     /// RNN truncated-BPTT window, steps. Default 8192 (arx) or 1024 (random).
     #[arg(long)]
@@ -172,6 +171,16 @@ pub struct Args {
     /// Output model file (JSON).
     #[arg(long)]
     pub out: PathBuf,
+}
+
+/// `--epochs`'s help, its defaults from the training's own (never a number typed twice).
+fn epochs_help() -> String {
+    format!(
+        "RNN maximum epochs of fine-tuning/training (early stopping may end sooner; 0: ARX \
+         initialization only). Default {} (`--init arx`) or {} (`--init random`)",
+        crate::train::rnn::ARX_FINE_TUNE_EPOCHS,
+        crate::train::rnn::RnnConfig::random_init(1).max_epochs
+    )
 }
 
 /// Largest `--perturbation` (RMS force perturbation / RMS brace force): beyond 2 the runs are
