@@ -387,3 +387,26 @@ fn a_stopped_run_exits_3_from_every_command() {
         "{err}"
     );
 }
+
+/// `train nonlinear --evaluate` finds its scoring records (embedded) from any working directory.
+#[test]
+fn train_nonlinear_evaluate_runs_outside_the_repository() {
+    let dir = tempfile::tempdir().unwrap();
+    let structure = repo().join("data/structures/paper-frame-yielding.json");
+    let model = repo().join("data/models/nl-paper-frame-yielding.json");
+    let (code, out, err) = rths_in(
+        dir.path(),
+        &[
+            "train",
+            "nonlinear",
+            "--structure",
+            structure.to_str().unwrap(),
+            "--out",
+            model.to_str().unwrap(),
+            "--evaluate",
+        ],
+    );
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("pure loop of"), "{out}");
+    assert!(out.to_lowercase().contains("morgan"), "{out}");
+}

@@ -691,8 +691,9 @@ fn train_reduced(args: &Args, path: &std::path::Path, text: &str) -> anyhow::Res
     Ok(())
 }
 
-/// The scoring records of the nonlinear metamodel (embedded name or shipped file).
-const NL_SCORING: [&str; 3] = ["el-centro", "kobe", "data/vrths_benchmark/morgan.csv"];
+/// The scoring records of the nonlinear metamodel, as the nonlinear study finds them (embedded in
+/// the program, so `--evaluate` runs from any working directory).
+const NL_SCORING: [&str; 3] = ["el-centro", "kobe", "morgan"];
 /// The peak ductilities it is scored at.
 const NL_SCORING_DUCTILITIES: [f64; 3] = [0.8, 2.0, 4.5];
 
@@ -704,7 +705,7 @@ fn evaluate_nonlinear(args: &Args, path: &std::path::Path, text: &str) -> anyhow
     let s = rths_files::structure_file::Structure::from_json(text)?;
     let motions = NL_SCORING
         .iter()
-        .map(|n| crate::cmd::analyze::load_motion(Some(n)))
+        .map(|n| crate::nonlinear::study::record(n))
         .collect::<anyhow::Result<Vec<_>>>()?;
     let jobs: Vec<(&crate::motion::GroundMotion, f64)> = motions
         .iter()
