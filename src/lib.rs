@@ -17,6 +17,7 @@ pub mod motion;
 pub mod nonlinear;
 pub mod output;
 pub mod plot;
+pub mod progress;
 pub mod reference;
 pub mod robustness;
 pub mod scenario;

@@ -410,3 +410,13 @@ fn train_nonlinear_evaluate_runs_outside_the_repository() {
     assert!(out.contains("pure loop of"), "{out}");
     assert!(out.to_lowercase().contains("morgan"), "{out}");
 }
+
+/// The benchmark grid's progress bar is drawn only on a terminal: captured, its output holds the
+/// table and no bar.
+#[test]
+fn progress_bars_are_hidden_when_stderr_is_not_a_terminal() {
+    let (code, out, err) = rths(&["benchmark", "--perturbed", "0"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("(12 runs in"), "{out}");
+    assert!(!err.contains("benchmark runs"), "{err}");
+}
