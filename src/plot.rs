@@ -4,6 +4,8 @@
 use std::path::Path;
 use std::sync::OnceLock;
 
+use plotters::coord::Shift;
+use plotters::prelude::{BitMapBackend, DrawingArea, IntoDrawingArea};
 use plotters::style::FontStyle;
 
 static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
@@ -25,6 +27,16 @@ pub fn init_fonts() -> anyhow::Result<()> {
     })
     .clone()
     .map_err(anyhow::Error::msg)
+}
+
+/// The drawing area of a `size`-pixel PNG at `path`, once [`crate::output::writable_file`] says
+/// the file can be written (plotters finds out only when the figure is done).
+pub fn bitmap(
+    path: &Path,
+    size: (u32, u32),
+) -> anyhow::Result<DrawingArea<BitMapBackend<'_>, Shift>> {
+    crate::output::writable_file(path)?;
+    Ok(BitMapBackend::new(path, size).into_drawing_area())
 }
 
 /// One curve of a [`Panel`]: `values[k]` at `time_s[k]` (the shorter length wins; non-finite
@@ -183,7 +195,7 @@ pub fn stacked_time_series(path: &Path, title: &str, panels: &[Panel<'_>]) -> an
     const TITLE_H: u32 = 50;
     let height = TITLE_H + PANEL_H * panels.len() as u32;
     let err = |e: &dyn std::fmt::Display| anyhow::anyhow!("plotting {}: {e}", path.display());
-    let root = BitMapBackend::new(path, (1200, height)).into_drawing_area();
+    let root = bitmap(path, (1200, height))?;
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let root = root
         .titled(title, ("sans-serif", 24))

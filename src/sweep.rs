@@ -298,7 +298,7 @@ pub fn plot(s: &SpecimenSweep, path: &Path) -> anyhow::Result<()> {
         .map(|r| r.cases.iter().map(SweepCase::label).collect())
         .unwrap_or_default();
     let n = labels.len().max(1);
-    let root = BitMapBackend::new(path, (1200, 650)).into_drawing_area();
+    let root = crate::plot::bitmap(path, (1200, 650))?;
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let root = root
         .titled(

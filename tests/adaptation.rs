@@ -465,6 +465,10 @@ fn an_old_model_file_behaves_as_before_and_bad_fields_are_refused() {
 /// The adaptive LRX (a `rths train lrx --rig` model) in the firmware: the same command as the host,
 /// within the timing budget, 0 overruns and faults. Needs QEMU (skipped loudly without it).
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn adaptive_lrx_firmware_matches_the_host_and_fits_the_budget() {
     if qemu_missing("adaptive LRX firmware test") {
         return;

@@ -256,6 +256,10 @@ fn m7_tick_share(instr: f64) -> f64 {
 }
 
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn lr_online_in_qemu_matches_the_host_and_fits_the_budget() {
     if qemu_missing("firmware-in-the-loop test") {
         return;
@@ -308,6 +312,10 @@ fn lr_online_in_qemu_matches_the_host_and_fits_the_budget() {
 /// The Cortex-M7 (QEMU mps2-an500, f64 in hardware) runs the same firmware: the same RESULT as the
 /// host simulation, within the LR budget of the M7 (≤ 500 instructions per tick).
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn lr_online_on_the_m7_matches_the_host_and_fits_the_budget() {
     if qemu_missing("firmware-in-the-loop test (Cortex-M7)") {
         return;
@@ -350,6 +358,10 @@ fn lr_online_on_the_m7_matches_the_host_and_fits_the_budget() {
 /// Every other analytical part on the Cortex-M7: builds, runs the whole record, and fits 10% of the
 /// tick at 480 MHz (hardware f64: the RNN-10 that overruns the M4's tick fits here).
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn every_analytical_part_fits_the_m7_budget() {
     if qemu_missing("firmware-in-the-loop test (Cortex-M7)") {
         return;
@@ -386,6 +398,10 @@ fn every_analytical_part_fits_the_m7_budget() {
 }
 
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn injected_sensor_fault_trips_and_ramps_without_a_jump() {
     if qemu_missing("firmware-in-the-loop test") {
         return;
@@ -425,6 +441,10 @@ fn injected_sensor_fault_trips_and_ramps_without_a_jump() {
 /// per tick are reported (the 10% budget is the LR path's: f64 on the F4's single-precision FPU is
 /// software floating point, and the RNN's tanh alone costs thousands of instructions).
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn rnn_and_fe_ats_paths_build_and_run() {
     if qemu_missing("firmware-in-the-loop test") {
         return;
@@ -447,6 +467,10 @@ fn rnn_and_fe_ats_paths_build_and_run() {
 /// plan (`RTHS_FAULT`) must trip (or not) exactly as the host run of the same case, at the same tick,
 /// for the same reason, and keep the command within the envelope.
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn fault_matrix_subset_in_qemu_matches_the_host() {
     if qemu_missing("firmware-in-the-loop test") {
         return;

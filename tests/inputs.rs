@@ -248,3 +248,175 @@ fn check_model_takes_every_kind_and_agrees_with_the_runs() {
     assert_eq!(code, Some(0), "{err}");
     assert!(out.contains("structure-meta"), "{out}");
 }
+
+/// Every test that returns early without QEMU or openseespy is also marked `#[ignore]`d when the
+/// tool was absent at build time (build.rs), so `cargo test` counts it as ignored, with the reason,
+/// instead of printing "ok" for a test that did not run.
+#[test]
+fn every_test_that_needs_qemu_or_openseespy_is_ignored_without_it() {
+    let marks = [
+        ("qemu_missing(", "#[cfg_attr(rths_no_qemu,ignore="),
+        ("opensees_available(", "#[cfg_attr(rths_no_opensees,ignore="),
+        ("opensees(\"", "#[cfg_attr(rths_no_opensees,ignore="),
+    ];
+    let mut checked = 0;
+    for entry in std::fs::read_dir(repo().join("tests")).unwrap() {
+        let path = entry.unwrap().path();
+        // This file names the calls without making them.
+        if path.extension().is_none_or(|e| e != "rs") || path.ends_with("inputs.rs") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        for (i, line) in lines.iter().enumerate() {
+            for (call, mark) in marks {
+                if !line.contains(call)
+                    || line.contains("fn ")
+                    || line.trim_start().starts_with("//")
+                {
+                    continue;
+                }
+                // The attributes above the enclosing test function.
+                let test = lines[..i]
+                    .iter()
+                    .rposition(|l| l.trim() == "#[test]")
+                    .unwrap_or_else(|| panic!("{}:{}: not in a test", path.display(), i + 1));
+                // Whitespace-free, as formatted on one line or several.
+                let attrs: String = lines[test..i].concat().split_whitespace().collect();
+                assert!(
+                    attrs.contains(mark),
+                    "{}:{}: a test that skips without the tool has no `{mark}...)]`",
+                    path.display(),
+                    i + 1
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked >= 27, "only {checked} tests found");
+}
+
+/// Each cause is printed once, naming the file; huge values in exponent form; no Debug structs.
+#[test]
+fn errors_print_each_cause_once_and_readably() {
+    let err = refused(
+        &["analyze", "--motion", "data/"],
+        &["data/", "Is a directory"],
+    );
+    assert_eq!(err.matches("Is a directory").count(), 1, "{err}");
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(dir.path(), "file", "not a folder");
+    let rig = format!("{file}/rig.json");
+    let err = refused(&["identify", "--out", &rig], &["cannot write", "rig.json"]);
+    assert!(!err.contains("Os {") && !err.contains("IoError("), "{err}");
+    let png = format!("{file}/bode.png");
+    let err = refused(&["plant", "--bode", &png], &["cannot write", "bode.png"]);
+    assert!(!err.contains("Os {") && !err.contains("IoError("), "{err}");
+    let out = dir.path().join("rig.json").display().to_string();
+    let err = refused(
+        &["identify", "--amplitude-mm", "1e300", "--out", &out],
+        &["--amplitude-mm", "got 1e300"],
+    );
+    assert!(!err.contains("0000000000"), "{err}");
+    refused(
+        &[
+            "link",
+            "--tcp",
+            "127.0.0.1:9",
+            "--timeout-s",
+            "1e300",
+            "status",
+        ],
+        &["--timeout-s must be a positive number of seconds, got 1e300"],
+    );
+}
+
+/// The long commands refuse an output folder they cannot write before computing (their first line
+/// of output is the refusal).
+#[test]
+fn long_commands_check_their_output_folder_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = write(dir.path(), "file", "not a folder");
+    let out = format!("{file}/out");
+    for args in [
+        vec!["robustness", "--quick", "--out", &out],
+        vec!["nonlinear-study", "--out", &out],
+        vec!["benchmark", "--out", &out],
+    ] {
+        let (code, stdout, err) = rths(&args);
+        assert_eq!(code, Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("cannot create the output folder") && err.contains(&out),
+            "{args:?}: {err}"
+        );
+        assert!(
+            stdout.is_empty(),
+            "{args:?} printed before refusing: {stdout}"
+        );
+    }
+}
+
+/// One exit status for a stopped run (docs/commands.md): 3 from `simulate` and `benchmark` alike,
+/// after the figures; 0 for a run to its end.
+#[test]
+fn a_stopped_run_exits_3_from_every_command() {
+    let (code, out, err) = rths(&["simulate", "--scenario", "fe-online"]);
+    assert_eq!(code, Some(3), "{err}");
+    assert!(out.contains("stable              no"), "{out}");
+    assert!(
+        err.starts_with("stopped: the supervisor stopped the run: CommandVelocity at 2.35"),
+        "{err}"
+    );
+    let (code, _, err) = rths(&["simulate", "--scenario", "fe-pure"]);
+    assert_eq!(code, Some(0), "{err}");
+    // The benchmark's frame without delay compensation goes unstable (as `fe-online` does).
+    let (code, out, err) = rths(&[
+        "benchmark",
+        "--case",
+        "1",
+        "--record",
+        "el-centro",
+        "--controller",
+        "fe",
+    ]);
+    assert_eq!(code, Some(3), "{err}");
+    assert!(out.contains("UNSTABLE"), "{out}");
+    assert_eq!(
+        err.matches("the supervisor stopped the run").count(),
+        1,
+        "{err}"
+    );
+}
+
+/// `train nonlinear --evaluate` finds its scoring records (embedded) from any working directory.
+#[test]
+fn train_nonlinear_evaluate_runs_outside_the_repository() {
+    let dir = tempfile::tempdir().unwrap();
+    let structure = repo().join("data/structures/paper-frame-yielding.json");
+    let model = repo().join("data/models/nl-paper-frame-yielding.json");
+    let (code, out, err) = rths_in(
+        dir.path(),
+        &[
+            "train",
+            "nonlinear",
+            "--structure",
+            structure.to_str().unwrap(),
+            "--out",
+            model.to_str().unwrap(),
+            "--evaluate",
+        ],
+    );
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("pure loop of"), "{out}");
+    assert!(out.to_lowercase().contains("morgan"), "{out}");
+}
+
+/// The benchmark grid's progress bar is drawn only on a terminal: captured, its output holds the
+/// table and no bar.
+#[test]
+fn progress_bars_are_hidden_when_stderr_is_not_a_terminal() {
+    let (code, out, err) = rths(&["benchmark", "--perturbed", "0"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("(12 runs in"), "{out}");
+    assert!(!err.contains("benchmark runs"), "{err}");
+}

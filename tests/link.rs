@@ -177,6 +177,10 @@ fn nrmse_pct(x: &[f64], reference: &[f64]) -> f64 {
 }
 
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn upload_run_and_record_el_centro_over_the_link_matches_the_host() {
     if qemu_missing("link test") {
         return;
@@ -368,6 +372,10 @@ fn upload_run_and_record_el_centro_over_the_link_matches_the_host() {
 }
 
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn limits_arm_abort_over_the_link() {
     if qemu_missing("link test") {
         return;
@@ -455,6 +463,10 @@ fn limits_arm_abort_over_the_link() {
 /// The `rths link` command itself: `--qemu ELF status`, and `--port` on the pty QEMU gives with
 /// `-serial pty` (the serial-port path a real board uses).
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn the_cli_talks_through_its_own_qemu_and_through_a_pty() {
     if qemu_missing("link test") {
         return;
@@ -529,6 +541,10 @@ fn refusal(link: &mut rths::link_host::Link, msg: &HostMsg) -> Option<NackReason
 }
 
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn bad_record_uploads_are_refused_with_their_reason_and_the_record_in_force_stays() {
     use rths_link::{RecordSource, RECORD_CHUNK};
     if qemu_missing("link test") {
@@ -665,6 +681,10 @@ fn bad_record_uploads_are_refused_with_their_reason_and_the_record_in_force_stay
 /// The ground motion as a CSV file the firmware does not have compiled in, the `rths link run`
 /// of it in QEMU, and `rths report` of the recording against `rths simulate` of the same record.
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn a_csv_record_uploaded_run_and_reported_equals_the_host_simulation() {
     if qemu_missing("link test") {
         return;
@@ -801,6 +821,10 @@ fn a_csv_record_uploaded_run_and_reported_equals_the_host_simulation() {
 /// An LRX model uploaded in chunks to the LRX build runs El Centro exactly as the host simulation
 /// of that model; bad model uploads are refused with their reason, the model in force kept.
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn an_lrx_model_uploaded_in_chunks_runs_as_the_host_simulates_it() {
     if qemu_missing("link test") {
         return;
@@ -929,6 +953,10 @@ fn an_lrx_model_uploaded_in_chunks_runs_as_the_host_simulates_it() {
 /// its period with a `WATCHDOG` line and a failure status instead of leaving the actuator on the
 /// last command.
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn the_watchdog_catches_a_stalled_control_task() {
     if qemu_missing("watchdog test") {
         return;
@@ -962,6 +990,10 @@ fn the_watchdog_catches_a_stalled_control_task() {
 /// listens): 1 s of silence later the device ramps the command to zero and ends the run early. The
 /// same silence under `Complete` (the existing tests' `arm`) lets the run finish.
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn a_silent_host_ramps_the_run_down_when_armed_so() {
     if qemu_missing("link test") {
         return;
@@ -1083,6 +1115,10 @@ fn record_run(link: &mut rths::link_host::Link, csv: &Path) -> Vec<Row> {
 /// upload, a corrupted value, another kind, under a test) are refused with their reason and the
 /// device's holdings stay as they were.
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn an_rnn_uploaded_in_chunks_runs_as_the_compiled_in_one_and_bad_ones_are_refused() {
     if qemu_missing("link test") {
         return;
@@ -1197,6 +1233,10 @@ fn an_rnn_uploaded_in_chunks_runs_as_the_compiled_in_one_and_bad_ones_are_refuse
 /// uploads (a NaN, outside the ATS's bounds, a wrong count, another kind, a corrupted value, under
 /// a test) are refused with their reason and the compensation in force stays.
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn a_rig_compensation_uploaded_to_the_fe_ats_build_runs_as_the_host_simulates_it() {
     if qemu_missing("link test") {
         return;

@@ -132,6 +132,10 @@ fn specimen_sweep_kobe_first_15_s() {
 /// in QEMU: no overrun or fault, the same command NRMSE as the host's `lrx-online` (F = 1, seed 1),
 /// and its worst tick within 10% of the 488 µs tick.
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn lrx_firmware_matches_the_host_and_fits_the_budget() {
     if qemu_missing("LRX firmware test") {
         return;

@@ -37,6 +37,19 @@ fn json(args: &[&str]) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
+/// The JSON of a run the supervisor stopped: printed, then exit status 3 (docs/commands.md).
+fn stopped_json(args: &[&str]) -> serde_json::Value {
+    let out = rths(args);
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).starts_with("stopped: "));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 const YIELDING: &str = "data/structures/paper-frame-yielding.json";
 
 #[test]
@@ -120,7 +133,7 @@ fn fe_online_ats_tracks_the_yielding_frame_and_linear_metamodels_fail_visibly() 
 #[test]
 fn a_record_beyond_the_stroke_is_reported_as_such() {
     let file = root("data/structures/shear3-yielding.json");
-    let v = json(&[
+    let v = stopped_json(&[
         "simulate",
         "--structure",
         file.to_str().unwrap(),
@@ -453,8 +466,8 @@ fn a_ductility_4_record_beyond_the_stroke_runs_at_length_scale_2() {
     let y = root(YIELDING);
     let y = y.to_str().unwrap();
     // Kobe × 1.139: reference peak ductility 4.53, 28.7 mm of the actuator (stroke ±24.1 mm).
-    let run = |l: &str| {
-        json(&[
+    let run = |l: &str, out: fn(&[&str]) -> serde_json::Value| {
+        out(&[
             "simulate",
             "--structure",
             y,
@@ -469,10 +482,10 @@ fn a_ductility_4_record_beyond_the_stroke_runs_at_length_scale_2() {
             "--json",
         ])
     };
-    let at1 = run("1");
+    let at1 = run("1", stopped_json);
     assert!(at1["beyond_rig"].as_str().is_some(), "{at1}");
     assert_eq!(at1["scenarios"][0]["stable"], false);
-    let at2 = run("2");
+    let at2 = run("2", json);
     assert!(at2["beyond_rig"].is_null(), "{at2}");
     let r = &at2["scenarios"][0];
     assert_eq!(r["stable"], true, "{r}");

@@ -69,6 +69,10 @@ fn request(script: &str, specimen: &str, outputs: &[&str]) -> ImportRequest {
 }
 
 #[test]
+#[cfg_attr(
+    rths_no_opensees,
+    ignore = "needs openseespy, not found when the tests were built (docs/ci.md)"
+)]
 fn the_shipped_frames_import_to_the_shipped_bytes() {
     if !opensees_available("import") {
         return;
@@ -103,6 +107,10 @@ fn the_shipped_frames_import_to_the_shipped_bytes() {
 }
 
 #[test]
+#[cfg_attr(
+    rths_no_opensees,
+    ignore = "needs openseespy, not found when the tests were built (docs/ci.md)"
+)]
 fn the_exporter_refuses_a_missing_specimen_dof_and_a_mechanism() {
     if !opensees_available("refusals") {
         return;
@@ -259,6 +267,10 @@ fn compare_with_opensees(file: &str, script: &str) {
 }
 
 #[test]
+#[cfg_attr(
+    rths_no_opensees,
+    ignore = "needs openseespy, not found when the tests were built (docs/ci.md)"
+)]
 fn the_host_fe_equals_opensees_on_the_small_frame() {
     if opensees_available("host FE vs OpenSees, frame-2x3") {
         compare_with_opensees(SMALL, "frame-2x3.py");
@@ -266,6 +278,10 @@ fn the_host_fe_equals_opensees_on_the_small_frame() {
 }
 
 #[test]
+#[cfg_attr(
+    rths_no_opensees,
+    ignore = "needs openseespy, not found when the tests were built (docs/ci.md)"
+)]
 fn the_host_fe_equals_opensees_on_the_large_frame() {
     if opensees_available("host FE vs OpenSees, frame-5x12") {
         compare_with_opensees(LARGE, "frame-5x12.py");

@@ -8,6 +8,7 @@
 //!   structure file by a checksum.
 //! - [`reduced_model_file`]: the reduced-order model's file of an imported structure.
 //! - [`rate`]: the rule that a file made at a controller rate runs only at that rate.
+//! - [`readable`]: numbers in messages, never with hundreds of digits.
 //! - [`structure_file`]: structure files (an N-DOF linear analytical part and its specimen).
 //! - [`structure_meta`]: a structure as the controller runs it, and the structure metamodel's file.
 #![forbid(unsafe_code)]
@@ -18,5 +19,8 @@ pub mod motion;
 pub mod nl_model_file;
 pub mod rate;
 pub mod reduced_model_file;
+pub mod readable;
 pub mod structure_file;
 pub mod structure_meta;
+
+pub use readable::readable;

@@ -10,8 +10,9 @@ pub const DT_TOLERANCE: f64 = 1e-6;
 /// A file made at another controller rate than the run's.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error(
-    "{what} was made at {file_hz:.6} Hz (dt_s = {file_dt_s:e} s), this controller runs at \
-     {run_hz:.0} Hz (dt_s = {run_dt_s:e} s): make one at {run_hz:.0} Hz with `{remedy}`"
+    "{what} was made at {} Hz (dt_s = {file_dt_s:e} s), this controller runs at \
+     {run_hz:.0} Hz (dt_s = {run_dt_s:e} s): make one at {run_hz:.0} Hz with `{remedy}`",
+    crate::readable(*file_hz)
 )]
 pub struct OtherRate {
     /// What the file is (`LR model`, `rig file`, ...).
@@ -56,7 +57,7 @@ mod tests {
         let e = check_dt("LR model", 1.0 / 4096.0, dt, "rths train lr --out lr.json").unwrap_err();
         let s = e.to_string();
         assert!(
-            s.contains("4096.000000 Hz") && s.contains("runs at 2048 Hz"),
+            s.contains("made at 4096 Hz") && s.contains("runs at 2048 Hz"),
             "{s}"
         );
         assert!(s.contains("`rths train lr --out lr.json`"), "{s}");

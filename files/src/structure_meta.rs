@@ -277,7 +277,7 @@ impl MetaFile {
         if !(self.dt_s.is_finite() && self.dt_s > 0.0) {
             return Err(MetaFileError::Model(format!(
                 "dt_s must be positive, got {}",
-                self.dt_s
+                crate::readable(self.dt_s)
             )));
         }
         DeltaArxParams::from_slice(&self.theta, self.k_corr_kn_per_mm)

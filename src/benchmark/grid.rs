@@ -75,17 +75,21 @@ pub fn run_grid(
         (RunConfig, Option<BenchmarkCriteria>, Option<f64>),
         Option<Arc<RigIdentification>>,
     );
+    let bar = crate::progress::bar(configs.len() as u64, "benchmark runs", false);
     let kept: Vec<Kept> = configs
         .par_iter()
         .map(|c| {
-            run(c).map(|r| {
+            let kept = run(c).map(|r| {
                 (
                     (r.config, r.criteria, r.j2_noise_free_pct),
                     r.identification,
                 )
-            })
+            });
+            bar.inc(1);
+            kept
         })
         .collect::<anyhow::Result<_>>()?;
+    bar.finish_and_clear();
     // One identification per plant draw (the cache hands every run of a draw the same one).
     let mut ids: Vec<(PlantDraw, Arc<RigIdentification>)> = Vec::new();
     for ((c, _, _), id) in &kept {

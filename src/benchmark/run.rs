@@ -46,11 +46,11 @@ pub enum ControllerKind {
     Fe,
     /// Chang's method with the adaptive time-series compensator (ATS).
     FeAts,
-    /// The fixed-order metamodel of the numerical substructure ([`super::meta`]), force
+    /// The fixed-order metamodel of the numerical substructure (docs/benchmark.md), force
     /// correction, ATS.
     MetaAts,
     /// Chang's method with the rig's identified lead filter and its online gain-and-delay
-    /// correction ([`super::ident`]).
+    /// correction, identified through the converters (docs/benchmark.md).
     FeId,
     /// The metamodel with the force correction from the identified specimen, the identified lead
     /// filter and its online correction.
@@ -320,7 +320,10 @@ pub fn run(cfg: &RunConfig) -> anyhow::Result<RunResult> {
 
 fn check_intensity(intensity: f64) -> anyhow::Result<()> {
     if !(intensity.is_finite() && intensity > 0.0) {
-        anyhow::bail!("--intensity must be a positive number, got {intensity}");
+        anyhow::bail!(
+            "--intensity must be a positive number, got {}",
+            rths_files::readable(intensity)
+        );
     }
     Ok(())
 }

@@ -34,8 +34,9 @@ pub struct Args {
     /// with `--structure`, the hysteresis (story force against drift) of every story.
     #[arg(long, value_name = "FILE.png")]
     pub plot: Option<PathBuf>,
-    /// Analyze this structure file instead of the prototype; with a `hysteresis` section, the
-    /// nonlinear FE response (peak ductility, residual drift; docs/nonlinear.md).
+    /// Analyze this yielding structure file (one with a `hysteresis` section; a linear one is
+    /// refused) instead of the prototype: the nonlinear FE response (peak ductility, residual
+    /// drift; docs/nonlinear.md).
     #[arg(long, value_name = "FILE.json")]
     pub structure: Option<PathBuf>,
 }
@@ -62,7 +63,10 @@ pub fn load_motion(spec: Option<&str>) -> anyhow::Result<GroundMotion> {
 /// Run `rths analyze`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if !(args.scale.is_finite() && args.scale > 0.0) {
-        anyhow::bail!("--scale must be a positive number, got {}", args.scale);
+        anyhow::bail!(
+            "--scale must be a positive number, got {}",
+            rths_files::readable(args.scale)
+        );
     }
     let motion = load_motion(args.motion.as_deref())?.scaled(args.scale);
     motion.validate().context("ground motion")?;

@@ -59,6 +59,9 @@ pub struct Args {
 
 /// Run `rths benchmark`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(dir) = &args.out {
+        crate::output::writable_dir(dir)?;
+    }
     if let Some(path) = &args.structure {
         return structure_run(&args, path);
     }
@@ -131,7 +134,7 @@ fn finish_single(args: &Args, r: &RunResult) -> anyhow::Result<()> {
         }
     }
     if let Some(why) = &r.unstable {
-        anyhow::bail!("the run went unstable: {why}");
+        return Err(crate::cmd::RunStopped(why.clone()).into());
     }
     Ok(())
 }

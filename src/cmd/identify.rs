@@ -61,15 +61,25 @@ fn specimen(a: SpecimenArg) -> Specimen {
     }
 }
 
-/// The identification settings of the arguments.
+/// The figure's path: `--plot`, or the rig file's name with `.png`.
+fn plot_path(args: &Args) -> PathBuf {
+    args.plot
+        .clone()
+        .unwrap_or_else(|| args.out.with_extension("png"))
+}
+
+/// The identification settings of the arguments, once the rig file and the figure are known to be
+/// writable (before the identification's work).
 pub fn config(args: &Args) -> anyhow::Result<IdentifyConfig> {
     let mut cfg = IdentifyConfig::default();
     if !(args.amplitude_mm > 0.0 && args.amplitude_mm <= MAX_AMPLITUDE_MM) {
         anyhow::bail!(
             "--amplitude-mm must be in (0, {MAX_AMPLITUDE_MM}] (10% of the stroke), got {}",
-            args.amplitude_mm
+            rths_files::readable(args.amplitude_mm)
         );
     }
+    crate::output::writable_file(&args.out)?;
+    crate::output::writable_file(&plot_path(args))?;
     cfg.excitation.amplitude_mm = args.amplitude_mm;
     cfg.lead_stride = args.lead_stride;
     Ok(cfg)
@@ -143,7 +153,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 pub fn run_with_faults(args: &Args, faults: FaultPlan) -> anyhow::Result<RigFile> {
     let f = args.specimen_stiffness_factor;
     if !(f.is_finite() && f > 0.0) {
-        anyhow::bail!("--specimen-stiffness-factor must be a positive number, got {f}");
+        anyhow::bail!(
+            "--specimen-stiffness-factor must be a positive number, got {}",
+            rths_files::readable(f)
+        );
     }
     let cfg = config(args)?;
     let mut rig =
@@ -165,10 +178,7 @@ pub fn write_outputs(
     let f = args.specimen_stiffness_factor;
     // Validate (and serialize) before touching the disk: a file that exists passed every check.
     let text = file.to_json().context("rig file")?;
-    let plot = args
-        .plot
-        .clone()
-        .unwrap_or_else(|| args.out.with_extension("png"));
+    let plot = plot_path(args);
     let id = &o.identification;
     let comp = compensated(
         &id.frf,

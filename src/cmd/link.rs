@@ -207,12 +207,33 @@ fn report(s: &RecordSummary, out: &std::path::Path) -> anyhow::Result<()> {
             s.end
         );
     }
-    Ok(())
+    match s.end {
+        Some((state, ticks, _, _)) if link_host::state_name(state).starts_with("fault-") => {
+            Err(crate::cmd::RunStopped(format!(
+                "the device's run ended in {} after {ticks} ticks",
+                link_host::state_name(state)
+            ))
+            .into())
+        }
+        _ => Ok(()),
+    }
+}
+
+/// The duration of a `--…-s` flag: a positive number of seconds that a `Duration` holds (a
+/// negative, NaN or huge one is refused, never a panic).
+fn seconds(flag: &str, s: f64) -> anyhow::Result<Duration> {
+    match Duration::try_from_secs_f64(s) {
+        Ok(d) if s > 0.0 => Ok(d),
+        _ => anyhow::bail!(
+            "{flag} must be a positive number of seconds, got {}",
+            rths_files::readable(s)
+        ),
+    }
 }
 
 /// Run `rths link`.
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let timeout = Duration::from_secs_f64(a.timeout_s.max(0.01));
+    let timeout = seconds("--timeout-s", a.timeout_s)?.max(Duration::from_millis(10));
     let dir = if a.qemu.is_some() {
         tempfile_dir()?
     } else {
@@ -291,7 +312,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             out,
             idle_timeout_s,
         } => {
-            let s = record_csv(&mut link, &out, Duration::from_secs_f64(idle_timeout_s))?;
+            let s = record_csv(
+                &mut link,
+                &out,
+                seconds("--idle-timeout-s", idle_timeout_s)?,
+            )?;
             report(&s, &out)?;
         }
         LinkCommand::Run {
@@ -373,7 +398,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             let s = record_csv_with(
                 &mut link,
                 &out,
-                Duration::from_secs_f64(idle_timeout_s),
+                seconds("--idle-timeout-s", idle_timeout_s)?,
                 Some(&h),
             )?;
             report(&s, &out)?;
@@ -397,7 +422,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 figure,
                 amplitude_mm,
                 lead_stride,
-                Duration::from_secs_f64(idle_timeout_s),
+                seconds("--idle-timeout-s", idle_timeout_s)?,
             )?;
         }
     }
@@ -561,7 +586,10 @@ fn upload_model(link: &mut Link, p: &std::path::Path) -> anyhow::Result<()> {
 /// Upload the ground motion `spec` (a file or an embedded name) × `scale`; its name.
 fn upload_motion(link: &mut Link, spec: &str, scale: f64) -> anyhow::Result<String> {
     if !(scale.is_finite() && scale > 0.0) {
-        anyhow::bail!("--scale must be a positive number, got {scale}");
+        anyhow::bail!(
+            "--scale must be a positive number, got {}",
+            rths_files::readable(scale)
+        );
     }
     let m = load_motion(Some(spec))?;
     let scaled = m.scaled(scale);

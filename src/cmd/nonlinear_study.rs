@@ -65,6 +65,9 @@ pub struct Args {
 
 /// Run `rths nonlinear-study`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(dir) = &args.out {
+        crate::output::writable_dir(dir)?;
+    }
     // Each structure with its file's text (a learned model is checked against its checksum).
     let texts: Vec<(String, String)> = if args.structure.is_empty() {
         SHIPPED
@@ -117,7 +120,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .iter()
         .find(|m| !(m.is_finite() && **m > 0.0))
     {
-        anyhow::bail!("--ductility must be a positive number, got {mu}");
+        anyhow::bail!(
+            "--ductility must be a positive number, got {}",
+            rths_files::readable(*mu)
+        );
     }
     let records = if args.record.is_empty() {
         RECORDS.iter().map(|r| r.to_string()).collect()

@@ -103,6 +103,9 @@ const DELAY_FREQ_HZ: f64 = 0.5;
 /// Run `rths plant`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let p = params(&args)?;
+    if let Some(path) = &args.bode {
+        crate::output::writable_file(path)?;
+    }
     crate::outln!(
         "plant: preset {}, specimen {}, {}",
         p.preset().name(),
@@ -185,7 +188,7 @@ fn bode(p: &PlantParams, path: &std::path::Path) -> anyhow::Result<()> {
             (f, 20.0 * r.gain.log10(), r.phase_deg)
         })
         .collect();
-    let root = BitMapBackend::new(path, (900, 700)).into_drawing_area();
+    let root = crate::plot::bitmap(path, (900, 700))?;
     root.fill(&WHITE)?;
     let title = format!(
         "Plant x/u: {} preset, {} specimen",

@@ -44,7 +44,10 @@ struct ReportJson {
 /// reference at k, the command and target the controller produced at tick k−1, 0 at k = 0, the
 /// target held when not finite, the DAQ reading of tick k). Needs every tick from 0
 /// (`--telemetry-every 1`): rows up to the record's end, or up to a fault (the figures then stop there). Returns
-/// the history and the supervisor's stop (reason, time) if it tripped within the record.
+/// the history and the supervisor's stop (reason, time) if it tripped within the record. A sample
+/// that is not finite before any fault makes the run not clean: refused, naming the tick, its time
+/// and the channel (the supervisor stops on such a sample, so the recording cannot be what the
+/// board read; figures over it would be blank).
 pub fn history_of(
     rows: &[RecordingRow],
     ag_mm_s2: &[f64],
@@ -71,6 +74,22 @@ pub fn history_of(
                 r.seq,
                 r.tick
             );
+        }
+        if stop.is_none() && !r.state.starts_with("fault-") {
+            let channels = [
+                ("command_mm", r.command_mm),
+                ("measured_mm", r.measured_mm),
+                ("force_kn", r.force_kn),
+            ];
+            if let Some((channel, v)) = channels.iter().find(|(_, v)| !v.is_finite()) {
+                anyhow::bail!(
+                    "the run is not clean: {channel} is {v} at tick {k} (t = {:.4} s, state {}): \
+                     the supervisor stops on a non-finite sample, so this recording is not what \
+                     the board read and has no figures",
+                    k as f64 * DT_S,
+                    r.state
+                );
+            }
         }
         h.time_s.push(k as f64 * DT_S);
         h.ground_accel_mm_s2.push(ag_mm_s2[k]);
@@ -182,7 +201,8 @@ fn analyze_site(rec: &Recording) -> anyhow::Result<ScenarioRun> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let rec = link_host::read_recording_file(&args.recording)
         .with_context(|| format!("recording {}", args.recording.display()))?;
-    let run = analyze(&rec, args.scenario)?;
+    let run = analyze(&rec, args.scenario)
+        .with_context(|| format!("recording {}", args.recording.display()))?;
     let id = &run.report.id;
     let motion = rec.header.get("motion_name").or(rec.header.get("motion"));
     if let Some(dir) = &args.out {
@@ -209,7 +229,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             recording: rec.header.fields.iter().cloned().collect(),
         };
         crate::outln!("{}", serde_json::to_string(&json)?);
-        return Ok(());
+        return crate::cmd::RunStopped::check(&run.report);
     }
     crate::outln!(
         "scenario            {id} ({}, recorded: model {} {}, record {})",
@@ -223,7 +243,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         crate::outln!("wrote {}", dir.join("history.csv").display());
         crate::outln!("wrote {}", dir.join(format!("{id}.png")).display());
     }
-    Ok(())
+    crate::cmd::RunStopped::check(&run.report)
 }
 
 #[cfg(test)]
@@ -277,6 +297,26 @@ mod tests {
         let mut gap: Vec<_> = (0..5).map(|k| row(k, "running", 0.0)).collect();
         gap.remove(1);
         assert!(history_of(&gap, &ag, &reference).is_err());
+    }
+
+    #[test]
+    fn a_non_finite_sample_before_any_fault_makes_the_run_not_clean() {
+        let ag = [0.0; 4];
+        let reference = [0.0; 4];
+        let mut rows: Vec<_> = (0..4).map(|k| row(k, "running", 1.0)).collect();
+        rows[2].measured_mm = f64::NAN;
+        let e = history_of(&rows, &ag, &reference).unwrap_err().to_string();
+        for part in ["not clean", "measured_mm is NaN", "tick 2", "t = 0.0010 s"] {
+            assert!(e.contains(part), "`{part}` not in: {e}");
+        }
+        rows[2].measured_mm = 0.5;
+        rows[1].force_kn = f64::INFINITY;
+        let e = history_of(&rows, &ag, &reference).unwrap_err().to_string();
+        assert!(e.contains("force_kn is inf at tick 1"), "{e}");
+        // After the supervisor's trip a non-finite sample is what stopped it: the figures stop.
+        rows[1].state = "fault-NonFiniteSample".into();
+        let (_, stop) = history_of(&rows, &ag, &reference).unwrap();
+        assert_eq!(stop, Some(("NonFiniteSample".to_string(), DT_S)));
     }
 
     #[test]

@@ -37,6 +37,7 @@ pub struct Args {
 
 /// Run `rths robustness`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    crate::output::writable_dir(&args.out)?;
     let cfg = RobustnessConfig {
         draws: if args.quick { QUICK_DRAWS } else { args.draws },
         presets: args

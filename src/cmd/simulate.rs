@@ -35,10 +35,8 @@ const DEFAULT_RNN: [(usize, &str); 3] = [
 /// Arguments of `rths simulate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Scenario: fe-pure, fe-offline, fe-online, fe-online-ats, lr-pure, lr-offline, lr-online,
-    /// rnn-pure-H, rnn-online-H, lrx-online; with --structure: nl-pure, nl-online, fe-pure,
-    /// fe-online-ats, lr-online, lrx-online.
-    #[arg(long)]
+    /// Scenario (the help lists them: [`scenario_help`]).
+    #[arg(long, help = scenario_help())]
     pub scenario: SimScenario,
     /// Structure file (`data/structures/`): run the scenario on this structure and judge it
     /// against the structure's FE reference (the whole yielding structure for a file with a
@@ -97,6 +95,21 @@ pub struct Args {
     /// Print one JSON object on stdout and nothing else.
     #[arg(long)]
     pub json: bool,
+}
+
+/// `--scenario`'s help, from the scenario lists themselves (a new scenario is named at once).
+fn scenario_help() -> String {
+    let study: Vec<String> = ScenarioId::ALL.iter().map(|s| s.to_string()).collect();
+    let structure: Vec<String> = crate::nonlinear::scenario::STRUCTURE_SCENARIOS
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    format!(
+        "Scenario: {} (rnn-pure-H / rnn-online-H for another hidden size H); with --structure: {}; \
+         with an imported structure: fe-pure, meta-pure",
+        study.join(", "),
+        structure.join(", ")
+    )
 }
 
 /// The JSON of `rths simulate`: the study's object and the plant the run really had.
@@ -459,7 +472,7 @@ fn run_structure(
             compensation: comp,
         };
         crate::outln!("{}", serde_json::to_string(&json)?);
-        return Ok(());
+        return crate::cmd::RunStopped::check(&json.scenarios[0].report);
     }
     let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
     crate::outln!(
@@ -502,24 +515,30 @@ fn run_structure(
         crate::outln!("wrote {}", dir.join("history.csv").display());
         crate::outln!("wrote {}", dir.join(format!("{sc}.png")).display());
     }
-    Ok(())
+    crate::cmd::RunStopped::check(&report.report)
 }
 
 /// Run `rths simulate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let f = args.specimen_stiffness_factor;
     if !(f.is_finite() && f > 0.0) {
-        anyhow::bail!("--specimen-stiffness-factor must be a positive number, got {f}");
+        anyhow::bail!(
+            "--specimen-stiffness-factor must be a positive number, got {}",
+            rths_files::readable(f)
+        );
     }
     if !(args.scale.is_finite() && args.scale > 0.0) {
-        anyhow::bail!("--scale must be a positive number, got {}", args.scale);
+        anyhow::bail!(
+            "--scale must be a positive number, got {}",
+            rths_files::readable(args.scale)
+        );
     }
     let motion = load_motion(args.motion.as_deref())?;
     let ag = motion.scaled(args.scale).resample_mm_s2(DT_S);
     let motion_label = if args.scale == 1.0 {
         motion.name.clone()
     } else {
-        format!("{} × {}", motion.name, args.scale)
+        format!("{} × {}", motion.name, rths_files::readable(args.scale))
     };
     let preset = match args.preset {
         PresetArg::Benchmark => Preset::Benchmark,
@@ -649,7 +668,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     if args.json {
         crate::outln!("{}", serde_json::to_string(&json)?);
-        return Ok(());
+        return crate::cmd::RunStopped::check(&report);
     }
     let r = &report;
     crate::outln!(
@@ -685,5 +704,5 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         crate::outln!("wrote {}", dir.join("history.csv").display());
         crate::outln!("wrote {}", dir.join(format!("{id}.png")).display());
     }
-    Ok(())
+    crate::cmd::RunStopped::check(r)
 }

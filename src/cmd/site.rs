@@ -287,7 +287,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         failed |= o.stop_reason.is_some();
     }
     if failed {
-        anyhow::bail!("the test was stopped (see above); the recording is kept");
+        return Err(crate::cmd::RunStopped(
+            "a test was stopped (see above); the recording is kept".into(),
+        )
+        .into());
     }
     Ok(())
 }

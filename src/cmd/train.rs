@@ -76,9 +76,8 @@ pub struct Args {
     /// RNN initial-weight seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// RNN maximum epochs of fine-tuning/training (early stopping may end sooner; 0: ARX
-    /// initialization only). Default 100 (`--init arx`) or 400 (`--init random`).
-    #[arg(long)]
+    /// RNN maximum epochs of fine-tuning/training (the help's defaults: [`epochs_help`]).
+    #[arg(long, help = epochs_help())]
     pub epochs: Option<usize>,
     /// RNN truncated-BPTT window, steps. Default 8192 (arx) or 1024 (random).
     #[arg(long)]
@@ -172,6 +171,16 @@ pub struct Args {
     /// Output model file (JSON).
     #[arg(long)]
     pub out: PathBuf,
+}
+
+/// `--epochs`'s help, its defaults from the training's own (never a number typed twice).
+fn epochs_help() -> String {
+    format!(
+        "RNN maximum epochs of fine-tuning/training (early stopping may end sooner; 0: ARX \
+         initialization only). Default {} (`--init arx`) or {} (`--init random`)",
+        crate::train::rnn::ARX_FINE_TUNE_EPOCHS,
+        crate::train::rnn::RnnConfig::random_init(1).max_epochs
+    )
 }
 
 /// Largest `--perturbation` (RMS force perturbation / RMS brace force): beyond 2 the runs are
@@ -682,8 +691,9 @@ fn train_reduced(args: &Args, path: &std::path::Path, text: &str) -> anyhow::Res
     Ok(())
 }
 
-/// The scoring records of the nonlinear metamodel (embedded name or shipped file).
-const NL_SCORING: [&str; 3] = ["el-centro", "kobe", "data/vrths_benchmark/morgan.csv"];
+/// The scoring records of the nonlinear metamodel, as the nonlinear study finds them (embedded in
+/// the program, so `--evaluate` runs from any working directory).
+const NL_SCORING: [&str; 3] = ["el-centro", "kobe", "morgan"];
 /// The peak ductilities it is scored at.
 const NL_SCORING_DUCTILITIES: [f64; 3] = [0.8, 2.0, 4.5];
 
@@ -695,7 +705,7 @@ fn evaluate_nonlinear(args: &Args, path: &std::path::Path, text: &str) -> anyhow
     let s = rths_files::structure_file::Structure::from_json(text)?;
     let motions = NL_SCORING
         .iter()
-        .map(|n| crate::cmd::analyze::load_motion(Some(n)))
+        .map(|n| crate::nonlinear::study::record(n))
         .collect::<anyhow::Result<Vec<_>>>()?;
     let jobs: Vec<(&crate::motion::GroundMotion, f64)> = motions
         .iter()

@@ -89,7 +89,7 @@ pub fn draw(
     let f_lo = frf.iter().map(|l| l.freq_hz).fold(f64::INFINITY, f64::min);
     let f_hi = frf.iter().map(|l| l.freq_hz).fold(0.0, f64::max);
     let err = |e: &dyn std::fmt::Display| anyhow::anyhow!("plotting {}: {e}", path.display());
-    let root = BitMapBackend::new(path, (1000, 900)).into_drawing_area();
+    let root = crate::plot::bitmap(path, (1000, 900))?;
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let root = root
         .titled(title, ("sans-serif", 22))

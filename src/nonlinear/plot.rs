@@ -16,7 +16,7 @@ pub fn hysteresis(path: &Path, title: &str, r: &NlResponse) -> anyhow::Result<()
     }
     let err = |e: &dyn std::fmt::Display| anyhow::anyhow!("plotting {}: {e}", path.display());
     let width = 520 * n as u32;
-    let root = BitMapBackend::new(path, (width.max(600), 560)).into_drawing_area();
+    let root = crate::plot::bitmap(path, (width.max(600), 560))?;
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let root = root
         .titled(title, ("sans-serif", 22))

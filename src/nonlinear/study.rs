@@ -324,10 +324,17 @@ fn row(
 /// Run the study (rows in parallel on rayon's pool). Each structure's rig is identified first
 /// ([`super::rig::identify`]); its hybrid runs use that compensation.
 pub fn run(cfg: &StudyConfig<'_>) -> anyhow::Result<StudyReport> {
+    // One bar over the three phases: the rigs, the rows, each record's capacity on each rig.
+    let units = cfg.structures.len() * (1 + cfg.records.len() * (cfg.ductilities.len() + 1));
+    let bar = crate::progress::bar(units as u64, "rigs, rows and capacities", false);
     let rigs = cfg
         .structures
         .par_iter()
-        .map(|s| super::rig::identify(s, cfg.preset, cfg.seed))
+        .map(|s| {
+            let rig = super::rig::identify(s, cfg.preset, cfg.seed);
+            bar.inc(1);
+            rig
+        })
         .collect::<anyhow::Result<Vec<_>>>()?;
     let jobs: Vec<(&Structure, &RigCompensation, &str, f64)> = cfg
         .structures
@@ -343,7 +350,11 @@ pub fn run(cfg: &StudyConfig<'_>) -> anyhow::Result<StudyReport> {
         .collect();
     let rows = jobs
         .par_iter()
-        .map(|&(s, c, r, mu)| row(cfg, s, c, r, mu))
+        .map(|&(s, c, r, mu)| {
+            let row = row(cfg, s, c, r, mu);
+            bar.inc(1);
+            row
+        })
         .collect::<anyhow::Result<Vec<_>>>()?;
     let pairs: Vec<(&Structure, &str)> = cfg
         .structures
@@ -354,6 +365,7 @@ pub fn run(cfg: &StudyConfig<'_>) -> anyhow::Result<StudyReport> {
         .par_iter()
         .map(|&(s, r)| {
             let (max_scale, peak_ductility) = rig_capacity(s, &record(r)?)?;
+            bar.inc(1);
             Ok(RigCapacity {
                 structure: s.name().to_string(),
                 record: r.to_string(),
@@ -362,6 +374,7 @@ pub fn run(cfg: &StudyConfig<'_>) -> anyhow::Result<StudyReport> {
             })
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
+    bar.finish_and_clear();
     let goals = goals(&rows);
     Ok(StudyReport {
         identified_rigs: rigs,

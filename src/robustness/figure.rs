@@ -38,7 +38,7 @@ pub fn draw(r: &Robustness, path: &Path) -> anyhow::Result<()> {
     } else {
         Y_MIN_PCT
     };
-    let root = BitMapBackend::new(path, (1200, 120 + 420 * panels as u32)).into_drawing_area();
+    let root = crate::plot::bitmap(path, (1200, 120 + 420 * panels as u32))?;
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let root = root
         .titled(
