@@ -533,6 +533,10 @@ fn fault_matrix_subset_in_qemu_matches_the_host() {
 /// command of every tick of the record, bit for bit (the RESULT line's `command_fnv` against the
 /// host's, both through `rths_app::run::Run`), and the same trip, if any, at the same tick.
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn reduced_model_on_the_m7_matches_the_host_tick_by_tick() {
     use rths::imported::reduced::{self, ReducedModelFile};
     use rths::imported::ImportedStructure;

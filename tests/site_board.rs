@@ -131,6 +131,10 @@ fn run_site(args: &[&str], out: &Path) -> (bool, String, Vec<f64>, Vec<String>) 
 }
 
 #[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
 fn the_board_in_qemu_is_the_site_and_matches_the_virtual_rig_bit_for_bit() {
     if qemu_missing("rths site --link") {
         return;

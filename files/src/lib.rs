@@ -18,8 +18,8 @@ pub mod model_file;
 pub mod motion;
 pub mod nl_model_file;
 pub mod rate;
-pub mod reduced_model_file;
 pub mod readable;
+pub mod reduced_model_file;
 pub mod structure_file;
 pub mod structure_meta;
 
