@@ -572,6 +572,32 @@ fn reduced_model_on_the_m7_matches_the_host_tick_by_tick() {
     );
     let (r, _) = run_on(Emulated::M7, &elf);
     assert_eq!(r["scenario"], "structure-meta", "{r}");
+    // A model trained for another structure fails the build, naming both (only build.rs runs).
+    let other =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("data/structures/opensees-frame-2x4.json");
+    let refused = {
+        let _guard = BUILD.lock().unwrap_or_else(|e| e.into_inner());
+        Command::new(env!("CARGO"))
+            .current_dir(firmware_dir())
+            .env_remove("CARGO_TARGET_DIR")
+            .env_remove("RTHS_FAULT")
+            .env("RTHS_STRUCTURE", &other)
+            .env("RTHS_STRUCTURE_MODEL", &model_path)
+            .args([
+                Emulated::M7.build_cmd().0,
+                "--no-default-features",
+                "--features",
+                "board-mps2-an500,structure-meta",
+            ])
+            .output()
+            .unwrap()
+    };
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success(), "built for another structure");
+    assert!(
+        stderr.contains("trained for structure frame-1x1, not frame-2x4"),
+        "{stderr}"
+    );
     assert_eq!(r["overruns"], 0, "{r}");
 
     // The host: the firmware's controller (`firmware/src/analytical.rs`) from the same file.

@@ -334,3 +334,19 @@ pub fn imported_structure_name(text: &str) -> Result<String, ReducedFileError> {
     }
     Ok(serde_json::from_str::<Header>(text)?.name)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_name_of_an_imported_structure_and_a_bad_one() {
+        let name = imported_structure_name(r#"{"format":"rths-structure","version":2,"name":"f"}"#);
+        assert_eq!(name.unwrap(), "f");
+        assert!(imported_structure_name("{").is_err());
+        assert!(
+            imported_structure_name(r#"{"version":2}"#).is_err(),
+            "no name"
+        );
+    }
+}
