@@ -37,7 +37,8 @@ const DEFAULT_RNN: [(usize, &str); 3] = [
 pub struct Args {
     /// Scenario: fe-pure, fe-offline, fe-online, fe-online-ats, lr-pure, lr-offline, lr-online,
     /// rnn-pure-H, rnn-online-H, lrx-online; with --structure: nl-pure, nl-online, fe-pure,
-    /// fe-online-ats, lr-online, lrx-online.
+    /// fe-online-ats, lr-online, lrx-online (an imported structure: fe-pure, meta-pure,
+    /// meta-online).
     #[arg(long)]
     pub scenario: SimScenario,
     /// Structure file (`data/structures/`): run the scenario on this structure and judge it
