@@ -19,7 +19,7 @@ use crate::study::{self, DrawnPlant, StudyJson};
 use rths_files::structure_file::Structure;
 
 /// The board of every `rths simulate` run: the plant is simulated on the host.
-const BOARD: &str = "virtual";
+pub const BOARD: &str = "virtual";
 
 /// The LR model `rths reproduce` trained on El Centro (phase 2), shipped as the default.
 const DEFAULT_LR: &str = include_str!("../../data/models/lr.json");
@@ -106,7 +106,7 @@ fn scenario_help() -> String {
         .collect();
     format!(
         "Scenario: {} (rnn-pure-H / rnn-online-H for another hidden size H); with --structure: {}; \
-         with an imported structure: fe-pure, meta-pure",
+         with an imported structure: fe-pure, meta-pure, meta-online",
         study.join(", "),
         structure.join(", ")
     )

@@ -52,11 +52,16 @@ pub fn run(
     motion_label: &str,
 ) -> anyhow::Result<()> {
     let sc = args.scenario;
+    if sc == SimScenario::MetaOnline {
+        let s = ImportedStructure::from_json(text)
+            .with_context(|| format!("structure file {}", path.display()))?;
+        return crate::cmd::simulate_imported_online::run(args, path, &s, ag_mm_s2, motion_label);
+    }
     let meta = match sc {
         SimScenario::Study(ScenarioId::FePure) => false,
         SimScenario::MetaPure => true,
         _ => anyhow::bail!(
-            "{sc} is not available for an imported structure ({}): run fe-pure or meta-pure",
+            "{sc} is not available for an imported structure ({}): run fe-pure, meta-pure or meta-online",
             path.display()
         ),
     };

@@ -26,6 +26,9 @@ pub enum FeError {
     /// Δt is not positive and finite.
     #[error("the step must be positive and finite, got {0} s")]
     Step(f64),
+    /// The specimen's stiffness is not finite and ≥ 0.
+    #[error("the specimen's stiffness must be finite and ≥ 0, got {0} kN/mm")]
+    Specimen(f64),
     /// The effective stiffness cannot be factorized.
     #[error("the effective stiffness K + 4/dt²·M + 2/dt·C cannot be factorized: {0}")]
     Factor(#[from] FactorError),
@@ -54,8 +57,22 @@ fn matvec(out: &mut DMatrix<f64>, beta: f64, a: &CscMatrix<f64>, x: &DMatrix<f64
 impl SparseNewmark {
     /// The integrator of `structure` with its stand-in specimen, step `dt_s`.
     pub fn new(structure: &ImportedStructure, dt_s: f64) -> Result<Self, FeError> {
+        Self::with_specimen(structure, structure.specimen_stiffness_kn_per_mm(), dt_s)
+    }
+
+    /// The integrator of `structure`'s numerical part with a specimen of stiffness
+    /// `specimen_k_kn_per_mm` at the interface (e.g. the one a rig really has: evaluation only),
+    /// step `dt_s`.
+    pub fn with_specimen(
+        structure: &ImportedStructure,
+        specimen_k_kn_per_mm: f64,
+        dt_s: f64,
+    ) -> Result<Self, FeError> {
         if !(dt_s.is_finite() && dt_s > 0.0) {
             return Err(FeError::Step(dt_s));
+        }
+        if !(specimen_k_kn_per_mm.is_finite() && specimen_k_kn_per_mm >= 0.0) {
+            return Err(FeError::Specimen(specimen_k_kn_per_mm));
         }
         let model = structure.numerical_sparse();
         let n = model.stiffness.nrows();
@@ -64,11 +81,7 @@ impl SparseNewmark {
         for (i, j, v) in model.stiffness.triplet_iter() {
             coo.push(i, j, *v);
         }
-        coo.push(
-            model.interface,
-            model.interface,
-            structure.specimen_stiffness_kn_per_mm(),
-        );
+        coo.push(model.interface, model.interface, specimen_k_kn_per_mm);
         for (i, j, v) in model.mass.triplet_iter() {
             coo.push(i, j, a0 * v);
         }
@@ -194,9 +207,27 @@ pub fn run_pure(
     structure: &ImportedStructure,
     ag_mm_s2: &[f64],
     dt_s: f64,
+    progress: impl FnMut(usize),
+) -> Result<FeHistory, FeError> {
+    run_with_specimen(
+        structure,
+        structure.specimen_stiffness_kn_per_mm(),
+        ag_mm_s2,
+        dt_s,
+        progress,
+    )
+}
+
+/// [`run_pure`] with a specimen of stiffness `specimen_k_kn_per_mm` in place of the stand-in: the
+/// whole model with the specimen a rig really has (a hybrid run's reference, evaluation only).
+pub fn run_with_specimen(
+    structure: &ImportedStructure,
+    specimen_k_kn_per_mm: f64,
+    ag_mm_s2: &[f64],
+    dt_s: f64,
     mut progress: impl FnMut(usize),
 ) -> Result<FeHistory, FeError> {
-    let mut fe = SparseNewmark::new(structure, dt_s)?;
+    let mut fe = SparseNewmark::with_specimen(structure, specimen_k_kn_per_mm, dt_s)?;
     let mut interface_mm = Vec::with_capacity(ag_mm_s2.len());
     let mut outputs_mm = Vec::with_capacity(ag_mm_s2.len());
     for (k, &ag) in ag_mm_s2.iter().enumerate() {

@@ -9,6 +9,9 @@
 //!   python3 and openseespy, reads its Matrix Market files into an [`ImportedFile`].
 //! - [`fe`]: the host FE of an imported structure: Newmark's average acceleration on the whole
 //!   sparse model, factorized once.
+//! - [`reduced`]: the reduced-order modal model (`rths train meta`) and its file.
+//! - [`hybrid`]: the structure's analytical part in the hybrid loop on the virtual rig
+//!   (`meta-online`), scored against the whole model with the rig's specimen.
 //!
 //! The partition is the one of every structure file: the model is the whole test structure,
 //! specimen included; the numerical substructure is the model minus the specimen's stiffness at
@@ -18,6 +21,7 @@ pub mod condense;
 pub mod export;
 pub mod fe;
 pub mod file;
+pub mod hybrid;
 pub mod reduced;
 
 pub use file::{DofLabel, ImportedFile, ImportedStructure, ImportedStructureError};

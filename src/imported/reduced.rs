@@ -61,6 +61,29 @@ impl From<ModelError> for ReducedError {
     }
 }
 
+/// The model's parameters for a hybrid loop on a rig, at control step `dt_s`, checked against
+/// `structure`: the static term's force deviation low-passed at the lowest retained mode's
+/// frequency ([`ReducedModalParams::with_static_force_cutoff_hz`]). That deviation is the rig
+/// specimen's departure from the nominal (what the static term is for, at the response's own
+/// frequencies) plus the load cell's noise and the rig's inertia and tracking error (high
+/// frequencies the term must not pass to the target in the same tick). Measured on frame-2x3,
+/// benchmark preset: unfiltered, or at the lowest truncated mode (12.0 Hz), the loop oscillates at
+/// 68 Hz through the lead and trips the command-velocity interlock at 1.0 s; at 4 Hz, 2.1 Hz (its
+/// first mode) or 0.1 Hz it is stable, J4 1.32 % (docs/opensees.md).
+pub fn hybrid_params(
+    file: &ReducedModelFile,
+    structure: &ImportedStructure,
+    dt_s: f64,
+) -> Result<ReducedModalParams, ReducedError> {
+    let arrays = file.arrays_for(structure)?;
+    let params = arrays.spec().params(dt_s)?;
+    let lowest = params
+        .mode_list()
+        .first()
+        .map_or(0.0, |m| m.omega_rad_s / (2.0 * std::f64::consts::PI));
+    Ok(params.with_static_force_cutoff_hz(lowest)?)
+}
+
 /// A checksum of what an imported structure *is*: its condensed `M*`, `C*`, `K*` (row-major), the
 /// ground influence, the interface and output DOFs and the specimen's stiffness, as little-endian
 /// f64 bytes ([`rths_core::checksum`]).

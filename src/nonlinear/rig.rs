@@ -128,15 +128,22 @@ pub fn identify(
     seed: u64,
 ) -> anyhow::Result<RigCompensation> {
     let rig = structure_rig(structure, preset, seed);
-    let o = identify_virtual(&rig, FaultPlan::none(), &IdentifyConfig::default())
-        .with_context(|| format!("identifying the rig of {}", structure.name()))?;
+    identify_rig(structure.name(), &rig, rig_specimen_factor(structure))
+}
+
+/// Identify the virtual plant `rig` (its specimen stiffness factor `factor`) that structure
+/// `name`'s specimen is on, as [`identify`] does; `rig` may be a draw of the uncertainty (the
+/// lab identifies the rig it has).
+pub fn identify_rig(name: &str, rig: &RigConfig, factor: f64) -> anyhow::Result<RigCompensation> {
+    let o = identify_virtual(rig, FaultPlan::none(), &IdentifyConfig::default())
+        .with_context(|| format!("identifying the rig of {name}"))?;
     let id = &o.identification;
     let lead = LeadParams::new(id.lead_weights, id.lead_stride)
-        .map_err(|e| anyhow::anyhow!("the identified lead of {}: {e:?}", structure.name()))?;
+        .map_err(|e| anyhow::anyhow!("the identified lead of {name}: {e:?}"))?;
     Ok(RigCompensation {
-        structure: structure.name().to_string(),
+        structure: name.to_string(),
         source: "identified".to_string(),
-        specimen_stiffness_factor: rig_specimen_factor(structure),
+        specimen_stiffness_factor: factor,
         delay_ms: id.delay_s * 1e3,
         gain: id.model.gain,
         specimen_k_kn_per_mm: id.specimen.stiffness_kn_per_mm,
@@ -152,9 +159,18 @@ pub fn from_rig_file(
     file: &RigFile,
     source: &str,
 ) -> anyhow::Result<RigCompensation> {
+    from_rig_file_named(structure.name(), file, source)
+}
+
+/// [`from_rig_file`] for structure `name` (any structure file, an imported one too).
+pub fn from_rig_file_named(
+    name: &str,
+    file: &RigFile,
+    source: &str,
+) -> anyhow::Result<RigCompensation> {
     let k = file.specimen_fit.stiffness_kn_per_mm;
     Ok(RigCompensation {
-        structure: structure.name().to_string(),
+        structure: name.to_string(),
         source: source.to_string(),
         specimen_stiffness_factor: file.specimen_stiffness_factor,
         delay_ms: file.actuator.delay_ms,

@@ -60,6 +60,8 @@ pub struct ReducedModalParams {
     interface_static: StaticCorrection,
     output_static: [StaticCorrection; REDUCED_MAX_OUTPUTS],
     specimen_k_kn_per_mm: f64,
+    /// The static force term's low-pass cutoff, Hz (`None`: the force deviation as is).
+    static_force_cutoff_hz: Option<f64>,
 }
 
 impl ReducedModalParams {
@@ -162,7 +164,33 @@ impl ReducedModalParams {
             interface_static,
             output_static: out_static,
             specimen_k_kn_per_mm,
+            static_force_cutoff_hz: None,
         })
+    }
+
+    /// The same model with the force deviation of the static term low-passed (first order) at
+    /// `cutoff_hz` (finite, > 0): the truncated modes respond quasi-statically only below the
+    /// lowest of them, so the lowest truncated mode's frequency is the natural cutoff. A measured
+    /// force's noise and tracking error above it would otherwise reach the target in the same
+    /// tick, undamped, and a lead compensator amplifies them (a hybrid loop with a soft specimen
+    /// trips the command-velocity interlock within ticks, docs/opensees.md). In the pure loop the
+    /// deviation is zero and nothing changes.
+    pub fn with_static_force_cutoff_hz(self, cutoff_hz: f64) -> Result<Self, ModelError> {
+        if !cutoff_hz.is_finite() {
+            return Err(ParamError::NotFinite("static force cutoff").into());
+        }
+        if cutoff_hz <= 0.0 {
+            return Err(ParamError::NotPositive("static force cutoff").into());
+        }
+        Ok(Self {
+            static_force_cutoff_hz: Some(cutoff_hz),
+            ..self
+        })
+    }
+
+    /// The static force term's low-pass cutoff, Hz (`None`: none).
+    pub fn static_force_cutoff_hz(&self) -> Option<f64> {
+        self.static_force_cutoff_hz
     }
 
     /// The same model at control step `dt_s` (the modes are continuous-time).
@@ -226,9 +254,12 @@ pub struct ReducedModal {
     vel: [f64; REDUCED_MAX_MODES],
     accel: [f64; REDUCED_MAX_MODES],
     next: [f64; REDUCED_MAX_MODES],
+    /// The static force term's low-pass gain per step (1: none).
+    static_force_gain: f64,
     /// The interface's target for the coming step, static correction included.
     target: f64,
-    /// The static terms' inputs of the last completed step: `ü_g`, `ΔF`.
+    /// The static terms' inputs of the last completed step: `ü_g`, `ΔF` (low-passed, if so
+    /// configured).
     last_ag_mm_s2: f64,
     last_unbalance_kn: f64,
 }
@@ -251,9 +282,13 @@ impl ReducedModal {
                 solve: 1.0 / m_half_c,
             };
         }
+        let static_force_gain = p.static_force_cutoff_hz.map_or(1.0, |f| {
+            1.0 - libm::exp(-2.0 * core::f64::consts::PI * f * dt)
+        });
         let mut me = Self {
             p,
             step,
+            static_force_gain,
             disp: [0.0; REDUCED_MAX_MODES],
             vel: [0.0; REDUCED_MAX_MODES],
             accel: [0.0; REDUCED_MAX_MODES],
@@ -378,7 +413,13 @@ impl ReducedModal {
             *ao = a;
         }
         let (next, ok) = predict(&self.step, &d1, &v1, &a1, r);
-        let target = self.interface_of(&next, ground_accel_mm_s2, unbalance);
+        // The modes take the deviation as is (they integrate it); the static term its low-pass.
+        let static_unbalance = if self.p.static_force_cutoff_hz.is_some() {
+            self.last_unbalance_kn + self.static_force_gain * (unbalance - self.last_unbalance_kn)
+        } else {
+            unbalance
+        };
+        let target = self.interface_of(&next, ground_accel_mm_s2, static_unbalance);
         if !ok || !target.is_finite() {
             return Err(ParamError::NotFinite("model state (the step overflowed)").into());
         }
@@ -388,7 +429,7 @@ impl ReducedModal {
         self.next = next;
         self.target = target;
         self.last_ag_mm_s2 = ground_accel_mm_s2;
-        self.last_unbalance_kn = unbalance;
+        self.last_unbalance_kn = static_unbalance;
         Ok(target)
     }
 }
