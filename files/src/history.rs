@@ -450,11 +450,19 @@ pub fn read_csv(file: &Path, run_dt_s: f64) -> Result<History, HistoryError> {
     parse_csv(&read_bounded(file)?, file, run_dt_s)
 }
 
-/// One recorder file's `time value` rows: (times, values, line numbers).
-pub fn parse_recorder(
-    text: &str,
-    file: &Path,
-) -> Result<(Vec<f64>, Vec<f64>, Vec<usize>), HistoryError> {
+/// One recorder file's rows.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RecorderRows {
+    /// The first column, s.
+    pub time_s: Vec<f64>,
+    /// The second column, in the model's units.
+    pub value: Vec<f64>,
+    /// Each row's 1-based line.
+    pub line: Vec<usize>,
+}
+
+/// One recorder file's `time value` rows.
+pub fn parse_recorder(text: &str, file: &Path) -> Result<RecorderRows, HistoryError> {
     let (mut t, mut v, mut l) = (Vec::new(), Vec::new(), Vec::new());
     for (line, row) in lines(text) {
         if l.len() >= MAX_HISTORY_ROWS {
@@ -477,7 +485,11 @@ pub fn parse_recorder(
         v.push(number(file, line, "value", fields[1])?);
         l.push(line);
     }
-    Ok((t, v, l))
+    Ok(RecorderRows {
+        time_s: t,
+        value: v,
+        line: l,
+    })
 }
 
 /// Read a run's recorder directory `dir` (the files of [`RECORDER_FILES`] and every
@@ -515,10 +527,12 @@ pub fn read_recorder_dir(
         let r = parse_recorder(&text, &file)?;
         Ok((file, r))
     };
-    let (first, (times, ag, line_of)) = read(RECORDER_FILES[0])?;
+    let (first, ground) = read(RECORDER_FILES[0])?;
+    let (times, ag, line_of) = (ground.time_s, ground.value, ground.line);
     let dt_s = uniform_step(&first, &times, &line_of, run_dt_s)?;
     let same = |name: &str| -> Result<Vec<f64>, HistoryError> {
-        let (file, (t, v, l)) = read(name)?;
+        let (file, rows) = read(name)?;
+        let (t, v, l) = (rows.time_s, rows.value, rows.line);
         if t.len() != times.len() {
             return Err(HistoryError::Mismatch {
                 line: l.last().copied().unwrap_or(0),

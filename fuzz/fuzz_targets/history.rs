@@ -16,8 +16,8 @@ fuzz_target!(|data: &[u8]| {
         }
         assert!(h.ground_accel_mm_s2.iter().all(|v| v.is_finite()));
     }
-    if let Ok((t, v, l)) = rths_files::history::parse_recorder(&text, Path::new("fuzz.out")) {
-        assert!(t.len() == v.len() && v.len() == l.len());
-        assert!(t.iter().chain(&v).all(|x| x.is_finite()));
+    if let Ok(r) = rths_files::history::parse_recorder(&text, Path::new("fuzz.out")) {
+        assert!(r.time_s.len() == r.value.len() && r.value.len() == r.line.len());
+        assert!(r.time_s.iter().chain(&r.value).all(|x| x.is_finite()));
     }
 });
