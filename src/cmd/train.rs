@@ -148,6 +148,10 @@ pub struct Args {
     /// loma-prieta. Scoring records are refused.
     #[arg(long = "records", value_name = "NAME")]
     pub nl_records: Vec<String>,
+    /// Nonlinear: train on these time histories of the lab's FE runs instead of rths's FE runs of
+    /// the training records (a CSV file or an OpenSees recorder directory each; docs/nonlinear.md).
+    #[arg(long = "histories", value_name = "FILE", num_args = 1.., conflicts_with = "nl_records")]
+    pub histories: Vec<PathBuf>,
     /// Nonlinear: CMA-ES generations of stage 2 (the whole model on the runs).
     #[arg(long, default_value_t = 20)]
     pub generations: usize,
@@ -535,6 +539,7 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
             .map(|n| crate::cmd::analyze::load_motion(Some(n)))
             .collect::<anyhow::Result<Vec<_>>>()?;
     }
+    cfg.histories = args.histories.clone();
     cfg.generations = args.generations;
     cfg.stage1_generations = args.stage1_generations;
     cfg.force_noise = args.force_noise == OnOff::On;
@@ -588,7 +593,11 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
         tr.final_loss_pct
     );
     for (label, mu, e) in &t.runs {
-        crate::outln!("  {label:<24} ductility {mu:5.2}  specimen-DOF pure-loop NRMSE {e:.3}%");
+        if mu.is_finite() {
+            crate::outln!("  {label:<24} ductility {mu:5.2}  specimen-DOF pure-loop NRMSE {e:.3}%");
+        } else {
+            crate::outln!("  {label:<24} history          specimen-DOF pure-loop NRMSE {e:.3}%");
+        }
     }
     for (k, s) in t.file.springs.iter().enumerate() {
         crate::outln!(

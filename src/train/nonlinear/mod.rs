@@ -14,6 +14,7 @@
 pub mod cmaes;
 pub mod daq;
 pub mod eval;
+pub mod histories;
 pub mod modal;
 pub mod runs;
 pub mod stage1;
@@ -115,6 +116,9 @@ pub struct NlTrainConfig {
     /// Feed the training's pure loop the specimen force as the lab's DAQ measures it (load-cell
     /// noise and converter, [`daq::ForceDaq::lab`]) instead of the exact force.
     pub force_noise: bool,
+    /// Train on these time histories of the lab's FE program (CSV files or recorder directories,
+    /// [`histories`]) instead of rths's FE runs of `records` at `ductilities`.
+    pub histories: Vec<std::path::PathBuf>,
 }
 
 impl NlTrainConfig {
@@ -140,6 +144,7 @@ impl NlTrainConfig {
             dt_s: rths_core::params::DT_S,
             record_s: None,
             force_noise: true,
+            histories: Vec::new(),
         })
     }
 
@@ -452,7 +457,12 @@ pub fn train(
             None => m.clone(),
         })
         .collect();
-    let runs = runs::fe_runs_for_ductilities(&s, &records, &cfg.ductilities, cfg.dt_s)?;
+    let runs = if cfg.histories.is_empty() {
+        runs::fe_runs_for_ductilities(&s, &records, &cfg.ductilities, cfg.dt_s)?
+    } else {
+        let paths: Vec<&std::path::Path> = cfg.histories.iter().map(|p| p.as_path()).collect();
+        histories::read_runs(&s, &paths, cfg.dt_s)?
+    };
     let modes = modal::elastic_modes(&s, cfg.modes.unwrap_or(s.dofs()))?;
     // One fixed noise sequence per run, from the seed: the loss is a function of θ alone.
     let daq: Vec<ForceDaq> = runs
@@ -567,7 +577,13 @@ pub fn train(
         seed: cfg.seed,
         runs: runs
             .iter()
-            .map(|r| format!("{} (ductility {:.2})", r.label, r.ductility))
+            .map(|r| {
+                if r.ductility.is_finite() {
+                    format!("{} (ductility {:.2})", r.label, r.ductility)
+                } else {
+                    format!("{} (history)", r.label)
+                }
+            })
             .collect(),
         generations: res.generations,
         population: res.population,
