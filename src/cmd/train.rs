@@ -706,7 +706,13 @@ fn evaluate_nonlinear(args: &Args, path: &std::path::Path, text: &str) -> anyhow
         // Held-out runs of the lab's FE program (e.g. OpenSees's own run of a held-out record):
         // read here, by the scoring, and never by the training.
         let paths: Vec<&std::path::Path> = args.histories.iter().map(|p| p.as_path()).collect();
-        let runs = crate::train::nonlinear::histories::read_runs(&s, &paths, DT_S)?;
+        let units = rths_files::structure_file::StructureFile::parse(text)?.units;
+        let runs = crate::train::nonlinear::histories::read_runs(
+            &s,
+            &paths,
+            crate::train::nonlinear::histories::recorder_units(units),
+            DT_S,
+        )?;
         let rows = runs
             .par_iter()
             .map(|r| crate::train::nonlinear::eval::evaluate_run(&file, &s, r, DT_S))

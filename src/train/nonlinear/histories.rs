@@ -11,8 +11,8 @@
 
 use std::path::Path;
 
-use rths_files::history::{History, OutputDof};
-use rths_files::structure_file::Structure;
+use rths_files::history::{History, OutputDof, RecorderUnits};
+use rths_files::structure_file::{Structure, Units};
 
 use super::runs::FeRun;
 use crate::nonlinear::{NlResponse, RESIDUAL_WINDOW_S};
@@ -136,12 +136,25 @@ pub fn run_from_history(s: &Structure, h: &History) -> Result<FeRun, TrainError>
     })
 }
 
-/// Read every history (a CSV file or a recorder directory each) of the story structure `s`.
-pub fn read_runs(s: &Structure, paths: &[&Path], dt_s: f64) -> Result<Vec<FeRun>, TrainError> {
+/// The recorder files' units of a structure file of `units` (the lab's model is in the same).
+pub fn recorder_units(units: Units) -> RecorderUnits {
+    match units {
+        Units::Si => RecorderUnits::SI,
+        Units::MmKn => RecorderUnits::MM_KN,
+    }
+}
+
+/// Read every history (a CSV file, or a recorder directory in `units`) of the story structure `s`.
+pub fn read_runs(
+    s: &Structure,
+    paths: &[&Path],
+    units: RecorderUnits,
+    dt_s: f64,
+) -> Result<Vec<FeRun>, TrainError> {
     paths
         .iter()
         .map(|p| {
-            let h = rths_files::history::read(p, rths_files::history::RecorderUnits::MM_KN, dt_s)
+            let h = rths_files::history::read(p, units, dt_s)
                 .map_err(|e| TrainError::Setting(e.to_string()))?;
             run_from_history(s, &h)
         })

@@ -461,7 +461,10 @@ pub fn train(
         runs::fe_runs_for_ductilities(&s, &records, &cfg.ductilities, cfg.dt_s)?
     } else {
         let paths: Vec<&std::path::Path> = cfg.histories.iter().map(|p| p.as_path()).collect();
-        histories::read_runs(&s, &paths, cfg.dt_s)?
+        let units = rths_files::structure_file::StructureFile::parse(structure_json)
+            .map_err(|e| TrainError::Setting(format!("structure file: {e}")))?
+            .units;
+        histories::read_runs(&s, &paths, histories::recorder_units(units), cfg.dt_s)?
     };
     let modes = modal::elastic_modes(&s, cfg.modes.unwrap_or(s.dofs()))?;
     // One fixed noise sequence per run, from the seed: the loss is a function of θ alone.
