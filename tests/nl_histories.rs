@@ -64,8 +64,21 @@ fn histories_of_the_lab_s_fe_train_a_model_that_beats_the_linear_path() {
         std::fs::write(&p, rths_files::history::to_csv(&h)).unwrap();
         paths.push(p);
     }
-    let t = train(&elastic, &quick(2, paths.clone()), |_, _, _| {}).unwrap();
+    let mut cfg = quick(2, paths.clone());
+    cfg.laws = vec![SpringLaw::Bilinear, SpringLaw::BoucWen];
+    let t = train(&elastic, &cfg, |_, _, _| {}).unwrap();
     assert_eq!(t.file.structure.name, "elastic-twin");
+    // The third history is held out of the fit and the family is chosen on it.
+    let v = t.validation.clone().expect("a validation split");
+    let (held, scores) = (v.held_out, v.losses_pct);
+    assert_eq!(held, vec!["loma-prieta-0.9.csv".to_string()]);
+    assert_eq!(scores.len(), 2);
+    let kept = scores
+        .iter()
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(l, _)| l.name())
+        .unwrap();
+    assert_eq!(t.file.springs[0].law, kept, "{scores:?}");
     assert!(t.file.training.runs[0].ends_with("(history)"));
     // Scoring (the truth): El Centro × 1.5, held out, on the yielding file's FE.
     let el = GroundMotion::try_el_centro().unwrap();

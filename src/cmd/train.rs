@@ -599,6 +599,18 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
             crate::outln!("  {label:<24} history          specimen-DOF pure-loop NRMSE {e:.3}%");
         }
     }
+    if let Some(v) = &t.validation {
+        let (held, scores) = (&v.held_out, &v.losses_pct);
+        let scores: Vec<String> = scores
+            .iter()
+            .map(|(l, v)| format!("{} {v:.3}%", l.name()))
+            .collect();
+        crate::outln!(
+            "  validation on {} (held out of the fit): {}; kept the lower",
+            held.join(", "),
+            scores.join(", ")
+        );
+    }
     for (k, s) in t.file.springs.iter().enumerate() {
         crate::outln!(
             "  spring {}: fy {:.1} kN, k0 {:.2} kN/mm, α {:.3}, n {:.2}, β {:.3}, γ {:.3}",
