@@ -641,11 +641,9 @@ pub fn train(
         runs: per_run,
         stage1_loss_pct: stage1_loss,
         wall_time_s: t0.elapsed().as_secs_f64(),
-        validation: (!val_runs.is_empty()).then(|| {
-            (
-                val_runs.iter().map(|r| r.label.clone()).collect(),
-                val_scores,
-            )
+        validation: (!val_runs.is_empty()).then(|| Validation {
+            held_out: val_runs.iter().map(|r| r.label.clone()).collect(),
+            losses_pct: val_scores,
         }),
     })
 }
