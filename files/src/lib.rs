@@ -4,6 +4,7 @@
 //! - [`motion`]: ground-motion records (PEER AT2 and two-column CSV), the four shipped records.
 //! - [`model_file`]: the trained-model file schema, its reader and validator. The feature names it
 //!   checks are `rths_core`'s, the order the `no_std` inference takes its coefficients in.
+//! - [`history`]: time histories of a lab's FE runs (CSV, OpenSees recorder files), training data.
 //! - [`nl_model_file`]: model files of the nonlinear (modal-hysteretic) metamodel, tied to their
 //!   structure file by a checksum.
 //! - [`reduced_model_file`]: the reduced-order model's file of an imported structure.
@@ -14,6 +15,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod history;
 pub mod model_file;
 pub mod motion;
 pub mod nl_model_file;

@@ -39,6 +39,10 @@ pub struct Args {
     /// drift; docs/nonlinear.md).
     #[arg(long, value_name = "FILE.json")]
     pub structure: Option<PathBuf>,
+    /// With `--structure`: write the run as a training time history (the layout `rths train
+    /// nonlinear --histories` reads: every floor an output, the linear specimen the stand-in).
+    #[arg(long, value_name = "FILE.csv", requires = "structure")]
+    pub history: Option<PathBuf>,
 }
 
 /// The record named by `--motion`: an existing file first, then an embedded name.
@@ -224,6 +228,16 @@ fn nonlinear(args: &Args, path: &Path, motion: &GroundMotion) -> anyhow::Result<
         }
         w.flush()?;
         crate::outln!("wrote {} ({} rows)", out.display(), r.time_s.len());
+    }
+    if let Some(out) = &args.history {
+        let h = crate::train::nonlinear::histories::history_of_response(&structure, &r, DT_S, out);
+        std::fs::write(out, rths_files::history::to_csv(&h))
+            .with_context(|| format!("writing {}", out.display()))?;
+        crate::outln!(
+            "wrote {} ({} rows, training history)",
+            out.display(),
+            h.len()
+        );
     }
     if let Some(png) = &args.plot {
         let title = format!(

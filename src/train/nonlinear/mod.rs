@@ -14,6 +14,7 @@
 pub mod cmaes;
 pub mod daq;
 pub mod eval;
+pub mod histories;
 pub mod modal;
 pub mod runs;
 pub mod stage1;
@@ -115,6 +116,9 @@ pub struct NlTrainConfig {
     /// Feed the training's pure loop the specimen force as the lab's DAQ measures it (load-cell
     /// noise and converter, [`daq::ForceDaq::lab`]) instead of the exact force.
     pub force_noise: bool,
+    /// Train on these time histories of the lab's FE program (CSV files or recorder directories,
+    /// [`histories`]) instead of rths's FE runs of `records` at `ductilities`.
+    pub histories: Vec<std::path::PathBuf>,
 }
 
 impl NlTrainConfig {
@@ -140,6 +144,7 @@ impl NlTrainConfig {
             dt_s: rths_core::params::DT_S,
             record_s: None,
             force_noise: true,
+            histories: Vec::new(),
         })
     }
 
@@ -429,6 +434,17 @@ pub struct NlTrained {
     pub stage1_loss_pct: f64,
     /// Wall time of the whole training, s.
     pub wall_time_s: f64,
+    /// With histories (3 or more, more than one law family): how the family was chosen.
+    pub validation: Option<Validation>,
+}
+
+/// The validation that chose the spring family: the lower validation loss is kept.
+#[derive(Debug, Clone)]
+pub struct Validation {
+    /// The runs held out of the fit.
+    pub held_out: Vec<String>,
+    /// Each family's loss on them (%), in the order tried.
+    pub losses_pct: Vec<(SpringLaw, f64)>,
 }
 
 /// Train the metamodel of the structure file `structure_json` (its text: the model records its
@@ -452,7 +468,15 @@ pub fn train(
             None => m.clone(),
         })
         .collect();
-    let runs = runs::fe_runs_for_ductilities(&s, &records, &cfg.ductilities, cfg.dt_s)?;
+    let runs = if cfg.histories.is_empty() {
+        runs::fe_runs_for_ductilities(&s, &records, &cfg.ductilities, cfg.dt_s)?
+    } else {
+        let paths: Vec<&std::path::Path> = cfg.histories.iter().map(|p| p.as_path()).collect();
+        let units = rths_files::structure_file::StructureFile::parse(structure_json)
+            .map_err(|e| TrainError::Setting(format!("structure file: {e}")))?
+            .units;
+        histories::read_runs(&s, &paths, histories::recorder_units(units), cfg.dt_s)?
+    };
     let modes = modal::elastic_modes(&s, cfg.modes.unwrap_or(s.dofs()))?;
     // One fixed noise sequence per run, from the seed: the loss is a function of θ alone.
     let daq: Vec<ForceDaq> = runs
@@ -474,13 +498,29 @@ pub fn train(
     let per_law = springs * cfg.stage1_generations + cfg.generations;
     let total = per_law * cfg.laws.len();
     let mut best: Option<(Template, cmaes::CmaResult, f64, f64)> = None;
+    let mut best_score = f64::INFINITY;
+    // Histories are a lab's runs of no known intensity: with 3 or more and a family to choose,
+    // every third (the 3rd, 6th, ...) is held out of the fit and the family is chosen on them.
+    let validate = !cfg.histories.is_empty() && runs.len() >= 3 && cfg.laws.len() > 1;
+    let is_val = |i: usize| validate && i % 3 == 2;
+    let pick = |want: bool| -> (Vec<FeRun>, Vec<ForceDaq>) {
+        runs.iter()
+            .zip(&daq)
+            .enumerate()
+            .filter(|(i, _)| is_val(*i) == want)
+            .map(|(_, (r, d))| (r.clone(), d.clone()))
+            .unzip()
+    };
+    let (fit_runs, fit_daq) = pick(false);
+    let (val_runs, val_daq) = pick(true);
+    let mut val_scores: Vec<(SpringLaw, f64)> = Vec::new();
     for (i, law) in cfg.laws.iter().enumerate() {
-        let template = Template::new(&s, modes.clone(), &runs, *law);
+        let template = Template::new(&s, modes.clone(), &fit_runs, *law);
         let mut x0 = template.initial(cfg.seed)?;
-        let initial_loss = loss(&template, &x0, &runs, &daq, cfg.dt_s);
+        let initial_loss = loss(&template, &x0, &fit_runs, &fit_daq, cfg.dt_s);
         // Stage 1: each spring on its story's force–drift history, from its random draw.
         for k in 0..springs {
-            let histories: Vec<stage1::History<'_>> = runs
+            let histories: Vec<stage1::History<'_>> = fit_runs
                 .iter()
                 .filter_map(|r| {
                     Some(stage1::History {
@@ -529,11 +569,11 @@ pub fn train(
             };
             x0[slot].copy_from_slice(&r.best);
         }
-        let stage1_loss = loss(&template, &x0, &runs, &daq, cfg.dt_s);
+        let stage1_loss = loss(&template, &x0, &fit_runs, &fit_daq, cfg.dt_s);
         // Stage 2: the whole model on the runs' floor displacements, from stage 1's θ.
         let base = i * per_law + springs * cfg.stage1_generations;
         let res = cmaes::minimize(
-            |th| loss(&template, th, &runs, &daq, cfg.dt_s),
+            |th| loss(&template, th, &fit_runs, &fit_daq, cfg.dt_s),
             &x0,
             STAGE2_SIGMA0,
             cfg.generations,
@@ -541,11 +581,17 @@ pub fn train(
             cfg.seed,
             |g, l| on_generation(base + g, total, l),
         );
+        // The family is chosen on the validation runs when there are any (the training loss
+        // rewards the family that fits the fitted runs best, not the one that generalizes).
+        let score = if val_runs.is_empty() {
+            res.best_loss
+        } else {
+            loss(&template, &res.best, &val_runs, &val_daq, cfg.dt_s)
+        };
+        val_scores.push((*law, score));
         // Strictly lower wins, so the order of `laws` breaks ties.
-        if best
-            .as_ref()
-            .is_none_or(|(_, b, _, _)| res.best_loss < b.best_loss)
-        {
+        if best.is_none() || score < best_score {
+            best_score = score;
             best = Some((template, res, initial_loss, stage1_loss));
         }
     }
@@ -567,7 +613,13 @@ pub fn train(
         seed: cfg.seed,
         runs: runs
             .iter()
-            .map(|r| format!("{} (ductility {:.2})", r.label, r.ductility))
+            .map(|r| {
+                if r.ductility.is_finite() {
+                    format!("{} (ductility {:.2})", r.label, r.ductility)
+                } else {
+                    format!("{} (history)", r.label)
+                }
+            })
             .collect(),
         generations: res.generations,
         population: res.population,
@@ -589,6 +641,10 @@ pub fn train(
         runs: per_run,
         stage1_loss_pct: stage1_loss,
         wall_time_s: t0.elapsed().as_secs_f64(),
+        validation: (!val_runs.is_empty()).then(|| Validation {
+            held_out: val_runs.iter().map(|r| r.label.clone()).collect(),
+            losses_pct: val_scores,
+        }),
     })
 }
 

@@ -1,0 +1,185 @@
+#!/usr/bin/env python3
+"""Training time histories of a (nonlinear) openseespy model for `rths train nonlinear --histories`.
+
+    python3 write_histories.py MODEL.py --specimen NODE:DOF --specimen-element TAG
+        --output NODE:DOF [--output ...] --record AT2 [--record ...] --scale S [--scale ...]
+        --dt DT --out-dir DIR [--duration-s T] [--free-s F] [--units si|mm-kn] [--direction 1]
+
+MODEL.py is built as `export_model.py` builds it (run as `rths_export`, its directory on
+`sys.path`), with the specimen modelled by a numerical stand-in element `--specimen-element` (a
+`zeroLength` or truss at `--specimen`). For every record (a PEER AT2 file, in g) and every scale
+the model is rebuilt at rest and integrated by Newmark's average acceleration at DT (`--dt`, the
+controller's step: 1/2048 s) with Newton iterations (`NormDispIncr` 1e-8, up to 50 iterations,
+then Krylov-Newton and smaller steps if a step does not converge), over the first `--duration-s`
+of the record (default: all of it) and `--free-s` of free vibration (default 5 s). The ground
+motion enters as the nodal loads `-M*iota*ag(t)` (transient.py's `ground_loads`).
+
+Writes DIR/RECORD-xSCALE.csv per run in rths's history layout (units mm, kN, mm/s^2):
+`time_s,ground_accel_mm_s2,specimen_force_kn,interface_mm,out_<NODE>_<DOF>_mm...`; the specimen
+force is the stand-in element's resisting force at the specimen node in the specimen's direction.
+stdout gets one JSON line per run (file, steps, seconds, seconds per step, peak interface mm).
+Exit codes: 0 done, 2 bad arguments or a model/analysis that fails, 3 openseespy missing.
+"""
+
+import argparse
+import json
+import os
+import runpy
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+G_MM_S2 = 9806.65
+SERIES_TAG = 987011
+PATTERN_TAG = 987011
+
+
+def fail(code, message):
+    print(f"write_histories.py: {message}", file=sys.stderr)
+    sys.exit(code)
+
+
+def read_at2(path):
+    """(dt, accelerations in g) of a PEER AT2 file."""
+    with open(path, encoding="ascii", errors="replace") as f:
+        lines = f.read().splitlines()
+    if len(lines) < 4:
+        fail(2, f"{path}: not an AT2 file (fewer than 4 lines)")
+    header = lines[3].upper().replace(",", " ")
+    tokens = header.replace("=", " ").split()
+    try:
+        npts = int(float(tokens[tokens.index("NPTS") + 1]))
+        dt = float(tokens[tokens.index("DT") + 1])
+    except (ValueError, IndexError):
+        fail(2, f"{path}: line 4: no NPTS= and DT= in the AT2 header")
+    values = []
+    for line in lines[4:]:
+        values.extend(float(v.replace("D", "E")) for v in line.split())
+    return dt, values[:npts]
+
+
+def resample(dt_in, values, dt_out, duration_s):
+    """Linear interpolation of `values` (step dt_in) at step dt_out over duration_s."""
+    n = int(round(duration_s / dt_out)) + 1
+    out = []
+    for k in range(n):
+        x = k * dt_out / dt_in
+        i = int(x)
+        if i + 1 >= len(values):
+            out.append(values[-1] if i < len(values) else 0.0)
+        else:
+            a = x - i
+            out.append((1.0 - a) * values[i] + a * values[i + 1])
+    return out
+
+
+def parse_dof(text):
+    try:
+        node, dof = text.split(":")
+        return int(node), int(dof)
+    except ValueError:
+        fail(2, f"`{text}` is not NODE:DOF")
+
+
+def run(args, ops, model, record, scale, outs):
+    runpy.run_path(model, run_name="rths_export")
+    from transient import ground_loads
+
+    length_to_mm, force_to_kn = (1000.0, 1e-3) if args.units == "si" else (1.0, 1.0)
+    dt_rec, ag_g = read_at2(record)
+    duration = args.duration_s if args.duration_s else (len(ag_g) - 1) * dt_rec
+    duration = min(duration, (len(ag_g) - 1) * dt_rec)
+    ag = resample(dt_rec, [scale * a * G_MM_S2 / length_to_mm for a in ag_g], args.dt, duration)
+    ag += [0.0] * int(round(args.free_s / args.dt))
+    sn, sd = parse_dof(args.specimen)
+    ends = ops.eleNodes(args.specimen_element)
+    if sn not in ends:
+        fail(2, f"element {args.specimen_element} does not end at node {sn}")
+    ndf = len(ops.nodeDOFs(sn))
+    slot = ends.index(sn) * ndf + sd - 1
+
+    ops.timeSeries("Path", SERIES_TAG, "-dt", args.dt, "-values", *ag)
+    loads = ground_loads(ops, args.direction)
+    ops.pattern("Plain", PATTERN_TAG, SERIES_TAG)
+    for node, values in loads:
+        ops.load(node, *values)
+    ops.wipeAnalysis()
+    ops.system("BandGeneral")
+    ops.numberer("RCM")
+    ops.constraints("Transformation")
+    ops.test("NormDispIncr", 1e-8, 50)
+    ops.algorithm("Newton")
+    ops.integrator("Newmark", 0.5, 0.25)
+    ops.analysis("Transient")
+
+    def row(t):
+        return [t, ag[min(int(round(t / args.dt)), len(ag) - 1)] * length_to_mm,
+                ops.eleResponse(args.specimen_element, "force")[slot] * force_to_kn,
+                ops.nodeDisp(sn, sd) * length_to_mm] + \
+               [ops.nodeDisp(n, d) * length_to_mm for n, d in outs]
+
+    rows = [row(0.0)]
+    spent = 0.0
+    for k in range(1, len(ag)):
+        t0 = time.perf_counter()
+        ok = ops.analyze(1, args.dt)
+        if ok != 0:
+            ops.algorithm("KrylovNewton")
+            ok = ops.analyze(4, args.dt / 4.0)
+            ops.algorithm("Newton")
+        spent += time.perf_counter() - t0
+        if ok != 0:
+            fail(2, f"{record} x{scale}: the analysis did not converge at step {k}")
+        rows.append(row(k * args.dt))
+    return rows, spent
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("model")
+    p.add_argument("--specimen", required=True)
+    p.add_argument("--specimen-element", type=int, required=True)
+    p.add_argument("--output", action="append", default=[])
+    p.add_argument("--record", action="append", required=True)
+    p.add_argument("--scale", action="append", type=float, required=True)
+    p.add_argument("--dt", type=float, required=True)
+    p.add_argument("--out-dir", required=True)
+    p.add_argument("--duration-s", type=float)
+    p.add_argument("--free-s", type=float, default=5.0)
+    p.add_argument("--units", choices=("si", "mm-kn"))
+    p.add_argument("--direction", type=int, default=1)
+    args = p.parse_args()
+    try:
+        import openseespy.opensees as ops
+    except ImportError as e:
+        fail(3, f"openseespy cannot be imported ({e})")
+    model = os.path.abspath(args.model)
+    sys.path.insert(0, os.path.dirname(model))
+    if args.units is None:
+        scope = runpy.run_path(model, run_name="rths_export")
+        args.units = scope.get("RTHS_UNITS")
+        if args.units not in ("si", "mm-kn"):
+            fail(2, f"{args.model}: give the model's units (--units si|mm-kn or RTHS_UNITS)")
+    outs = [parse_dof(o) for o in args.output]
+    os.makedirs(args.out_dir, exist_ok=True)
+    header = ["time_s", "ground_accel_mm_s2", "specimen_force_kn", "interface_mm"] + \
+        [f"out_{n}_{d}_mm" for n, d in outs]
+    for record in args.record:
+        stem = os.path.splitext(os.path.basename(record))[0]
+        for scale in args.scale:
+            rows, spent = run(args, ops, model, record, scale, outs)
+            path = os.path.join(args.out_dir, f"{stem}-x{scale:g}.csv")
+            with open(path, "w", encoding="ascii") as f:
+                f.write(",".join(header) + "\n")
+                for r in rows:
+                    f.write(",".join(f"{v:.17g}" for v in r) + "\n")
+            steps = len(rows) - 1
+            print(json.dumps({"file": path, "steps": steps, "analyze_s": spent,
+                              "per_step_s": spent / max(steps, 1),
+                              "peak_interface_mm": max(abs(r[3]) for r in rows)}))
+            sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()
