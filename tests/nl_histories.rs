@@ -151,6 +151,10 @@ fn opensees(test: &str) -> Option<Command> {
 /// OpenSees's runs of a Steel02 shear frame (training records) train the model; OpenSees's own
 /// run of held-out El Centro is read by the scoring alone. Short records keep it to seconds.
 #[test]
+#[cfg_attr(
+    rths_no_opensees,
+    ignore = "needs openseespy, not found when the tests were built (docs/ci.md)"
+)]
 fn opensees_histories_train_a_model_scored_against_opensees_s_own_held_out_run() {
     let Some(mut py) = opensees("Steel02 frame histories") else {
         return;
