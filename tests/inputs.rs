@@ -96,6 +96,8 @@ fn long_records_are_refused_before_allocating() {
 #[test]
 fn a_closed_stdout_ends_quietly() {
     // `rths … | head -1`: the reader goes away after one line.
+    let dir = tempfile::tempdir().unwrap();
+    let closed_out = dir.path().join("imported");
     for args in [
         vec![
             "analyze",
@@ -103,6 +105,18 @@ fn a_closed_stdout_ends_quietly() {
             "data/structures/shear8-yielding.json",
         ],
         vec!["plant"],
+        // An imported structure's run prints its summary after writing its history.
+        vec![
+            "simulate",
+            "--structure",
+            "data/structures/opensees-frame-1x1.json",
+            "--scenario",
+            "fe-pure",
+            "--motion",
+            "el-centro",
+            "--out",
+            closed_out.to_str().unwrap(),
+        ],
     ] {
         let mut child = Command::new(env!("CARGO_BIN_EXE_rths"))
             .args(&args)

@@ -110,24 +110,24 @@ fn opensees(a: OpenseesArgs) -> anyhow::Result<()> {
     let json = file.to_json()?;
     std::fs::write(&a.out, json).with_context(|| format!("writing {}", a.out.display()))?;
     bar.finish_and_clear();
-    println!(
+    crate::outln!(
         "model               {} ({} free DOFs, {} with mass: the condensed model's size)",
         model.display(),
         structure.equations().len(),
         structure.mass_dofs()
     );
-    println!(
+    crate::outln!(
         "specimen            {} kN/mm at {} (condensed DOF {})",
         structure.specimen_stiffness_kn_per_mm(),
         structure.specimen(),
         structure.interface_index()
     );
     let outs: Vec<String> = structure.outputs().iter().map(|o| o.to_string()).collect();
-    println!("outputs             {}", outs.join(", "));
-    println!(
+    crate::outln!("outputs             {}", outs.join(", "));
+    crate::outln!(
         "time                {:.2} s ({exported_s:.2} s in OpenSees)",
         start.elapsed().as_secs_f64()
     );
-    println!("wrote {}", a.out.display());
+    crate::outln!("wrote {}", a.out.display());
     Ok(())
 }

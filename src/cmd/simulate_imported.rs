@@ -173,37 +173,39 @@ pub fn run(
         meta_nrmse_pct: meta_figures.map(|m| m.2),
     };
     if args.json {
-        println!("{}", serde_json::to_string(&json)?);
+        crate::outln!("{}", serde_json::to_string(&json)?);
         return Ok(());
     }
-    println!(
+    crate::outln!(
         "scenario            {sc} ({motion_label}, imported structure {}: {} DOFs, {} with mass)",
-        json.structure, json.dofs, json.mass_dofs
+        json.structure,
+        json.dofs,
+        json.mass_dofs
     );
-    println!(
+    crate::outln!(
         "specimen            numerical stand-in, {} kN/mm at {}",
         s.specimen_stiffness_kn_per_mm(),
         s.specimen()
     );
-    println!("peak interface      {:.4} mm", json.peak_interface_mm);
+    crate::outln!("peak interface      {:.4} mm", json.peak_interface_mm);
     for (c, p) in &json.peak_outputs_mm {
-        println!("peak {c:<14} {p:.4} mm");
+        crate::outln!("peak {c:<14} {p:.4} mm");
     }
-    println!(
+    crate::outln!(
         "host FE             {:.2} us per step ({steps} steps of {:.6} s)",
         per_step * 1e6,
         DT_S
     );
     if let Some((t, r, (ni, no))) = meta_figures {
-        println!(
+        crate::outln!(
             "reduced model       {:.3} us per step ({r} modes; {:.1}x faster than the host FE)",
             t * 1e6,
             per_step / t.max(f64::MIN_POSITIVE)
         );
-        println!("NRMSE vs host FE    interface {ni:.4} %, largest output {no:.4} %");
+        crate::outln!("NRMSE vs host FE    interface {ni:.4} %, largest output {no:.4} %");
     }
     if let Some(dir) = &args.out {
-        println!("wrote {}", dir.join("history.csv").display());
+        crate::outln!("wrote {}", dir.join("history.csv").display());
     }
     Ok(())
 }

@@ -259,7 +259,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut failed = false;
     for (i, o) in outcomes.iter().enumerate() {
         let (med, max) = median_max(&o.step_latency_s);
-        println!(
+        crate::outln!(
             "element {}: {} steps of {} ticks, latency per step median {:.3} ms max {:.3} ms, \
              supervisor {}{}",
             i + 1,
@@ -274,7 +274,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .unwrap_or_default()
         );
         if let Some(p) = &o.pacing {
-            println!(
+            crate::outln!(
                 "element {}: wall clock: {} ticks at {:.2} Hz (goal 2048), each tick's start \
                  after its deadline RMS {:.1} µs, max {:.1} µs",
                 i + 1,

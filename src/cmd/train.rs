@@ -676,7 +676,7 @@ fn train_reduced(args: &Args, path: &std::path::Path, text: &str) -> anyhow::Res
     std::fs::write(&args.out, file.to_json()?)
         .with_context(|| format!("writing {}", args.out.display()))?;
     let t = &file.training;
-    println!(
+    crate::outln!(
         "reduced model of {} ({} DOFs, {} with mass) at {rate} Hz: {} of {} modes kept \
          (highest {:.2} Hz, lowest left out {}), static correction at the interface and {} outputs",
         structure.name(),
@@ -690,12 +690,14 @@ fn train_reduced(args: &Args, path: &std::path::Path, text: &str) -> anyhow::Res
         file.outputs.len()
     );
     for r in &t.per_record {
-        println!(
+        crate::outln!(
             "  {:<12} pure loop vs host FE: interface {:.4} %, largest output {:.4} %",
-            r.record, r.interface_nrmse_pct, r.max_output_nrmse_pct
+            r.record,
+            r.interface_nrmse_pct,
+            r.max_output_nrmse_pct
         );
     }
-    println!(
+    crate::outln!(
         "error bound {:.4} % NRMSE (the largest on the training records; target {} %){}; \
          damping coupling {:.2e}; {:.1} s",
         t.error_bound_pct,
@@ -708,7 +710,7 @@ fn train_reduced(args: &Args, path: &std::path::Path, text: &str) -> anyhow::Res
         t.damping_coupling,
         start.elapsed().as_secs_f64()
     );
-    println!("wrote {}", args.out.display());
+    crate::outln!("wrote {}", args.out.display());
     Ok(())
 }
 

@@ -69,7 +69,7 @@ pub fn run(cfg: SiteConfig) -> anyhow::Result<Vec<ElementOutcome>> {
             let l = s.local_addr()?;
             (Bound::Tcp(s), l)
         };
-        println!("listening on {local}");
+        crate::outln!("listening on {local}");
         bound.push((b, local));
     }
     std::io::stdout().flush()?;
@@ -113,7 +113,7 @@ pub fn run(cfg: SiteConfig) -> anyhow::Result<Vec<ElementOutcome>> {
             }
             element::write_recording(&path, &hd, &o.rows)
                 .with_context(|| format!("writing {}", path.display()))?;
-            println!("wrote {}", path.display());
+            crate::outln!("wrote {}", path.display());
         }
         outcomes.push(o);
     }
