@@ -169,11 +169,10 @@ impl ReducedModalParams {
     }
 
     /// The same model with the force deviation of the static term low-passed (first order) at
-    /// `cutoff_hz` (finite, > 0): the truncated modes respond quasi-statically only below the
-    /// lowest of them, so the lowest truncated mode's frequency is the natural cutoff. A measured
-    /// force's noise and tracking error above it would otherwise reach the target in the same
-    /// tick, undamped, and a lead compensator amplifies them (a hybrid loop with a soft specimen
-    /// trips the command-velocity interlock within ticks, docs/opensees.md). In the pure loop the
+    /// `cutoff_hz` (finite, > 0). A measured force's noise and tracking error would otherwise
+    /// reach the target in the same tick, undamped, and a lead compensator amplifies them. The
+    /// caller chooses the cutoff: the hybrid loop uses the lowest retained mode's frequency (at the
+    /// lowest truncated mode's the loop still tripped, docs/opensees.md). In the pure loop the
     /// deviation is zero and nothing changes.
     pub fn with_static_force_cutoff_hz(self, cutoff_hz: f64) -> Result<Self, ModelError> {
         if !cutoff_hz.is_finite() {
