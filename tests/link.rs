@@ -818,14 +818,15 @@ fn a_csv_record_uploaded_run_and_reported_equals_the_host_simulation() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("not the record of this recording"));
 }
 
-/// An LRX model uploaded in chunks to the LRX build runs El Centro exactly as the host simulation
-/// of that model; bad model uploads are refused with their reason, the model in force kept.
+/// An LRX model uploaded in chunks to the LR image runs El Centro exactly as the host simulation
+/// of that model; the LRX image takes an LR model and refuses an RNN-10 for the M4's tick; bad
+/// model uploads are refused with their reason, the model in force kept.
 #[test]
 #[cfg_attr(
     rths_no_qemu,
     ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
 )]
-fn an_lrx_model_uploaded_in_chunks_runs_as_the_host_simulates_it() {
+fn an_lrx_model_uploaded_to_the_lr_image_runs_as_the_host_simulates_it() {
     if qemu_missing("link test") {
         return;
     }
@@ -841,46 +842,50 @@ fn an_lrx_model_uploaded_in_chunks_runs_as_the_host_simulates_it() {
     other.lrx.as_mut().unwrap().k_corr_kn_per_mm *= 1.1;
     assert_ne!(checksum(&other), checksum(&shipped));
 
-    // The LR build refuses an LRX model: a kind it does not run.
+    // The LRX image: its compiled-in model; an RNN-10 refused at the commit for the M4's tick
+    // (104 %), the model in force kept; an LR model taken (any image takes any kind).
     let dir = tempfile::tempdir().unwrap();
     {
-        let mut q = Qemu::start(&link_elf(), dir.path()).unwrap();
-        let s0 = q.link.status().unwrap();
-        assert_eq!(s0.model_kind, rths_link::ModelKind::Lr);
-        match q.link.upload(&other) {
-            Err(LinkHostError::Refused(Request::ModelBegin, NackReason::Unsupported)) => {}
-            r => panic!("expected Unsupported, got {r:?}"),
+        let mut q = Qemu::start(&lrx_link_elf(), dir.path()).unwrap();
+        let link = &mut q.link;
+        link.timeout = Duration::from_secs(20);
+        let s0 = link.status().unwrap();
+        assert_eq!(s0.model_kind, rths_link::ModelKind::Lrx);
+        assert_eq!(
+            s0.model_checksum,
+            checksum(&shipped),
+            "the compiled-in lrx.json"
+        );
+        let rnn =
+            ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/rnn-10.json"))
+                .unwrap();
+        match link.upload(&rnn) {
+            Err(LinkHostError::Refused(Request::ModelCommit, NackReason::TickBudget)) => {}
+            r => panic!("expected TickBudget, got {r:?}"),
         }
-        assert_eq!(q.link.status().unwrap().model_checksum, s0.model_checksum);
+        let s1 = link.status().unwrap();
+        assert_eq!(
+            (s1.model_kind, s1.model_checksum),
+            (s0.model_kind, s0.model_checksum)
+        );
+        let lr_file =
+            ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json"))
+                .unwrap();
+        let c = link.upload(&lr_file).unwrap();
+        let s2 = link.status().unwrap();
+        assert_eq!(
+            (s2.model_kind, s2.model_checksum),
+            (rths_link::ModelKind::Lr, c)
+        );
     }
 
-    let elf = lrx_link_elf();
+    // The LR image takes the LRX model; bad uploads first.
+    let elf = link_elf();
     let mut q = Qemu::start(&elf, dir.path()).unwrap();
     let link = &mut q.link;
     link.timeout = Duration::from_secs(20);
     let s0 = link.status().unwrap();
-    assert_eq!(s0.model_kind, rths_link::ModelKind::Lrx);
-    assert_eq!(
-        s0.model_checksum,
-        checksum(&shipped),
-        "the compiled-in lrx.json"
-    );
-    // An RNN model: refused, a kind this build does not run.
-    let rnn =
-        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/rnn-10.json"))
-            .unwrap();
-    match link.upload(&rnn) {
-        Err(LinkHostError::Refused(Request::ModelBegin, NackReason::Unsupported)) => {}
-        r => panic!("expected Unsupported, got {r:?}"),
-    }
-    // An LR model: refused too (it would run beside LRX's lead filter).
-    let lr_file =
-        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json"))
-            .unwrap();
-    match link.upload(&lr_file) {
-        Err(LinkHostError::Refused(Request::UploadLr, NackReason::Unsupported)) => {}
-        r => panic!("expected Unsupported, got {r:?}"),
-    }
+    assert_eq!(s0.model_kind, rths_link::ModelKind::Lr);
     // A NaN in a chunk, a wrong checksum, a stride that is not the lead filter's: refused whole.
     let msgs = rths::link_host::model_messages(&other).unwrap();
     let mut nan = msgs.clone();
@@ -906,12 +911,20 @@ fn an_lrx_model_uploaded_in_chunks_runs_as_the_host_simulates_it() {
         Err(LinkHostError::Refused(Request::ModelCommit, NackReason::OutOfRange)) => {}
         r => panic!("expected OutOfRange, got {r:?}"),
     }
-    assert_eq!(link.status().unwrap().model_checksum, s0.model_checksum);
+    let s1 = link.status().unwrap();
+    assert_eq!(
+        (s1.model_kind, s1.model_checksum),
+        (s0.model_kind, s0.model_checksum)
+    );
 
     // The other model: accepted, run, recorded.
     let c = link.upload(&other).unwrap();
     assert_eq!(c, checksum(&other));
-    assert_eq!(link.status().unwrap().model_checksum, c);
+    let s2 = link.status().unwrap();
+    assert_eq!(
+        (s2.model_kind, s2.model_checksum),
+        (rths_link::ModelKind::Lrx, c)
+    );
     link.arm(1).unwrap();
     link.start().unwrap();
     let csv = dir.path().join("run.csv");
@@ -944,7 +957,7 @@ fn an_lrx_model_uploaded_in_chunks_runs_as_the_host_simulates_it() {
     assert_eq!(r["end_state"], "done");
     let stack = r["stack_bytes"].as_u64().unwrap();
     let avail = r["stack_avail_bytes"].as_u64().unwrap();
-    println!("LRX link build with an uploaded model: stack {stack} of {avail} bytes");
+    println!("LR link image with an uploaded LRX model: stack {stack} of {avail} bytes");
     assert!(stack < avail);
 }
 
@@ -1109,17 +1122,18 @@ fn record_run(link: &mut rths::link_host::Link, csv: &Path) -> Vec<Row> {
     read_csv(csv)
 }
 
-/// The shipped rnn-10.json uploaded in chunks to the RNN build (validated on the device against
-/// its compiled hidden size, loaded in place) runs El Centro exactly as the host simulates the
-/// compiled-in model; bad RNN uploads (another hidden size, a NaN, a duplicated chunk, a truncated
-/// upload, a corrupted value, another kind, under a test) are refused with their reason and the
-/// device's holdings stay as they were.
+/// An RNN of another size (the shipped rnn-5.json) uploaded in chunks to the RNN-10 image (loaded
+/// in place) runs El Centro exactly as the host simulates it; bad RNN uploads (an RNN-10, which
+/// the M4's tick cannot run, a count that is no RNN's, a NaN, a duplicated chunk, a truncated
+/// upload, a corrupted value, under a test) are refused with their reason and the device's
+/// holdings stay as they were.
 #[test]
 #[cfg_attr(
     rths_no_qemu,
     ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
 )]
-fn an_rnn_uploaded_in_chunks_runs_as_the_compiled_in_one_and_bad_ones_are_refused() {
+fn an_rnn_of_another_size_uploaded_to_the_rnn_image_runs_as_the_host_simulates_it_and_bad_ones_are_refused(
+) {
     if qemu_missing("link test") {
         return;
     }
@@ -1140,15 +1154,18 @@ fn an_rnn_uploaded_in_chunks_runs_as_the_compiled_in_one_and_bad_ones_are_refuse
     assert_eq!(h0.rate_hz, rths_core::params::CONTROL_RATE_HZ);
     assert_ne!(h0.build_id, 0);
 
-    // Another hidden size than the build's; another kind.
-    match link.upload(&shipped_model("rnn-5.json")) {
-        Err(LinkHostError::Refused(Request::ModelBegin, NackReason::Shape)) => {}
-        r => panic!("expected Shape, got {r:?}"),
+    // The emulated board is a Cortex-M4: an uploaded RNN-10 is refused for its tick (104 %; the
+    // compiled-in one runs only because QEMU does not keep time), at the commit.
+    match link.upload(&shipped) {
+        Err(LinkHostError::Refused(Request::ModelCommit, NackReason::TickBudget)) => {}
+        r => panic!("expected TickBudget, got {r:?}"),
     }
-    match link.upload(&shipped_model("lrx.json")) {
-        Err(LinkHostError::Refused(Request::ModelBegin, NackReason::Unsupported)) => {}
-        r => panic!("expected Unsupported, got {r:?}"),
+    // A count that is no RNN's.
+    let mut odd = rths::link_host::model_messages(&shipped).unwrap();
+    if let HostMsg::ModelBegin { values, .. } = &mut odd[0] {
+        *values += 1;
     }
+    assert_eq!(refusal(link, &odd[0]), Some(NackReason::Shape));
     // No rig compensation in this build.
     match link.upload_rig(rths_link::ModelKind::Rnn, &[1.0]) {
         Err(LinkHostError::Refused(Request::UploadRig, NackReason::Unsupported)) => {}
@@ -1188,12 +1205,17 @@ fn an_rnn_uploaded_in_chunks_runs_as_the_compiled_in_one_and_bad_ones_are_refuse
     assert_eq!(refusal(link, &bad[n - 1]), Some(NackReason::Checksum));
     assert_eq!(link.holdings().unwrap(), h0, "nothing changed");
 
-    // The shipped model: accepted, reported as uploaded with the same checksum.
-    assert_eq!(link.upload(&shipped).unwrap(), h0.model_checksum);
+    // An RNN of another size: accepted, reported as uploaded with its checksum.
+    let five = shipped_model("rnn-5.json");
+    assert_eq!(link.upload(&five).unwrap(), chunked_checksum(&five));
     let h1 = link.holdings().unwrap();
     assert_eq!(
-        (h1.model_source, h1.model_checksum),
-        (rths_link::RecordSource::Uploaded, h0.model_checksum)
+        (h1.model_kind, h1.model_source, h1.model_checksum),
+        (
+            rths_link::ModelKind::Rnn,
+            rths_link::RecordSource::Uploaded,
+            chunked_checksum(&five)
+        )
     );
     link.arm(1).unwrap();
     link.start().unwrap();
@@ -1203,16 +1225,16 @@ fn an_rnn_uploaded_in_chunks_runs_as_the_compiled_in_one_and_bad_ones_are_refuse
 
     let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     let reference = study::reference_mm(&ag, 1.0).unwrap();
-    let mut st = setup(ScenarioId::RnnOnline(10), &ag, &reference, &[0.0; 6]);
+    let mut st = setup(ScenarioId::RnnOnline(5), &ag, &reference, &[0.0; 6]);
     st.lr = None;
-    st.rnn = Some(rths::models::rnn_params(&shipped).unwrap());
-    st.delay_steps = shipped.delay_steps;
+    st.rnn = Some(rths::models::rnn_params(&five).unwrap());
+    st.delay_steps = five.delay_steps;
     let host = scenario::run(&st).unwrap();
     assert_bit_identical(
         &rows,
         &host,
         ag.len(),
-        "rnn-online-10, uploaded rnn-10.json",
+        "rnn-online-5, rnn-5.json uploaded to the RNN-10 image",
     );
     let out = q.stdout();
     let line = out
@@ -1223,7 +1245,7 @@ fn an_rnn_uploaded_in_chunks_runs_as_the_compiled_in_one_and_bad_ones_are_refuse
     let r: serde_json::Value = serde_json::from_str(line).unwrap();
     assert_eq!(r["end_state"], "done");
     println!(
-        "RNN-10 link build with an uploaded model: stack {} of {} bytes",
+        "RNN-10 link image with an uploaded RNN-5: stack {} of {} bytes",
         r["stack_bytes"], r["stack_avail_bytes"]
     );
 }
@@ -1336,6 +1358,66 @@ fn a_rig_compensation_uploaded_to_the_fe_ats_build_runs_as_the_host_simulates_it
     assert_eq!(r["end_state"], "done");
     println!(
         "FE+ATS link build with an uploaded rig: stack {} of {} bytes",
+        r["stack_bytes"], r["stack_avail_bytes"]
+    );
+}
+
+/// The LR image becomes FE + ATS at run time (`rths link upload --fe-ats`: the device's own finite
+/// elements, the ATS from the paper's delay) and runs El Centro exactly as the host's
+/// `fe-online-ats`; no re-flash between an LR test and an FE + ATS one. A delay outside the ATS's
+/// bounds is refused, the model in force kept.
+#[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
+fn the_lr_image_made_fe_ats_at_run_time_runs_as_the_host_simulates_it() {
+    if qemu_missing("link test") {
+        return;
+    }
+    use rths_link::ModelKind as K;
+    let dir = tempfile::tempdir().unwrap();
+    let mut q = Qemu::start(&link_elf(), dir.path()).unwrap();
+    let link = &mut q.link;
+    link.timeout = Duration::from_secs(20);
+    let h0 = link.holdings().unwrap();
+    assert_eq!(h0.model_kind, K::Lr);
+    match link.upload_fe_ats(0.5) {
+        Err(LinkHostError::Refused(Request::ModelCommit, NackReason::OutOfRange)) => {}
+        r => panic!("expected OutOfRange, got {r:?}"),
+    }
+    assert_eq!(link.holdings().unwrap(), h0, "nothing changed");
+    let delay_s = PAPER_DELAY_STEPS as f64 * DT_S;
+    let c = link.upload_fe_ats(delay_s).unwrap();
+    let h1 = link.holdings().unwrap();
+    assert_eq!(
+        (h1.model_kind, h1.model_source, h1.model_checksum),
+        (K::FeAts, rths_link::RecordSource::Uploaded, c)
+    );
+    link.arm(1).unwrap();
+    link.start().unwrap();
+    let rows = record_run(link, &dir.path().join("run.csv"));
+
+    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let reference = study::reference_mm(&ag, 1.0).unwrap();
+    let st = setup(ScenarioId::FeOnlineAts, &ag, &reference, &[0.0; 6]);
+    let host = scenario::run_with_ats_start(&st, None).unwrap();
+    assert_bit_identical(
+        &rows,
+        &host,
+        ag.len(),
+        "fe-online-ats, uploaded to the LR image",
+    );
+    let out = q.stdout();
+    let line = out
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("RESULT "))
+        .unwrap();
+    let r: serde_json::Value = serde_json::from_str(line).unwrap();
+    assert_eq!(r["end_state"], "done");
+    println!(
+        "LR link image made FE + ATS: stack {} of {} bytes",
         r["stack_bytes"], r["stack_avail_bytes"]
     );
 }

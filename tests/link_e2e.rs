@@ -18,8 +18,8 @@ use std::process::Command;
 use std::time::Instant;
 
 /// The LRX build with the link and the identification (`--no-default-features --features
-/// board-qemu,model-lrx,identify`): the build that takes an uploaded LRX model (the LR build
-/// refuses one: `Unsupported`) and can identify (`identify` = `link` + the excitation's tables).
+/// board-qemu,model-lrx,identify`): an image that can identify (`identify` = `link` + the
+/// excitation's tables); any image takes an uploaded LRX model.
 fn lrx_link_elf() -> PathBuf {
     static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     ELF.get_or_init(|| {

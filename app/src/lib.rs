@@ -8,9 +8,9 @@
 //! - [`report`]: the `CALIB` and `RESULT` lines of the emulated board.
 //! - [`link`]: the command link's request handling and telemetry stream.
 //! - [`identify`]: identification through the board: the excitation played by the control task.
-//! - [`model_upload`]: chunked model uploads (LRX), validated on the device.
-//! - [`model_upload`]: chunked model uploads (LRX, RNN), validated on the device; [`chunks`]: the
-//!   chunk bookkeeping it shares with [`record`].
+//! - [`model_upload`]: chunked model uploads of any kind (LRX, RNN of any size, FE + ATS),
+//!   validated on the device; [`chunks`]: the chunk bookkeeping it shares with [`record`];
+//!   [`tick_cost`]: whether the board's tick can run an uploaded model.
 //! - [`rig_upload`]: the rig compensation upload (LRX lead and specimen dynamics, ATS start).
 //! - [`site`]: the board as an experimental site (targets streamed over the link).
 //! - [`record`]: the ground-motion record in force (compiled in or uploaded) and upload validation.
@@ -31,6 +31,7 @@ pub mod report;
 pub mod rig_upload;
 pub mod run;
 pub mod site;
+pub mod tick_cost;
 
 pub use control::{control_step, TelemetryRecord};
 pub use run::Run;

@@ -1,7 +1,7 @@
 //! The command link on the firmware side: the host's requests and the telemetry stream, over any
 //! board's [`LinkPort`](crate::board::LinkPort). The protocol and framing are `rths-link`'s.
 
-use rths_core::control::{Analytical, Controller};
+use rths_core::control::Controller;
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_core::supervisor::{Limits, State, Supervisor};
 use rths_link::{
@@ -13,6 +13,7 @@ use crate::board::LinkPort;
 use crate::identify::{FlashTables, Identification};
 use crate::model_upload::ModelStaging;
 use crate::record::RecordStore;
+use crate::tick_cost::TickBudget;
 use crate::{Run, TelemetryRecord};
 
 /// The wire state of a supervisor state.
@@ -41,7 +42,7 @@ pub fn upload_lr(
     delay_steps: u16,
     checksum: u32,
 ) -> Result<u32, NackReason> {
-    use rths_core::metamodel::{Lr, LrParams};
+    use rths_core::metamodel::LrParams;
     if features as usize != LR_COEFFS {
         return Err(NackReason::Shape);
     }
@@ -55,8 +56,9 @@ pub fn upload_lr(
         return Err(NackReason::Busy);
     }
     let params = LrParams::new(*theta).map_err(|_| NackReason::NotFinite)?;
-    ctl.set_analytical(Analytical::Lr(Lr::new(params)))
-        .map_err(|_| NackReason::Busy)?;
+    // Whatever the image's compiled-in kind: an LR model runs without a compensator, as the host's
+    // `lr-online` does.
+    ctl.install_lr(params).map_err(|_| NackReason::Busy)?;
     Ok(checksum)
 }
 
@@ -95,6 +97,18 @@ pub fn set_limits(
     Ok(())
 }
 
+/// After an upload of a `kind` model of checksum `crc` replaced the one in force: the status
+/// reports it; its rig compensation is the upload's (an LRX brings its own lead filter) or none
+/// yet (another kind than before: the old kind's rig values do not apply to it).
+fn model_replaced(s: &mut Session<'_>, kind: ModelKind, crc: u32) {
+    if kind == ModelKind::Lrx || kind != s.model_kind {
+        s.rig_source = RecordSource::Uploaded;
+    }
+    s.model_kind = kind;
+    s.model_checksum = crc;
+    s.model_source = RecordSource::Uploaded;
+}
+
 /// How the board's rig is armed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Rearm {
@@ -117,11 +131,12 @@ pub struct Session<'a> {
     pub bad_frames: u32,
     /// The active model's checksum.
     pub model_checksum: u32,
-    /// The build's analytical part takes an uploaded LR model.
-    pub upload_lr: bool,
+    /// The board's tick: an uploaded model it cannot run is refused `TickBudget`.
+    pub tick_budget: TickBudget,
     /// How `Arm` arms.
     pub rearm: Rearm,
-    /// The kind of the analytical part (reported in the status).
+    /// The kind of the analytical part in force (reported in the status): the compiled-in one
+    /// until an upload of any kind replaces it.
     pub model_kind: ModelKind,
     /// A chunked model upload in progress.
     pub model_upload: ModelStaging<'a>,
@@ -144,11 +159,12 @@ pub struct Session<'a> {
 }
 
 impl<'a> Session<'a> {
-    /// A session with the compiled-in model of `model_checksum`, of kind `model_kind`; chunked
-    /// model uploads are staged in `staging` (sized for the build's kind, empty: none).
+    /// A session with the compiled-in model of `model_checksum`, of kind `model_kind`, on a board
+    /// of `tick_budget`; chunked model uploads of any kind are staged in `staging`
+    /// ([`rths_link::MODEL_MAX_VALUES`]; shorter: the longer uploads are refused `TooLong`).
     pub fn new(
         model_checksum: u32,
-        upload_lr: bool,
+        tick_budget: TickBudget,
         rearm: Rearm,
         model_kind: ModelKind,
         staging: &'a mut [f64],
@@ -158,7 +174,7 @@ impl<'a> Session<'a> {
             seq: 0,
             bad_frames: 0,
             model_checksum,
-            upload_lr,
+            tick_budget,
             rearm,
             model_kind,
             model_upload: ModelStaging::new(staging),
@@ -278,36 +294,23 @@ pub fn handle(
             values,
             delay_steps,
             checksum,
-        } => {
-            let rnn_hidden = match ctl.analytical() {
-                Analytical::Rnn(m) => m.params().hidden(),
-                _ => 0,
-            };
-            s.model_upload
-                .begin(
-                    kind,
-                    values,
-                    delay_steps,
-                    checksum,
-                    s.model_kind,
-                    rnn_hidden,
-                    at_rest,
-                )
-                .map(|()| Effect::None)
-        }
+        } => s
+            .model_upload
+            .begin(kind, values, delay_steps, checksum, at_rest)
+            .map(|()| Effect::None),
         HostMsg::ModelChunk { seq, count, values } => s
             .model_upload
             .chunk(seq, count, &values, at_rest)
             .map(|()| Effect::None),
-        HostMsg::ModelCommit => s.model_upload.commit(ctl, at_rest).map(|crc| {
-            s.model_checksum = crc;
-            s.model_source = RecordSource::Uploaded;
-            // A model upload brings its own lead filter (LRX): the rig's is replaced too.
-            if s.model_kind == ModelKind::Lrx {
-                s.rig_source = RecordSource::Uploaded;
-            }
-            Effect::None
-        }),
+        HostMsg::ModelCommit => {
+            let budget = s.tick_budget;
+            s.model_upload
+                .commit(ctl, at_rest, &budget)
+                .map(|(kind, crc)| {
+                    model_replaced(s, kind, crc);
+                    Effect::None
+                })
+        }
         HostMsg::Holdings => return (DeviceMsg::Holdings(holdings(ctl, s)), Effect::None),
         HostMsg::UploadRig {
             kind,
@@ -325,17 +328,10 @@ pub fn handle(
             theta,
             delay_steps,
             checksum,
-        } => {
-            if s.upload_lr {
-                upload_lr(ctl, features, &theta, delay_steps, checksum).map(|crc| {
-                    s.model_checksum = crc;
-                    s.model_source = RecordSource::Uploaded;
-                    Effect::None
-                })
-            } else {
-                Err(NackReason::Unsupported)
-            }
-        }
+        } => upload_lr(ctl, features, &theta, delay_steps, checksum).map(|crc| {
+            model_replaced(s, ModelKind::Lr, crc);
+            Effect::None
+        }),
         HostMsg::SetLimits {
             stroke_mm,
             velocity_mm_s,

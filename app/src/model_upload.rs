@@ -1,18 +1,24 @@
-//! Chunked model uploads (a model of more values than one frame holds: LRX, RNN), validated on the
-//! device as the values arrive (order, count, finiteness) and at the commit (end-to-end checksum,
-//! then the model's own checks as `rths_core::model::assemble` makes them); refused whole, the model
-//! in force kept. The values wait in the build's staging area (sized for its own kind); an RNN is
-//! loaded into the controller in place (`Controller::load_rnn`: no ~9 kB value on the stack).
+//! Chunked model uploads of any kind into any image (LRX, an RNN of any hidden size up to the
+//! controller's capacity, FE + ATS), validated on the device as the values arrive (order, count,
+//! finiteness) and at the commit (end-to-end checksum, the board's tick budget, then the model's
+//! own checks as `rths_core::model` makes them); refused whole, the model in force kept. The values
+//! wait in one staging area of [`rths_link::MODEL_MAX_VALUES`]; the new parts are built in the
+//! controller in place (`Controller::install_rnn`, `assemble_in`: no ~9 kB RNN or 33 KiB ATS on
+//! the stack).
 
 use rths_core::compensator::{LeadParams, LEAD_TAPS};
 use rths_core::control::{Controller, ReplaceError};
 use rths_core::metamodel::{LrxParams, RnnScaling, RnnWeights, RNN_INPUTS};
-use rths_link::{ModelKind, NackReason, LRX_VALUES, RECORD_CHUNK};
+use rths_core::model::{assemble_in, ModelSpec};
+use rths_core::params::{Prototype, DT_S};
+use rths_link::{
+    ModelKind, NackReason, FE_ATS_VALUES, LRX_VALUES, RECORD_CHUNK, RNN_UPLOAD_MAX_HIDDEN,
+};
 
 use crate::chunks::Chunks;
+use crate::tick_cost::TickBudget;
 
-/// The model upload in progress, if any, and the staging area its values wait in (the build's:
-/// large enough for its own kind, e.g. [`rths_link::rnn_value_count`] of its RNN's hidden size).
+/// The model upload in progress, if any, and the staging area its values wait in.
 #[derive(Debug)]
 pub struct ModelStaging<'a> {
     staged: Option<Staged>,
@@ -28,14 +34,23 @@ struct Staged {
     chunks: Chunks,
 }
 
-/// The values a `kind` upload has for a build whose RNN has `rnn_hidden` units (0: no RNN);
-/// `None` for a kind that cannot be uploaded in chunks (an LR goes in one `UploadLr`; the FE
-/// model has no weights).
-pub fn values_of(kind: ModelKind, rnn_hidden: usize) -> Option<usize> {
-    match kind {
-        ModelKind::Lrx => Some(LRX_VALUES),
-        ModelKind::Rnn if rnn_hidden > 0 => Some(rths_link::rnn_value_count(rnn_hidden)),
-        ModelKind::Rnn | ModelKind::FeAts | ModelKind::Lr => None,
+/// A `kind` upload of `values` values has its kind's shape: LRX [`LRX_VALUES`], FE + ATS
+/// [`FE_ATS_VALUES`], an RNN [`rths_link::rnn_value_count`] of 1..=[`RNN_UPLOAD_MAX_HIDDEN`]
+/// units. `Err(Unsupported)` for a kind that is not uploaded in chunks (an LR goes in one
+/// `UploadLr`), `Err(Shape)` for another count.
+pub fn shape_ok(kind: ModelKind, values: usize) -> Result<(), NackReason> {
+    let ok = match kind {
+        ModelKind::Lrx => values == LRX_VALUES,
+        ModelKind::FeAts => values == FE_ATS_VALUES,
+        ModelKind::Rnn => {
+            rths_link::rnn_hidden_of(values).is_some_and(|h| h <= RNN_UPLOAD_MAX_HIDDEN)
+        }
+        ModelKind::Lr => return Err(NackReason::Unsupported),
+    };
+    if ok {
+        Ok(())
+    } else {
+        Err(NackReason::Shape)
     }
 }
 
@@ -50,40 +65,31 @@ impl<'a> ModelStaging<'a> {
         self.staged.is_some()
     }
 
-    /// Begin an upload of a `kind` model of `values` values (`build`: the kind this firmware runs,
-    /// `rnn_hidden`: its RNN's hidden size, 0 without one; another kind is refused `Unsupported`,
-    /// another count `Shape`, more than the staging area holds `TooLong`). Replaces an upload in
-    /// progress.
-    #[allow(clippy::too_many_arguments)] // the fields of `HostMsg::ModelBegin` and the build's
+    /// Begin an upload of a `kind` model of `values` values (any kind the link lays out in chunks,
+    /// whatever the image's compiled-in model: [`shape_ok`]; more than the staging area holds
+    /// `TooLong`). Replaces an upload in progress.
     pub fn begin(
         &mut self,
         kind: ModelKind,
         values: u16,
         delay_steps: u16,
         checksum: u32,
-        build: ModelKind,
-        rnn_hidden: usize,
         at_rest: bool,
     ) -> Result<(), NackReason> {
         if !at_rest {
             return Err(NackReason::Busy);
         }
-        if kind != build {
-            return Err(NackReason::Unsupported);
-        }
-        let expected = values_of(kind, rnn_hidden).ok_or(NackReason::Unsupported)?;
-        if usize::from(values) != expected {
-            return Err(NackReason::Shape);
-        }
-        if expected > self.area.len() {
+        let count = usize::from(values);
+        shape_ok(kind, count)?;
+        if count > self.area.len() {
             return Err(NackReason::TooLong);
         }
         self.staged = Some(Staged {
             kind,
-            count: expected,
+            count,
             delay_steps,
             checksum,
-            chunks: Chunks::new(expected),
+            chunks: Chunks::new(count),
         });
         Ok(())
     }
@@ -113,13 +119,20 @@ impl<'a> ModelStaging<'a> {
         Ok(())
     }
 
-    /// Check the upload and swap the model into `ctl` (analytical part and compensator, whole).
-    /// Returns its checksum. Refused: the upload is dropped, the model in force stays.
+    /// Check the upload and make it the controller's analytical part and compensator (whole): its
+    /// checksum, then whether `budget`'s tick can run it (`TickBudget`), then the model's own
+    /// checks. Returns the model's kind and checksum. Refused: the upload is dropped, the model in
+    /// force stays.
     ///
-    /// Out of line: the new parts are built (in place, `Controller::set_lrx`, `load_rnn`) only when
-    /// an upload is committed, and whatever frame that takes is not reserved for every request.
+    /// Out of line: the new parts are built (in place) only when an upload is committed, and
+    /// whatever frame that takes is not reserved for every request.
     #[inline(never)]
-    pub fn commit(&mut self, ctl: &mut Controller, at_rest: bool) -> Result<u32, NackReason> {
+    pub fn commit(
+        &mut self,
+        ctl: &mut Controller,
+        at_rest: bool,
+        budget: &TickBudget,
+    ) -> Result<(ModelKind, u32), NackReason> {
         if !at_rest {
             return Err(NackReason::Busy);
         }
@@ -131,6 +144,10 @@ impl<'a> ModelStaging<'a> {
         if rths_link::model_values_checksum(st.kind, v, st.delay_steps) != st.checksum {
             return Err(NackReason::Checksum);
         }
+        let rnn_hidden = rths_link::rnn_hidden_of(v.len()).unwrap_or(0);
+        if !budget.fits(st.kind, rnn_hidden) {
+            return Err(NackReason::TickBudget);
+        }
         match st.kind {
             ModelKind::Lrx => {
                 let (frame, lead) = lrx_parts(v)?;
@@ -138,11 +155,25 @@ impl<'a> ModelStaging<'a> {
             }
             ModelKind::Rnn => {
                 let (weights, scaling) = rnn_parts(v)?;
-                ctl.load_rnn(weights, scaling).map_err(replace_nack)?;
+                ctl.install_rnn(weights, scaling).map_err(replace_nack)?;
             }
-            ModelKind::Lr | ModelKind::FeAts => return Err(NackReason::Unsupported),
+            ModelKind::FeAts => {
+                let &[expected_delay_s] = v else {
+                    return Err(NackReason::Shape);
+                };
+                // The ATS's own check first: `assemble_in` leaves the parts unspecified on a
+                // refusal, and nothing may change on one.
+                rths_core::compensator::AtsParams::new(rths_core::compensator::AtsConfig::paper(
+                    DT_S,
+                    expected_delay_s,
+                ))
+                .map_err(|_| NackReason::OutOfRange)?;
+                let spec = ModelSpec::FeAts { expected_delay_s };
+                assemble_in(ctl, &spec, Prototype::paper(), DT_S).map_err(replace_nack)?;
+            }
+            ModelKind::Lr => return Err(NackReason::Unsupported),
         }
-        Ok(st.checksum)
+        Ok((st.kind, st.checksum))
     }
 }
 

@@ -481,11 +481,21 @@ impl Controller {
     /// parts in place ([`crate::model::assemble_in`]) instead of moving a ~44 KiB value (the
     /// ATS's 33 KiB) through the stack.
     pub fn init_in(slot: &mut core::mem::MaybeUninit<Self>, config: ControlConfig) -> &mut Self {
-        slot.write(Self::new(
+        // A struct literal written straight into the slot, cleared there: `new`'s clear on a local
+        // made the compiler build the ~44 KiB value on the stack and copy it (48 KiB of init
+        // stack once every image held the structure parts).
+        let c = slot.write(Self {
             config,
-            Analytical::Lr(Lr::PARKED),
-            Compensator::None,
-        ))
+            analytical: Analytical::Lr(Lr::PARKED),
+            compensator: Compensator::None,
+            supervisor: Supervisor::new(config.limits),
+            targets: TargetRing::default(),
+            last_good: Sample::default(),
+            held_samples: 0,
+            step_errors: 0,
+        });
+        c.clear();
+        c
     }
 
     /// Make the analytical part the LR model of `params` and drop any compensator, in place; only

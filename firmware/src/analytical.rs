@@ -63,8 +63,9 @@ pub const SCENARIO_SUFFIX: Option<usize> = Some(crate::gen::RNN_HIDDEN);
 #[cfg(not(feature = "model-rnn"))]
 pub const SCENARIO_SUFFIX: Option<usize> = None;
 
-/// The kind of this build's analytical part (the link's status reports it). The link has no
-/// structure-file kind yet: those builds report the finite-element kind.
+/// The kind of this build's compiled-in analytical part (the link's status reports it until an
+/// upload replaces it). The link has no structure-file kind yet: those builds report the
+/// finite-element kind.
 pub const MODEL_KIND: rths_link::ModelKind = if STRUCTURE {
     rths_link::ModelKind::FeAts
 } else if cfg!(feature = "model-rnn") {
@@ -77,32 +78,25 @@ pub const MODEL_KIND: rths_link::ModelKind = if STRUCTURE {
     rths_link::ModelKind::Lr
 };
 
-/// The link's `UploadLr` replaces the analytical part with an LR model only in the LR build: an LR
-/// model in another build would run beside that build's compensator (LRX's lead filter) or against
-/// another reference, a controller no host scenario simulates; those builds refuse it
-/// `Unsupported`, as they refuse every kind they do not run.
-pub const UPLOAD_LR: bool = cfg!(feature = "model-lr");
-
-/// Values of this build's staging area for chunked model uploads (its own kind's count; 0 without
-/// the link or a chunked kind).
-pub const STAGING: usize = if !cfg!(feature = "link") {
-    0
+/// The board's tick, against which an uploaded model is checked (`rths_app::tick_cost`): the
+/// Cortex-M7 boards at 480 MHz with hardware f64, the Cortex-M4 boards at 168 MHz, at the
+/// controller's rate. An upload of any kind is taken by any image if this tick can run it.
+pub const TICK_BUDGET: rths_app::tick_cost::TickBudget = if cfg!(any(
+    feature = "board-mps2-an500",
+    feature = "board-stm32h743"
+)) {
+    rths_app::tick_cost::TickBudget::cortex_m7_480mhz(rths_core::params::CONTROL_RATE_HZ as f64)
 } else {
-    kind_values()
+    rths_app::tick_cost::TickBudget::cortex_m4_168mhz(rths_core::params::CONTROL_RATE_HZ as f64)
 };
 
-#[cfg(feature = "model-rnn")]
-const fn kind_values() -> usize {
-    rths_link::rnn_value_count(crate::gen::RNN_HIDDEN)
-}
-#[cfg(feature = "model-lrx")]
-const fn kind_values() -> usize {
-    rths_link::LRX_VALUES
-}
-#[cfg(not(any(feature = "model-rnn", feature = "model-lrx")))]
-const fn kind_values() -> usize {
+/// Values of the staging area for chunked model uploads of any kind (an RNN of the link's largest
+/// hidden size, 9,272 bytes; 0 without the link).
+pub const STAGING: usize = if cfg!(feature = "link") {
+    rths_link::MODEL_MAX_VALUES
+} else {
     0
-}
+};
 
 /// The firmware build's identity: CRC-32 of its description (package version, board, analytical
 /// part, rate, compiled-in model's source), the same for two identical builds.

@@ -327,7 +327,7 @@ mod app {
                     port: parts.link,
                     session: rths_app::link::Session::new(
                         model_checksum,
-                        analytical::UPLOAD_LR,
+                        analytical::TICK_BUDGET,
                         if B::EMULATED_PLANT {
                             rths_app::link::Rearm::OncePerPowerUp
                         } else {

@@ -56,14 +56,22 @@ pub fn model_checksum(theta: &[f64; LR_COEFFS], delay_steps: u16) -> u32 {
 /// the adaptation time constant, 8 lead-filter weights, the lead stride.
 pub const LRX_VALUES: usize = 20;
 
-/// Most values a chunked upload of an LRX model may have (the device's staging area for it; an RNN
-/// is staged in its build's own area, [`rnn_value_count`] of its hidden size).
-pub const MODEL_MAX_VALUES: usize = 32;
+/// Values of an FE + ATS model upload ([`ModelKind::FeAts`]): the delay the ATS starts from, s. The
+/// finite elements are the device's own prototype (the paper's frame, compiled in).
+pub const FE_ATS_VALUES: usize = 1;
+
+/// The largest RNN hidden size an upload may have: the controller's RNN capacity
+/// (`rths_core::metamodel::RNN_MAX_HIDDEN`; a test checks they agree).
+pub const RNN_UPLOAD_MAX_HIDDEN: usize = 32;
+
+/// Most values a chunked model upload may have, of any kind: the device's staging area (an RNN of
+/// [`RNN_UPLOAD_MAX_HIDDEN`] units, 1,159 values, 9,272 bytes).
+pub const MODEL_MAX_VALUES: usize = rnn_value_count(RNN_UPLOAD_MAX_HIDDEN);
 
 /// Values of an RNN model upload of `hidden` units ([`ModelKind::Rnn`]), in this order: `w_ih`
 /// (hidden × 2, row-major), `w_hh` (hidden × hidden, row-major), `b_h` (hidden), `w_ho` (hidden),
 /// `b_o`, the input means (2) and standard deviations (2), the output mean and standard deviation.
-/// The device takes only its build's hidden size (its compiled capacity).
+/// The device takes any hidden size up to [`RNN_UPLOAD_MAX_HIDDEN`] that its tick can run.
 pub const fn rnn_value_count(hidden: usize) -> usize {
     hidden * 2 + hidden * hidden + hidden + hidden + 1 + 2 + 2 + 2
 }
@@ -228,9 +236,11 @@ pub enum HostMsg {
     RecordCommit,
     /// Begin a chunked model upload (a model of more values than a frame holds: LRX, RNN).
     ModelBegin {
-        /// The kind (the device refuses one its build does not run: `Unsupported`).
+        /// The kind (any image takes any kind its tick can run; one without a chunked layout is
+        /// refused `Unsupported`).
         kind: ModelKind,
-        /// Values that will follow (the kind's count, e.g. [`LRX_VALUES`]).
+        /// Values that will follow (the kind's count: [`LRX_VALUES`], [`FE_ATS_VALUES`],
+        /// [`rnn_value_count`]).
         values: u16,
         /// The model's feedback delay, ticks.
         delay_steps: u16,
@@ -397,6 +407,9 @@ pub enum NackReason {
     /// The record's step is not finite or outside the accepted range ([`RECORD_DT_MIN_S`] ..=
     /// [`RECORD_DT_MAX_S`]).
     Rate,
+    /// The uploaded model cannot run in the board's tick: its estimated instructions per tick
+    /// exceed what the core does in one tick (e.g. an RNN-10 on a Cortex-M4 at 2048 Hz, 104 %).
+    TickBudget,
 }
 
 /// What the device does when the host falls silent during a run (no valid frame for

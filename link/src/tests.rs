@@ -184,6 +184,7 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
         Just(NackReason::TooLong),
         Just(NackReason::Rate),
         Just(NackReason::NotOwner),
+        Just(NackReason::TickBudget),
     ];
     let kind = any_kind();
     prop_oneof![

@@ -50,12 +50,17 @@ pub enum LinkCommand {
     },
     /// Upload a model file, a ground-motion record and/or a rig file's compensation (each validated
     /// on the device; refused whole, the old one kept).
-    #[command(group(clap::ArgGroup::new("what").required(true).multiple(true).args(["model", "motion", "rig"])))]
+    #[command(group(clap::ArgGroup::new("what").required(true).multiple(true).args(["model", "fe_ats", "motion", "rig"])))]
     Upload {
-        /// The model file of the kind the firmware runs (`rths train lr|lrx|rnn`; LR, LRX, RNN of
-        /// the build's hidden size).
-        #[arg(long)]
+        /// A model file of any kind (`rths train lr|lrx|rnn`: LR, LRX, an RNN of up to 32 units),
+        /// whatever the firmware's compiled-in part; refused `TickBudget` if the board's tick
+        /// cannot run it (RNN-10 on a Cortex-M4 at 2048 Hz).
+        #[arg(long, conflicts_with = "fe_ats")]
         model: Option<PathBuf>,
+        /// Make the analytical part the device's finite elements with the ATS, starting from the
+        /// paper's delay (`rths simulate --scenario fe-online-ats`), whatever its compiled-in part.
+        #[arg(long)]
+        fe_ats: bool,
         /// A ground motion: an AT2/CSV file or an embedded record name.
         #[arg(long, value_name = "PATH|NAME")]
         motion: Option<String>,
@@ -109,9 +114,12 @@ pub enum LinkCommand {
     /// The whole test: [upload], arm, start, record to CSV (with a header for `rths report`) until
     /// the run ends.
     Run {
-        /// Upload this model first.
-        #[arg(long)]
+        /// Upload this model first (any kind, as `upload --model`).
+        #[arg(long, conflicts_with = "fe_ats")]
         model: Option<PathBuf>,
+        /// Make the analytical part the device's FE + ATS first (as `upload --fe-ats`).
+        #[arg(long)]
+        fe_ats: bool,
         /// Upload this rig file's compensation first (after --model; as `upload --rig`, with the
         /// LRX lead's adaptation of `rths train lrx --rig`).
         #[arg(long, value_name = "RIG.json")]
@@ -270,6 +278,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         LinkCommand::Upload {
             model,
+            fe_ats,
             motion,
             scale,
             rig,
@@ -277,6 +286,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         } => {
             if let Some(p) = model {
                 upload_model(&mut link, &p)?;
+            }
+            if fe_ats {
+                upload_fe_ats(&mut link)?;
             }
             if let Some(p) = rig {
                 upload_rig(&mut link, &p, lead_adapt_ticks)?;
@@ -321,6 +333,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         LinkCommand::Run {
             model,
+            fe_ats,
             rig,
             motion,
             scale,
@@ -333,6 +346,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             if let Some(p) = &model {
                 upload_model(&mut link, p)?;
                 h.set("model", p.display());
+            }
+            if fe_ats {
+                upload_fe_ats(&mut link)?;
+                h.set("model", "fe-ats");
             }
             if let Some(p) = &rig {
                 let c = upload_rig(&mut link, p, crate::train::lrx::RIG_LEAD_ADAPT_TICKS)?;
@@ -578,9 +595,70 @@ fn upload_rig(link: &mut Link, p: &std::path::Path, lead_adapt_ticks: f64) -> an
 
 fn upload_model(link: &mut Link, p: &std::path::Path) -> anyhow::Result<()> {
     let m = ModelFile::load(p)?;
-    let c = link.upload(&m)?;
+    let c = link
+        .upload(&m)
+        .map_err(|e| with_budget_reason(e, || tick_budget_reason(&m)))?;
     crate::outln!("uploaded {} (checksum {c:08x})", p.display());
     Ok(())
+}
+
+/// Make the device's analytical part its FE + ATS (the ATS from the paper's delay).
+fn upload_fe_ats(link: &mut Link) -> anyhow::Result<()> {
+    let delay_s = rths_core::params::PAPER_DELAY_STEPS as f64 * rths_core::params::DT_S;
+    let c = link.upload_fe_ats(delay_s).map_err(|e| {
+        with_budget_reason(e, || {
+            budget_figures(rths_link::ModelKind::FeAts, 0, "FE + ATS")
+        })
+    })?;
+    crate::outln!(
+        "analytical part: the device's FE + ATS, the ATS from {:.4} s (checksum {c:08x})",
+        delay_s
+    );
+    Ok(())
+}
+
+/// `e`, with `why()` as its context if the device refused the upload `TickBudget`.
+fn with_budget_reason(e: link_host::LinkHostError, why: impl FnOnce() -> String) -> anyhow::Error {
+    let budget = matches!(
+        e,
+        link_host::LinkHostError::Refused(_, rths_link::NackReason::TickBudget)
+    );
+    let e = anyhow::Error::new(e);
+    if budget {
+        e.context(why())
+    } else {
+        e
+    }
+}
+
+/// Why the board's tick cannot run `m`, in the budget's figures for both cores (the host does not
+/// know which core the board has).
+fn tick_budget_reason(m: &ModelFile) -> String {
+    use crate::model_file::ModelKind as FileKind;
+    match (m.kind, m.rnn.as_ref()) {
+        (FileKind::Rnn, Some(r)) => budget_figures(
+            rths_link::ModelKind::Rnn,
+            r.hidden,
+            &format!("RNN-{}", r.hidden),
+        ),
+        (FileKind::Lrx, _) => budget_figures(rths_link::ModelKind::Lrx, 0, "LRX"),
+        _ => budget_figures(rths_link::ModelKind::Lr, 0, "LR"),
+    }
+}
+
+/// The board cannot run `name` in its tick: the estimate on each core at the controller's rate.
+fn budget_figures(kind: rths_link::ModelKind, hidden: usize, name: &str) -> String {
+    use rths_app::tick_cost::TickBudget;
+    let rate = f64::from(rths_core::params::CONTROL_RATE_HZ);
+    let m4 = TickBudget::cortex_m4_168mhz(rate);
+    let m7 = TickBudget::cortex_m7_480mhz(rate);
+    format!(
+        "the board's tick cannot run {name}: estimated {:.0} instructions per tick on a Cortex-M4,          {:.0} % of its tick at 168 MHz and {rate} Hz ({:.0} on a Cortex-M7: {:.1} % at 480 MHz);          a smaller model or a Cortex-M7 board (docs/link.md)",
+        m4.instr(kind, hidden),
+        m4.pct_of_tick(kind, hidden),
+        m7.instr(kind, hidden),
+        m7.pct_of_tick(kind, hidden),
+    )
 }
 
 /// Upload the ground motion `spec` (a file or an embedded name) × `scale`; its name.

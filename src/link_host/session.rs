@@ -12,7 +12,9 @@ use rths_link::{
 
 use super::error::LinkHostError;
 use super::transport::{self, Port};
-use super::wire::{lrx_rig_extras, model_messages, record_messages, rig_message, upload_message};
+use super::wire::{
+    fe_ats_messages, lrx_rig_extras, model_messages, record_messages, rig_message, upload_message,
+};
 use crate::model_file::{ModelFile, ModelKind};
 
 /// How a run's telemetry ended.
@@ -250,9 +252,24 @@ impl Link {
         Ok(rths_link::rig_checksum(kind, values))
     }
 
-    /// Upload a model: an LR model in one `UploadLr`, another kind in chunks (`ModelBegin`, the
-    /// chunks, `ModelCommit`, each acknowledged; a kind the firmware does not run is refused at the
-    /// begin, `Unsupported`). Its checksum on success.
+    /// Make the device's analytical part its own finite elements with the ATS starting from
+    /// `expected_delay_s` (a chunked upload of one value), whatever its compiled-in part. Its
+    /// checksum on success.
+    pub fn upload_fe_ats(&mut self, expected_delay_s: f64) -> Result<u32, LinkHostError> {
+        let msgs = fe_ats_messages(expected_delay_s)?;
+        for m in &msgs {
+            self.expect_ack(m)?;
+        }
+        match msgs.first() {
+            Some(HostMsg::ModelBegin { checksum, .. }) => Ok(*checksum),
+            _ => Err(LinkHostError::Model("no model begin".into())),
+        }
+    }
+
+    /// Upload a model of any kind, whatever the image's compiled-in part: an LR model in one
+    /// `UploadLr`, another kind in chunks (`ModelBegin`, the chunks, `ModelCommit`, each
+    /// acknowledged; a model the board's tick cannot run is refused at the commit, `TickBudget`).
+    /// Its checksum on success.
     pub fn upload(&mut self, model: &ModelFile) -> Result<u32, LinkHostError> {
         if model.kind != ModelKind::Lr {
             let msgs = model_messages(model)?;

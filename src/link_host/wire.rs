@@ -82,7 +82,8 @@ fn chunks(values: &[f64]) -> impl Iterator<Item = (u32, u8, [f64; RECORD_CHUNK])
 /// The flat values of a model file for a chunked upload, and its wire kind: LRX in
 /// `rths_link::lrx_values`' order; an RNN as `w_ih` (row-major), `w_hh` (row-major), `b_h`, `w_ho`,
 /// `b_o`, `input_mean`, `input_std`, `output_mean`, `output_std` (`rths_link::rnn_value_count`'s
-/// order; only an RNN build of the same hidden size takes it, others refuse it).
+/// order; any image takes an RNN of up to `rths_link::RNN_UPLOAD_MAX_HIDDEN` units that its tick
+/// can run).
 pub fn model_values(model: &ModelFile) -> Result<(WireModelKind, Vec<f64>), LinkHostError> {
     let missing = |what: &str| LinkHostError::Model(format!("no {what} section"));
     match model.kind {
@@ -142,20 +143,36 @@ pub fn lrx_rig_extras(model: &ModelFile) -> Result<Option<Vec<f64>>, LinkHostErr
 /// `ModelCommit`.
 pub fn model_messages(model: &ModelFile) -> Result<Vec<HostMsg>, LinkHostError> {
     let (kind, v) = model_values(model)?;
+    let delay_steps = u16::try_from(model.delay_steps)
+        .map_err(|_| LinkHostError::Model("delay_steps does not fit 16 bits".into()))?;
+    chunked_messages(kind, &v, delay_steps)
+}
+
+/// The messages of a chunked upload that makes the device's analytical part its own finite
+/// elements with the ATS starting from `expected_delay_s` (`rths_link::FE_ATS_VALUES`: the one
+/// value), as `rths simulate --scenario fe-online-ats` runs them.
+pub fn fe_ats_messages(expected_delay_s: f64) -> Result<Vec<HostMsg>, LinkHostError> {
+    chunked_messages(WireModelKind::FeAts, &[expected_delay_s], 0)
+}
+
+/// `ModelBegin`, the chunks of `v`, `ModelCommit`, for a `kind` upload.
+fn chunked_messages(
+    kind: WireModelKind,
+    v: &[f64],
+    delay_steps: u16,
+) -> Result<Vec<HostMsg>, LinkHostError> {
     if let Some(i) = v.iter().position(|x| !x.is_finite()) {
         return Err(LinkHostError::Model(format!("value {i} is not finite")));
     }
     let values = u16::try_from(v.len())
         .map_err(|_| LinkHostError::Model("more than 65535 values".into()))?;
-    let delay_steps = u16::try_from(model.delay_steps)
-        .map_err(|_| LinkHostError::Model("delay_steps does not fit 16 bits".into()))?;
     let mut out = vec![HostMsg::ModelBegin {
         kind,
         values,
         delay_steps,
-        checksum: rths_link::model_values_checksum(kind, &v, delay_steps),
+        checksum: rths_link::model_values_checksum(kind, v, delay_steps),
     }];
-    out.extend(chunks(&v).map(|(seq, count, values)| HostMsg::ModelChunk { seq, count, values }));
+    out.extend(chunks(v).map(|(seq, count, values)| HostMsg::ModelChunk { seq, count, values }));
     out.push(HostMsg::ModelCommit);
     Ok(out)
 }

@@ -5,6 +5,7 @@ use std::boxed::Box;
 use std::vec::Vec;
 
 use super::*;
+use crate::tick_cost::TickBudget;
 use heapless::spsc::Queue;
 use rths_core::compensator::Compensator;
 use rths_core::control::{Analytical, ControlConfig, FeedbackSource};
@@ -203,7 +204,13 @@ fn the_link_request_starts_an_identification_and_numbers_its_samples() {
     let mut store = RecordStore::new(&[0.0, 0.1, 0.0], 0.01, 41, &mut []);
     let msg = HostMsg::Identify { amplitude_mm: 2.0 };
     // A build without the tables refuses.
-    let mut s = Session::new(0, true, Rearm::OncePerPowerUp, ModelKind::Lr, &mut []);
+    let mut s = Session::new(
+        0,
+        TickBudget::cortex_m4_168mhz(2048.0),
+        Rearm::OncePerPowerUp,
+        ModelKind::Lr,
+        &mut [],
+    );
     let (a, e) = handle(msg, &mut ctl, &mut run, &mut store, &mut s, false);
     assert_eq!(
         a,

@@ -1,8 +1,10 @@
 //! Tests of [`crate::link`]: request handling against a controller, telemetry numbering.
 
+extern crate std;
+
 use super::*;
 use rths_core::compensator::Compensator;
-use rths_core::control::{ControlConfig, FeedbackSource};
+use rths_core::control::{Analytical, ControlConfig, FeedbackSource};
 use rths_core::metamodel::{Lr, LrParams};
 use rths_core::params::{Prototype, SpecimenScale};
 use rths_core::supervisor::FaultReason;
@@ -22,10 +24,10 @@ fn controller() -> Controller {
     Controller::new(cfg, Analytical::Lr(Lr::new(lr)), Compensator::None)
 }
 
-fn session(upload_lr: bool, rearm: Rearm) -> Session<'static> {
+fn session(rearm: Rearm) -> Session<'static> {
     Session::new(
         compiled_model_checksum(&THETA),
-        upload_lr,
+        TickBudget::cortex_m4_168mhz(2048.0),
         rearm,
         ModelKind::Lr,
         &mut [],
@@ -46,7 +48,7 @@ fn ack(r: Request) -> (DeviceMsg, Effect) {
 fn arm_start_abort_and_refusals() {
     let mut ctl = controller();
     let mut run = Run::new();
-    let mut s = session(true, Rearm::OncePerPowerUp);
+    let mut s = session(Rearm::OncePerPowerUp);
     let (m, _) = handle(
         HostMsg::Start,
         &mut ctl,
@@ -121,7 +123,7 @@ fn arm_start_abort_and_refusals() {
 fn a_real_rig_rearms_after_a_run_at_the_measured_position() {
     let mut ctl = controller();
     let mut run = Run::new();
-    let mut s = session(true, Rearm::AtMeasured);
+    let mut s = session(Rearm::AtMeasured);
     handle(
         HostMsg::Arm { telemetry_every: 1 },
         &mut ctl,
@@ -171,20 +173,38 @@ fn upload_lr_refusals_and_swap() {
         delay_steps: 28,
         checksum,
     };
-    let mut off = session(false, Rearm::OncePerPowerUp);
-    let (m, _) = handle(
-        up(6, theta, crc),
-        &mut ctl,
-        &mut run,
-        &mut store(),
-        &mut off,
-        false,
-    );
-    assert_eq!(
-        m,
-        DeviceMsg::Nack(Request::UploadLr, NackReason::Unsupported)
-    );
-    let mut s = session(true, Rearm::OncePerPowerUp);
+    // An image whose compiled-in part is FE + ATS takes it too: the LR runs without the ATS, as
+    // the host's `lr-online` does, and the status reports the new kind.
+    {
+        let mut fe_ctl = std::boxed::Box::new(controller());
+        let spec = rths_core::model::ModelSpec::FeAts {
+            expected_delay_s: 0.0137,
+        };
+        rths_core::model::assemble_in(&mut fe_ctl, &spec, Prototype::paper(), DT_S).unwrap();
+        let mut fe = Session::new(
+            0,
+            TickBudget::cortex_m4_168mhz(2048.0),
+            Rearm::OncePerPowerUp,
+            ModelKind::FeAts,
+            &mut [],
+        );
+        let (m, _) = handle(
+            up(6, theta, crc),
+            &mut fe_ctl,
+            &mut run,
+            &mut store(),
+            &mut fe,
+            false,
+        );
+        assert_eq!(m, DeviceMsg::Ack(Request::UploadLr));
+        assert!(matches!(fe_ctl.analytical(), Analytical::Lr(_)));
+        assert_eq!(*fe_ctl.compensator(), Compensator::None);
+        assert_eq!(
+            (fe.model_kind, fe.model_checksum, fe.model_source),
+            (ModelKind::Lr, crc, RecordSource::Uploaded)
+        );
+    }
+    let mut s = session(Rearm::OncePerPowerUp);
     let nack = |n| DeviceMsg::Nack(Request::UploadLr, n);
     assert_eq!(
         handle(
@@ -297,7 +317,7 @@ fn upload_lr_refusals_and_swap() {
 
 #[test]
 fn telemetry_decimation_and_sequence_numbers() {
-    let mut s = session(true, Rearm::OncePerPowerUp);
+    let mut s = session(Rearm::OncePerPowerUp);
     s.every = 3;
     let rec = |tick| TelemetryRecord {
         tick,
@@ -360,7 +380,7 @@ fn a_record_upload_over_handle_is_reported_and_refused_under_a_test() {
     use std::vec::Vec;
     let mut ctl = controller();
     let mut run = Run::new();
-    let mut s = session(true, Rearm::AtMeasured);
+    let mut s = session(Rearm::AtMeasured);
     let mut buf = [0.0; 64];
     let compiled = [0.0, 0.1, 0.0];
     let mut store = RecordStore::new(&compiled, 0.01, 41, &mut buf);
@@ -438,7 +458,7 @@ fn the_link_loss_policy_is_chosen_at_arm_time() {
     use rths_link::{LinkLoss, LINK_TIMEOUT_TICKS};
     let mut ctl = controller();
     let mut run = Run::new();
-    let mut s = session(true, Rearm::OncePerPowerUp);
+    let mut s = session(Rearm::OncePerPowerUp);
     assert_eq!(s.link_loss, LinkLoss::Complete);
     let (m, _) = handle(
         HostMsg::ArmWith {
@@ -515,7 +535,7 @@ fn the_link_loss_policy_is_chosen_at_arm_time() {
 fn holdings_report_the_model_and_rig_origin_and_uploads_change_them() {
     let mut ctl = controller();
     let mut run = Run::new();
-    let mut s = session(true, Rearm::OncePerPowerUp).with_build_id(0xB111_D000);
+    let mut s = session(Rearm::OncePerPowerUp).with_build_id(0xB111_D000);
     let mut st = store();
     let h = |ctl: &mut Controller, run: &mut Run, st: &mut RecordStore<'_>, s: &mut Session<'_>| {
         match handle(HostMsg::Holdings, ctl, run, st, s, false).0 {

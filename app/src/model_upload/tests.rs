@@ -11,6 +11,11 @@ use rths_core::params::{Prototype, SpecimenScale};
 use rths_core::supervisor::Limits;
 use rths_link::{lrx_values, MODEL_MAX_VALUES};
 
+/// A board whose tick runs every model of these tests.
+const M7: TickBudget = TickBudget::cortex_m7_480mhz(2048.0);
+/// The F407's tick at 2048 Hz: no RNN-10.
+const M4: TickBudget = TickBudget::cortex_m4_168mhz(2048.0);
+
 /// A staging area of `n` values for a test (leaked: the device's is a static).
 fn area(n: usize) -> &'static mut [f64] {
     Box::leak(vec![0.0; n].into_boxed_slice())
@@ -49,18 +54,10 @@ fn an_lrx_upload_swaps_the_model_and_its_lead_filter() {
     let mut st = ModelStaging::new(area(MODEL_MAX_VALUES));
     let v = lrx();
     let c = rths_link::model_values_checksum(ModelKind::Lrx, &v, 28);
-    st.begin(
-        ModelKind::Lrx,
-        LRX_VALUES as u16,
-        28,
-        c,
-        ModelKind::Lrx,
-        0,
-        true,
-    )
-    .unwrap();
+    st.begin(ModelKind::Lrx, LRX_VALUES as u16, 28, c, true)
+        .unwrap();
     send(&mut st, &v, true).unwrap();
-    assert_eq!(st.commit(&mut ctl, true), Ok(c));
+    assert_eq!(st.commit(&mut ctl, true, &M7), Ok((ModelKind::Lrx, c)));
     assert!(!st.uploading());
 }
 
@@ -71,59 +68,65 @@ fn bad_model_uploads_are_refused_whole() {
     let v = lrx();
     let c = rths_link::model_values_checksum(ModelKind::Lrx, &v, 28);
     let n = LRX_VALUES as u16;
-    // A kind the build does not run, a kind that cannot be uploaded in chunks, a wrong count.
+    // A kind that cannot be uploaded in chunks, counts no kind has, too many for the area.
     assert_eq!(
-        st.begin(ModelKind::Lrx, n, 28, c, ModelKind::Lr, 0, true),
+        st.begin(ModelKind::Lr, 6, 28, c, true),
         Err(NackReason::Unsupported)
     );
+    for (kind, bad) in [
+        (ModelKind::Rnn, 146), // RNN-10 has 147
+        (ModelKind::Lrx, 19),
+        (ModelKind::Rnn, rths_link::rnn_value_count(33) as u16),
+        (ModelKind::FeAts, 2),
+        (ModelKind::FeAts, 0),
+    ] {
+        assert_eq!(
+            st.begin(kind, bad, 28, c, true),
+            Err(NackReason::Shape),
+            "{kind:?} {bad}"
+        );
+    }
     assert_eq!(
-        st.begin(ModelKind::Rnn, 147, 28, c, ModelKind::Rnn, 0, true),
-        Err(NackReason::Unsupported)
+        ModelStaging::new(area(100)).begin(ModelKind::Rnn, 147, 28, c, true),
+        Err(NackReason::TooLong)
     );
     assert_eq!(
-        st.begin(ModelKind::Lrx, n - 1, 28, c, ModelKind::Lrx, 0, true),
+        st.begin(ModelKind::Lrx, n - 1, 28, c, true),
         Err(NackReason::Shape)
     );
     assert_eq!(
-        st.begin(ModelKind::Lrx, n, 28, c, ModelKind::Lrx, 0, false),
+        st.begin(ModelKind::Lrx, n, 28, c, false),
         Err(NackReason::Busy)
     );
     // Truncated, reordered, a wrong checksum, a NaN, a bad stride, under a test.
-    st.begin(ModelKind::Lrx, n, 28, c, ModelKind::Lrx, 0, true)
-        .unwrap();
+    st.begin(ModelKind::Lrx, n, 28, c, true).unwrap();
     send(&mut st, &v[..12], true).unwrap();
-    assert_eq!(st.commit(&mut ctl, true), Err(NackReason::Incomplete));
-    st.begin(ModelKind::Lrx, n, 28, c, ModelKind::Lrx, 0, true)
-        .unwrap();
+    assert_eq!(st.commit(&mut ctl, true, &M7), Err(NackReason::Incomplete));
+    st.begin(ModelKind::Lrx, n, 28, c, true).unwrap();
     let mut c1 = [0.0; RECORD_CHUNK];
     c1[..8].copy_from_slice(&v[12..]);
     assert_eq!(st.chunk(1, 8, &c1, true), Err(NackReason::Sequence));
-    st.begin(ModelKind::Lrx, n, 28, c ^ 1, ModelKind::Lrx, 0, true)
-        .unwrap();
+    st.begin(ModelKind::Lrx, n, 28, c ^ 1, true).unwrap();
     send(&mut st, &v, true).unwrap();
-    assert_eq!(st.commit(&mut ctl, true), Err(NackReason::Checksum));
+    assert_eq!(st.commit(&mut ctl, true, &M7), Err(NackReason::Checksum));
     let mut nan = v;
     nan[4] = f64::NAN;
-    st.begin(ModelKind::Lrx, n, 28, c, ModelKind::Lrx, 0, true)
-        .unwrap();
+    st.begin(ModelKind::Lrx, n, 28, c, true).unwrap();
     assert_eq!(send(&mut st, &nan, true), Err(NackReason::NotFinite));
     let mut bad = v;
     bad[19] = 2.5;
     let cb = rths_link::model_values_checksum(ModelKind::Lrx, &bad, 28);
-    st.begin(ModelKind::Lrx, n, 28, cb, ModelKind::Lrx, 0, true)
-        .unwrap();
+    st.begin(ModelKind::Lrx, n, 28, cb, true).unwrap();
     send(&mut st, &bad, true).unwrap();
-    assert_eq!(st.commit(&mut ctl, true), Err(NackReason::OutOfRange));
+    assert_eq!(st.commit(&mut ctl, true, &M7), Err(NackReason::OutOfRange));
     bad[19] = 9.0; // a whole number outside the lead filter's 1..=8: the model's own check
     let cb = rths_link::model_values_checksum(ModelKind::Lrx, &bad, 28);
-    st.begin(ModelKind::Lrx, n, 28, cb, ModelKind::Lrx, 0, true)
-        .unwrap();
+    st.begin(ModelKind::Lrx, n, 28, cb, true).unwrap();
     send(&mut st, &bad, true).unwrap();
-    assert_eq!(st.commit(&mut ctl, true), Err(NackReason::OutOfRange));
-    st.begin(ModelKind::Lrx, n, 28, c, ModelKind::Lrx, 0, true)
-        .unwrap();
+    assert_eq!(st.commit(&mut ctl, true, &M7), Err(NackReason::OutOfRange));
+    st.begin(ModelKind::Lrx, n, 28, c, true).unwrap();
     send(&mut st, &v, true).unwrap();
-    assert_eq!(st.commit(&mut ctl, false), Err(NackReason::Busy));
+    assert_eq!(st.commit(&mut ctl, false, &M7), Err(NackReason::Busy));
 }
 
 /// An RNN of `h` units with distinct finite weights (not trained: only the upload is tested).
@@ -174,10 +177,9 @@ fn an_rnn_upload_loads_the_weights_in_place_as_new_would_build_them() {
     let c = rths_link::model_values_checksum(ModelKind::Rnn, &v, 28);
     assert_eq!(rnn_checksum(&weights(h, &w), &s, 28, &mut [0.0; 64]), c);
     let mut st = ModelStaging::new(area(n));
-    st.begin(ModelKind::Rnn, n as u16, 28, c, ModelKind::Rnn, h, true)
-        .unwrap();
+    st.begin(ModelKind::Rnn, n as u16, 28, c, true).unwrap();
     send(&mut st, &v, true).unwrap();
-    assert_eq!(st.commit(&mut ctl, true), Ok(c));
+    assert_eq!(st.commit(&mut ctl, true, &M7), Ok((ModelKind::Rnn, c)));
     let Analytical::Rnn(m) = ctl.analytical() else {
         panic!("not an RNN")
     };
@@ -195,31 +197,17 @@ fn bad_rnn_uploads_are_refused_whole_and_the_model_in_force_stays() {
     rnn_values(&weights(h, &w), &s, &mut v).unwrap();
     let c = rths_link::model_values_checksum(ModelKind::Rnn, &v, 28);
     let mut st = ModelStaging::new(area(n));
-    // Another hidden size than the build's; a build without an RNN; a staging area too small.
-    let n6 = rths_link::rnn_value_count(6) as u16;
+    // A count that is no RNN's; a staging area too small.
     assert_eq!(
-        st.begin(ModelKind::Rnn, n6, 28, c, ModelKind::Rnn, h, true),
+        st.begin(ModelKind::Rnn, n as u16 + 1, 28, c, true),
         Err(NackReason::Shape)
     );
     assert_eq!(
-        st.begin(ModelKind::Rnn, n as u16, 28, c, ModelKind::Lrx, 0, true),
-        Err(NackReason::Unsupported)
-    );
-    assert_eq!(
-        ModelStaging::new(area(n - 1)).begin(
-            ModelKind::Rnn,
-            n as u16,
-            28,
-            c,
-            ModelKind::Rnn,
-            h,
-            true
-        ),
+        ModelStaging::new(area(n - 1)).begin(ModelKind::Rnn, n as u16, 28, c, true),
         Err(NackReason::TooLong)
     );
     // A duplicated chunk, a NaN, a wrong checksum, a non-positive std (the model's own check).
-    st.begin(ModelKind::Rnn, n as u16, 28, c, ModelKind::Rnn, h, true)
-        .unwrap();
+    st.begin(ModelKind::Rnn, n as u16, 28, c, true).unwrap();
     let mut c0 = [0.0; RECORD_CHUNK];
     c0.copy_from_slice(&v[..RECORD_CHUNK]);
     st.chunk(0, RECORD_CHUNK as u8, &c0, true).unwrap();
@@ -230,24 +218,107 @@ fn bad_rnn_uploads_are_refused_whole_and_the_model_in_force_stays() {
     assert!(!st.uploading());
     let mut nan = v.clone();
     nan[n - 3] = f64::NAN;
-    st.begin(ModelKind::Rnn, n as u16, 28, c, ModelKind::Rnn, h, true)
-        .unwrap();
+    st.begin(ModelKind::Rnn, n as u16, 28, c, true).unwrap();
     assert_eq!(send(&mut st, &nan, true), Err(NackReason::NotFinite));
-    st.begin(ModelKind::Rnn, n as u16, 28, c ^ 1, ModelKind::Rnn, h, true)
-        .unwrap();
+    st.begin(ModelKind::Rnn, n as u16, 28, c ^ 1, true).unwrap();
     send(&mut st, &v, true).unwrap();
-    assert_eq!(st.commit(&mut ctl, true), Err(NackReason::Checksum));
+    assert_eq!(st.commit(&mut ctl, true, &M7), Err(NackReason::Checksum));
     let mut bad = v.clone();
     bad[n - 1] = 0.0; // output std
     let cb = rths_link::model_values_checksum(ModelKind::Rnn, &bad, 28);
-    st.begin(ModelKind::Rnn, n as u16, 28, cb, ModelKind::Rnn, h, true)
-        .unwrap();
+    st.begin(ModelKind::Rnn, n as u16, 28, cb, true).unwrap();
     send(&mut st, &bad, true).unwrap();
-    assert_eq!(st.commit(&mut ctl, true), Err(NackReason::OutOfRange));
+    assert_eq!(st.commit(&mut ctl, true, &M7), Err(NackReason::OutOfRange));
     // Under a test.
-    st.begin(ModelKind::Rnn, n as u16, 28, c, ModelKind::Rnn, h, true)
-        .unwrap();
+    st.begin(ModelKind::Rnn, n as u16, 28, c, true).unwrap();
     send(&mut st, &v, true).unwrap();
-    assert_eq!(st.commit(&mut ctl, false), Err(NackReason::Busy));
+    assert_eq!(st.commit(&mut ctl, false, &M7), Err(NackReason::Busy));
     assert_eq!(*ctl.analytical(), before, "the model in force stays");
+}
+
+#[test]
+fn any_image_takes_an_rnn_of_any_size_its_tick_runs_and_the_m4_refuses_an_rnn_10() {
+    // An LR image (no RNN compiled in) takes an RNN-5 and an RNN-20 on the M7's tick.
+    for h in [5, 20] {
+        let mut ctl = controller();
+        let (w, s) = rnn_model(h, 0.3);
+        let mut v = vec![0.0; rths_link::rnn_value_count(h)];
+        let n = rnn_values(&weights(h, &w), &s, &mut v).unwrap();
+        let c = rths_link::model_values_checksum(ModelKind::Rnn, &v, 28);
+        let mut st = ModelStaging::new(area(MODEL_MAX_VALUES));
+        st.begin(ModelKind::Rnn, n as u16, 28, c, true).unwrap();
+        send(&mut st, &v, true).unwrap();
+        assert_eq!(st.commit(&mut ctl, true, &M7), Ok((ModelKind::Rnn, c)));
+        let Analytical::Rnn(m) = ctl.analytical() else {
+            panic!("not an RNN")
+        };
+        assert_eq!(m.params().hidden(), h);
+    }
+    // The F407's tick: RNN-10 refused (104 %), the LR model in force stays; RNN-9 taken.
+    for (h, want) in [(10, Err(NackReason::TickBudget)), (9, Ok(()))] {
+        let mut ctl = controller();
+        let before = ctl.analytical().clone();
+        let (w, s) = rnn_model(h, 0.3);
+        let mut v = vec![0.0; rths_link::rnn_value_count(h)];
+        let n = rnn_values(&weights(h, &w), &s, &mut v).unwrap();
+        let c = rths_link::model_values_checksum(ModelKind::Rnn, &v, 28);
+        let mut st = ModelStaging::new(area(MODEL_MAX_VALUES));
+        st.begin(ModelKind::Rnn, n as u16, 28, c, true).unwrap();
+        send(&mut st, &v, true).unwrap();
+        let got = st.commit(&mut ctl, true, &M4).map(|_| ());
+        assert_eq!(got, want, "RNN-{h}");
+        if want.is_err() {
+            assert_eq!(*ctl.analytical(), before, "the model in force stays");
+        }
+    }
+}
+
+#[test]
+fn an_fe_ats_upload_makes_the_controller_the_host_s_fe_online_ats_and_bad_delays_are_refused() {
+    use rths_core::model::{assemble, ModelSpec};
+    let delay_s = 0.0137;
+    let v = [delay_s];
+    let c = rths_link::model_values_checksum(ModelKind::FeAts, &v, 28);
+    let mut ctl = Box::new(controller());
+    let mut st = ModelStaging::new(area(MODEL_MAX_VALUES));
+    st.begin(ModelKind::FeAts, 1, 28, c, true).unwrap();
+    send(&mut st, &v, true).unwrap();
+    assert_eq!(st.commit(&mut ctl, true, &M4), Ok((ModelKind::FeAts, c)));
+    let (fe, ats) = assemble(
+        &ModelSpec::FeAts {
+            expected_delay_s: delay_s,
+        },
+        Prototype::paper(),
+        DT_S,
+    )
+    .unwrap();
+    assert_eq!(*ctl.analytical(), fe);
+    assert_eq!(*ctl.compensator(), ats);
+    // A negative delay, or one beyond the ATS's bounds (0..=0.08 s); the model stays.
+    for bad in [-0.01, 0.09, 1e9] {
+        let v = [bad];
+        let c = rths_link::model_values_checksum(ModelKind::FeAts, &v, 28);
+        st.begin(ModelKind::FeAts, 1, 28, c, true).unwrap();
+        send(&mut st, &v, true).unwrap();
+        assert_eq!(
+            st.commit(&mut ctl, true, &M4),
+            Err(NackReason::OutOfRange),
+            "{bad}"
+        );
+        assert_eq!(*ctl.analytical(), fe);
+    }
+    // FE + ATS at 4096 Hz on the M4 (114 % of the tick).
+    let m4_4096 = TickBudget::cortex_m4_168mhz(4096.0);
+    let mut ctl = Box::new(controller());
+    st.begin(ModelKind::FeAts, 1, 28, c_of(delay_s), true)
+        .unwrap();
+    send(&mut st, &[delay_s], true).unwrap();
+    assert_eq!(
+        st.commit(&mut ctl, true, &m4_4096),
+        Err(NackReason::TickBudget)
+    );
+}
+
+fn c_of(delay_s: f64) -> u32 {
+    rths_link::model_values_checksum(ModelKind::FeAts, &[delay_s], 28)
 }

@@ -4,6 +4,7 @@
 use crate::link::{handle, Effect, Rearm, Session};
 use crate::record::RecordStore;
 use crate::site::{step_ended, step_message, waits, StepEnd};
+use crate::tick_cost::TickBudget;
 use crate::{Run, TelemetryRecord};
 use rths_core::compensator::Compensator;
 use rths_core::control::{Analytical, ControlConfig, Controller, FeedbackSource};
@@ -37,7 +38,13 @@ fn begin(ticks_per_step: u32, stride: u16) -> HostMsg {
 fn a_site_takes_its_targets_in_order_and_reports_each_step_end() {
     let mut ctl = controller();
     let mut run = Run::new();
-    let mut s = Session::new(0, false, Rearm::OncePerPowerUp, ModelKind::Lr, &mut []);
+    let mut s = Session::new(
+        0,
+        TickBudget::cortex_m4_168mhz(2048.0),
+        Rearm::OncePerPowerUp,
+        ModelKind::Lr,
+        &mut [],
+    );
     let mut st = RecordStore::new(&[0.0, 0.1, 0.0], 0.01, 41, &mut []);
     let mut h = |m, ctl: &mut Controller, s: &mut Session<'_>, finished| {
         handle(m, ctl, &mut run, &mut st, s, finished)
@@ -151,7 +158,13 @@ fn a_site_takes_its_targets_in_order_and_reports_each_step_end() {
 fn a_faulted_end_trips_the_supervisor() {
     let mut ctl = controller();
     let mut run = Run::new();
-    let mut s = Session::new(0, false, Rearm::AtMeasured, ModelKind::Lr, &mut []);
+    let mut s = Session::new(
+        0,
+        TickBudget::cortex_m4_168mhz(2048.0),
+        Rearm::AtMeasured,
+        ModelKind::Lr,
+        &mut [],
+    );
     let mut st = RecordStore::new(&[0.0, 0.1, 0.0], 0.01, 41, &mut []);
     assert_eq!(
         handle(
