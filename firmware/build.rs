@@ -866,14 +866,13 @@ fn budget_structures(out: &mut String, root: &Path) {
     );
 }
 
-/// The identification excitation's tables (`identify` builds; `rths link ... identify`): one period of
+/// The identification excitation's tables (every image with the link; `rths link ... identify`): one period of
 /// the unit multisine and the ramp's cosines, computed by rths-core with std's cosines exactly as
 /// `rths identify` computes them, written as little-endian f64 for `include_bytes!` (flash), with
-/// the unit period's stats. Without `identify`: empty tables (the device refuses to identify,
-/// `Unsupported`).
+/// the unit period's stats. Without the link: empty tables (nothing could ask for them).
 fn excitation(out: &mut String, out_dir: &Path) {
     use rths_core::identify_excitation::{ExcitationConfig, StdTables};
-    let (unit, ramp, peak, rate) = if std::env::var_os("CARGO_FEATURE_IDENTIFY").is_some() {
+    let (unit, ramp, peak, rate) = if std::env::var_os("CARGO_FEATURE_LINK").is_some() {
         let t = StdTables::new(&ExcitationConfig::new(dt_s(rate_hz())))
             .unwrap_or_else(|e| fail(format!("identification excitation: {e}")));
         (t.unit, t.ramp_cos, t.stats.peak, t.stats.peak_rate_per_s)

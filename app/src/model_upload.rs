@@ -3,13 +3,13 @@
 //! finiteness) and at the commit (end-to-end checksum, the board's tick budget, then the model's
 //! own checks as `rths_core::model` makes them); refused whole, the model in force kept. The values
 //! wait in one staging area of [`rths_link::MODEL_MAX_VALUES`]; the new parts are built in the
-//! controller in place (`Controller::install_rnn`, `assemble_in`: no ~9 kB RNN or 33 KiB ATS on
+//! controller in place (`Controller::install_rnn`, `install_ats`: no ~9 kB RNN or 33 KiB ATS on
 //! the stack).
 
+use rths_core::compensator::{AtsConfig, AtsParams};
 use rths_core::compensator::{LeadParams, LEAD_TAPS};
-use rths_core::control::{Controller, ReplaceError};
+use rths_core::control::{Controller, FeModel, ReplaceError};
 use rths_core::metamodel::{LrxParams, RnnScaling, RnnWeights, RNN_INPUTS};
-use rths_core::model::{assemble_in, ModelSpec};
 use rths_core::params::{Prototype, DT_S};
 use rths_link::{
     ModelKind, NackReason, FE_ATS_VALUES, LRX_VALUES, RECORD_CHUNK, RNN_UPLOAD_MAX_HIDDEN,
@@ -161,15 +161,15 @@ impl<'a> ModelStaging<'a> {
                 let &[expected_delay_s] = v else {
                     return Err(NackReason::Shape);
                 };
-                // The ATS's own check first: `assemble_in` leaves the parts unspecified on a
-                // refusal, and nothing may change on one.
-                rths_core::compensator::AtsParams::new(rths_core::compensator::AtsConfig::paper(
-                    DT_S,
-                    expected_delay_s,
-                ))
-                .map_err(|_| NackReason::OutOfRange)?;
-                let spec = ModelSpec::FeAts { expected_delay_s };
-                assemble_in(ctl, &spec, Prototype::paper(), DT_S).map_err(replace_nack)?;
+                // Checked before anything changes; the same parts as `assemble_in`'s FE + ATS,
+                // built here by their own installs: `assemble_in` called with a run-time spec
+                // holds every kind's temporaries in one ~47 KiB frame.
+                let ats = AtsParams::new(AtsConfig::paper(DT_S, expected_delay_s))
+                    .map_err(|_| NackReason::OutOfRange)?;
+                let fe =
+                    FeModel::new(Prototype::paper(), DT_S).map_err(|_| NackReason::OutOfRange)?;
+                ctl.install_fe(fe).map_err(replace_nack)?;
+                ctl.install_ats(ats).map_err(replace_nack)?;
             }
             ModelKind::Lr => return Err(NackReason::Unsupported),
         }
