@@ -12,13 +12,14 @@ use libfuzzer_sys::fuzz_target;
 use rths_app::identify::FlashTables;
 use rths_app::link::{handle, Effect, Rearm, Session};
 use rths_app::record::RecordStore;
+use rths_app::tick_cost::TickBudget;
 use rths_app::Run;
 use rths_core::control::{ControlConfig, Controller, FeedbackSource};
 use rths_core::metamodel::{RnnScaling, RnnWeights};
 use rths_core::model::{assemble, ModelSpec};
-use rths_core::params::{Prototype, SpecimenScale, DT_S};
+use rths_core::params::{Prototype, SpecimenScale, CONTROLLER_RATE_HZ, DT_S};
 use rths_core::supervisor::Limits;
-use rths_link::{DeviceMsg, FrameReader, HostMsg, ModelKind, Request, MAX_FRAME};
+use rths_link::{DeviceMsg, FrameReader, HostMsg, ModelKind, Request, MAX_FRAME, MODEL_MAX_VALUES};
 
 const COMPILED: [f64; 4] = [0.0, 0.01, -0.02, 0.0];
 const THETA: [f64; 6] = [0.0, 0.5, 0.1, 0.0, 0.0, 0.0];
@@ -114,15 +115,15 @@ fuzz_target!(|data: &[u8]| {
     };
     let mut ctl = Controller::new(cfg, analytical, compensator);
     let mut run = Run::new();
-    let mut staging = [0.0f64; 32];
-    let mut s = Session::new(
-        0x1234_5678,
-        kind == ModelKind::Lr,
-        rearm,
-        kind,
-        &mut staging,
-    )
-    .with_excitation(tables());
+    // Bit 3 of the first byte picks the core whose tick budget the commit checks.
+    let tick_budget = if data.first().copied().unwrap_or(0) & 8 == 0 {
+        TickBudget::cortex_m4_168mhz(CONTROLLER_RATE_HZ)
+    } else {
+        TickBudget::cortex_m7_480mhz(CONTROLLER_RATE_HZ)
+    };
+    let mut staging = [0.0f64; MODEL_MAX_VALUES];
+    let mut s =
+        Session::new(0x1234_5678, tick_budget, rearm, kind, &mut staging).with_excitation(tables());
     let mut buf = [0.0f64; 64];
     let mut store = RecordStore::new(&COMPILED, 0.01, 31, &mut buf);
     let mut reader = FrameReader::<MAX_FRAME>::new();
