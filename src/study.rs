@@ -153,39 +153,104 @@ fn setup<'a>(
     }
 }
 
-/// Draw a run: command and measured against the reference (the paper's Figs. 5, 8, 10-12).
+/// What [`plot_run`] draws of a run, computed from its history: the errors against the
+/// reference, the zoom window on the strongest motion and, for a run the supervisor stopped, the
+/// trip (the curves end at its tick: what the history holds after it is the rig at rest, not the
+/// test).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunFigure {
+    /// Samples drawn: the whole history, or those up to and including the trip tick.
+    pub samples: usize,
+    /// Command − reference, mm (of the drawn samples).
+    pub command_error_mm: Vec<f64>,
+    /// Measured − reference, mm, in runs with the actuator.
+    pub measured_error_mm: Option<Vec<f64>>,
+    /// The zoom panel's window: [`plot::ZOOM_HALF_WIDTH_S`] either side of the reference's peak
+    /// (of the drawn samples), s.
+    pub zoom_s: Option<(f64, f64)>,
+    /// The trip: where and why the supervisor stopped the run.
+    pub trip: Option<plot::Marker>,
+    /// The record's time span, s (a stopped run's figure keeps it).
+    pub time_span_s: Option<(f64, f64)>,
+}
+
+impl RunFigure {
+    /// The figure of `run`.
+    pub fn of(run: &ScenarioRun) -> Self {
+        let h = &run.history;
+        let t = &h.time_s;
+        let r = &run.report;
+        let samples = match r.stop_time_s {
+            Some(stop) => plot::samples_until(t, stop),
+            None => h.len(),
+        };
+        let cut = |v: &[f64]| v[..samples.min(v.len())].to_vec();
+        let reference = cut(&h.reference_mm);
+        let has_measured = h.measured_mm.iter().any(|v| v.is_finite());
+        let trip = r.stop_time_s.map(|time_s| plot::Marker {
+            time_s,
+            label: format!(
+                "trip: {} at {time_s:.3} s",
+                r.stop_reason.as_deref().unwrap_or("supervisor")
+            ),
+        });
+        Self {
+            samples,
+            command_error_mm: plot::difference(&cut(&h.command_mm), &reference),
+            measured_error_mm: has_measured
+                .then(|| plot::difference(&cut(&h.measured_mm), &reference)),
+            zoom_s: plot::peak_window_s(&t[..samples], &reference, plot::ZOOM_HALF_WIDTH_S),
+            trip,
+            time_span_s: t.first().zip(t.last()).map(|(a, b)| (*a, *b)),
+        }
+    }
+
+    /// The panels: the brace displacement (reference, command, measured), the errors against the
+    /// reference, and the displacement again zoomed on the strongest motion.
+    pub fn panels<'a>(&'a self, run: &'a ScenarioRun) -> Vec<Panel<'a>> {
+        let h = &run.history;
+        let n = self.samples;
+        let cut = |v: &'a [f64]| &v[..n.min(v.len())];
+        let t = cut(&h.time_s);
+        let mut disp = Panel::new("Brace disp. (mm)")
+            .with_line(
+                "reference (pure FE)",
+                t,
+                cut(&h.reference_mm),
+                plot::Line::Reference,
+            )
+            .with_line("command", t, cut(&h.command_mm), plot::Line::Dashed);
+        let mut error = Panel::new("Error vs reference (mm)").with(
+            "command − reference",
+            t,
+            &self.command_error_mm,
+        );
+        if let Some(e) = &self.measured_error_mm {
+            disp = disp.with("measured", t, cut(&h.measured_mm));
+            error = error.with("measured − reference", t, e);
+        }
+        let mut panels = vec![disp.clone(), error];
+        if let Some(w) = self.zoom_s {
+            panels.push(disp.zoomed("Brace disp., zoom (mm)", w));
+        }
+        panels
+    }
+}
+
+/// Draw a run: command and measured against the reference, their errors, and a zoom on the
+/// strongest motion (the paper's Figs. 5, 8, 10-12); a stopped run's curves end at the trip,
+/// marked.
 pub fn plot_run(run: &ScenarioRun, path: &Path, title: &str) -> anyhow::Result<()> {
-    let h = &run.history;
-    let t = &h.time_s;
-    let has_measured = h.measured_mm.iter().any(|v| v.is_finite());
-    let err: Vec<f64> = h
-        .command_mm
-        .iter()
-        .zip(&h.reference_mm)
-        .map(|(c, r)| c - r)
-        .collect();
-    let err_m: Vec<f64> = h
-        .measured_mm
-        .iter()
-        .zip(&h.reference_mm)
-        .map(|(c, r)| c - r)
-        .collect();
-    let mut top = Panel {
-        y_label: "Brace disp. (mm)".into(),
-        series: Vec::new(),
-    }
-    .with("reference (pure FE)", t, &h.reference_mm)
-    .with("command", t, &h.command_mm);
-    let mut bottom = Panel {
-        y_label: "Error vs reference (mm)".into(),
-        series: Vec::new(),
-    }
-    .with("command − reference", t, &err);
-    if has_measured {
-        top = top.with("measured", t, &h.measured_mm);
-        bottom = bottom.with("measured − reference", t, &err_m);
-    }
-    plot::stacked_time_series(path, title, &[top, bottom])
+    let fig = RunFigure::of(run);
+    plot::draw(
+        path,
+        &plot::Figure {
+            title: title.to_string(),
+            panels: fig.panels(run),
+            marker: fig.trip.clone(),
+            time_span_s: fig.time_span_s,
+        },
+    )
 }
 
 fn fmt_opt(v: Option<f64>, digits: usize) -> String {
