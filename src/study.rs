@@ -689,8 +689,123 @@ pub fn report_md(cfg: &StudyConfig, r: &StudyResult) -> String {
     }
     let _ = writeln!(
         s,
-        "\nFigures: `<scenario>.png` (command and measured vs reference, and their errors); histories: \
+        "\nFigures: `<scenario>.png` (command and measured vs reference, their errors, and a zoom on the strongest motion; a stopped run ends at its trip, marked); histories: \
          `<scenario>.csv`; models: `lr.json`, `rnn-H.json`, `lrx.json`."
     );
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::History;
+
+    /// A run of 100 ticks at 0.01 s: reference a sine peaking at 0.4 s, command 0.1 mm and
+    /// measured 0.2 mm above it; stopped at `stop_s` if given.
+    fn run(stop_s: Option<f64>) -> ScenarioRun {
+        let time_s: Vec<f64> = (0..100).map(|k| k as f64 * 0.01).collect();
+        let reference_mm: Vec<f64> = time_s
+            .iter()
+            .map(|t| (std::f64::consts::PI * t / 0.8).sin() * t.min(0.4))
+            .collect();
+        let history = History {
+            command_mm: reference_mm.iter().map(|r| r + 0.1).collect(),
+            measured_mm: reference_mm.iter().map(|r| r + 0.2).collect(),
+            target_mm: reference_mm.clone(),
+            ground_accel_mm_s2: vec![0.0; 100],
+            measured_force_kn: vec![0.0; 100],
+            reference_mm,
+            time_s,
+        };
+        let report = ScenarioReport {
+            id: "fe-online".into(),
+            stable: stop_s.is_none(),
+            stop_reason: stop_s.map(|_| "CommandVelocity".into()),
+            stop_time_s: stop_s,
+            nrmse_pct: None,
+            nrmse_measured_pct: None,
+            j1_ms: None,
+            j2_pct: None,
+            j3_pct: None,
+            j4_pct: None,
+            j5_pct: None,
+            peak_disp_mm: None,
+            j1_target_ms: None,
+            j2_target_pct: None,
+            j3_target_pct: None,
+        };
+        ScenarioRun { report, history }
+    }
+
+    fn labels(p: &Panel<'_>) -> Vec<String> {
+        p.series.iter().map(|s| s.label.clone()).collect()
+    }
+
+    #[test]
+    fn run_figure_has_error_and_zoom_panels() {
+        let r = run(None);
+        let fig = RunFigure::of(&r);
+        assert_eq!(fig.samples, 100);
+        assert!(fig.trip.is_none());
+        let panels = fig.panels(&r);
+        assert_eq!(panels.len(), 3);
+        assert_eq!(
+            labels(&panels[0]),
+            ["reference (pure FE)", "command", "measured"]
+        );
+        assert_eq!(panels[0].series[0].line, plot::Line::Reference);
+        assert_eq!(panels[0].series[1].line, plot::Line::Dashed);
+        let error = &panels[1];
+        assert_eq!(error.y_label, "Error vs reference (mm)");
+        assert_eq!(
+            labels(error),
+            ["command − reference", "measured − reference"]
+        );
+        let h = &r.history;
+        for (k, e) in error.series[1].values.iter().enumerate() {
+            assert_eq!(*e, h.measured_mm[k] - h.reference_mm[k]);
+        }
+        for (k, e) in error.series[0].values.iter().enumerate() {
+            assert_eq!(*e, h.command_mm[k] - h.reference_mm[k]);
+        }
+        // The zoom is ±1.5 s around the reference's peak, kept inside the 0.99 s record.
+        let zoom = &panels[2];
+        assert_eq!(zoom.zoom_s, Some((0.0, 0.99)));
+        assert_eq!(labels(zoom), labels(&panels[0]));
+        assert_eq!(fig.time_span_s, Some((0.0, 0.99)));
+    }
+
+    #[test]
+    fn stopped_run_figure_ends_at_the_trip() {
+        let r = run(Some(0.5));
+        let fig = RunFigure::of(&r);
+        // Ticks 0..=50: the trip tick is the last drawn.
+        assert_eq!(fig.samples, 51);
+        let trip = fig.trip.as_ref().unwrap();
+        assert_eq!(trip.time_s, 0.5);
+        assert!(trip.label.contains("CommandVelocity"), "{}", trip.label);
+        assert!(trip.label.contains("0.500 s"), "{}", trip.label);
+        for p in fig.panels(&r) {
+            for s in &p.series {
+                assert_eq!(s.values.len(), 51, "{} / {}", p.y_label, s.label);
+                assert_eq!(s.time_s.last(), Some(&0.5));
+            }
+        }
+        // The axis keeps the record's span, so the figure shows how early the run ended.
+        assert_eq!(fig.time_span_s, Some((0.0, 0.99)));
+        // The zoom looks at the drawn samples only.
+        let (lo, hi) = fig.zoom_s.unwrap();
+        assert!(lo >= 0.0 && hi <= 0.5, "{lo} {hi}");
+    }
+
+    #[test]
+    fn pure_run_figure_has_no_measured_curve() {
+        let mut r = run(None);
+        r.history.measured_mm = vec![f64::NAN; 100];
+        let fig = RunFigure::of(&r);
+        assert!(fig.measured_error_mm.is_none());
+        let panels = fig.panels(&r);
+        assert_eq!(labels(&panels[0]), ["reference (pure FE)", "command"]);
+        assert_eq!(labels(&panels[1]), ["command − reference"]);
+    }
 }
