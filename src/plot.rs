@@ -241,8 +241,16 @@ fn padded_range(lo: f64, hi: f64) -> std::ops::Range<f64> {
     (lo - pad)..(hi + pad)
 }
 
-/// Tick label with as many decimals as a span of `span` needs, and no "-0".
+/// Tick label with as many decimals as a span of `span` needs (exponent form below 0.001), and
+/// no "-0".
 fn tick_label(v: f64, span: f64) -> String {
+    if span < 1e-3 && span > 0.0 {
+        return if v.abs() < span * 1e-6 {
+            "0".to_string()
+        } else {
+            format!("{v:.1e}")
+        };
+    }
     let decimals = if span >= 50.0 {
         0
     } else if span >= 5.0 {
@@ -511,10 +519,56 @@ mod tests {
     }
 
     #[test]
+    fn figure_helpers() {
+        assert_eq!(difference(&[1.0, 2.5, 3.0], &[0.5, 2.0]), vec![0.5, 0.5]);
+        let t: Vec<f64> = (0..1001).map(|k| k as f64 * 0.01).collect();
+        let mut v = vec![0.0; t.len()];
+        v[500] = -3.0;
+        v[100] = 2.0;
+        assert_eq!(peak_window_s(&t, &v, 1.5), Some((3.5, 6.5)));
+        // Near an end the window keeps its width inside the record.
+        v[50] = 9.0;
+        assert_eq!(peak_window_s(&t, &v, 1.5), Some((0.0, 3.0)));
+        v[990] = -10.0;
+        assert_eq!(peak_window_s(&t, &v, 1.5), Some((7.0, 10.0)));
+        assert_eq!(peak_window_s(&t, &[f64::NAN; 3], 1.5), None);
+        assert_eq!(samples_until(&t, 2.35), 236);
+        assert_eq!(samples_until(&t, -1.0), 0);
+        assert_eq!(samples_until(&t, 100.0), t.len());
+    }
+
+    #[test]
+    fn draws_a_figure_with_zoom_and_marker() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("f.png");
+        let t: Vec<f64> = (0..400).map(|k| k as f64 * 0.01).collect();
+        let a: Vec<f64> = t.iter().map(|t| t.sin()).collect();
+        let panel = Panel::new("A (mm)")
+            .with_line("reference", &t, &a, Line::Reference)
+            .with_line("command", &t, &a, Line::Dashed)
+            .with("measured", &t, &a);
+        let fig = Figure {
+            title: "test".into(),
+            panels: vec![panel.clone(), panel.zoomed("A, zoom (mm)", (1.0, 2.0))],
+            marker: Some(Marker {
+                time_s: 1.5,
+                label: "trip".into(),
+            }),
+            time_span_s: Some((0.0, 10.0)),
+        };
+        draw(&p, &fig).unwrap();
+        assert!(std::fs::metadata(&p).unwrap().len() > 1000);
+    }
+
+    #[test]
     fn tick_labels() {
         assert_eq!(tick_label(-0.0001, 0.6), "0.00");
         assert_eq!(tick_label(15000.0, 30000.0), "15000");
         assert_eq!(tick_label(-12.5, 25.0), "-12.5");
         assert_eq!(tick_label(0.25, 0.3), "0.250");
+        // A tiny span (a pure run's round-off error) keeps its ticks apart.
+        assert_eq!(tick_label(2.5e-5, 1e-4), "2.5e-5");
+        assert_eq!(tick_label(-5e-5, 1e-4), "-5.0e-5");
+        assert_eq!(tick_label(1e-20, 1e-4), "0");
     }
 }

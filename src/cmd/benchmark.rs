@@ -444,3 +444,111 @@ fn grid(args: &Args) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::benchmark::run::History;
+
+    /// A 3-floor run of 200 ticks at 0.01 s, the specimen on floor 1: each floor's reference a
+    /// sine, the run `j + 1` × 0.01 mm above it; stopped after `ticks` if fewer than 200.
+    fn result(ticks: usize) -> RunResult {
+        let time_s: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
+        let reference_mm: Vec<Vec<f64>> = (0..3)
+            .map(|j| time_s.iter().map(|t| (j as f64 + 1.0) * t.sin()).collect())
+            .collect();
+        let off = |j: usize| -> Vec<f64> {
+            reference_mm[j][..ticks]
+                .iter()
+                .map(|r| r + (j as f64 + 1.0) * 0.01)
+                .collect()
+        };
+        let history = History {
+            time_s: time_s[..ticks].to_vec(),
+            measured_mm: off(0),
+            target_mm: off(0),
+            floors_mm: (0..3).map(off).collect(),
+            reference_mm: reference_mm.clone(),
+            true_disp_mm: off(0),
+        };
+        RunResult {
+            config: RunConfig {
+                case: 1,
+                record: Record::ElCentro,
+                intensity: 0.4,
+                plant: PlantDraw::Nominal,
+                controller: ControllerKind::FeAts,
+            },
+            criteria: None,
+            unstable: (ticks < 200).then(|| "stroke".to_string()),
+            history,
+            ats_coefficients: None,
+            identification: None,
+            lead_adaptation: None,
+            force_correction_kn_per_mm: None,
+            specimen_stiffness_n_per_m: 0.0,
+            structure_name: "test".into(),
+            specimen_dof: 0,
+            clipped_force_ticks: 0,
+            record_name: "el-centro".into(),
+            j2_noise_free_pct: None,
+        }
+    }
+
+    #[test]
+    fn benchmark_figure_has_floors_errors_and_a_zoom() {
+        let r = result(200);
+        let fig = BenchmarkFigure::of(&r);
+        assert!(fig.trip.is_none());
+        let panels = fig.panels(&r);
+        let names: Vec<&str> = panels.iter().map(|p| p.y_label.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "Floor 1 (mm)",
+                "Floor 2 (mm)",
+                "Floor 3 (mm)",
+                "Error vs reference (mm)",
+                "Floor 1, zoom (mm)"
+            ]
+        );
+        assert_eq!(panels[0].series[0].label, "reference");
+        assert_eq!(panels[0].series[0].line, plot::Line::Reference);
+        assert_eq!(panels[0].series[1].label, "measured");
+        assert_eq!(panels[1].series[1].label, "numerical");
+        let error = &panels[3];
+        let labels: Vec<&str> = error.series.iter().map(|s| s.label.as_str()).collect();
+        assert_eq!(
+            labels,
+            [
+                "floor 1: measured − reference",
+                "floor 2: numerical − reference",
+                "floor 3: numerical − reference"
+            ]
+        );
+        let h = &r.history;
+        for (k, e) in error.series[0].values.iter().enumerate() {
+            assert_eq!(*e, h.measured_mm[k] - h.reference_mm[0][k]);
+        }
+        for (k, e) in error.series[2].values.iter().enumerate() {
+            assert_eq!(*e, h.floors_mm[2][k] - h.reference_mm[2][k]);
+        }
+        // sin peaks at π/2 s: the window ±1.5 s around it is kept inside the 1.99 s record.
+        assert_eq!(panels[4].zoom_s, Some((0.0, 1.99)));
+    }
+
+    #[test]
+    fn stopped_benchmark_figure_ends_where_the_run_stopped() {
+        let r = result(120);
+        let fig = BenchmarkFigure::of(&r);
+        assert_eq!(fig.samples, 120);
+        let trip = fig.trip.as_ref().unwrap();
+        assert!((trip.time_s - 1.19).abs() < 1e-12);
+        assert!(trip.label.contains("1.190 s"), "{}", trip.label);
+        for p in fig.panels(&r) {
+            for s in &p.series {
+                assert_eq!(s.values.len(), 120, "{} / {}", p.y_label, s.label);
+            }
+        }
+    }
+}
