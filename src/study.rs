@@ -153,39 +153,104 @@ fn setup<'a>(
     }
 }
 
-/// Draw a run: command and measured against the reference (the paper's Figs. 5, 8, 10-12).
+/// What [`plot_run`] draws of a run, computed from its history: the errors against the
+/// reference, the zoom window on the strongest motion and, for a run the supervisor stopped, the
+/// trip (the curves end at its tick: what the history holds after it is the rig at rest, not the
+/// test).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunFigure {
+    /// Samples drawn: the whole history, or those up to and including the trip tick.
+    pub samples: usize,
+    /// Command − reference, mm (of the drawn samples).
+    pub command_error_mm: Vec<f64>,
+    /// Measured − reference, mm, in runs with the actuator.
+    pub measured_error_mm: Option<Vec<f64>>,
+    /// The zoom panel's window: [`plot::ZOOM_HALF_WIDTH_S`] either side of the reference's peak
+    /// (of the drawn samples), s.
+    pub zoom_s: Option<(f64, f64)>,
+    /// The trip: where and why the supervisor stopped the run.
+    pub trip: Option<plot::Marker>,
+    /// The record's time span, s (a stopped run's figure keeps it).
+    pub time_span_s: Option<(f64, f64)>,
+}
+
+impl RunFigure {
+    /// The figure of `run`.
+    pub fn of(run: &ScenarioRun) -> Self {
+        let h = &run.history;
+        let t = &h.time_s;
+        let r = &run.report;
+        let samples = match r.stop_time_s {
+            Some(stop) => plot::samples_until(t, stop),
+            None => h.len(),
+        };
+        let cut = |v: &[f64]| v[..samples.min(v.len())].to_vec();
+        let reference = cut(&h.reference_mm);
+        let has_measured = h.measured_mm.iter().any(|v| v.is_finite());
+        let trip = r.stop_time_s.map(|time_s| plot::Marker {
+            time_s,
+            label: format!(
+                "trip: {} at {time_s:.3} s",
+                r.stop_reason.as_deref().unwrap_or("supervisor")
+            ),
+        });
+        Self {
+            samples,
+            command_error_mm: plot::difference(&cut(&h.command_mm), &reference),
+            measured_error_mm: has_measured
+                .then(|| plot::difference(&cut(&h.measured_mm), &reference)),
+            zoom_s: plot::peak_window_s(&t[..samples], &reference, plot::ZOOM_HALF_WIDTH_S),
+            trip,
+            time_span_s: t.first().zip(t.last()).map(|(a, b)| (*a, *b)),
+        }
+    }
+
+    /// The panels: the brace displacement (reference, command, measured), the errors against the
+    /// reference, and the displacement again zoomed on the strongest motion.
+    pub fn panels<'a>(&'a self, run: &'a ScenarioRun) -> Vec<Panel<'a>> {
+        let h = &run.history;
+        let n = self.samples;
+        let cut = |v: &'a [f64]| &v[..n.min(v.len())];
+        let t = cut(&h.time_s);
+        let mut disp = Panel::new("Brace disp. (mm)")
+            .with_line(
+                "reference (pure FE)",
+                t,
+                cut(&h.reference_mm),
+                plot::Line::Reference,
+            )
+            .with_line("command", t, cut(&h.command_mm), plot::Line::Dashed);
+        let mut error = Panel::new("Error vs reference (mm)").with(
+            "command − reference",
+            t,
+            &self.command_error_mm,
+        );
+        if let Some(e) = &self.measured_error_mm {
+            disp = disp.with("measured", t, cut(&h.measured_mm));
+            error = error.with("measured − reference", t, e);
+        }
+        let mut panels = vec![disp.clone(), error];
+        if let Some(w) = self.zoom_s {
+            panels.push(disp.zoomed("Brace disp., zoom (mm)", w));
+        }
+        panels
+    }
+}
+
+/// Draw a run: command and measured against the reference, their errors, and a zoom on the
+/// strongest motion (the paper's Figs. 5, 8, 10-12); a stopped run's curves end at the trip,
+/// marked.
 pub fn plot_run(run: &ScenarioRun, path: &Path, title: &str) -> anyhow::Result<()> {
-    let h = &run.history;
-    let t = &h.time_s;
-    let has_measured = h.measured_mm.iter().any(|v| v.is_finite());
-    let err: Vec<f64> = h
-        .command_mm
-        .iter()
-        .zip(&h.reference_mm)
-        .map(|(c, r)| c - r)
-        .collect();
-    let err_m: Vec<f64> = h
-        .measured_mm
-        .iter()
-        .zip(&h.reference_mm)
-        .map(|(c, r)| c - r)
-        .collect();
-    let mut top = Panel {
-        y_label: "Brace disp. (mm)".into(),
-        series: Vec::new(),
-    }
-    .with("reference (pure FE)", t, &h.reference_mm)
-    .with("command", t, &h.command_mm);
-    let mut bottom = Panel {
-        y_label: "Error vs reference (mm)".into(),
-        series: Vec::new(),
-    }
-    .with("command − reference", t, &err);
-    if has_measured {
-        top = top.with("measured", t, &h.measured_mm);
-        bottom = bottom.with("measured − reference", t, &err_m);
-    }
-    plot::stacked_time_series(path, title, &[top, bottom])
+    let fig = RunFigure::of(run);
+    plot::draw(
+        path,
+        &plot::Figure {
+            title: title.to_string(),
+            panels: fig.panels(run),
+            marker: fig.trip.clone(),
+            time_span_s: fig.time_span_s,
+        },
+    )
 }
 
 fn fmt_opt(v: Option<f64>, digits: usize) -> String {
@@ -624,8 +689,123 @@ pub fn report_md(cfg: &StudyConfig, r: &StudyResult) -> String {
     }
     let _ = writeln!(
         s,
-        "\nFigures: `<scenario>.png` (command and measured vs reference, and their errors); histories: \
+        "\nFigures: `<scenario>.png` (command and measured vs reference, their errors, and a zoom on the strongest motion; a stopped run ends at its trip, marked); histories: \
          `<scenario>.csv`; models: `lr.json`, `rnn-H.json`, `lrx.json`."
     );
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::History;
+
+    /// A run of 100 ticks at 0.01 s: reference a sine peaking at 0.4 s, command 0.1 mm and
+    /// measured 0.2 mm above it; stopped at `stop_s` if given.
+    fn run(stop_s: Option<f64>) -> ScenarioRun {
+        let time_s: Vec<f64> = (0..100).map(|k| k as f64 * 0.01).collect();
+        let reference_mm: Vec<f64> = time_s
+            .iter()
+            .map(|t| (std::f64::consts::PI * t / 0.8).sin() * t.min(0.4))
+            .collect();
+        let history = History {
+            command_mm: reference_mm.iter().map(|r| r + 0.1).collect(),
+            measured_mm: reference_mm.iter().map(|r| r + 0.2).collect(),
+            target_mm: reference_mm.clone(),
+            ground_accel_mm_s2: vec![0.0; 100],
+            measured_force_kn: vec![0.0; 100],
+            reference_mm,
+            time_s,
+        };
+        let report = ScenarioReport {
+            id: "fe-online".into(),
+            stable: stop_s.is_none(),
+            stop_reason: stop_s.map(|_| "CommandVelocity".into()),
+            stop_time_s: stop_s,
+            nrmse_pct: None,
+            nrmse_measured_pct: None,
+            j1_ms: None,
+            j2_pct: None,
+            j3_pct: None,
+            j4_pct: None,
+            j5_pct: None,
+            peak_disp_mm: None,
+            j1_target_ms: None,
+            j2_target_pct: None,
+            j3_target_pct: None,
+        };
+        ScenarioRun { report, history }
+    }
+
+    fn labels(p: &Panel<'_>) -> Vec<String> {
+        p.series.iter().map(|s| s.label.clone()).collect()
+    }
+
+    #[test]
+    fn run_figure_has_error_and_zoom_panels() {
+        let r = run(None);
+        let fig = RunFigure::of(&r);
+        assert_eq!(fig.samples, 100);
+        assert!(fig.trip.is_none());
+        let panels = fig.panels(&r);
+        assert_eq!(panels.len(), 3);
+        assert_eq!(
+            labels(&panels[0]),
+            ["reference (pure FE)", "command", "measured"]
+        );
+        assert_eq!(panels[0].series[0].line, plot::Line::Reference);
+        assert_eq!(panels[0].series[1].line, plot::Line::Dashed);
+        let error = &panels[1];
+        assert_eq!(error.y_label, "Error vs reference (mm)");
+        assert_eq!(
+            labels(error),
+            ["command − reference", "measured − reference"]
+        );
+        let h = &r.history;
+        for (k, e) in error.series[1].values.iter().enumerate() {
+            assert_eq!(*e, h.measured_mm[k] - h.reference_mm[k]);
+        }
+        for (k, e) in error.series[0].values.iter().enumerate() {
+            assert_eq!(*e, h.command_mm[k] - h.reference_mm[k]);
+        }
+        // The zoom is ±1.5 s around the reference's peak, kept inside the 0.99 s record.
+        let zoom = &panels[2];
+        assert_eq!(zoom.zoom_s, Some((0.0, 0.99)));
+        assert_eq!(labels(zoom), labels(&panels[0]));
+        assert_eq!(fig.time_span_s, Some((0.0, 0.99)));
+    }
+
+    #[test]
+    fn stopped_run_figure_ends_at_the_trip() {
+        let r = run(Some(0.5));
+        let fig = RunFigure::of(&r);
+        // Ticks 0..=50: the trip tick is the last drawn.
+        assert_eq!(fig.samples, 51);
+        let trip = fig.trip.as_ref().unwrap();
+        assert_eq!(trip.time_s, 0.5);
+        assert!(trip.label.contains("CommandVelocity"), "{}", trip.label);
+        assert!(trip.label.contains("0.500 s"), "{}", trip.label);
+        for p in fig.panels(&r) {
+            for s in &p.series {
+                assert_eq!(s.values.len(), 51, "{} / {}", p.y_label, s.label);
+                assert_eq!(s.time_s.last(), Some(&0.5));
+            }
+        }
+        // The axis keeps the record's span, so the figure shows how early the run ended.
+        assert_eq!(fig.time_span_s, Some((0.0, 0.99)));
+        // The zoom looks at the drawn samples only.
+        let (lo, hi) = fig.zoom_s.unwrap();
+        assert!(lo >= 0.0 && hi <= 0.5, "{lo} {hi}");
+    }
+
+    #[test]
+    fn pure_run_figure_has_no_measured_curve() {
+        let mut r = run(None);
+        r.history.measured_mm = vec![f64::NAN; 100];
+        let fig = RunFigure::of(&r);
+        assert!(fig.measured_error_mm.is_none());
+        let panels = fig.panels(&r);
+        assert_eq!(labels(&panels[0]), ["reference (pure FE)", "command"]);
+        assert_eq!(labels(&panels[1]), ["command − reference"]);
+    }
 }

@@ -286,8 +286,32 @@ pub fn markdown(s: &SpecimenSweep) -> String {
     o
 }
 
-/// The figure: measured NRMSE per case (log scale), one colour per scenario, one marker line per
-/// record (solid: records not used for LRX training).
+/// The NRMSE targets the sweep's figure draws as horizontal lines, %.
+pub const TARGETS_PCT: [f64; 2] = [2.0, 5.0];
+
+/// The legend of a record in the sweep's figure: its name and scale, and whether the LRX model
+/// was trained on it (its lines are thin).
+pub fn record_label(r: &RecordSweep) -> String {
+    format!(
+        "{} ×{}{}",
+        r.record,
+        r.scale,
+        if r.lrx_trained_on {
+            " (LRX trained on it: thin)"
+        } else {
+            ""
+        }
+    )
+}
+
+/// The label of a target line of the sweep's figure.
+pub fn target_label(pct: f64) -> String {
+    format!("{pct} % target")
+}
+
+/// The figure: measured NRMSE per case (log scale), one colour per scenario, one marker shape per
+/// record (thick lines: records not used for LRX training), every scenario, record and target
+/// line named in the legend; the target lines also beside them.
 pub fn plot(s: &SpecimenSweep, path: &Path) -> anyhow::Result<()> {
     use plotters::prelude::*;
     crate::plot::init_fonts()?;
@@ -298,19 +322,22 @@ pub fn plot(s: &SpecimenSweep, path: &Path) -> anyhow::Result<()> {
         .map(|r| r.cases.iter().map(SweepCase::label).collect())
         .unwrap_or_default();
     let n = labels.len().max(1);
-    let root = crate::plot::bitmap(path, (1200, 650))?;
+    let root = crate::plot::bitmap(path, (1200, 700))?;
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let root = root
         .titled(
-            "Specimen sweep: measured NRMSE vs pure FE with that specimen (thick: records not used for LRX training; grey: 2% / 5% targets)",
-            ("sans-serif", 18),
+            "Specimen sweep: measured NRMSE vs pure FE with that specimen, per specimen and record",
+            ("sans-serif", 20),
         )
         .map_err(|e| err(&e))?;
+    // The decades below 0.1 % hold no run: the legend sits there.
+    const Y_MIN_PCT: f64 = 0.01;
+    let x_end = n as f64 - 0.5;
     let mut chart = ChartBuilder::on(&root)
         .margin(20)
         .x_label_area_size(50)
         .y_label_area_size(80)
-        .build_cartesian_2d(-0.5..(n as f64 - 0.5), (0.1f64..100.0).log_scale())
+        .build_cartesian_2d(-0.5..x_end, (Y_MIN_PCT..100.0).log_scale())
         .map_err(|e| err(&e))?;
     let fmt_x = |v: &f64| {
         let i = v.round();
@@ -324,6 +351,7 @@ pub fn plot(s: &SpecimenSweep, path: &Path) -> anyhow::Result<()> {
         .configure_mesh()
         .x_labels(n)
         .x_label_formatter(&fmt_x)
+        .x_desc("Specimen (stiffness factor F on the brace)")
         .y_desc("NRMSE measured (%)")
         .label_style(("sans-serif", 15))
         .axis_desc_style(("sans-serif", 17))
@@ -334,12 +362,27 @@ pub fn plot(s: &SpecimenSweep, path: &Path) -> anyhow::Result<()> {
         RGBColor(0, 114, 178),
         RGBColor(0, 158, 115),
     ];
-    for t in [2.0, 5.0] {
+    let grey = BLACK.mix(0.55);
+    for (t, dash) in TARGETS_PCT.iter().zip([4, 10]) {
+        let style = grey.stroke_width(2);
         chart
-            .draw_series(LineSeries::new(
-                [(-0.5, t), (n as f64 - 0.5, t)],
-                BLACK.mix(0.4).stroke_width(1),
+            .draw_series(DashedLineSeries::new(
+                [(-0.5, *t), (x_end, *t)],
+                dash,
+                5,
+                style,
             ))
+            .map_err(|e| err(&e))?
+            .label(target_label(*t))
+            .legend(move |(x, y)| {
+                plotters::element::DashedPathElement::new(vec![(x, y), (x + 24, y)], dash, 5, style)
+            });
+        chart
+            .draw_series(std::iter::once(Text::new(
+                target_label(*t),
+                (-0.45, *t * 1.12),
+                ("sans-serif", 14).into_font().color(&grey),
+            )))
             .map_err(|e| err(&e))?;
     }
     for (k, id) in SCENARIOS.iter().enumerate() {
@@ -350,9 +393,12 @@ pub fn plot(s: &SpecimenSweep, path: &Path) -> anyhow::Result<()> {
                 .iter()
                 .enumerate()
                 .filter_map(|(i, c)| {
-                    c.report(*id)
-                        .and_then(|x| x.nrmse_measured_pct)
-                        .map(|y| (i as f64 + (k as f64 - 1.0) * 0.08, y.clamp(0.1, 100.0)))
+                    c.report(*id).and_then(|x| x.nrmse_measured_pct).map(|y| {
+                        (
+                            i as f64 + (k as f64 - 1.0) * 0.08,
+                            y.clamp(Y_MIN_PCT, 100.0),
+                        )
+                    })
                 })
                 .collect();
             let style = if r.lrx_trained_on {
@@ -365,17 +411,37 @@ pub fn plot(s: &SpecimenSweep, path: &Path) -> anyhow::Result<()> {
                 .map_err(|e| err(&e))?;
             if ri == 0 {
                 drawn.label(id.to_string()).legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+                    PathElement::new(vec![(x, y), (x + 24, y)], colour.stroke_width(2))
                 });
             }
-            chart
-                .draw_series(pts.iter().map(|p| Circle::new(*p, 4, colour.filled())))
-                .map_err(|e| err(&e))?;
+            draw_markers(&mut chart, ri, &pts, colour.filled()).map_err(|e| err(&e))?;
         }
+    }
+    // The records, by marker shape (black: every scenario draws it in its colour).
+    for (ri, r) in s.records.iter().enumerate() {
+        let style = BLACK.filled();
+        let anno = chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+            .map_err(|e| err(&e))?;
+        let label = record_label(r);
+        match ri % 4 {
+            0 => anno
+                .label(label)
+                .legend(move |(x, y)| Circle::new((x + 12, y), 4, style)),
+            1 => anno
+                .label(label)
+                .legend(move |(x, y)| TriangleMarker::new((x + 12, y), 6, style)),
+            2 => anno
+                .label(label)
+                .legend(move |(x, y)| Rectangle::new([(x + 8, y - 4), (x + 16, y + 4)], style)),
+            _ => anno
+                .label(label)
+                .legend(move |(x, y)| Cross::new((x + 12, y), 5, BLACK.stroke_width(2))),
+        };
     }
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
+        .position(SeriesLabelPosition::LowerRight)
         .label_font(("sans-serif", 15))
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
@@ -383,4 +449,36 @@ pub fn plot(s: &SpecimenSweep, path: &Path) -> anyhow::Result<()> {
         .map_err(|e| err(&e))?;
     root.present().map_err(|e| err(&e))?;
     Ok(())
+}
+
+/// The points of record `ri` as its marker shape (circle, triangle, square, cross).
+fn draw_markers<DB: plotters::prelude::DrawingBackend>(
+    chart: &mut plotters::chart::ChartContext<
+        '_,
+        DB,
+        plotters::coord::cartesian::Cartesian2d<
+            plotters::coord::types::RangedCoordf64,
+            plotters::coord::combinators::LogCoord<f64>,
+        >,
+    >,
+    ri: usize,
+    pts: &[(f64, f64)],
+    style: plotters::style::ShapeStyle,
+) -> Result<(), plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>> {
+    use plotters::prelude::*;
+    let p = pts.iter().copied();
+    match ri % 4 {
+        0 => chart
+            .draw_series(p.map(|p| Circle::new(p, 4, style)))
+            .map(|_| ()),
+        1 => chart
+            .draw_series(p.map(|p| TriangleMarker::new(p, 6, style)))
+            .map(|_| ()),
+        2 => chart
+            .draw_series(p.map(|p| EmptyElement::at(p) + Rectangle::new([(-4, -4), (4, 4)], style)))
+            .map(|_| ()),
+        _ => chart
+            .draw_series(p.map(|p| Cross::new(p, 5, style.stroke_width(2))))
+            .map(|_| ()),
+    }
 }

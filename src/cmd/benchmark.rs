@@ -301,9 +301,96 @@ fn write_history(r: &RunResult, path: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Every floor against the reference.
+/// What [`draw`] draws of a run: per floor the error against the reference, the zoom window on
+/// the specimen floor's strongest motion and, for a stopped run, where it stopped (its histories
+/// end there; the reference is cut to them).
+#[derive(Debug, Clone, PartialEq)]
+struct BenchmarkFigure {
+    /// Samples drawn (the run's, up to its stop).
+    samples: usize,
+    /// Per floor: (measured or numerical) − reference, mm.
+    error_mm: Vec<Vec<f64>>,
+    /// The zoom window around the specimen floor's reference peak, s.
+    zoom_s: Option<(f64, f64)>,
+    /// The stop, marked.
+    trip: Option<plot::Marker>,
+}
+
+impl BenchmarkFigure {
+    fn of(r: &RunResult) -> Self {
+        let h = &r.history;
+        let samples = h.time_s.len().min(h.measured_mm.len());
+        let cut = |v: &[f64]| v[..samples.min(v.len())].to_vec();
+        let error_mm = (0..h.reference_mm.len())
+            .map(|j| plot::difference(&cut(floor_values(r, j)), &cut(&h.reference_mm[j])))
+            .collect();
+        let zoom_s = h.reference_mm.get(r.specimen_dof).and_then(|x| {
+            plot::peak_window_s(&h.time_s[..samples], &cut(x), plot::ZOOM_HALF_WIDTH_S)
+        });
+        let trip = r.unstable.as_ref().and_then(|_| {
+            h.time_s[..samples].last().map(|&time_s| plot::Marker {
+                time_s,
+                label: format!("stopped at {time_s:.3} s"),
+            })
+        });
+        Self {
+            samples,
+            error_mm,
+            zoom_s,
+            trip,
+        }
+    }
+
+    /// Every floor against its reference, the floors' errors, and the specimen floor zoomed on
+    /// its strongest motion.
+    fn panels<'a>(&'a self, r: &'a RunResult) -> Vec<Panel<'a>> {
+        let h = &r.history;
+        let n = self.samples;
+        let cut = |v: &'a [f64]| &v[..n.min(v.len())];
+        let t = cut(&h.time_s);
+        let label = |j: usize| {
+            if j == r.specimen_dof {
+                "measured"
+            } else {
+                "numerical"
+            }
+        };
+        let floors: Vec<Panel> = h
+            .reference_mm
+            .iter()
+            .enumerate()
+            .map(|(j, reference)| {
+                Panel::new(format!("Floor {} (mm)", j + 1))
+                    .with_line("reference", t, cut(reference), plot::Line::Reference)
+                    .with(label(j), t, cut(floor_values(r, j)))
+            })
+            .collect();
+        let mut error = Panel::new("Error vs reference (mm)");
+        for (j, e) in self.error_mm.iter().enumerate() {
+            error = error.with(format!("floor {}: {} − reference", j + 1, label(j)), t, e);
+        }
+        let zoom = match (self.zoom_s, floors.get(r.specimen_dof)) {
+            (Some(w), Some(p)) => Some(
+                p.clone()
+                    .zoomed(format!("Floor {}, zoom (mm)", r.specimen_dof + 1), w),
+            ),
+            _ => None,
+        };
+        floors.into_iter().chain([error]).chain(zoom).collect()
+    }
+}
+
+/// Floor `j`'s displacement of the run: the specimen's measured, the others numerical.
+fn floor_values(r: &RunResult, j: usize) -> &[f64] {
+    if j == r.specimen_dof {
+        &r.history.measured_mm
+    } else {
+        r.history.floors_mm.get(j).map_or(&[], |x| x.as_slice())
+    }
+}
+
+/// Every floor against the reference, the errors and a zoom ([`BenchmarkFigure`]).
 fn draw(r: &RunResult, path: &Path) -> anyhow::Result<()> {
-    let h = &r.history;
     let c = &r.config;
     let title = match &r.criteria {
         Some(j) => format!(
@@ -318,43 +405,16 @@ fn draw(r: &RunResult, path: &Path) -> anyhow::Result<()> {
         ),
         None => format!("vRTHS {}, {}: unstable", r.structure_name, r.record_name),
     };
-    // Every floor, the specimen's measured, the others numerical.
-    let panels: Vec<Panel> = h
-        .floors_mm
-        .iter()
-        .zip(&h.reference_mm)
-        .enumerate()
-        .map(|(j, (x, reference))| {
-            let (label, values) = if j == r.specimen_dof {
-                ("measured", &h.measured_mm)
-            } else {
-                ("numerical", x)
-            };
-            floor(
-                &format!("Floor {} (mm)", j + 1),
-                &h.time_s,
-                reference,
-                label,
-                values,
-            )
-        })
-        .collect();
-    plot::stacked_time_series(path, &title, &panels)
-}
-
-fn floor<'a>(
-    y_label: &str,
-    time_s: &'a [f64],
-    reference: &'a [f64],
-    label: &str,
-    values: &'a [f64],
-) -> Panel<'a> {
-    Panel {
-        y_label: y_label.to_string(),
-        series: Vec::new(),
-    }
-    .with("reference", time_s, reference)
-    .with(label, time_s, values)
+    let fig = BenchmarkFigure::of(r);
+    plot::draw(
+        path,
+        &plot::Figure {
+            title,
+            panels: fig.panels(r),
+            marker: fig.trip.clone(),
+            time_span_s: None,
+        },
+    )
 }
 
 fn grid(args: &Args) -> anyhow::Result<()> {
@@ -383,4 +443,112 @@ fn grid(args: &Args) -> anyhow::Result<()> {
         std::fs::write(&path, &table).with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::benchmark::run::History;
+
+    /// A 3-floor run of 200 ticks at 0.01 s, the specimen on floor 1: each floor's reference a
+    /// sine, the run `j + 1` × 0.01 mm above it; stopped after `ticks` if fewer than 200.
+    fn result(ticks: usize) -> RunResult {
+        let time_s: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
+        let reference_mm: Vec<Vec<f64>> = (0..3)
+            .map(|j| time_s.iter().map(|t| (j as f64 + 1.0) * t.sin()).collect())
+            .collect();
+        let off = |j: usize| -> Vec<f64> {
+            reference_mm[j][..ticks]
+                .iter()
+                .map(|r| r + (j as f64 + 1.0) * 0.01)
+                .collect()
+        };
+        let history = History {
+            time_s: time_s[..ticks].to_vec(),
+            measured_mm: off(0),
+            target_mm: off(0),
+            floors_mm: (0..3).map(off).collect(),
+            reference_mm: reference_mm.clone(),
+            true_disp_mm: off(0),
+        };
+        RunResult {
+            config: RunConfig {
+                case: 1,
+                record: Record::ElCentro,
+                intensity: 0.4,
+                plant: PlantDraw::Nominal,
+                controller: ControllerKind::FeAts,
+            },
+            criteria: None,
+            unstable: (ticks < 200).then(|| "stroke".to_string()),
+            history,
+            ats_coefficients: None,
+            identification: None,
+            lead_adaptation: None,
+            force_correction_kn_per_mm: None,
+            specimen_stiffness_n_per_m: 0.0,
+            structure_name: "test".into(),
+            specimen_dof: 0,
+            clipped_force_ticks: 0,
+            record_name: "el-centro".into(),
+            j2_noise_free_pct: None,
+        }
+    }
+
+    #[test]
+    fn benchmark_figure_has_floors_errors_and_a_zoom() {
+        let r = result(200);
+        let fig = BenchmarkFigure::of(&r);
+        assert!(fig.trip.is_none());
+        let panels = fig.panels(&r);
+        let names: Vec<&str> = panels.iter().map(|p| p.y_label.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "Floor 1 (mm)",
+                "Floor 2 (mm)",
+                "Floor 3 (mm)",
+                "Error vs reference (mm)",
+                "Floor 1, zoom (mm)"
+            ]
+        );
+        assert_eq!(panels[0].series[0].label, "reference");
+        assert_eq!(panels[0].series[0].line, plot::Line::Reference);
+        assert_eq!(panels[0].series[1].label, "measured");
+        assert_eq!(panels[1].series[1].label, "numerical");
+        let error = &panels[3];
+        let labels: Vec<&str> = error.series.iter().map(|s| s.label.as_str()).collect();
+        assert_eq!(
+            labels,
+            [
+                "floor 1: measured − reference",
+                "floor 2: numerical − reference",
+                "floor 3: numerical − reference"
+            ]
+        );
+        let h = &r.history;
+        for (k, e) in error.series[0].values.iter().enumerate() {
+            assert_eq!(*e, h.measured_mm[k] - h.reference_mm[0][k]);
+        }
+        for (k, e) in error.series[2].values.iter().enumerate() {
+            assert_eq!(*e, h.floors_mm[2][k] - h.reference_mm[2][k]);
+        }
+        // sin peaks at π/2 s: the window ±1.5 s around it is kept inside the 1.99 s record.
+        assert_eq!(panels[4].zoom_s, Some((0.0, 1.99)));
+    }
+
+    #[test]
+    fn stopped_benchmark_figure_ends_where_the_run_stopped() {
+        let r = result(120);
+        let fig = BenchmarkFigure::of(&r);
+        assert_eq!(fig.samples, 120);
+        let trip = fig.trip.as_ref().unwrap();
+        assert!((trip.time_s - 1.19).abs() < 1e-12);
+        assert!(trip.label.contains("1.190 s"), "{}", trip.label);
+        for p in fig.panels(&r) {
+            for s in &p.series {
+                assert_eq!(s.values.len(), 120, "{} / {}", p.y_label, s.label);
+            }
+        }
+    }
 }
