@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")"
 SECS=${1:-30}
 status=0
-for t in at2 csv history model_file link_device recording site_protocol; do
+for t in at2 csv history model_file nl_model_file meta_model_file rig_file structure_file link_device recording site_protocol; do
   mkdir -p "corpus/$t"
   log=$(mktemp)
   if cargo +nightly fuzz run -O "$t" "corpus/$t" "seeds/$t" -- \

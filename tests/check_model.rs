@@ -159,3 +159,28 @@ fn shipped_models_name_cores_features() {
         assert_eq!(rths::model_file::feature_names(m.kind), names, "{file}");
     }
 }
+
+/// The reduced model `rths train meta` writes for an imported structure (it was read as an LR/RNN
+/// file and refused for its format) and the structure metamodel at another rate (accepted before:
+/// every file made at a controller rate follows `rths_files::rate`).
+#[test]
+fn reduced_models_are_checked_and_metamodels_at_another_rate_refused() {
+    let reduced = include_str!("../fuzz/seeds/meta_model_file/frame-1x1-reduced.json");
+    let (ok, out, err) = check(reduced, &[]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("rths-reduced-model") && out.contains("frame-1x1"),
+        "{out}"
+    );
+    let (ok, _, _) = check(reduced, &["--kind", "meta"]);
+    assert!(ok);
+    let (ok, _, err) = check(reduced, &["--kind", "lr"]);
+    assert!(!ok && err.contains("wrong model kind"), "{err}");
+    let meta = include_str!("../fuzz/seeds/meta_model_file/shear3-yielding-meta.json");
+    let (ok, out, err) = check(meta, &[]);
+    assert!(ok && out.contains("structure-meta"), "{err}");
+    let mut v: serde_json::Value = serde_json::from_str(meta).unwrap();
+    v["dt_s"] = serde_json::json!(1.0 / 4096.0);
+    let (ok, _, err) = check(&v.to_string(), &[]);
+    assert!(!ok && err.contains("made at 4096 Hz"), "{err}");
+}

@@ -111,3 +111,99 @@ fn a_huge_npts_is_a_count_error_not_an_allocation() {
         assert!(e.to_string().contains("NPTS"), "{e}");
     }
 }
+
+/// A reduced model file's mode and output counts sized the read-outs' table before anything was
+/// checked: 40 000 modes and 100 000 outputs (a 5 MB file) asked for 32 GB and aborted. The counts
+/// are now checked against the controller's limits first: a count error naming the limit.
+#[test]
+fn a_reduced_model_with_huge_counts_is_a_count_error_not_an_allocation() {
+    use rths_files::reduced_model_file::{
+        ReducedModeEntry, ReducedModelFile, ReducedTraining, StaticEntry, REDUCED_FORMAT,
+        REDUCED_VERSION,
+    };
+    let mode = ReducedModeEntry {
+        frequency_hz: 1.0,
+        omega_rad_s: std::f64::consts::TAU,
+        damping_ratio: 0.02,
+        ground_participation: 1.0,
+        interface_shape: 1.0,
+        output_shape: Vec::new(),
+    };
+    let zero = StaticEntry {
+        ground_mm_per_mm_s2: 0.0,
+        force_mm_per_kn: 0.0,
+    };
+    let file = ReducedModelFile {
+        format: REDUCED_FORMAT.into(),
+        version: REDUCED_VERSION,
+        structure: "huge".into(),
+        structure_checksum: "fnv1a64:0".into(),
+        dt_s: rths_core::params::DT_S,
+        dofs: 1,
+        mass_dofs: 1,
+        specimen_k_kn_per_mm: 1.0,
+        outputs: vec![String::new(); 100_000],
+        modes: vec![mode; 40_000],
+        interface_static: zero,
+        output_static: Vec::new(),
+        training: ReducedTraining {
+            records: Vec::new(),
+            target_nrmse_pct: 1.0,
+            error_bound_pct: 1.0,
+            per_record: Vec::new(),
+            total_modes: 40_000,
+            lowest_truncated_hz: None,
+            damping_coupling: 0.0,
+        },
+    };
+    let e = file.arrays().unwrap_err().to_string();
+    assert!(e.contains("40000 modes") && e.contains("at most 32"), "{e}");
+    let few_modes = ReducedModelFile {
+        modes: file.modes[..2].to_vec(),
+        ..file
+    };
+    let e = few_modes.arrays().unwrap_err().to_string();
+    assert!(
+        e.contains("100000 outputs") && e.contains("at most 16"),
+        "{e}"
+    );
+}
+
+/// An imported structure file's equation count sized the condensed model's dense matrices before
+/// anything bounded it: 100 000 DOFs with mass (a 4 MB file) asked for 80 GB per matrix and
+/// aborted. The count is now checked first: a size error naming the limit.
+#[test]
+fn an_imported_structure_too_large_to_condense_is_refused_not_allocated() {
+    use rths::imported::file::{ImportedFile, ImportedSpecimen, Source, MAX_DENSE_ENTRIES};
+    use rths::imported::DofLabel;
+    let n = 100_000;
+    let file = ImportedFile {
+        format: "rths-structure".into(),
+        version: 2,
+        kind: "sparse".into(),
+        name: "huge".into(),
+        description: String::new(),
+        units: rths_files::structure_file::Units::MmKn,
+        source: Source {
+            script: "huge.py".into(),
+            checksum: "fnv1a64:0".into(),
+        },
+        equations: (0..n as u64)
+            .map(|node| DofLabel { node, dof: 1 })
+            .collect(),
+        influence: vec![1.0; n],
+        mass: (0..n).map(|i| (i, i, 1.0)).collect(),
+        damping: Vec::new(),
+        stiffness: (0..n).map(|i| (i, i, 10.0)).collect(),
+        specimen: ImportedSpecimen {
+            at: DofLabel { node: 0, dof: 1 },
+            stiffness_kn_per_mm: 1.0,
+        },
+        outputs: Vec::new(),
+    };
+    let e = file.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("100000 DOFs carry mass") && e.contains(&MAX_DENSE_ENTRIES.to_string()),
+        "{e}"
+    );
+}

@@ -7,7 +7,9 @@
 use std::path::Path;
 
 use rths_core::control::ReducedSpec;
-use rths_core::metamodel::{ModelError, ReducedMode, StaticCorrection};
+use rths_core::metamodel::{
+    ModelError, ReducedMode, StaticCorrection, REDUCED_MAX_MODES, REDUCED_MAX_OUTPUTS,
+};
 use serde::{Deserialize, Serialize};
 
 /// The `format` tag of a reduced model file.
@@ -63,6 +65,16 @@ pub enum ReducedFileError {
         got: usize,
         /// Outputs of the file.
         expected: usize,
+    },
+    /// The file holds more modes or outputs than the controller runs.
+    #[error("{count} {what}, the controller runs at most {max}")]
+    Count {
+        /// `modes` or `outputs`.
+        what: &'static str,
+        /// How many the file holds.
+        count: usize,
+        /// The controller's limit.
+        max: usize,
     },
     /// Reading the file failed.
     #[error("reading {path}: {source}")]
@@ -288,6 +300,16 @@ impl ReducedModelFile {
     pub fn arrays(&self) -> Result<ReducedArrays, ReducedFileError> {
         let n_out = self.outputs.len();
         let r = self.modes.len();
+        // The counts against core's limits before the read-outs' table is made: a corrupt file's
+        // counts would otherwise size it (10⁶ outputs × 10⁴ modes is 80 GB).
+        for (what, count, max) in [
+            ("modes", r, REDUCED_MAX_MODES),
+            ("outputs", n_out, REDUCED_MAX_OUTPUTS),
+        ] {
+            if count > max {
+                return Err(ReducedFileError::Count { what, count, max });
+            }
+        }
         let mut output_shape = vec![0.0; n_out * r];
         for (j, m) in self.modes.iter().enumerate() {
             if m.output_shape.len() != n_out {

@@ -222,16 +222,10 @@ pub enum MetaFileError {
         /// Its checksum.
         given_checksum: String,
     },
-    /// Trained at another rate.
-    #[error("the metamodel was trained at {trained_hz:.0} Hz (dt_s = {trained_dt_s}), this controller runs at {hz:.0} Hz: train one with `--rate`")]
-    OtherRate {
-        /// Its rate, Hz.
-        trained_hz: f64,
-        /// Its step, s.
-        trained_dt_s: f64,
-        /// The controller's rate, Hz.
-        hz: f64,
-    },
+    /// Trained at another rate (the rule of every file made at a controller rate,
+    /// [`crate::rate::check_dt`]).
+    #[error(transparent)]
+    OtherRate(#[from] crate::rate::OtherRate),
 }
 
 impl MetaFile {
@@ -296,14 +290,23 @@ impl MetaFile {
                 given_checksum: checksum,
             });
         }
-        if self.dt_s.to_bits() != dt_s.to_bits() {
-            return Err(MetaFileError::OtherRate {
-                trained_hz: 1.0 / self.dt_s,
-                trained_dt_s: self.dt_s,
-                hz: 1.0 / dt_s,
-            });
-        }
+        self.check_rate(dt_s)?;
         Ok(p)
+    }
+
+    /// Refuse the file unless it was trained at the controller step `dt_s` (within
+    /// [`crate::rate::DT_TOLERANCE`], as every file made at a controller rate).
+    pub fn check_rate(&self, dt_s: f64) -> Result<(), MetaFileError> {
+        crate::rate::check_dt(
+            "the structure metamodel",
+            self.dt_s,
+            dt_s,
+            &format!(
+                "rths train meta --structure {}.json --out FILE",
+                self.structure.name
+            ),
+        )?;
+        Ok(())
     }
 
     /// Parse and validate (not yet against a structure: [`Self::check`]).

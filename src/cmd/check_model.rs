@@ -75,6 +75,9 @@ pub fn check(path: &std::path::Path, kind: Option<ModelKindArg>) -> Result<Strin
         .map_err(|e| reject(format!("cannot access model file: {e}")))?;
     let tags: Tags =
         serde_json::from_str(&text).map_err(|e| reject(format!("malformed model file: {e}")))?;
+    if rths_files::reduced_model_file::ReducedModelFile::is_reduced(&text) {
+        return check_reduced(path, &text, kind).map_err(reject);
+    }
     let file_kind = tags.kind.unwrap_or_default();
     if let Some(k) = kind {
         if file_kind != k.file_kind() {
@@ -111,6 +114,8 @@ pub fn check(path: &std::path::Path, kind: Option<ModelKindArg>) -> Result<Strin
             let m = rths_files::structure_meta::MetaFile::from_json(&text)
                 .map_err(|e| reject(e.to_string()))?;
             m.params().map_err(|e| reject(e.to_string()))?;
+            m.check_rate(rths_core::params::DT_S)
+                .map_err(|e| reject(e.to_string()))?;
             let _ = writeln!(s, "format / version  {} / {}", m.format, m.version);
             let _ = writeln!(s, "kind              {}", m.kind);
             let _ = writeln!(
@@ -169,6 +174,43 @@ pub fn check(path: &std::path::Path, kind: Option<ModelKindArg>) -> Result<Strin
         "scores            train NRMSE {}, pure NRMSE {}",
         opt(m.scores.train_nrmse_pct),
         opt(m.scores.pure_nrmse_pct)
+    );
+    Ok(s)
+}
+
+/// The reduced-order model `rths train meta` writes for an imported structure: its arrays, checked
+/// as the controller builds them at its step (the structure's checksum needs the structure file:
+/// `rths simulate --structure S --scenario meta-pure --model FILE` checks it too).
+fn check_reduced(
+    path: &std::path::Path,
+    text: &str,
+    kind: Option<ModelKindArg>,
+) -> Result<String, String> {
+    use rths_files::reduced_model_file::ReducedModelFile;
+    if let Some(k) = kind.filter(|k| *k != ModelKindArg::Meta) {
+        return Err(format!(
+            "wrong model kind: expected {}, file holds a reduced model (meta)",
+            k.file_kind()
+        ));
+    }
+    let m = ReducedModelFile::from_json(text).map_err(|e| e.to_string())?;
+    let a = m.arrays().map_err(|e| e.to_string())?;
+    a.spec()
+        .params(rths_core::params::DT_S)
+        .map_err(|e| format!("the reduced model's parameters: {e}"))?;
+    let mut s = String::new();
+    let _ = writeln!(s, "{}: valid rths model file", path.display());
+    let _ = writeln!(s, "format / version  {} / {}", m.format, m.version);
+    let _ = writeln!(
+        s,
+        "structure         {} ({}); run with that structure file only",
+        m.structure, m.structure_checksum
+    );
+    let _ = writeln!(
+        s,
+        "modes / outputs   {} / {}",
+        m.modes.len(),
+        m.outputs.len()
     );
     Ok(s)
 }

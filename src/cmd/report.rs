@@ -54,6 +54,18 @@ pub fn history_of(
     reference_mm: &[f64],
 ) -> anyhow::Result<(History, Option<(String, f64)>)> {
     let n = ag_mm_s2.len();
+    if let Some(u) = link_host::first_unclean_sample(&rows[..rows.len().min(n)]) {
+        anyhow::bail!(
+            "the run is not clean: {} is {} at tick {} (t = {:.4} s, state {}): the supervisor \
+             stops on a non-finite sample, so this recording is not what the board read and has \
+             no figures",
+            u.channel,
+            u.value,
+            u.row,
+            u.row as f64 * DT_S,
+            u.state
+        );
+    }
     let mut h = History::default();
     let mut stop = None;
     let (mut command, mut target) = (0.0, 0.0);
@@ -74,22 +86,6 @@ pub fn history_of(
                 r.seq,
                 r.tick
             );
-        }
-        if stop.is_none() && !r.state.starts_with("fault-") {
-            let channels = [
-                ("command_mm", r.command_mm),
-                ("measured_mm", r.measured_mm),
-                ("force_kn", r.force_kn),
-            ];
-            if let Some((channel, v)) = channels.iter().find(|(_, v)| !v.is_finite()) {
-                anyhow::bail!(
-                    "the run is not clean: {channel} is {v} at tick {k} (t = {:.4} s, state {}): \
-                     the supervisor stops on a non-finite sample, so this recording is not what \
-                     the board read and has no figures",
-                    k as f64 * DT_S,
-                    r.state
-                );
-            }
         }
         h.time_s.push(k as f64 * DT_S);
         h.ground_accel_mm_s2.push(ag_mm_s2[k]);

@@ -256,6 +256,15 @@ impl RigFile {
         if self.board.is_empty() {
             return Err(invalid("board", "empty"));
         }
+        // The virtual rig's specimen was this factor times the paper's: `rths identify` refuses
+        // one that is not positive, so a file holding one was not written by it.
+        let f = self.specimen_stiffness_factor;
+        if !(f.is_finite() && f > 0.0) {
+            return Err(invalid(
+                "specimen_stiffness_factor",
+                format!("{f}: must be a finite number > 0"),
+            ));
+        }
         let a = &self.actuator;
         finite(
             "actuator",
@@ -496,5 +505,19 @@ mod tests {
     fn checksums_differ() {
         assert_ne!(checksum_hex(b"a"), checksum_hex(b"b"));
         assert_eq!(checksum_hex(b""), "fnv1a64:cbf29ce484222325");
+    }
+
+    /// Found by the `rig_file` fuzz target: a factor of 0 was read, and every run that took the
+    /// file then scaled its virtual specimen to nothing.
+    #[test]
+    fn a_specimen_factor_that_is_not_positive_is_refused() {
+        let text = include_str!("../../fuzz/seeds/rig_file/rig.json");
+        assert!(RigFile::from_json(text).is_ok());
+        let mut v: serde_json::Value = serde_json::from_str(text).unwrap();
+        for bad in [0.0, -1.0] {
+            v["specimen_stiffness_factor"] = serde_json::json!(bad);
+            let e = RigFile::from_json(&v.to_string()).unwrap_err().to_string();
+            assert!(e.contains("specimen_stiffness_factor"), "{e}");
+        }
     }
 }

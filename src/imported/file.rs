@@ -285,10 +285,29 @@ pub enum ImportedStructureError {
         /// What showed it.
         detail: String,
     },
+    /// The condensed model's dense matrices would be too large to build.
+    #[error(
+        "{mass_dofs} DOFs carry mass and {massless} do not: condensing them needs dense matrices \
+         of {entries} entries, more than the {MAX_DENSE_ENTRIES} this build condenses"
+    )]
+    TooLarge {
+        /// DOFs that carry mass (the condensed model's size).
+        mass_dofs: usize,
+        /// Massless DOFs (condensed out).
+        massless: usize,
+        /// The larger of `mass_dofs²` and `massless × mass_dofs`.
+        entries: usize,
+    },
     /// The condensed mass is not positive definite.
     #[error("the mass is not positive definite on the DOFs that carry it (Cholesky fails)")]
     MassNotPositiveDefinite,
 }
+
+/// The most entries of one dense matrix the condensation builds (`M*`, `C*`, `K*` are mass DOFs ×
+/// mass DOFs, `K_ss⁻¹·K_sr` massless × mass DOFs): 2²⁵, 256 MB each, 5 792 DOFs with mass. The
+/// largest shipped frame has 936 (`opensees-frame-5x12`); the file's size alone would otherwise
+/// size them (100 000 equations in a 4 MB file ask 80 GB).
+pub const MAX_DENSE_ENTRIES: usize = 1 << 25;
 
 type Result<T> = std::result::Result<T, ImportedStructureError>;
 
@@ -511,6 +530,15 @@ impl ImportedFile {
             }
         }
         let retained: Vec<usize> = (0..n).filter(|&i| diagonal(&mass, i) > 0.0).collect();
+        let (mass_dofs, massless) = (retained.len(), n - retained.len());
+        let entries = mass_dofs.saturating_mul(mass_dofs.max(massless));
+        if entries > MAX_DENSE_ENTRIES {
+            return Err(ImportedStructureError::TooLarge {
+                mass_dofs,
+                massless,
+                entries,
+            });
+        }
         let with_mass: BTreeSet<usize> = retained.iter().copied().collect();
         for (i, j, _) in mass.triplet_iter() {
             if !with_mass.contains(&i) {

@@ -21,9 +21,9 @@ pub mod wire;
 pub use error::LinkHostError;
 pub use qemu::{qemu_args, Qemu};
 pub use recording::{
-    check_named_file, csv_row, read_recording, read_recording_file, Recording, RecordingError,
-    RecordingRow, RunHeader, CSV_HEADER, MAX_NAMED_FILE_BYTES, MAX_RECORDING_BYTES,
-    RECORDING_FORMAT,
+    check_named_file, csv_row, first_unclean_sample, read_recording, read_recording_file,
+    Recording, RecordingError, RecordingRow, RunHeader, UncleanSample, CSV_HEADER,
+    MAX_NAMED_FILE_BYTES, MAX_RECORDING_BYTES, RECORDING_FORMAT,
 };
 pub use session::{IdentifyStream, Link, RecordSummary};
 pub use transport::Port;

@@ -151,6 +151,7 @@ pub fn read_recording(text: &str) -> Result<Recording, RecordingError> {
                     return Err(bad(i + 1, format!("unknown format `{v}`")));
                 }
             } else {
+                check_header_value(k, v).map_err(|why| bad(i + 1, why))?;
                 header.set(k, v);
             }
             continue;
@@ -179,6 +180,11 @@ pub fn read_recording(text: &str) -> Result<Recording, RecordingError> {
                 .parse::<u32>()
                 .map_err(|e| bad(i + 1, format!("field {}: {e}", j + 1)))
         };
+        // The time is tick × Δt (the report recomputes it), but a row whose time is not a
+        // number is not one the writer wrote.
+        if !num(2)?.is_finite() {
+            return Err(bad(i + 1, "field 3 (time_s) is not finite".into()));
+        }
         rows.push(RecordingRow {
             seq: int(0)?,
             tick: int(1)?,
@@ -190,6 +196,79 @@ pub fn read_recording(text: &str) -> Result<Recording, RecordingError> {
         });
     }
     Ok(Recording { header, rows })
+}
+
+/// The header keys `rths link run` writes as one finite number.
+const NUMERIC_KEYS: [&str; 6] = [
+    "scale",
+    "record_samples",
+    "record_dt_s",
+    "record_ticks",
+    "specimen_stiffness_factor",
+    "telemetry_every",
+];
+
+/// Refuse a header value `rths link run` never writes: a number key that is not one finite
+/// number, `limits` that are not three (stroke mm, velocity mm/s, force kN).
+fn check_header_value(key: &str, value: &str) -> Result<(), String> {
+    let finite = |t: &str| t.parse::<f64>().ok().filter(|x| x.is_finite());
+    if NUMERIC_KEYS.contains(&key) && finite(value).is_none() {
+        return Err(format!("`{key}: {value}` is not a finite number"));
+    }
+    if key == "limits" {
+        let numbers: Vec<Option<f64>> = value
+            .split(',')
+            .map(|part| part.split_whitespace().next().and_then(finite))
+            .collect();
+        if numbers.len() != 3 || numbers.iter().any(Option::is_none) {
+            return Err(format!(
+                "`limits: {value}` is not three finite numbers (mm, mm/s, kN)"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// A sample a clean run cannot hold: the first one that is not finite before the first fault row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UncleanSample {
+    /// Its row, from 0.
+    pub row: usize,
+    /// Its tick.
+    pub tick: u32,
+    /// The channel (`command_mm`, `target_mm`, `measured_mm`, `force_kn`).
+    pub channel: &'static str,
+    /// Its value.
+    pub value: f64,
+    /// The row's state.
+    pub state: String,
+}
+
+/// The first non-finite sample before any fault row, if any. The supervisor stops on a non-finite
+/// sample or target, so a row that is still running with one is not what the board read; after a
+/// fault the rows record the stop as it happened (a failed DAQ read is NaN) and are kept as they
+/// are.
+pub fn first_unclean_sample(rows: &[RecordingRow]) -> Option<UncleanSample> {
+    rows.iter()
+        .take_while(|r| !r.state.starts_with("fault-"))
+        .enumerate()
+        .find_map(|(row, r)| {
+            [
+                ("command_mm", r.command_mm),
+                ("target_mm", r.target_mm),
+                ("measured_mm", r.measured_mm),
+                ("force_kn", r.force_kn),
+            ]
+            .into_iter()
+            .find(|(_, v)| !v.is_finite())
+            .map(|(channel, value)| UncleanSample {
+                row,
+                tick: r.tick,
+                channel,
+                value,
+                state: r.state.clone(),
+            })
+        })
 }
 
 /// Read a recording file ([`read_recording`]), at most [`MAX_RECORDING_BYTES`] of it (the caller
