@@ -955,6 +955,9 @@ fn an_lrx_model_uploaded_to_the_lr_image_runs_as_the_host_simulates_it() {
     println!("RESULT {line}");
     let r: serde_json::Value = serde_json::from_str(line).unwrap();
     assert_eq!(r["end_state"], "done");
+    // The RESULT line names the part uploaded, not the image's default (it said lr-online).
+    assert_eq!(r["scenario"], "lrx-online", "{r}");
+    assert_eq!(r["model"], "uploaded over the link", "{r}");
     let stack = r["stack_bytes"].as_u64().unwrap();
     let avail = r["stack_avail_bytes"].as_u64().unwrap();
     println!("LR link image with an uploaded LRX model: stack {stack} of {avail} bytes");
@@ -1244,6 +1247,9 @@ fn an_rnn_of_another_size_uploaded_to_the_rnn_image_runs_as_the_host_simulates_i
         .unwrap();
     let r: serde_json::Value = serde_json::from_str(line).unwrap();
     assert_eq!(r["end_state"], "done");
+    // The RESULT line names the part uploaded, not the image's default.
+    assert_eq!(r["scenario"], "rnn-online-5", "{r}");
+    assert_eq!(r["model"], "uploaded over the link", "{r}");
     println!(
         "RNN-10 link image with an uploaded RNN-5: stack {} of {} bytes",
         r["stack_bytes"], r["stack_avail_bytes"]
@@ -1416,6 +1422,9 @@ fn the_lr_image_made_fe_ats_at_run_time_runs_as_the_host_simulates_it() {
         .unwrap();
     let r: serde_json::Value = serde_json::from_str(line).unwrap();
     assert_eq!(r["end_state"], "done");
+    // The RESULT line names the part uploaded, not the image's default.
+    assert_eq!(r["scenario"], "fe-online-ats", "{r}");
+    assert_eq!(r["model"], "uploaded over the link", "{r}");
     println!(
         "LR link image made FE + ATS: stack {} of {} bytes",
         r["stack_bytes"], r["stack_avail_bytes"]

@@ -197,6 +197,29 @@ pub enum Analytical {
 }
 
 impl Analytical {
+    /// The scenario name a board's `RESULT` line gives a run of this part, and its suffix (an
+    /// RNN's hidden size: `rnn-online-10`): the part in force, compiled in or uploaded. The board
+    /// runs its finite elements with the ATS (`fe-online-ats`).
+    pub fn scenario_name(&self) -> (&'static str, Option<usize>) {
+        match self {
+            Analytical::Fe(_) => ("fe-online-ats", None),
+            Analytical::Lr(_) => ("lr-online", None),
+            Analytical::Rnn(m) => ("rnn-online-", Some(m.params().hidden())),
+            Analytical::Lrx(_) => ("lrx-online", None),
+            Analytical::Site(_) => ("site", None),
+            #[cfg(feature = "structures")]
+            Analytical::StructureFe(_) => ("structure-fe", None),
+            #[cfg(feature = "structures")]
+            Analytical::StructureNl(_) => ("structure-nl", None),
+            #[cfg(feature = "structures")]
+            Analytical::StructureMeta(_) => ("structure-meta", None),
+            #[cfg(feature = "structures")]
+            Analytical::StructureModal(_) => ("structure-modal", None),
+            #[cfg(feature = "structures")]
+            Analytical::StructureReduced(_) => ("structure-reduced", None),
+        }
+    }
+
     fn next_target(&mut self, ag_mm_s2: f64, fb: &Feedback) -> Result<f64, StepError> {
         let y = match self {
             Analytical::Fe(m) => m.next_target(ag_mm_s2, fb),

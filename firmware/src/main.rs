@@ -172,6 +172,13 @@ fn fault_spec() -> Option<&'static str> {
     None
 }
 
+/// What the run's RESULT line names: the analytical part in force (compiled in, or uploaded
+/// since boot) and where its model came from.
+struct InForce {
+    scenario: (&'static str, Option<usize>),
+    model: &'static str,
+}
+
 /// Print the CALIB and RESULT lines; whether the run went as this build expects. `record_ticks`:
 /// the ticks of the record played (the compiled-in one's, or an uploaded one's).
 fn report(
@@ -181,15 +188,16 @@ fn report(
     daq_errors: u32,
     held_samples: u32,
     record_ticks: u32,
+    in_force: &InForce,
 ) -> bool {
     let mut c = heapless::String::<256>::new();
     let _ = calib.write_line(&mut c);
     B::host_line(&c);
     let info = ReportInfo {
-        scenario: analytical::SCENARIO_PREFIX,
-        scenario_suffix: analytical::SCENARIO_SUFFIX,
+        scenario: in_force.scenario.0,
+        scenario_suffix: in_force.scenario.1,
         record_ticks,
-        model: gen::MODEL_SOURCE,
+        model: in_force.model,
         fault_spec: fault_spec(),
         stack: stack::high_water(),
         daq_errors,
@@ -554,7 +562,7 @@ mod app {
 
     /// The supervisor: starts an autonomous run; stops an emulated run on a settled fault or at
     /// `Done`, and reports it.
-    #[task(binds = UART4, priority = 2, shared = [ctl, timer, run, store],
+    #[task(binds = UART4, priority = 2, shared = [ctl, timer, run, store, link],
            local = [calibration, started: bool = cfg!(feature = "link")])]
     fn supervisor(mut cx: supervisor::Context) {
         if !*cx.local.started {
@@ -589,11 +597,31 @@ mod app {
         }
         if stop && !FINISHED.swap(true, Ordering::AcqRel) {
             cx.shared.timer.lock(TickTimer::stop);
-            let (daq_errors, held) = cx
-                .shared
-                .ctl
-                .lock(|c| (c.supervisor().total_daq_errors(), c.held_samples()));
+            let (daq_errors, held, part) = cx.shared.ctl.lock(|c| {
+                (
+                    c.supervisor().total_daq_errors(),
+                    c.held_samples(),
+                    c.analytical().scenario_name(),
+                )
+            });
             let record_ticks = cx.shared.store.lock(|s| s.ticks());
+            let uploaded = cx
+                .shared
+                .link
+                .lock(|l| l.session.model_source == rths_link::RecordSource::Uploaded);
+            let in_force = InForce {
+                // The budget image runs every structure path in turn under one name.
+                scenario: if cfg!(feature = "budget-structures") {
+                    (analytical::SCENARIO_PREFIX, analytical::SCENARIO_SUFFIX)
+                } else {
+                    part
+                },
+                model: if uploaded {
+                    "uploaded over the link"
+                } else {
+                    gen::MODEL_SOURCE
+                },
+            };
             let ok = report(
                 &run,
                 state,
@@ -601,6 +629,7 @@ mod app {
                 daq_errors,
                 held,
                 record_ticks,
+                &in_force,
             );
             if cfg!(feature = "link") {
                 // The board stays up for the host (status, the telemetry's end).
