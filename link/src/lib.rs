@@ -717,12 +717,38 @@ pub fn encode<T: Serialize>(msg: &T, out: &mut [u8]) -> Result<usize, LinkError>
     Ok(m + 1)
 }
 
+/// COBS-decode `body` (without its delimiter) in place, returning the decoded length. Through
+/// the crate's byte-at-a-time state machine (`cobs::DecoderState`) rather than its
+/// `decode_in_place`, whose indexing keeps a bounds-check panic in the device's receive task: a
+/// decoded byte is never ahead of the byte it came from, so writing at `n` ≤ the read index is
+/// in place, and every access is checked (`get`, `get_mut`).
+fn cobs_decode_in_place(body: &mut [u8]) -> Result<usize, LinkError> {
+    use cobs::{DecodeResult, DecoderState};
+    let mut state = DecoderState::Idle;
+    let mut n = 0;
+    for i in 0..=body.len() {
+        // The delimiter the frame reader removed ends the frame.
+        let byte = body.get(i).copied().unwrap_or(0);
+        match state.feed(byte).map_err(|_| LinkError::Cobs)? {
+            DecodeResult::NoData => {}
+            DecodeResult::DataContinue(b) => {
+                *body.get_mut(n).ok_or(LinkError::Cobs)? = b;
+                n += 1;
+            }
+            // Complete only at the frame's end: a zero inside is not this frame.
+            DecodeResult::DataComplete if i == body.len() => return Ok(n),
+            DecodeResult::DataComplete => return Err(LinkError::Cobs),
+        }
+    }
+    Err(LinkError::Cobs)
+}
+
 /// Decode one frame body (COBS bytes without the `0x00` delimiter), in place.
 pub fn decode<'a, T: Deserialize<'a>>(body: &'a mut [u8]) -> Result<T, LinkError> {
     if body.len() > MAX_FRAME {
         return Err(LinkError::TooLong);
     }
-    let n = cobs::decode_in_place(body).map_err(|_| LinkError::Cobs)?;
+    let n = cobs_decode_in_place(body)?;
     if n < 3 {
         return Err(LinkError::Crc);
     }

@@ -317,6 +317,34 @@ proptest! {
         prop_assert!(same(&d, &m), "{:?} vs {:?}", d, m);
     }
 
+    /// The receive path's COBS decoding (the crate's state machine, in place) gives what the
+    /// crate's own `decode_in_place` gives on every frame body a reader can collect (no zero
+    /// inside), and the same bytes.
+    #[test]
+    fn cobs_decoding_agrees_with_the_crates(bytes in prop::collection::vec(1u8..=255, 0..600)) {
+        let mut ours = bytes.clone();
+        let mut theirs = bytes.clone();
+        let a = crate::cobs_decode_in_place(&mut ours).ok();
+        let b = cobs::decode_in_place(&mut theirs).ok();
+        match (a, b) {
+            (Some(n), Some(m)) => prop_assert!(n == m && ours[..n] == theirs[..m]),
+            (None, Some(m)) => prop_assert!(false, "refused what the crate decodes to {m} bytes"),
+            (Some(n), None) => prop_assert!(false, "decoded {n} bytes the crate refuses"),
+            (None, None) => {}
+        }
+    }
+
+    /// Every payload (never empty: a frame holds at least its CRC), zeros and 254-byte runs
+    /// included, comes back from its encoding.
+    #[test]
+    fn cobs_decoding_inverts_the_encoding(payload in prop::collection::vec(any::<u8>(), 1..700)) {
+        let mut enc = vec![0u8; cobs::max_encoding_length(payload.len())];
+        let m = cobs::encode(&payload, &mut enc);
+        let n = crate::cobs_decode_in_place(&mut enc[..m]);
+        prop_assert_eq!(n.ok(), Some(payload.len()));
+        prop_assert_eq!(&enc[..payload.len()], &payload[..]);
+    }
+
     #[test]
     fn arbitrary_bytes_never_panic_the_decoder(bytes in prop::collection::vec(any::<u8>(), 0..300)) {
         let mut b = bytes.clone();
