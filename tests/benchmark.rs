@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use rths::benchmark::run::{check_record, run, run_on, ControllerKind, PlantDraw, RunConfig};
-use rths::benchmark::{case_structure, Record};
+use rths::benchmark::{case_structure, BenchmarkRecord};
 use rths::cmd::benchmark::history_columns;
 use rths_core::integrator::{Chang, ExplicitIntegrator};
 use rths_core::params::{Prototype, DT_S};
@@ -196,7 +196,7 @@ fn records_that_do_not_match_the_benchmark_are_refused() {
     // And a run refuses it before anything runs.
     let cfg = RunConfig {
         case: 0,
-        record: Record::ElCentro,
+        record: BenchmarkRecord::ElCentro,
         intensity: 0.4,
         plant: PlantDraw::Nominal,
         controller: ControllerKind::FeAts,
@@ -219,12 +219,12 @@ fn a_five_story_structure_file_runs_under_the_benchmark_plant() {
     assert_eq!((s.dofs(), s.specimen_dof()), (5, 1));
     let cfg = RunConfig {
         case: 0,
-        record: Record::ElCentro,
+        record: BenchmarkRecord::ElCentro,
         intensity: 0.4,
         plant: PlantDraw::Nominal,
         controller: ControllerKind::FeAts,
     };
-    let r = run_on(&s, &Record::ElCentro.motion().unwrap(), &cfg).unwrap();
+    let r = run_on(&s, &BenchmarkRecord::ElCentro.motion().unwrap(), &cfg).unwrap();
     assert!(r.unstable.is_none(), "{:?}", r.unstable);
     let h = &r.history;
     assert_eq!((h.floors_mm.len(), h.reference_mm.len()), (5, 5));
@@ -253,7 +253,7 @@ fn a_five_story_structure_file_runs_under_the_benchmark_plant() {
 fn the_identified_metamodel_meets_j4_on_case_1_el_centro() {
     let r = run(&RunConfig {
         case: 1,
-        record: Record::ElCentro,
+        record: BenchmarkRecord::ElCentro,
         intensity: 0.4,
         plant: PlantDraw::Nominal,
         controller: ControllerKind::MetaId,
@@ -277,7 +277,7 @@ fn the_identified_metamodel_meets_j4_on_case_1_el_centro() {
 fn a_benchmark_run_is_stable_with_finite_criteria() {
     let r = run(&RunConfig {
         case: 1,
-        record: Record::ElCentro,
+        record: BenchmarkRecord::ElCentro,
         intensity: 0.4,
         plant: PlantDraw::Nominal,
         controller: ControllerKind::FeAts,
@@ -298,7 +298,7 @@ fn a_benchmark_run_is_stable_with_finite_criteria() {
 fn the_metamodel_is_within_a_point_of_fe_ats() {
     let cfg = |controller| RunConfig {
         case: 1,
-        record: Record::Morgan,
+        record: BenchmarkRecord::Morgan,
         intensity: 0.4,
         plant: PlantDraw::Perturbed(1),
         controller,
@@ -319,7 +319,7 @@ fn the_metamodel_is_within_a_point_of_fe_ats() {
 fn bad_benchmark_arguments_are_refused() {
     let mut cfg = RunConfig {
         case: 5,
-        record: Record::Kobe,
+        record: BenchmarkRecord::Kobe,
         intensity: 0.4,
         plant: PlantDraw::Nominal,
         controller: ControllerKind::Fe,

@@ -8,7 +8,7 @@ use rths_core::metrics::BenchmarkCriteria;
 
 use super::ident::RigIdentification;
 use super::run::{run, ControllerKind, PlantDraw, RunConfig};
-use super::Record;
+use super::BenchmarkRecord;
 
 /// One case × record of the grid.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -16,7 +16,7 @@ pub struct Cell {
     /// Partitioning case.
     pub case: u8,
     /// Record.
-    pub record: Record,
+    pub record: BenchmarkRecord,
     /// J1..J9 on the nominal plant (`None`: unstable).
     pub nominal: Option<[f64; 9]>,
     /// J2 of the noise-free displacement on the nominal plant, % (evaluation only).
@@ -56,7 +56,7 @@ pub fn run_grid(
 ) -> anyhow::Result<Grid> {
     let mut configs = Vec::new();
     for case in 1..=4u8 {
-        for record in Record::ALL {
+        for record in BenchmarkRecord::ALL {
             let plants = std::iter::once(PlantDraw::Nominal)
                 .chain((1..=perturbed).map(PlantDraw::Perturbed));
             for plant in plants {
@@ -114,7 +114,7 @@ pub fn run_grid(
         kept.into_iter().map(|(r, _)| r).collect();
     let mut cells = Vec::new();
     for case in 1..=4u8 {
-        for record in Record::ALL {
+        for record in BenchmarkRecord::ALL {
             let of_cell = results
                 .iter()
                 .filter(|(c, _, _)| c.case == case && c.record == record);

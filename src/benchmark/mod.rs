@@ -44,7 +44,7 @@ pub fn noise_sigma(power: f64, dt_s: f64) -> f64 {
 /// The benchmark's three records.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
-pub enum Record {
+pub enum BenchmarkRecord {
     /// 1940 El Centro (0.02 s).
     ElCentro,
     /// 1995 Kobe (0.01 s).
@@ -53,24 +53,28 @@ pub enum Record {
     Morgan,
 }
 
-impl Record {
+impl BenchmarkRecord {
     /// All three, in the benchmark's order.
-    pub const ALL: [Record; 3] = [Record::ElCentro, Record::Kobe, Record::Morgan];
+    pub const ALL: [BenchmarkRecord; 3] = [
+        BenchmarkRecord::ElCentro,
+        BenchmarkRecord::Kobe,
+        BenchmarkRecord::Morgan,
+    ];
 
     /// The CLI name.
     pub fn name(self) -> &'static str {
         match self {
-            Record::ElCentro => "el-centro",
-            Record::Kobe => "kobe",
-            Record::Morgan => "morgan",
+            BenchmarkRecord::ElCentro => "el-centro",
+            BenchmarkRecord::Kobe => "kobe",
+            BenchmarkRecord::Morgan => "morgan",
         }
     }
 
     fn text(self) -> &'static str {
         match self {
-            Record::ElCentro => include_str!("../../data/vrths_benchmark/el_centro.csv"),
-            Record::Kobe => include_str!("../../data/vrths_benchmark/kobe.csv"),
-            Record::Morgan => include_str!("../../data/vrths_benchmark/morgan.csv"),
+            BenchmarkRecord::ElCentro => include_str!("../../data/vrths_benchmark/el_centro.csv"),
+            BenchmarkRecord::Kobe => include_str!("../../data/vrths_benchmark/kobe.csv"),
+            BenchmarkRecord::Morgan => include_str!("../../data/vrths_benchmark/morgan.csv"),
         }
     }
 
@@ -84,7 +88,7 @@ impl Record {
     }
 }
 
-impl std::fmt::Display for Record {
+impl std::fmt::Display for BenchmarkRecord {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
     }

@@ -33,7 +33,7 @@ use crate::motion::GroundMotion;
 
 use super::ident::Converters;
 use super::{
-    noise_sigma, Record, ACTUATOR_CAPACITY_N, BENCHMARK_DT_S, DISP_NOISE_POWER_M2,
+    noise_sigma, BenchmarkRecord, ACTUATOR_CAPACITY_N, BENCHMARK_DT_S, DISP_NOISE_POWER_M2,
     FORCE_NOISE_POWER_N2,
 };
 use crate::drive;
@@ -96,7 +96,7 @@ pub struct RunConfig {
     /// Partitioning case, 1..=4.
     pub case: u8,
     /// Record.
-    pub record: Record,
+    pub record: BenchmarkRecord,
     /// Factor on the ground acceleration.
     pub intensity: f64,
     /// Plant.

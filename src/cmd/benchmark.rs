@@ -11,7 +11,7 @@ use crate::benchmark::grid::run_grid;
 use crate::benchmark::run::{
     run as run_one, run_on, ControllerKind, PlantDraw, RunConfig, RunResult,
 };
-use crate::benchmark::{Record, DEFAULT_INTENSITY, PERTURBED_PLANTS};
+use crate::benchmark::{BenchmarkRecord, DEFAULT_INTENSITY, PERTURBED_PLANTS};
 use crate::plot::{self, Panel};
 
 /// Arguments of `rths benchmark`.
@@ -22,7 +22,7 @@ pub struct Args {
     pub case: Option<u8>,
     /// Ground-motion record (with --case or --structure).
     #[arg(long, value_enum)]
-    pub record: Option<Record>,
+    pub record: Option<BenchmarkRecord>,
     /// Run this structure file (N ≤ 8 DOFs, the specimen on its DOF) instead of a case, with
     /// --record or --record-file.
     #[arg(long, value_name = "FILE", conflicts_with = "case")]
@@ -88,7 +88,7 @@ fn structure_run(args: &Args, path: &Path) -> anyhow::Result<()> {
         .with_context(|| format!("structure file {}", path.display()))?;
     let (record, motion) = match (&args.record_file, args.record) {
         (Some(csv), None) => (
-            Record::ElCentro,
+            BenchmarkRecord::ElCentro,
             crate::motion::GroundMotion::from_path(csv)
                 .with_context(|| format!("record {}", csv.display()))?,
         ),
@@ -106,7 +106,7 @@ fn structure_run(args: &Args, path: &Path) -> anyhow::Result<()> {
     finish_single(args, &run_on(&structure, &motion, &cfg)?)
 }
 
-fn single(args: &Args, case: u8, record: Record) -> anyhow::Result<()> {
+fn single(args: &Args, case: u8, record: BenchmarkRecord) -> anyhow::Result<()> {
     let cfg = RunConfig {
         case,
         record,
@@ -474,7 +474,7 @@ mod tests {
         RunResult {
             config: RunConfig {
                 case: 1,
-                record: Record::ElCentro,
+                record: BenchmarkRecord::ElCentro,
                 intensity: 0.4,
                 plant: PlantDraw::Nominal,
                 controller: ControllerKind::FeAts,

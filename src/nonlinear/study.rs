@@ -70,7 +70,7 @@ pub const RESIDUAL_MIN_MM: f64 = 0.1;
 /// from the vRTHS benchmark's file (`data/vrths_benchmark/morgan.csv`).
 pub fn record(name: &str) -> anyhow::Result<GroundMotion> {
     if name == "morgan" {
-        return crate::benchmark::Record::Morgan.motion();
+        return crate::benchmark::BenchmarkRecord::Morgan.motion();
     }
     GroundMotion::try_embedded(name).with_context(|| format!("embedded record {name}"))
 }
