@@ -6,6 +6,12 @@ set -euo pipefail
 cd "$(dirname "$0")"
 SECS=${1:-30}
 status=0
+# Every target in one build (the targets link side by side); a target that does not build fails
+# the run here, with the compiler's message.
+if ! cargo +nightly fuzz build -O; then
+  echo "FAIL: the fuzz targets did not build"
+  exit 1
+fi
 for t in at2 csv history model_file nl_model_file meta_model_file rig_file structure_file link_device recording site_protocol; do
   mkdir -p "corpus/$t"
   log=$(mktemp)
