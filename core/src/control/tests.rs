@@ -306,3 +306,41 @@ fn the_force_correction_feeds_the_model_the_corrected_force() {
     }
     assert!(differs);
 }
+
+/// The name a board's RESULT line gives the part in force: the kind, and an RNN's own size.
+#[test]
+fn scenario_names_follow_the_part_in_force() {
+    use crate::metamodel::{RnnScaling, RnnWeights};
+    use crate::model::{assemble, ModelSpec};
+    let name = |spec: ModelSpec<'_>| {
+        assemble(&spec, Prototype::paper(), DT_S)
+            .unwrap()
+            .0
+            .scenario_name()
+    };
+    let theta = [0.0, 0.5, 0.1, 0.0, 0.0, 0.0];
+    assert_eq!(name(ModelSpec::Lr { theta: &theta }), ("lr-online", None));
+    assert_eq!(
+        name(ModelSpec::FeAts {
+            expected_delay_s: 28.0 * DT_S
+        }),
+        ("fe-online-ats", None)
+    );
+    let w4 = [0.1, -0.2, 0.3, 0.05];
+    let rnn = ModelSpec::Rnn {
+        weights: RnnWeights {
+            w_ih: &w4,
+            w_hh: &w4,
+            b_h: &[0.0, 0.1],
+            w_ho: &[1.0, -1.0],
+            b_o: 0.0,
+        },
+        scaling: RnnScaling {
+            input_mean: [0.0; 2],
+            input_std: [1.0; 2],
+            output_mean: 0.0,
+            output_std: 1.0,
+        },
+    };
+    assert_eq!(name(rnn), ("rnn-online-", Some(2)));
+}
