@@ -176,6 +176,16 @@ fn nrmse_pct(x: &[f64], reference: &[f64]) -> f64 {
     100.0 * (ss / n).sqrt() / peak
 }
 
+/// The board's own report: the last `RESULT` line of its semihosting output, parsed.
+fn board_result(stdout: &str) -> serde_json::Value {
+    let line = stdout
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("RESULT "))
+        .expect("the board printed no RESULT line");
+    serde_json::from_str(line).unwrap()
+}
+
 #[test]
 #[cfg_attr(
     rths_no_qemu,
@@ -347,13 +357,7 @@ fn upload_run_and_record_el_centro_over_the_link_matches_the_host() {
     assert_eq!(last.state, "done");
     assert_eq!(last.command_mm, 0.0);
     // The board's own report (semihosting RESULT) agrees.
-    let out = q.stdout();
-    let line = out
-        .lines()
-        .rev()
-        .find_map(|l| l.strip_prefix("RESULT "))
-        .unwrap();
-    let r: serde_json::Value = serde_json::from_str(line).unwrap();
+    let r = board_result(&q.stdout());
     assert_eq!(r["end_state"], "done");
     assert_eq!(r["telemetry_dropped"], 0);
     let fw_result = r["nrmse_pct"].as_f64().unwrap();
@@ -946,14 +950,8 @@ fn an_lrx_model_uploaded_to_the_lr_image_runs_as_the_host_simulates_it() {
     }
     println!("lrx-online, uploaded model: {identical} commands bit-identical to the host");
     assert_eq!(identical, ag.len() - 1);
-    let out = q.stdout();
-    let line = out
-        .lines()
-        .rev()
-        .find_map(|l| l.strip_prefix("RESULT "))
-        .unwrap();
-    println!("RESULT {line}");
-    let r: serde_json::Value = serde_json::from_str(line).unwrap();
+    let r = board_result(&q.stdout());
+    println!("RESULT {r}");
     assert_eq!(r["end_state"], "done");
     // The RESULT line names the part uploaded, not the image's default (it said lr-online).
     assert_eq!(r["scenario"], "lrx-online", "{r}");
@@ -1239,13 +1237,7 @@ fn an_rnn_of_another_size_uploaded_to_the_rnn_image_runs_as_the_host_simulates_i
         ag.len(),
         "rnn-online-5, rnn-5.json uploaded to the RNN-10 image",
     );
-    let out = q.stdout();
-    let line = out
-        .lines()
-        .rev()
-        .find_map(|l| l.strip_prefix("RESULT "))
-        .unwrap();
-    let r: serde_json::Value = serde_json::from_str(line).unwrap();
+    let r = board_result(&q.stdout());
     assert_eq!(r["end_state"], "done");
     // The RESULT line names the part uploaded, not the image's default.
     assert_eq!(r["scenario"], "rnn-online-5", "{r}");
@@ -1354,13 +1346,7 @@ fn a_rig_compensation_uploaded_to_the_fe_ats_build_runs_as_the_host_simulates_it
         ag.len(),
         "fe-online-ats, uploaded rig ATS start",
     );
-    let out = q.stdout();
-    let line = out
-        .lines()
-        .rev()
-        .find_map(|l| l.strip_prefix("RESULT "))
-        .unwrap();
-    let r: serde_json::Value = serde_json::from_str(line).unwrap();
+    let r = board_result(&q.stdout());
     assert_eq!(r["end_state"], "done");
     println!(
         "FE+ATS link build with an uploaded rig: stack {} of {} bytes",
@@ -1414,13 +1400,7 @@ fn the_lr_image_made_fe_ats_at_run_time_runs_as_the_host_simulates_it() {
         ag.len(),
         "fe-online-ats, uploaded to the LR image",
     );
-    let out = q.stdout();
-    let line = out
-        .lines()
-        .rev()
-        .find_map(|l| l.strip_prefix("RESULT "))
-        .unwrap();
-    let r: serde_json::Value = serde_json::from_str(line).unwrap();
+    let r = board_result(&q.stdout());
     assert_eq!(r["end_state"], "done");
     // The RESULT line names the part uploaded, not the image's default.
     assert_eq!(r["scenario"], "fe-online-ats", "{r}");
