@@ -197,12 +197,12 @@ pub enum Analytical {
 }
 
 impl Analytical {
-    /// The scenario name a board's `RESULT` line gives a run of this part, and its suffix (an
-    /// RNN's hidden size: `rnn-online-10`): the part in force, compiled in or uploaded. The board
-    /// runs its finite elements with the ATS (`fe-online-ats`).
+    /// The scenario name of a run of this part, and its suffix (an RNN's hidden size:
+    /// `rnn-online-10`); the finite elements' name depends on their compensator too
+    /// ([`Controller::scenario_name`]).
     pub fn scenario_name(&self) -> (&'static str, Option<usize>) {
         match self {
-            Analytical::Fe(_) => ("fe-online-ats", None),
+            Analytical::Fe(_) => ("fe-online", None),
             Analytical::Lr(_) => ("lr-online", None),
             Analytical::Rnn(m) => ("rnn-online-", Some(m.params().hidden())),
             Analytical::Lrx(_) => ("lrx-online", None),
@@ -743,6 +743,15 @@ impl Controller {
     /// The configuration.
     pub fn config(&self) -> &ControlConfig {
         &self.config
+    }
+    /// The scenario name a board's `RESULT` line gives a run of the part in force (compiled in or
+    /// uploaded), and its suffix: [`Analytical::scenario_name`], with the finite elements named
+    /// by their compensator (`fe-online-ats`).
+    pub fn scenario_name(&self) -> (&'static str, Option<usize>) {
+        match (&self.analytical, &self.compensator) {
+            (Analytical::Fe(_), Compensator::Ats(_)) => ("fe-online-ats", None),
+            (a, _) => a.scenario_name(),
+        }
     }
     /// The analytical part.
     pub fn analytical(&self) -> &Analytical {

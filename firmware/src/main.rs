@@ -601,7 +601,7 @@ mod app {
                 (
                     c.supervisor().total_daq_errors(),
                     c.held_samples(),
-                    c.analytical().scenario_name(),
+                    c.scenario_name(),
                 )
             });
             let record_ticks = cx.shared.store.lock(|s| s.ticks());

@@ -53,6 +53,51 @@ fn each_spec_assembles_its_parts() -> Result<(), ModelError> {
     Ok(())
 }
 
+/// The name a board's RESULT line gives the part in force: the kind, the finite elements'
+/// compensator, and an RNN's own size.
+#[test]
+fn scenario_names_follow_the_part_in_force() -> Result<(), ModelError> {
+    use crate::control::{ControlConfig, Controller, FeedbackSource};
+    use crate::params::SpecimenScale;
+    use crate::supervisor::Limits;
+    let p = Prototype::paper();
+    let cfg = ControlConfig::new(
+        p,
+        SpecimenScale::default(),
+        FeedbackSource::Measured,
+        Limits::paper_actuator(),
+    )
+    .unwrap();
+    let name = |spec: &ModelSpec<'_>| -> Result<_, ModelError> {
+        let (a, c) = assemble(spec, p, DT_S)?;
+        Ok(Controller::new(cfg, a, c).scenario_name())
+    };
+    assert_eq!(name(&LR)?, ("lr-online", None));
+    assert_eq!(name(&ModelSpec::Fe)?, ("fe-online", None));
+    let ats = ModelSpec::FeAts {
+        expected_delay_s: 28.0 * DT_S,
+    };
+    assert_eq!(name(&ats)?, ("fe-online-ats", None));
+    let w = [0.1; 4];
+    let rnn = ModelSpec::Rnn {
+        weights: RnnWeights {
+            w_ih: &w,
+            w_hh: &w,
+            b_h: &w[..2],
+            w_ho: &w[..2],
+            b_o: 0.0,
+        },
+        scaling: RnnScaling {
+            input_mean: [0.0; 2],
+            input_std: [1.0; 2],
+            output_mean: 0.0,
+            output_std: 1.0,
+        },
+    };
+    assert_eq!(name(&rnn)?, ("rnn-online-", Some(2)));
+    Ok(())
+}
+
 /// `assemble_in` builds exactly the parts `Controller::new` gets from `assemble`, for every
 /// kind, and they run the same.
 #[test]
