@@ -1410,3 +1410,218 @@ fn the_lr_image_made_fe_ats_at_run_time_runs_as_the_host_simulates_it() {
         r["stack_bytes"], r["stack_avail_bytes"]
     );
 }
+
+/// The first `samples` samples of El Centro at `dt_s` (linear between its 20 ms samples).
+fn el_centro_at(dt_s: f64, samples: usize) -> rths::motion::GroundMotion {
+    let el = rths::motion::GroundMotion::el_centro();
+    let accel_g = (0..samples)
+        .map(|i| {
+            let pos = i as f64 * dt_s / el.dt_s;
+            let j = pos.floor() as usize;
+            let f = pos - j as f64;
+            el.accel_g[j] + f * (el.accel_g[j + 1] - el.accel_g[j])
+        })
+        .collect();
+    rths::motion::GroundMotion {
+        name: format!("el-centro-{samples}-at-{dt_s}"),
+        dt_s,
+        accel_g,
+    }
+}
+
+/// A record longer than the board's memory, run with `rths link run`: streamed during the run
+/// (flow-controlled by the board's ring), every command bit-identical to the host simulation of
+/// the whole record, and `rths report` of the recording equal to `rths simulate`.
+#[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
+fn a_record_longer_than_the_boards_memory_is_streamed_and_every_command_equals_the_host() {
+    if qemu_missing("link test") {
+        return;
+    }
+    let elf = link_elf();
+    let exe = env!("CARGO_BIN_EXE_rths");
+    let dir = tempfile::tempdir().unwrap();
+    let csv_motion = dir.path().join("long.csv");
+    // 34 s at 250 Hz: 8,501 samples, more than the board's whole record memory (64 KiB: 8,192
+    // samples; an upload holds 4,096).
+    std::fs::write(&csv_motion, el_centro_at(0.004, 8501).to_csv()).unwrap();
+    let motion = rths::motion::GroundMotion::from_path(&csv_motion)
+        .unwrap()
+        .scaled(0.5);
+    assert!(
+        motion.accel_g.len() > 8192,
+        "longer than the board's memory"
+    );
+    let run_csv = dir.path().join("run.csv");
+    let out = Command::new(exe)
+        .args(["link", "--qemu"])
+        .arg(&elf)
+        .args(["run", "--motion"])
+        .arg(&csv_motion)
+        .args(["--scale", "0.5", "--on-link-loss", "ramp-down", "--out"])
+        .arg(&run_csv)
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    println!("{text}");
+    assert!(text.contains("streaming ground motion"), "{text}");
+    assert!(
+        text.contains("record streamed: 8501 samples arrived") && text.contains(" 0 tick(s)"),
+        "{text}"
+    );
+
+    let rec = rths::link_host::read_recording(&std::fs::read_to_string(&run_csv).unwrap()).unwrap();
+    assert_eq!(rec.header.get("record_streamed"), Some("yes"));
+    assert_eq!(rec.header.get("record_samples"), Some("8501"));
+    let ag = motion.resample_mm_s2(DT_S);
+    let reference = study::reference_mm(&ag, 1.0).unwrap();
+    let lr_file =
+        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json"))
+            .unwrap();
+    let host = scenario::run(&setup(
+        ScenarioId::LrOnline,
+        &ag,
+        &reference,
+        &theta(&lr_file),
+    ))
+    .unwrap();
+    assert!(rec.rows.len() >= ag.len());
+    let mut identical = 0;
+    for (row, hs) in rec.rows.iter().zip(&host.history.command_mm[1..]) {
+        assert_eq!(row.command_mm.to_bits(), hs.to_bits(), "tick {}", row.tick);
+        identical += 1;
+    }
+    println!(
+        "{identical} of {} commands bit-identical to the host",
+        ag.len() - 1
+    );
+    assert_eq!(identical, ag.len() - 1);
+
+    let json = |args: &[&str]| -> serde_json::Value {
+        let out = Command::new(exe)
+            .args(args)
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let rep = json(&["report", run_csv.to_str().unwrap(), "--json"]);
+    let sim = json(&[
+        "simulate",
+        "--scenario",
+        "lr-online",
+        "--motion",
+        csv_motion.to_str().unwrap(),
+        "--scale",
+        "0.5",
+        "--json",
+    ]);
+    assert_eq!(rep["scenarios"][0], sim["scenarios"][0]);
+
+    // `rths link upload` holds a record whole: this one is refused, naming the command that
+    // streams it.
+    let out = Command::new(exe)
+        .args(["link", "--qemu"])
+        .arg(&elf)
+        .args(["upload", "--motion"])
+        .arg(&csv_motion)
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("8501 samples, the device holds 4096") && err.contains("rths link run"),
+        "{err}"
+    );
+}
+
+/// A host that stops streaming after filling the ring: the run's link-loss policy decides.
+/// `Complete` runs the record to its end, each tick past the ring's samples at 0 g and counted
+/// from the first one the ring lacked; `RampDown` ramps down from that tick. Either way the host
+/// is told (`StreamStatus`), and a second arm is refused (the ring no longer holds the start).
+#[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
+fn a_stream_that_falls_behind_follows_the_link_loss_policy_chosen_at_arm_time() {
+    use rths_link::LinkLoss;
+    if qemu_missing("link test") {
+        return;
+    }
+    // 10 s at 1 kHz: 10,001 samples, 4,092 of them sent before the run.
+    let long = el_centro_at(0.001, 10_001);
+    let ticks = rths_core::motion::record_ticks(long.accel_g.len(), long.dt_s, DT_S) as u32;
+    for policy in [LinkLoss::Complete, LinkLoss::RampDown] {
+        let dir = tempfile::tempdir().unwrap();
+        let mut q = Qemu::start(&link_elf(), dir.path()).unwrap();
+        let link = &mut q.link;
+        link.timeout = Duration::from_secs(20);
+        link.stream_record(&long.accel_g, long.dt_s, 1.0).unwrap();
+        let st = link.stream_status().unwrap();
+        // 341 chunks of 12 fill 4,092 of the ring's 4,096 samples.
+        assert_eq!((st.in_force, st.received, st.free), (true, 4092, 4));
+        assert_eq!(link.status().unwrap().record.ticks, ticks);
+        link.stop_streaming();
+        link.arm_owned(16, policy).unwrap();
+        link.start().unwrap();
+        let mut rows = Vec::new();
+        let summary = link
+            .record(Duration::from_secs(60), 0, |t| {
+                rows.push(*t);
+                Ok(())
+            })
+            .unwrap();
+        let (end, run_ticks, _, _) = summary.end.unwrap();
+        let st = link.stream_status().unwrap();
+        // Tick k reads samples floor(k·DT_S/dt) and the next: the first tick past sample 4,091.
+        let dry = (0..ticks)
+            .find(|k| ((*k as f64 * DT_S / long.dt_s).floor() as usize) + 1 >= 4092)
+            .unwrap();
+        println!(
+            "{policy:?}: run ended {end:?} after {run_ticks} ticks; underrun from tick {:?}, {} \
+             ticks",
+            st.first_underrun_tick, st.underrun_ticks
+        );
+        assert_eq!(end, RunState::Done);
+        assert_eq!(st.first_underrun_tick, Some(dry));
+        assert_eq!(st.checksum_ok, None, "not every sample came");
+        match policy {
+            LinkLoss::Complete => {
+                // Every tick from the dry one to the record's end played 0 g.
+                assert_eq!(st.underrun_ticks, ticks - dry);
+                assert!(rows
+                    .iter()
+                    .all(|t| t.state != RunState::RampDown || t.tick >= ticks - 1));
+            }
+            LinkLoss::RampDown => {
+                let first_ramp = rows
+                    .iter()
+                    .find(|t| t.state == RunState::RampDown)
+                    .unwrap()
+                    .tick;
+                println!("ramp-down from tick {first_ramp}");
+                assert!(first_ramp >= dry && first_ramp <= dry + 32, "{first_ramp}");
+            }
+        }
+        assert_eq!(
+            refusal(link, &HostMsg::Arm { telemetry_every: 1 }),
+            Some(NackReason::Incomplete)
+        );
+    }
+}

@@ -30,6 +30,16 @@ impl Chunks {
         self.written
     }
 
+    /// The chunk number expected next (= chunks received).
+    pub fn next_seq(&self) -> u32 {
+        self.next_seq
+    }
+
+    /// Values announced.
+    pub fn total(&self) -> usize {
+        self.total
+    }
+
     /// Every value arrived.
     pub fn complete(&self) -> bool {
         self.written == self.total

@@ -289,6 +289,34 @@ pub fn handle(
             .chunk(seq, count, &values, at_rest)
             .map(|()| Effect::None),
         HostMsg::RecordCommit => store.commit(at_rest).map(|_| Effect::None),
+        HostMsg::StreamBegin {
+            samples,
+            dt_s,
+            scale,
+            checksum,
+        } => store
+            .stream_begin(samples, dt_s, scale, checksum, at_rest)
+            .map(|()| Effect::None),
+        // Taken during a run too: the ring is the control task's only while it reads a tick.
+        HostMsg::StreamChunk { seq, count, values } => {
+            return match store.stream_chunk(seq, count, &values) {
+                Ok(a) => (
+                    DeviceMsg::StreamAck {
+                        seq: a.seq,
+                        next_seq: a.next_seq,
+                        free: a.free,
+                    },
+                    Effect::None,
+                ),
+                Err(n) => (DeviceMsg::Nack(req, n), Effect::None),
+            }
+        }
+        HostMsg::StreamStatus => {
+            return match store.stream_status() {
+                Some(st) => (DeviceMsg::StreamStatus(st), Effect::None),
+                None => (DeviceMsg::Nack(req, NackReason::Sequence), Effect::None),
+            }
+        }
         HostMsg::ModelBegin {
             kind,
             values,
@@ -337,6 +365,10 @@ pub fn handle(
             velocity_mm_s,
             force_kn,
         } => set_limits(ctl, stroke_mm, velocity_mm_s, force_kn).map(|()| Effect::None),
+        // A streamed record plays once: its ring no longer holds its start.
+        HostMsg::Arm { .. } | HostMsg::ArmWith { .. } if !store.playable() => {
+            Err(NackReason::Incomplete)
+        }
         HostMsg::Arm { telemetry_every } => arm_request(
             ctl,
             run,

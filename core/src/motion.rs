@@ -28,13 +28,7 @@ impl<'a> Record<'a> {
     /// Ticks of `tick_dt_s` the record covers: `k = 0..=floor(duration / tick_dt_s)`. Zero if the
     /// record is empty or either step is not finite and positive.
     pub fn ticks(&self, tick_dt_s: f64) -> usize {
-        if self.accel_g.is_empty() || !positive(tick_dt_s) || !positive(self.dt_s) {
-            return 0;
-        }
-        // A hair of slack so that e.g. 39.99 s / (1/2048 s) landing a rounding error below an
-        // integer still counts the last step.
-        let last = libm::floor(self.duration_s() / tick_dt_s * (1.0 + 1e-12)) as usize;
-        last + 1
+        record_ticks(self.accel_g.len(), self.dt_s, tick_dt_s)
     }
 
     /// Ground acceleration at tick `k` of `tick_dt_s` (time `k·tick_dt_s`), mm/s², interpolated
@@ -42,19 +36,55 @@ impl<'a> Record<'a> {
     /// [`Self::ticks`]) the last sample is held; 0 for an empty record.
     #[inline]
     pub fn accel_mm_s2(&self, k: usize, tick_dt_s: f64) -> f64 {
-        let pos = k as f64 * tick_dt_s / self.dt_s;
-        let i = libm::floor(pos) as usize;
-        let frac = pos - i as f64;
-        let a = match (
-            self.accel_g.get(i).copied(),
-            self.accel_g.get(i + 1).copied(),
-        ) {
-            (Some(a0), Some(a1)) => a0 + frac * (a1 - a0),
-            (Some(a0), None) => a0,
-            _ => self.accel_g.last().copied().unwrap_or(0.0),
-        };
-        a * G_MM_S2
+        accel_at_mm_s2(
+            self.accel_g.len(),
+            |i| self.accel_g.get(i).copied(),
+            k,
+            tick_dt_s,
+            self.dt_s,
+        )
     }
+}
+
+/// Ticks of `tick_dt_s` a record of `samples` samples every `dt_s` covers (what
+/// [`Record::ticks`] counts, for a record not held whole, e.g. one streamed through a ring).
+pub fn record_ticks(samples: usize, dt_s: f64, tick_dt_s: f64) -> usize {
+    if samples == 0 || !positive(tick_dt_s) || !positive(dt_s) {
+        return 0;
+    }
+    let duration_s = (samples - 1) as f64 * dt_s;
+    // A hair of slack so that e.g. 39.99 s / (1/2048 s) landing a rounding error below an
+    // integer still counts the last step.
+    let last = libm::floor(duration_s / tick_dt_s * (1.0 + 1e-12)) as usize;
+    last + 1
+}
+
+/// The samples tick `k` reads: the index of the first of the two it interpolates between (the
+/// second is the next one, if the record has it), and its weight's complement.
+#[inline]
+pub fn tick_position(k: usize, tick_dt_s: f64, dt_s: f64) -> (usize, f64) {
+    let pos = k as f64 * tick_dt_s / dt_s;
+    let i = libm::floor(pos) as usize;
+    (i, pos - i as f64)
+}
+
+/// [`Record::accel_mm_s2`] of a record of `samples` samples read through `sample_g` (sample `i`
+/// in g, `None` if it does not exist): the one formula for a record held whole and one streamed.
+#[inline]
+pub fn accel_at_mm_s2(
+    samples: usize,
+    sample_g: impl Fn(usize) -> Option<f64>,
+    k: usize,
+    tick_dt_s: f64,
+    dt_s: f64,
+) -> f64 {
+    let (i, frac) = tick_position(k, tick_dt_s, dt_s);
+    let a = match (sample_g(i), sample_g(i.saturating_add(1))) {
+        (Some(a0), Some(a1)) => a0 + frac * (a1 - a0),
+        (Some(a0), None) => a0,
+        _ => samples.checked_sub(1).and_then(&sample_g).unwrap_or(0.0),
+    };
+    a * G_MM_S2
 }
 
 fn positive(x: f64) -> bool {

@@ -479,7 +479,14 @@ mod app {
         let next_k = if running { k.saturating_add(1) } else { 0 };
         // ü_g for the next tick, interpolated in the slack of this one (docs/design.md §8 counts
         // only the DAQ read, the control step, the command write and the log record).
-        *cx.local.ag = cx.shared.store.lock(|s| s.accel_mm_s2(next_k));
+        let played = cx.shared.store.lock(|s| s.play(next_k));
+        *cx.local.ag = played.accel_mm_s2;
+        #[cfg(feature = "link")]
+        if played.underrun && running && LINK_LOSS_RAMP.load(Ordering::Acquire) {
+            // A streamed record's samples did not arrive in time, and the run's policy for a lost
+            // link is to ramp down (under `Complete` the tick plays 0 g and is counted).
+            cx.shared.ctl.lock(|c| c.supervisor_mut().abort());
+        }
         let state = step.out.state;
         let site_steps = cx.local.site_steps;
         let (site, step_end) = cx.shared.ctl.lock(|c| {

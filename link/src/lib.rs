@@ -23,6 +23,14 @@
 //! from 0, each acknowledged; the commit checks the count and the end-to-end [`record_checksum`]. The
 //! device refuses the whole upload on the first bad chunk (out of order, duplicated, a NaN) and keeps
 //! the record it had until a commit succeeds.
+//!
+//! **Record stream** ([`HostMsg::StreamBegin`], [`HostMsg::StreamChunk`], [`HostMsg::RecordCommit`],
+//! [`HostMsg::StreamStatus`]): a record longer than the device holds passes through a ring of its
+//! capacity during the run. The host fills the ring at rest and commits; during the run it sends
+//! chunks as the ring frees up. Every chunk is answered by a [`DeviceMsg::StreamAck`] saying the
+//! next chunk number the device expects and the samples it can take now (flow control: the host
+//! never sends more than that, and sends a chunk again after a loss); a tick whose samples have
+//! not arrived is an underrun, handled by the run's [`LinkLoss`] policy.
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
@@ -308,6 +316,32 @@ pub enum HostMsg {
         /// Bring the actuator to its safe state as on a fault.
         fault: bool,
     },
+    // ---- records streamed during the run (issue 27) ----
+    /// Begin a streamed record (at rest; replaces any upload in progress): `samples` of any number
+    /// (≥ 2, lasting at most `u32::MAX` ticks) pass through a ring of the device's capacity. The
+    /// chunks that fill it follow, then [`HostMsg::RecordCommit`] makes it the record in force.
+    StreamBegin {
+        /// Samples the whole record has.
+        samples: u32,
+        /// Record step, s.
+        dt_s: f64,
+        /// The factor the host already applied to the samples (kept for the status, not applied).
+        scale: f64,
+        /// [`record_checksum`] of all the samples and `dt_s` (checked when the last one arrives).
+        checksum: u32,
+    },
+    /// The next samples of the streamed record (at rest before its commit, or during its run),
+    /// answered by a [`DeviceMsg::StreamAck`].
+    StreamChunk {
+        /// Chunk number, from 0, no gap.
+        seq: u32,
+        /// Samples used in `values` (1..=[`RECORD_CHUNK`]; only the last chunk may be short).
+        count: u8,
+        /// The samples, g (the first `count`).
+        values: [f64; RECORD_CHUNK],
+    },
+    /// Answer with [`DeviceMsg::StreamStatus`]: where the streamed record stands.
+    StreamStatus,
 }
 
 /// Which request an answer is about.
@@ -351,6 +385,13 @@ pub enum Request {
     SiteTarget,
     /// [`HostMsg::SiteEnd`].
     SiteEnd,
+    // ---- records streamed during the run ----
+    /// [`HostMsg::StreamBegin`].
+    StreamBegin,
+    /// [`HostMsg::StreamChunk`].
+    StreamChunk,
+    /// [`HostMsg::StreamStatus`].
+    StreamStatus,
 }
 
 impl HostMsg {
@@ -375,6 +416,9 @@ impl HostMsg {
             Self::SiteBegin { .. } => Request::SiteBegin,
             Self::SiteTarget { .. } => Request::SiteTarget,
             Self::SiteEnd { .. } => Request::SiteEnd,
+            Self::StreamBegin { .. } => Request::StreamBegin,
+            Self::StreamChunk { .. } => Request::StreamChunk,
+            Self::StreamStatus => Request::StreamStatus,
         }
     }
 }
@@ -398,7 +442,8 @@ pub enum NackReason {
     Unsupported,
     /// A record chunk out of order, duplicated or without a `RecordBegin` (the upload is dropped).
     Sequence,
-    /// A commit before every sample arrived, or a chunk with a bad count.
+    /// A commit before every sample arrived (a stream's: before its ring is full), a chunk with a
+    /// bad count, or an arm with a streamed record already played (stream it again).
     Incomplete,
     /// The record is longer than the device can hold (or shorter than 2 samples).
     TooLong,
@@ -413,13 +458,16 @@ pub enum NackReason {
 }
 
 /// What the device does when the host falls silent during a run (no valid frame for
-/// [`LINK_TIMEOUT_TICKS`]; a recording host sends a `Status` every 250 ms).
+/// [`LINK_TIMEOUT_TICKS`]; a recording host sends a `Status` every 250 ms), and when a streamed
+/// record's samples for a tick have not arrived (an underrun).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum LinkLoss {
     /// Run the test to its end (the default, and what a plain `Arm` chooses): the telemetry of the
-    /// silence is lost, the test is not.
+    /// silence is lost, the test is not; a tick of an underrun plays 0 g and is counted
+    /// ([`StreamStatus::underrun_ticks`]).
     Complete,
-    /// Ramp the command down to zero (an abort) and end the run.
+    /// Ramp the command down to zero (an abort) and end the run, at the silence's timeout or the
+    /// first underrun.
     RampDown,
 }
 
@@ -440,6 +488,29 @@ pub enum RecordSource {
     Compiled,
     /// Uploaded over the link.
     Uploaded,
+    /// A record streamed over the link during its run ([`HostMsg::StreamBegin`]).
+    Streamed,
+}
+
+/// Where a streamed record stands: the answer to [`HostMsg::StreamStatus`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StreamStatus {
+    /// It is the record in force (committed), not still filling its ring.
+    pub in_force: bool,
+    /// The chunk number the device expects next (= chunks accepted).
+    pub next_seq: u32,
+    /// Samples received so far, of [`RecordInfo::samples`].
+    pub received: u32,
+    /// Samples the ring can take now.
+    pub free: u32,
+    /// Ticks whose samples had not arrived when they were played (under [`LinkLoss::Complete`]
+    /// they played 0 g; under [`LinkLoss::RampDown`] the first one ramped the run down).
+    pub underrun_ticks: u32,
+    /// The first such tick.
+    pub first_underrun_tick: Option<u32>,
+    /// Every sample arrived and the end-to-end [`record_checksum`] matched (`None`: not all
+    /// arrived yet).
+    pub checksum_ok: Option<bool>,
 }
 
 /// The active ground-motion record, as the status reports it.
@@ -655,6 +726,19 @@ pub enum DeviceMsg {
         /// Measured force, kN (NaN on a DAQ error).
         force_kn: f64,
     },
+    // ---- records streamed during the run ----
+    /// The answer to a [`HostMsg::StreamChunk`]: accepted if `next_seq` is `seq + 1`; refused (out
+    /// of order, or more than the ring can take) otherwise, nothing changed.
+    StreamAck {
+        /// The chunk answered.
+        seq: u32,
+        /// The chunk number the device expects next.
+        next_seq: u32,
+        /// Samples the ring can take now.
+        free: u32,
+    },
+    /// The answer to [`HostMsg::StreamStatus`].
+    StreamStatus(StreamStatus),
 }
 
 /// What the controller saw at one tick of an identification: 32 bytes on the wire (postcard: tag,

@@ -122,6 +122,25 @@ fn any_host() -> impl Strategy<Value = HostMsg> {
         (any::<u32>(), any_f64())
             .prop_map(|(step, target_mm)| HostMsg::SiteTarget { step, target_mm }),
         any::<bool>().prop_map(|fault| HostMsg::SiteEnd { fault }),
+        (any::<u32>(), any_f64(), any_f64(), any::<u32>()).prop_map(
+            |(samples, dt_s, scale, checksum)| HostMsg::StreamBegin {
+                samples,
+                dt_s,
+                scale,
+                checksum
+            }
+        ),
+        (
+            any::<u32>(),
+            any::<u8>(),
+            prop::collection::vec(any_f64(), RECORD_CHUNK)
+        )
+            .prop_map(|(seq, count, v)| HostMsg::StreamChunk {
+                seq,
+                count,
+                values: v.try_into().unwrap(),
+            }),
+        Just(HostMsg::StreamStatus),
     ]
 }
 
@@ -136,7 +155,11 @@ fn any_kind() -> impl Strategy<Value = ModelKind> {
 
 fn any_record_info() -> impl Strategy<Value = RecordInfo> {
     (
-        prop_oneof![Just(RecordSource::Compiled), Just(RecordSource::Uploaded)],
+        prop_oneof![
+            Just(RecordSource::Compiled),
+            Just(RecordSource::Uploaded),
+            Just(RecordSource::Streamed)
+        ],
         any::<[u32; 3]>(),
         any_f64(),
         any_f64(),
@@ -170,6 +193,9 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
         Just(Request::SiteBegin),
         Just(Request::SiteTarget),
         Just(Request::SiteEnd),
+        Just(Request::StreamBegin),
+        Just(Request::StreamChunk),
+        Just(Request::StreamStatus),
     ];
     let reason = prop_oneof![
         Just(NackReason::Shape),
@@ -281,6 +307,28 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
                 force_kn,
             }
         }),
+        any::<[u32; 3]>().prop_map(|u| DeviceMsg::StreamAck {
+            seq: u[0],
+            next_seq: u[1],
+            free: u[2],
+        }),
+        (
+            any::<[u32; 4]>(),
+            any::<bool>(),
+            any::<Option<u32>>(),
+            any::<Option<bool>>()
+        )
+            .prop_map(|(u, in_force, first_underrun_tick, checksum_ok)| {
+                DeviceMsg::StreamStatus(StreamStatus {
+                    in_force,
+                    next_seq: u[0],
+                    received: u[1],
+                    free: u[2],
+                    underrun_ticks: u[3],
+                    first_underrun_tick,
+                    checksum_ok,
+                })
+            }),
     ]
 }
 

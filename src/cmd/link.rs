@@ -206,6 +206,31 @@ fn report(s: &RecordSummary, out: &std::path::Path) -> anyhow::Result<()> {
             link_host::state_name(state)
         );
     }
+    if let Some(st) = &s.stream {
+        crate::outln!(
+            "record streamed: {} samples arrived, {} chunk(s) sent again, checksum {}, {} tick(s) \
+             without their samples{}",
+            st.received,
+            s.stream_resent,
+            match st.checksum_ok {
+                Some(true) => "matched",
+                Some(false) => "MISMATCHED",
+                None => "not checked (samples missing)",
+            },
+            st.underrun_ticks,
+            st.first_underrun_tick
+                .map_or(String::new(), |t| format!(" (the first at tick {t})"))
+        );
+        if st.underrun_ticks > 0 || st.checksum_ok != Some(true) {
+            anyhow::bail!(
+                "the streamed record did not reach the device in time: {} tick(s) ran without \
+                 their samples (0 g under --on-link-loss complete; ramp-down stops at the first); \
+                 the link carries too few samples per second for this record: a faster link, or \
+                 the record at a lower sampling rate (docs/link.md \"Records streamed\")",
+                st.underrun_ticks
+            );
+        }
+    }
     if !s.complete() {
         anyhow::bail!(
             "the recording is incomplete: {} gap(s), {} record(s) missing, {} bad frame(s), end {:?}",
@@ -294,7 +319,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 upload_rig(&mut link, &p, lead_adapt_ticks)?;
             }
             if let Some(spec) = motion {
-                upload_motion(&mut link, &spec, scale)?;
+                upload_motion(&mut link, &spec, scale, MotionTo::Whole)?;
             }
         }
         LinkCommand::Limits {
@@ -358,9 +383,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
             match &motion {
                 Some(spec) => {
-                    let name = upload_motion(&mut link, spec, scale)?;
+                    let (name, streamed) = upload_motion(&mut link, spec, scale, MotionTo::Run)?;
                     h.set("motion", spec);
                     h.set("motion_name", name);
+                    h.set("record_streamed", if streamed { "yes" } else { "no" });
                     h.set("scale", format!("{scale:?}"));
                 }
                 None => {
@@ -661,8 +687,25 @@ fn budget_figures(kind: rths_link::ModelKind, hidden: usize, name: &str) -> Stri
     )
 }
 
-/// Upload the ground motion `spec` (a file or an embedded name) × `scale`; its name.
-fn upload_motion(link: &mut Link, spec: &str, scale: f64) -> anyhow::Result<String> {
+/// How a ground motion goes to the device.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum MotionTo {
+    /// Held whole before the run (`rths link upload`): a record longer than the device holds is
+    /// refused here, naming the command that streams it.
+    Whole,
+    /// For the run that follows (`rths link run`): held whole if it fits, else streamed during
+    /// the run.
+    Run,
+}
+
+/// Upload the ground motion `spec` (a file or an embedded name) × `scale`; its name and whether it
+/// is streamed.
+fn upload_motion(
+    link: &mut Link,
+    spec: &str,
+    scale: f64,
+    to: MotionTo,
+) -> anyhow::Result<(String, bool)> {
     if !(scale.is_finite() && scale > 0.0) {
         anyhow::bail!(
             "--scale must be a positive number, got {}",
@@ -671,14 +714,33 @@ fn upload_motion(link: &mut Link, spec: &str, scale: f64) -> anyhow::Result<Stri
     }
     let m = load_motion(Some(spec))?;
     let scaled = m.scaled(scale);
-    let c = link.upload_record(&scaled.accel_g, scaled.dt_s, scale)?;
+    let capacity = link.status()?.record_capacity as usize;
+    let n = scaled.accel_g.len();
+    let streamed = capacity > 0 && n > capacity;
+    if streamed && to == MotionTo::Whole {
+        anyhow::bail!(
+            "ground motion {}: {n} samples, the device holds {capacity}; `rths link run --motion` \
+             streams a longer record during the run",
+            scaled.name
+        );
+    }
+    let c = if streamed {
+        link.stream_record(&scaled.accel_g, scaled.dt_s, scale)?
+    } else {
+        link.upload_record(&scaled.accel_g, scaled.dt_s, scale)?
+    };
     crate::outln!(
-        "uploaded ground motion {} ({} samples at {} s, checksum {c:08x})",
+        "{} ground motion {} ({n} samples at {} s, checksum {c:08x}{})",
+        if streamed { "streaming" } else { "uploaded" },
         scaled.name,
-        scaled.accel_g.len(),
-        scaled.dt_s
+        scaled.dt_s,
+        if streamed {
+            format!("; {capacity} held at a time, the rest sent during the run")
+        } else {
+            String::new()
+        }
     );
-    Ok(scaled.name)
+    Ok((scaled.name, streamed))
 }
 
 /// A port that is never used (the placeholder left in `Qemu` once its link is taken).

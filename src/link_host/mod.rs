@@ -5,6 +5,7 @@
 //! One job a file, imports running one way (down this list):
 //! - [`qemu`]: the QEMU process of the emulated board, its link on a loopback socket;
 //! - [`session`]: a session with a device (requests and answers, uploads, runs, telemetry);
+//! - [`stream`]: a streamed record's flow control (which chunks to send now, what again);
 //! - [`wire`]: the wire layout of uploaded models, records and rig compensations, and the names of
 //!   what the device reports;
 //! - [`recording`]: the recording file format (`rths link run --out`, `rths report`);
@@ -15,6 +16,7 @@ pub mod error;
 pub mod qemu;
 pub mod recording;
 pub mod session;
+pub mod stream;
 pub mod transport;
 pub mod wire;
 
@@ -29,5 +31,5 @@ pub use session::{IdentifyStream, Link, RecordSummary};
 pub use transport::Port;
 pub use wire::{
     fault_name, lrx_rig_extras, model_kind_name, model_messages, model_values, record_messages,
-    record_source_name, rig_message, rig_values, state_name, upload_message,
+    record_source_name, rig_message, rig_values, state_name, stream_messages, upload_message,
 };

@@ -7,13 +7,15 @@ use std::time::{Duration, Instant};
 
 use rths_link::{
     DeviceMsg, FrameReader, Gap, Holdings, HostMsg, ModelKind as WireModelKind, Request, RunState,
-    SeqCheck, Status, Telemetry, MAX_FRAME,
+    SeqCheck, Status, StreamStatus, Telemetry, MAX_FRAME,
 };
 
 use super::error::LinkHostError;
+use super::stream::StreamFeed;
 use super::transport::{self, Port};
 use super::wire::{
-    fe_ats_messages, lrx_rig_extras, model_messages, record_messages, rig_message, upload_message,
+    fe_ats_messages, lrx_rig_extras, model_messages, record_messages, rig_message, stream_messages,
+    upload_message,
 };
 use crate::model_file::{ModelFile, ModelKind};
 
@@ -30,16 +32,31 @@ pub struct RecordSummary {
     pub bad_frames: u32,
     /// The device's `RunEnded`: final state, ticks, records sent, records its queue dropped.
     pub end: Option<(RunState, u32, u32, u32)>,
+    /// A streamed record's state at the run's end (`None`: the record was held whole).
+    pub stream: Option<StreamStatus>,
+    /// A streamed record's chunks sent again after a loss.
+    pub stream_resent: usize,
 }
 
 impl RecordSummary {
-    /// Nothing lost: no gap, no bad frame, the device sent all it recorded and dropped none.
+    /// Nothing lost: no gap, no bad frame, the device sent all it recorded and dropped none; a
+    /// streamed record arrived whole, checksum matching, and no tick ran short of it.
     pub fn complete(&self) -> bool {
         self.gaps.is_empty()
             && self.bad_frames == 0
             && matches!(self.end, Some((_, _, sent, 0)) if sent as usize == self.records)
+            && self
+                .stream
+                .is_none_or(|st| st.underrun_ticks == 0 && st.checksum_ok == Some(true))
     }
 }
+
+/// While a streamed record has chunks to send and the device can take none, ask for its room
+/// this often (its ring holds seconds of record: 4,096 samples are 20 s at 200 Hz).
+const STREAM_POLL: Duration = Duration::from_millis(20);
+
+/// Chunks in flight with no answer for this long were lost (with their answers): send them again.
+const STREAM_STALL: Duration = Duration::from_millis(500);
 
 /// A connection to a device.
 pub struct Link {
@@ -56,6 +73,8 @@ pub struct Link {
     /// The token this host armed its test with ([`Self::arm_owned`]; 0: none): its `start` sends
     /// it, and the device refuses another host's start.
     pub owner: u32,
+    /// The streamed record whose chunks [`Self::record`] sends during the run.
+    stream: Option<StreamFeed>,
 }
 
 impl Link {
@@ -69,6 +88,7 @@ impl Link {
             timeout: Duration::from_secs(10),
             heartbeat: Some(Duration::from_millis(250)),
             owner: 0,
+            stream: None,
         }
     }
 
@@ -203,6 +223,8 @@ impl Link {
                 DeviceMsg::Ack(r) | DeviceMsg::Nack(r, _) if r == req => break m,
                 DeviceMsg::Status(_) if req == Request::Status => break m,
                 DeviceMsg::Holdings(_) if req == Request::Holdings => break m,
+                DeviceMsg::StreamAck { .. } if req == Request::StreamChunk => break m,
+                DeviceMsg::StreamStatus(_) if req == Request::StreamStatus => break m,
                 other => kept.push_back(other),
             }
         };
@@ -312,6 +334,88 @@ impl Link {
         Ok(rths_link::record_checksum(samples_g, dt_s))
     }
 
+    /// Stream a ground-motion record longer than the device holds (as [`Self::upload_record`]):
+    /// `StreamBegin`, the chunks that fill the device's ring, `RecordCommit`; the rest go during
+    /// the run, from [`Self::record`], as the ring frees up. Its checksum on success.
+    pub fn stream_record(
+        &mut self,
+        samples_g: &[f64],
+        dt_s: f64,
+        scale: f64,
+    ) -> Result<u32, LinkHostError> {
+        let (begin, chunks) = stream_messages(samples_g, dt_s, scale)?;
+        self.stream = None;
+        self.expect_ack(&begin)?;
+        let mut free = usize::MAX;
+        let mut sent = 0;
+        for m in &chunks {
+            let HostMsg::StreamChunk { seq, count, .. } = *m else {
+                break;
+            };
+            if usize::from(count) > free {
+                break;
+            }
+            match self.request(m)? {
+                DeviceMsg::StreamAck {
+                    next_seq, free: f, ..
+                } if next_seq == seq + 1 => {
+                    free = f as usize;
+                    sent += 1;
+                }
+                other => return Err(LinkHostError::Unexpected(Request::StreamChunk, other)),
+            }
+        }
+        self.expect_ack(&HostMsg::RecordCommit)?;
+        self.stream = Some(StreamFeed::new(chunks, sent, free));
+        Ok(rths_link::record_checksum(samples_g, dt_s))
+    }
+
+    /// Where the device's streamed record stands.
+    pub fn stream_status(&mut self) -> Result<StreamStatus, LinkHostError> {
+        match self.request(&HostMsg::StreamStatus)? {
+            DeviceMsg::StreamStatus(s) => Ok(s),
+            other => Err(LinkHostError::Unexpected(Request::StreamStatus, other)),
+        }
+    }
+
+    /// Stop sending a streamed record's chunks (tests: a host that falls behind).
+    pub fn stop_streaming(&mut self) {
+        self.stream = None;
+    }
+
+    /// Send the streamed record's chunks the device can take now; ask for its room when it can
+    /// take none and nothing is in flight (every [`STREAM_POLL`]); send again what was lost.
+    fn pump_stream(
+        &mut self,
+        quiet: &mut Instant,
+        polled: &mut Instant,
+    ) -> Result<(), LinkHostError> {
+        let Some(mut feed) = self.stream.take() else {
+            return Ok(());
+        };
+        if feed.in_flight() > 0 && quiet.elapsed() >= STREAM_STALL {
+            feed.go_back();
+            *quiet = Instant::now();
+        }
+        let mut result = Ok(());
+        while let Some(m) = feed.due() {
+            result = self.send(&m);
+            if result.is_err() {
+                break;
+            }
+        }
+        if result.is_ok()
+            && !feed.done()
+            && feed.in_flight() == 0
+            && polled.elapsed() >= STREAM_POLL
+        {
+            result = self.send(&HostMsg::StreamStatus);
+            *polled = Instant::now();
+        }
+        self.stream = Some(feed);
+        result
+    }
+
     /// New stroke, velocity and force limits.
     pub fn set_limits(
         &mut self,
@@ -397,9 +501,12 @@ impl Link {
             missing: 0,
             bad_frames: 0,
             end: None,
+            stream: None,
+            stream_resent: 0,
         };
         let bad0 = self.bad_frames;
         let (mut heard, mut beat) = (Instant::now(), Instant::now());
+        let (mut quiet, mut polled) = (Instant::now(), Instant::now());
         loop {
             if let Some(every) = self.heartbeat {
                 if beat.elapsed() >= every {
@@ -407,9 +514,13 @@ impl Link {
                     beat = Instant::now();
                 }
             }
-            let wait = idle
+            self.pump_stream(&mut quiet, &mut polled)?;
+            let mut wait = idle
                 .saturating_sub(heard.elapsed())
                 .min(self.heartbeat.unwrap_or(idle));
+            if self.stream.as_ref().is_some_and(|f| !f.done()) {
+                wait = wait.min(STREAM_POLL);
+            }
             let m = match self.recv(wait) {
                 Ok(m) => m,
                 Err(LinkHostError::Timeout(..)) if heard.elapsed() < idle => continue,
@@ -437,11 +548,31 @@ impl Link {
                     s.end = Some((state, ticks, records_sent, records_dropped));
                     break;
                 }
+                DeviceMsg::StreamAck {
+                    seq,
+                    next_seq,
+                    free,
+                } => {
+                    quiet = Instant::now();
+                    if let Some(f) = self.stream.as_mut() {
+                        f.answered(seq, next_seq, free);
+                    }
+                }
+                DeviceMsg::StreamStatus(st) => {
+                    quiet = Instant::now();
+                    if let Some(f) = self.stream.as_mut() {
+                        f.status(&st);
+                    }
+                }
                 _ => {}
             }
         }
         s.missing = seq.missing();
         s.bad_frames = self.bad_frames - bad0;
+        if let Some(f) = self.stream.take() {
+            s.stream_resent = f.resent();
+            s.stream = Some(self.stream_status()?);
+        }
         Ok(s)
     }
 }

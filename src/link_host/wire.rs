@@ -40,19 +40,7 @@ pub fn record_messages(
     dt_s: f64,
     scale: f64,
 ) -> Result<Vec<HostMsg>, LinkHostError> {
-    if samples_g.len() < 2 {
-        return Err(LinkHostError::Motion("fewer than 2 samples".into()));
-    }
-    if let Some(i) = samples_g.iter().position(|v| !v.is_finite()) {
-        return Err(LinkHostError::Motion(format!("sample {i} is not finite")));
-    }
-    if !(dt_s.is_finite() && dt_s > 0.0 && scale.is_finite()) {
-        return Err(LinkHostError::Motion(format!(
-            "step {dt_s} s or scale {scale} is not a finite positive number"
-        )));
-    }
-    let samples = u32::try_from(samples_g.len())
-        .map_err(|_| LinkHostError::Motion("more than 2^32 samples".into()))?;
+    let samples = checked_record(samples_g, dt_s, scale)?;
     let mut out = Vec::with_capacity(samples_g.len() / RECORD_CHUNK + 3);
     out.push(HostMsg::RecordBegin {
         samples,
@@ -65,6 +53,43 @@ pub fn record_messages(
     );
     out.push(HostMsg::RecordCommit);
     Ok(out)
+}
+
+/// The messages of a streamed record: its `StreamBegin` and its `StreamChunk`s (numbered from 0),
+/// checked as [`record_messages`]; the `RecordCommit` goes once the ring is full.
+pub fn stream_messages(
+    samples_g: &[f64],
+    dt_s: f64,
+    scale: f64,
+) -> Result<(HostMsg, Vec<HostMsg>), LinkHostError> {
+    let samples = checked_record(samples_g, dt_s, scale)?;
+    let begin = HostMsg::StreamBegin {
+        samples,
+        dt_s,
+        scale,
+        checksum: rths_link::record_checksum(samples_g, dt_s),
+    };
+    let chunks = chunks(samples_g)
+        .map(|(seq, count, values)| HostMsg::StreamChunk { seq, count, values })
+        .collect();
+    Ok((begin, chunks))
+}
+
+/// A record's checks before anything is sent; its sample count.
+fn checked_record(samples_g: &[f64], dt_s: f64, scale: f64) -> Result<u32, LinkHostError> {
+    if samples_g.len() < 2 {
+        return Err(LinkHostError::Motion("fewer than 2 samples".into()));
+    }
+    if let Some(i) = samples_g.iter().position(|v| !v.is_finite()) {
+        return Err(LinkHostError::Motion(format!("sample {i} is not finite")));
+    }
+    if !(dt_s.is_finite() && dt_s > 0.0 && scale.is_finite()) {
+        return Err(LinkHostError::Motion(format!(
+            "step {dt_s} s or scale {scale} is not a finite positive number"
+        )));
+    }
+    u32::try_from(samples_g.len())
+        .map_err(|_| LinkHostError::Motion("more than 2^32 samples".into()))
 }
 
 /// `values` in frames of [`RECORD_CHUNK`]: each chunk's number (from 0), its count, and its
@@ -242,6 +267,7 @@ pub fn record_source_name(s: RecordSource) -> &'static str {
     match s {
         RecordSource::Compiled => "compiled in",
         RecordSource::Uploaded => "uploaded",
+        RecordSource::Streamed => "streamed during the run",
     }
 }
 

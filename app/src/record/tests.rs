@@ -176,3 +176,221 @@ fn a_board_without_a_buffer_refuses_uploads() {
     assert_eq!(s.begin(2, DT, 1.0, 0, true), Err(NackReason::Unsupported));
     assert_eq!(s.info().source, RecordSource::Compiled);
 }
+
+/// Fill the ring of the stream in progress (the host's prefill): chunks from `*next` while the
+/// stream can take a whole one; the last answer.
+fn feed(s: &mut RecordStore<'_>, samples: &[f64], next: &mut usize) -> Option<ChunkAnswer> {
+    let mut last = None;
+    while let Some(ch) = samples.chunks(RECORD_CHUNK).nth(*next) {
+        let free = s.stream_status().unwrap().free as usize;
+        if free < ch.len() {
+            break;
+        }
+        let (n, v) = chunk_of(samples, *next);
+        let a = s.stream_chunk(*next as u32, n, &v).unwrap();
+        assert_eq!(a.next_seq as usize, *next + 1, "taken");
+        *next += 1;
+        last = Some(a);
+    }
+    last
+}
+
+/// A record ten times the ring, streamed as the run reads it (the host topping the ring up before
+/// every tick), plays the host's interpolation of the whole record bit for bit, and its end-to-end
+/// checksum is checked when its last sample arrives.
+#[test]
+fn a_streamed_record_ten_times_the_ring_plays_the_whole_records_interpolation() {
+    let mut buf = [0.0; 200];
+    let mut s = RecordStore::new(&COMPILED, DT, 10, &mut buf);
+    let long = ramp(1000);
+    let dt = 0.005;
+    s.stream_begin(1000, dt, 0.5, record_checksum(&long, dt), true)
+        .unwrap();
+    let mut next = 0;
+    feed(&mut s, &long, &mut next);
+    let st = s.stream_status().unwrap();
+    assert!(!st.in_force);
+    assert_eq!(
+        (st.received, st.free),
+        (96, 4),
+        "the ring's 100 samples in chunks of 12"
+    );
+    assert_eq!(
+        s.info().source,
+        RecordSource::Compiled,
+        "not in force before its commit"
+    );
+    let info = s.commit(true).unwrap();
+    assert_eq!(info.source, RecordSource::Streamed);
+    assert_eq!((info.samples, info.scale), (1000, 0.5));
+    let host = Record::new(&long, dt);
+    assert_eq!(info.ticks as usize, host.ticks(DT_S));
+    assert!(s.playable());
+    for k in 0..info.ticks {
+        feed(&mut s, &long, &mut next);
+        let p = s.play(k);
+        assert!(!p.underrun, "tick {k}");
+        assert_eq!(
+            p.accel_mm_s2.to_bits(),
+            host.accel_mm_s2(k as usize, DT_S).to_bits(),
+            "tick {k}"
+        );
+    }
+    assert_eq!(s.play(info.ticks).accel_mm_s2, 0.0, "0 after the end");
+    let st = s.stream_status().unwrap();
+    assert_eq!((st.received, st.underrun_ticks), (1000, 0));
+    assert_eq!(st.checksum_ok, Some(true));
+    assert!(
+        !s.playable(),
+        "played once: its ring no longer holds its start"
+    );
+}
+
+/// A host that stops sending: the ticks whose samples have not arrived play 0 g and are counted,
+/// the first one named; once the samples come again the record plays on, bit for bit.
+#[test]
+fn a_stream_that_runs_dry_counts_its_underrun_and_plays_on_when_samples_come() {
+    let mut buf = [0.0; 200];
+    let mut s = RecordStore::new(&COMPILED, DT, 10, &mut buf);
+    let long = ramp(500);
+    let dt = 0.005;
+    s.stream_begin(500, dt, 1.0, record_checksum(&long, dt), true)
+        .unwrap();
+    let mut next = 0;
+    feed(&mut s, &long, &mut next);
+    s.commit(true).unwrap();
+    let host = Record::new(&long, dt);
+    // 96 samples held: tick k reads samples i and i + 1, i = floor(k·DT_S/dt).
+    let dry = (0..)
+        .find(|k| (*k as f64 * DT_S / dt).floor() as usize + 1 >= 96)
+        .unwrap();
+    for k in 0..dry + 50 {
+        let p = s.play(k);
+        if k < dry {
+            assert_eq!(
+                p.accel_mm_s2,
+                host.accel_mm_s2(k as usize, DT_S),
+                "tick {k}"
+            );
+        } else {
+            assert!(p.underrun && p.accel_mm_s2 == 0.0, "tick {k}");
+        }
+    }
+    let st = s.stream_status().unwrap();
+    assert_eq!(st.underrun_ticks, 50);
+    assert_eq!(st.first_underrun_tick, Some(dry));
+    // The host catches up: the samples the run has passed are taken and skipped.
+    for k in dry + 50..host.ticks(DT_S) as u32 {
+        feed(&mut s, &long, &mut next);
+        let p = s.play(k);
+        assert!(!p.underrun, "tick {k}");
+        assert_eq!(p.accel_mm_s2, host.accel_mm_s2(k as usize, DT_S));
+    }
+    assert_eq!(s.stream_status().unwrap().underrun_ticks, 50);
+}
+
+/// The flow control and the stream's refusals: a chunk out of order or more than the ring can
+/// take is not taken and the answer says where the stream stands; a NaN or a bad count is refused
+/// with the stream unchanged; a commit needs the ring full; a wrong checksum is found when the
+/// last sample arrives (at the commit if the whole record fits the ring).
+#[test]
+fn a_stream_takes_only_what_its_ring_can_hold_and_refuses_bad_chunks() {
+    let mut buf = [0.0; 200];
+    let mut s = RecordStore::new(&COMPILED, DT, 10, &mut buf);
+    let long = ramp(300);
+    let c = record_checksum(&long, DT);
+    let (n0, v0) = chunk_of(&long, 0);
+    assert_eq!(
+        s.stream_chunk(0, n0, &v0),
+        Err(NackReason::Sequence),
+        "no stream"
+    );
+    assert_eq!(s.stream_status(), None);
+    // Header refusals: as a whole upload's, and a record lasting more ticks than a u32 counts.
+    assert_eq!(
+        s.stream_begin(1, DT, 1.0, c, true),
+        Err(NackReason::TooLong)
+    );
+    assert_eq!(
+        s.stream_begin(u32::MAX, 0.1, 1.0, c, true),
+        Err(NackReason::TooLong)
+    );
+    assert_eq!(
+        s.stream_begin(300, 0.5, 1.0, c, true),
+        Err(NackReason::Rate)
+    );
+    assert_eq!(
+        s.stream_begin(300, DT, 1.0, c, false),
+        Err(NackReason::Busy)
+    );
+    s.stream_begin(300, DT, 1.0, c, true).unwrap();
+    // Out of order: not taken.
+    let (n1, v1) = chunk_of(&long, 1);
+    let a = s.stream_chunk(1, n1, &v1).unwrap();
+    assert_eq!((a.seq, a.next_seq, a.free), (1, 0, 100));
+    // A NaN, a count of 0: refused, the stream as it was.
+    let mut nan = v0;
+    nan[2] = f64::NAN;
+    assert_eq!(s.stream_chunk(0, n0, &nan), Err(NackReason::NotFinite));
+    assert_eq!(s.stream_chunk(0, 0, &v0), Err(NackReason::Incomplete));
+    assert_eq!(s.stream_status().unwrap().next_seq, 0);
+    // Too early a commit: the ring is not full.
+    s.stream_chunk(0, n0, &v0).unwrap();
+    assert_eq!(s.commit(true), Err(NackReason::Incomplete));
+    assert_eq!(
+        s.info().source,
+        RecordSource::Compiled,
+        "dropped, the compiled one stays"
+    );
+    // Filled: the ninth chunk does not fit the 4 samples left and is not taken.
+    s.stream_begin(300, DT, 1.0, c, true).unwrap();
+    let mut next = 0;
+    feed(&mut s, &long, &mut next);
+    assert_eq!(next, 8);
+    let (n8, v8) = chunk_of(&long, 8);
+    let a = s.stream_chunk(8, n8, &v8).unwrap();
+    assert_eq!((a.next_seq, a.free), (8, 4));
+    assert_eq!(s.commit(true).unwrap().source, RecordSource::Streamed);
+    // A wrong checksum, the whole record in the ring: refused at the commit.
+    let short = ramp(50);
+    s.stream_begin(50, DT, 1.0, record_checksum(&short, DT) ^ 1, true)
+        .unwrap();
+    let mut next = 0;
+    feed(&mut s, &short, &mut next);
+    assert_eq!(s.stream_status().unwrap().checksum_ok, Some(false));
+    assert_eq!(s.commit(true), Err(NackReason::Checksum));
+    assert_eq!(s.info().checksum, c, "the stream in force stays");
+}
+
+/// A streamed record in force is replaced by an upload, and a stream begun beside an upload in
+/// force goes into the other half and leaves it playing until its own commit.
+#[test]
+fn streams_and_uploads_replace_each_other_only_at_their_commit() {
+    let mut buf = [0.0; 200];
+    let mut s = RecordStore::new(&COMPILED, DT, 10, &mut buf);
+    let good = ramp(60);
+    upload(&mut s, &good, DT).unwrap();
+    let long = ramp(400);
+    s.stream_begin(400, DT, 1.0, record_checksum(&long, DT), true)
+        .unwrap();
+    let mut next = 0;
+    feed(&mut s, &long, &mut next);
+    let host = Record::new(&good, DT);
+    for k in 0..s.ticks() {
+        assert_eq!(s.accel_mm_s2(k), host.accel_mm_s2(k as usize, DT_S));
+    }
+    s.commit(true).unwrap();
+    assert_eq!(s.info().samples, 400);
+    let long_host = Record::new(&long, DT);
+    for k in (0..300).step_by(11) {
+        assert_eq!(s.accel_mm_s2(k), long_host.accel_mm_s2(k as usize, DT_S));
+    }
+    // Played past its start: not playable; an upload replaces it.
+    s.play(0);
+    assert!(s.playable());
+    s.play(1);
+    assert!(!s.playable());
+    upload(&mut s, &good, DT).unwrap();
+    assert!(s.playable());
+    assert_eq!(s.stream_status(), None);
+}
