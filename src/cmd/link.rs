@@ -61,7 +61,8 @@ pub enum LinkCommand {
         /// paper's delay (`rths simulate --scenario fe-online-ats`), whatever its compiled-in part.
         #[arg(long)]
         fe_ats: bool,
-        /// A ground motion: an AT2/CSV file or an embedded record name.
+        /// A ground motion: an AT2/CSV file or an embedded record name, held whole (up to the
+        /// device's capacity; `run --motion` streams a longer one).
         #[arg(long, value_name = "PATH|NAME")]
         motion: Option<String>,
         /// Multiplies the ground acceleration (applied here, before the upload).
@@ -124,8 +125,9 @@ pub enum LinkCommand {
         /// LRX lead's adaptation of `rths train lrx --rig`).
         #[arg(long, value_name = "RIG.json")]
         rig: Option<PathBuf>,
-        /// Upload this ground motion first (an AT2/CSV file or an embedded record name); without
-        /// it the device plays the record it holds.
+        /// Upload this ground motion first (an AT2/CSV file or an embedded record name; one longer
+        /// than the device holds is streamed during the run); without it the device plays the
+        /// record it holds.
         #[arg(long, value_name = "PATH|NAME")]
         motion: Option<String>,
         /// Multiplies the ground acceleration of --motion (applied here, before the upload).
