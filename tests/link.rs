@@ -1572,6 +1572,9 @@ fn a_stream_that_falls_behind_follows_the_link_loss_policy_chosen_at_arm_time() 
         let mut q = Qemu::start(&link_elf(), dir.path()).unwrap();
         let link = &mut q.link;
         link.timeout = Duration::from_secs(20);
+        // With telemetry every 16th tick QEMU runs several times faster than the wall clock: a
+        // status every 20 ms keeps the host heard within the board's 1 s (of its clock).
+        link.heartbeat = Some(Duration::from_millis(20));
         link.stream_record(&long.accel_g, long.dt_s, 1.0).unwrap();
         let st = link.stream_status().unwrap();
         // 341 chunks of 12 fill 4,092 of the ring's 4,096 samples.

@@ -158,9 +158,10 @@ impl<'a> RecordStore<'a> {
         .accel_mm_s2(k as usize, DT_S)
     }
 
-    /// Ground acceleration at tick `k` of a run, mm/s², as [`Self::accel_mm_s2`]; for a streamed
-    /// record it releases the samples the run has read past and counts an underrun (a tick whose
-    /// samples have not arrived plays 0 g).
+    /// Ground acceleration at tick `k` of a run that plays the record, mm/s², as
+    /// [`Self::accel_mm_s2`]; for a streamed record it releases the samples the run has read past
+    /// and counts an underrun (a tick whose samples have not arrived plays 0 g). At rest, read
+    /// with [`Self::accel_mm_s2`].
     pub fn play(&mut self, k: u32) -> Played {
         let cap = self.half_len();
         match &mut self.active {
@@ -243,8 +244,12 @@ impl<'a> RecordStore<'a> {
         at_rest: bool,
     ) -> Result<(), NackReason> {
         let half = self.check_header(samples, dt_s, scale, at_rest)?;
+        // `record_ticks` saturates (at `usize::MAX`, which is `u32::MAX` on the MCU): a record
+        // lasting that long is refused, whatever the word size.
         let ticks = u32::try_from(record_ticks(samples as usize, dt_s, DT_S))
-            .map_err(|_| NackReason::TooLong)?;
+            .ok()
+            .filter(|t| *t < u32::MAX)
+            .ok_or(NackReason::TooLong)?;
         if ticks == 0 {
             return Err(NackReason::Rate);
         }

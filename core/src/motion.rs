@@ -55,8 +55,9 @@ pub fn record_ticks(samples: usize, dt_s: f64, tick_dt_s: f64) -> usize {
     let duration_s = (samples - 1) as f64 * dt_s;
     // A hair of slack so that e.g. 39.99 s / (1/2048 s) landing a rounding error below an
     // integer still counts the last step.
+    // `as` saturates a count beyond the word size; so does the `+ 1`.
     let last = libm::floor(duration_s / tick_dt_s * (1.0 + 1e-12)) as usize;
-    last + 1
+    last.saturating_add(1)
 }
 
 /// The samples tick `k` reads: the index of the first of the two it interpolates between (the

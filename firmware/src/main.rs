@@ -479,14 +479,6 @@ mod app {
         let next_k = if running { k.saturating_add(1) } else { 0 };
         // ü_g for the next tick, interpolated in the slack of this one (docs/design.md §8 counts
         // only the DAQ read, the control step, the command write and the log record).
-        let played = cx.shared.store.lock(|s| s.play(next_k));
-        *cx.local.ag = played.accel_mm_s2;
-        #[cfg(feature = "link")]
-        if played.underrun && running && LINK_LOSS_RAMP.load(Ordering::Acquire) {
-            // A streamed record's samples did not arrive in time, and the run's policy for a lost
-            // link is to ramp down (under `Complete` the tick plays 0 g and is counted).
-            cx.shared.ctl.lock(|c| c.supervisor_mut().abort());
-        }
         let state = step.out.state;
         let site_steps = cx.local.site_steps;
         let (site, step_end) = cx.shared.ctl.lock(|c| {
@@ -495,6 +487,26 @@ mod app {
                 rths_app::site::step_ended(c, k, site_steps),
             )
         });
+        // A run that plays the record moves through it (a streamed one's ring releases what the
+        // run has passed, and a tick whose samples have not arrived is an underrun); at rest, and
+        // in a site's run (its client integrates the ground motion), the record is only read.
+        let played = cx.shared.store.lock(|s| {
+            if running && !site {
+                s.play(next_k)
+            } else {
+                rths_app::record::Played {
+                    accel_mm_s2: s.accel_mm_s2(next_k),
+                    underrun: false,
+                }
+            }
+        });
+        *cx.local.ag = played.accel_mm_s2;
+        #[cfg(feature = "link")]
+        if played.underrun && LINK_LOSS_RAMP.load(Ordering::Acquire) {
+            // A streamed record's samples did not arrive in time, and the run's policy for a lost
+            // link is to ramp down (under `Complete` the tick plays 0 g and is counted).
+            cx.shared.ctl.lock(|c| c.supervisor_mut().abort());
+        }
         if let Some(e) = step_end {
             // Full only if the telemetry task stalls: the host then misses the step and stops.
             let _ = cx.local.step_ends.enqueue(e);

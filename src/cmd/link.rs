@@ -95,7 +95,8 @@ pub enum LinkCommand {
         /// Telemetry decimation: one record every N ticks.
         #[arg(long, default_value_t = 1)]
         telemetry_every: u16,
-        /// If the host falls silent for 1 s during the run: complete the test, or ramp down.
+        /// If the host falls silent for 1 s during the run, or a streamed record's samples do not
+        /// arrive in time: complete the test (those ticks at 0 g, counted), or ramp down.
         #[arg(long, value_enum, default_value = "complete")]
         on_link_loss: LinkLossArg,
     },
@@ -137,7 +138,8 @@ pub enum LinkCommand {
         #[arg(long, default_value_t = 1)]
         telemetry_every: u16,
         /// If this host falls silent for 1 s during the run (it sends a status every 250 ms while
-        /// recording): complete the test, or ramp down.
+        /// recording), or a streamed record's samples do not arrive in time: complete the test
+        /// (those ticks at 0 g, counted), or ramp down.
         #[arg(long, value_enum, default_value = "complete")]
         on_link_loss: LinkLossArg,
         /// CSV output.
@@ -206,6 +208,12 @@ fn report(s: &RecordSummary, out: &std::path::Path) -> anyhow::Result<()> {
         crate::outln!(
             "run ended: {} after {ticks} ticks; device sent {sent} records, its queue dropped {dropped}",
             link_host::state_name(state)
+        );
+    }
+    if let Some(e) = &s.stream_status_error {
+        anyhow::bail!(
+            "the device did not say whether the streamed record reached it in time ({e}): the run \
+             cannot be trusted as the record's"
         );
     }
     if let Some(st) = &s.stream {
@@ -389,6 +397,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     h.set("motion", spec);
                     h.set("motion_name", name);
                     h.set("record_streamed", if streamed { "yes" } else { "no" });
+                    if streamed && matches!(on_link_loss, LinkLossArg::Complete) {
+                        crate::outln!(
+                            "note: under --on-link-loss complete a tick whose samples arrive late \
+                             plays 0 g (counted, and the run fails afterwards); ramp-down stops \
+                             the test at the first instead"
+                        );
+                    }
                     h.set("scale", format!("{scale:?}"));
                 }
                 None => {
@@ -403,6 +418,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 anyhow::bail!(
                     "the device holds an uploaded record (checksum {:08x}) that this host cannot \
                      name: give --motion",
+                    st.record.checksum
+                );
+            }
+            if motion.is_none() && st.record.source == rths_link::RecordSource::Streamed {
+                anyhow::bail!(
+                    "the device's record in force is a streamed one (checksum {:08x}), which only \
+                     the host that streams it can run: give --motion",
                     st.record.checksum
                 );
             }

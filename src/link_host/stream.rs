@@ -23,8 +23,9 @@ pub struct StreamFeed {
     device_next: usize,
     /// The device's free room, samples, as it last said (after chunk `device_next - 1`).
     device_free: usize,
-    /// Chunks below this were sent before the last go-back: their refusals are expected.
-    resend_mark: usize,
+    /// Refusals still owed for chunks sent before the last go-back (the device answers in order,
+    /// so they come before any answer to a chunk sent again): not new losses.
+    stale_refusals: usize,
     /// Chunks sent again after a loss.
     resent: usize,
 }
@@ -49,7 +50,7 @@ impl StreamFeed {
             next: sent,
             device_next: sent,
             device_free: free,
-            resend_mark: sent,
+            stale_refusals: 0,
             resent: 0,
         }
     }
@@ -85,13 +86,22 @@ impl StreamFeed {
 
     /// The device answered chunk `seq`: it expects `next_seq`, it can take `free` more. A chunk
     /// it did not take (out of order: one before it was lost) sends the chunks from `next_seq`
-    /// again, once per loss.
+    /// again, once per loss: the refusals of the chunks in flight behind it are expected.
     pub fn answered(&mut self, seq: u32, next_seq: u32, free: u32) {
         self.device_next = next_seq as usize;
         self.device_free = free as usize;
-        let taken = next_seq == seq.wrapping_add(1);
-        if !taken && seq as usize >= self.resend_mark && self.device_next < self.next {
+        if next_seq == seq.wrapping_add(1) {
+            return;
+        }
+        if self.stale_refusals > 0 {
+            self.stale_refusals -= 1;
+            return;
+        }
+        if self.device_next < self.next {
+            // The chunks sent after `seq` are refused too: owed, not new losses.
+            let behind = self.next.saturating_sub(seq as usize + 1);
             self.go_back();
+            self.stale_refusals = behind;
         }
     }
 
@@ -105,7 +115,7 @@ impl StreamFeed {
     pub fn go_back(&mut self) {
         let back = self.device_next.min(self.next);
         self.resent += self.next - back;
-        self.resend_mark = self.next;
+        self.stale_refusals = 0;
         self.next = back;
     }
 

@@ -147,6 +147,14 @@ impl Stream {
     /// [`Self::read`]; from tick 1 on the ring no longer holds the record's start, the samples
     /// below the tick's are released, and an underrun is counted.
     pub(super) fn play(&mut self, ring: &[f64], k: u32) -> Played {
+        if self.played && k == 0 {
+            // Tick 0 again after the run began: a read of a record already played (the caller
+            // plays only a run's ticks; this keeps an idle tick from counting as an underrun).
+            return Played {
+                accel_mm_s2: self.read(ring, k).accel_mm_s2,
+                underrun: false,
+            };
+        }
         if k < self.info.ticks {
             let (i, _) = tick_position(k as usize, DT_S, self.info.dt_s);
             let first = i.min(self.chunks.total().saturating_sub(1));

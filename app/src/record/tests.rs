@@ -244,6 +244,9 @@ fn a_streamed_record_ten_times_the_ring_plays_the_whole_records_interpolation() 
         !s.playable(),
         "played once: its ring no longer holds its start"
     );
+    // Tick 0 again (a real rig at rest after the run): a read, not an underrun.
+    assert!(!s.play(0).underrun);
+    assert_eq!(s.stream_status().unwrap().underrun_ticks, 0);
 }
 
 /// A host that stops sending: the ticks whose samples have not arrived play 0 g and are counted,

@@ -138,6 +138,17 @@ fn chunks_lost_on_the_wire_are_sent_again_in_time() {
     assert_eq!(o.checksum_ok, Some(true));
 }
 
+/// Every 3rd chunk lost, so a second loss comes while the chunks of the first are being sent
+/// again: each is found on its own refusal, and the run still plays every sample in time.
+#[test]
+fn a_second_loss_during_a_go_back_is_found_on_its_refusal() {
+    let o = simulate(&record(2000), 0.005, 400, 10, 3);
+    assert!(o.resent > 0);
+    assert_eq!(o.underruns, 0);
+    assert!(o.identical);
+    assert_eq!(o.checksum_ok, Some(true));
+}
+
 /// A link too slow for the record (a ring of 30 samples, 200 ms each way): the ticks whose samples
 /// did not arrive are counted, never played wrong: the test reports it.
 #[test]
