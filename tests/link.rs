@@ -682,6 +682,76 @@ fn bad_record_uploads_are_refused_with_their_reason_and_the_record_in_force_stay
     assert_eq!(link.status().unwrap().record, good, "armed");
 }
 
+/// `rths link --qemu ELF run --motion CSV --scale 0.5 --on-link-loss ramp-down --out RUN` in `dir`
+/// (ramp down if this host falls silent: its heartbeats keep the run going to the end); its
+/// stdout, the run required to succeed.
+fn cli_link_run(elf: &Path, dir: &Path, csv_motion: &Path, run_csv: &Path) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_rths"))
+        .args(["link", "--qemu"])
+        .arg(elf)
+        .args(["run", "--motion"])
+        .arg(csv_motion)
+        .args(["--scale", "0.5", "--on-link-loss", "ramp-down", "--out"])
+        .arg(run_csv)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    println!("{text}");
+    text
+}
+
+/// The recording's commands, bit for bit, against the host simulation of the same record (as the
+/// CSV file reads back) × 0.5 with the compiled-in model (data/models/lr.json).
+fn assert_lr_commands_equal_the_host(rec: &rths::link_host::Recording, csv_motion: &Path) {
+    let motion = rths::motion::GroundMotion::from_path(csv_motion)
+        .unwrap()
+        .scaled(0.5);
+    let ag = motion.resample_mm_s2(DT_S);
+    let reference = study::reference_mm(&ag, 1.0).unwrap();
+    let lr_file =
+        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json"))
+            .unwrap();
+    let host = scenario::run(&setup(
+        ScenarioId::LrOnline,
+        &ag,
+        &reference,
+        &theta(&lr_file),
+    ))
+    .unwrap();
+    assert!(rec.rows.len() >= ag.len());
+    let mut identical = 0;
+    for (row, hs) in rec.rows.iter().zip(&host.history.command_mm[1..]) {
+        assert_eq!(row.command_mm.to_bits(), hs.to_bits(), "tick {}", row.tick);
+        identical += 1;
+    }
+    println!(
+        "{identical} of {} commands bit-identical to the host",
+        ag.len() - 1
+    );
+    assert_eq!(identical, ag.len() - 1);
+}
+
+/// `rths ARGS` in `dir`, required to succeed: its stdout as JSON.
+fn cli_json(dir: &Path, args: &[&str]) -> serde_json::Value {
+    let out = Command::new(env!("CARGO_BIN_EXE_rths"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 /// The ground motion as a CSV file the firmware does not have compiled in, the `rths link run`
 /// of it in QEMU, and `rths report` of the recording against `rths simulate` of the same record.
 #[test]
@@ -700,72 +770,17 @@ fn a_csv_record_uploaded_run_and_reported_equals_the_host_simulation() {
     let nr = rths::motion::GroundMotion::try_embedded("northridge").unwrap();
     std::fs::write(&csv_motion, nr.to_csv()).unwrap();
     let run_csv = dir.path().join("run.csv");
-    let out = Command::new(exe)
-        .args(["link", "--qemu"])
-        .arg(&elf)
-        .args(["run", "--motion"])
-        .arg(&csv_motion)
-        // Ramp down if this host falls silent: its heartbeats keep the run going to the end.
-        .args(["--scale", "0.5", "--on-link-loss", "ramp-down", "--out"])
-        .arg(&run_csv)
-        .current_dir(dir.path())
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{text}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    println!("{text}");
+    cli_link_run(&elf, dir.path(), &csv_motion, &run_csv);
 
     // The commands, bit for bit, against the host simulation of the same record (as the CSV file
     // reads back), scale and model (the compiled-in data/models/lr.json).
     let rec = rths::link_host::read_recording(&std::fs::read_to_string(&run_csv).unwrap()).unwrap();
     assert_eq!(rec.header.get("scale"), Some("0.5"));
     assert_eq!(rec.header.get("scenario"), Some("lr-online"));
-    let motion = rths::motion::GroundMotion::from_path(&csv_motion)
-        .unwrap()
-        .scaled(0.5);
-    let ag = motion.resample_mm_s2(DT_S);
-    let reference = study::reference_mm(&ag, 1.0).unwrap();
-    let lr_file =
-        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json"))
-            .unwrap();
-    let host = scenario::run(&setup(
-        ScenarioId::LrOnline,
-        &ag,
-        &reference,
-        &theta(&lr_file),
-    ))
-    .unwrap();
-    let h = &host.history;
-    assert!(rec.rows.len() >= ag.len());
-    let mut identical = 0;
-    for (row, hs) in rec.rows.iter().zip(&h.command_mm[1..]) {
-        assert_eq!(row.command_mm.to_bits(), hs.to_bits(), "tick {}", row.tick);
-        identical += 1;
-    }
-    println!(
-        "{identical} of {} commands bit-identical to the host",
-        ag.len() - 1
-    );
-    assert_eq!(identical, ag.len() - 1);
+    assert_lr_commands_equal_the_host(&rec, &csv_motion);
 
     // `rths report --json` equals `rths simulate --json` on every figure.
-    let json = |args: &[&str]| -> serde_json::Value {
-        let out = Command::new(exe)
-            .args(args)
-            .current_dir(dir.path())
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        serde_json::from_slice(&out.stdout).unwrap()
-    };
+    let json = |args: &[&str]| cli_json(dir.path(), args);
     let rep = json(&["report", run_csv.to_str().unwrap(), "--json"]);
     let sim = json(&[
         "simulate",
@@ -1456,23 +1471,7 @@ fn a_record_longer_than_the_boards_memory_is_streamed_and_every_command_equals_t
         "longer than the board's memory"
     );
     let run_csv = dir.path().join("run.csv");
-    let out = Command::new(exe)
-        .args(["link", "--qemu"])
-        .arg(&elf)
-        .args(["run", "--motion"])
-        .arg(&csv_motion)
-        .args(["--scale", "0.5", "--on-link-loss", "ramp-down", "--out"])
-        .arg(&run_csv)
-        .current_dir(dir.path())
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{text}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    println!("{text}");
+    let text = cli_link_run(&elf, dir.path(), &csv_motion, &run_csv);
     assert!(text.contains("streaming ground motion"), "{text}");
     assert!(
         text.contains("record streamed: 8501 samples arrived") && text.contains(" 0 tick(s)"),
@@ -1482,43 +1481,9 @@ fn a_record_longer_than_the_boards_memory_is_streamed_and_every_command_equals_t
     let rec = rths::link_host::read_recording(&std::fs::read_to_string(&run_csv).unwrap()).unwrap();
     assert_eq!(rec.header.get("record_streamed"), Some("yes"));
     assert_eq!(rec.header.get("record_samples"), Some("8501"));
-    let ag = motion.resample_mm_s2(DT_S);
-    let reference = study::reference_mm(&ag, 1.0).unwrap();
-    let lr_file =
-        ModelFile::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json"))
-            .unwrap();
-    let host = scenario::run(&setup(
-        ScenarioId::LrOnline,
-        &ag,
-        &reference,
-        &theta(&lr_file),
-    ))
-    .unwrap();
-    assert!(rec.rows.len() >= ag.len());
-    let mut identical = 0;
-    for (row, hs) in rec.rows.iter().zip(&host.history.command_mm[1..]) {
-        assert_eq!(row.command_mm.to_bits(), hs.to_bits(), "tick {}", row.tick);
-        identical += 1;
-    }
-    println!(
-        "{identical} of {} commands bit-identical to the host",
-        ag.len() - 1
-    );
-    assert_eq!(identical, ag.len() - 1);
+    assert_lr_commands_equal_the_host(&rec, &csv_motion);
 
-    let json = |args: &[&str]| -> serde_json::Value {
-        let out = Command::new(exe)
-            .args(args)
-            .current_dir(dir.path())
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        serde_json::from_slice(&out.stdout).unwrap()
-    };
+    let json = |args: &[&str]| cli_json(dir.path(), args);
     let rep = json(&["report", run_csv.to_str().unwrap(), "--json"]);
     let sim = json(&[
         "simulate",
