@@ -4,7 +4,7 @@
 //! actuator → the plant holds it for one tick. Every study runs its controller through it: the
 //! scenarios (`rths simulate`, `reproduce`, `robustness`), the structure scenarios and the
 //! nonlinear study (`rths simulate --structure`, `rths nonlinear-study`) and the vRTHS benchmark
-//! (`rths benchmark`).
+//! (`rths benchmark`), and training's pure scores (`rths train`, `src/train/pure.rs`).
 //!
 //! What a study keeps of a tick it reads from the [`Step`] (and, for the analytical part's state,
 //! e.g. story drifts, from the controller); the truths of the plant ([`Plant`]) are for
@@ -194,4 +194,16 @@ pub fn run<P: Plant>(
         d.actuate(plant.as_deref_mut());
     }
     d.stop
+}
+
+/// [`run`] with no plant: a pure run, the DAQ a zero sample every tick.
+pub fn run_pure(
+    ctl: &mut Controller,
+    ground_accel_mm_s2: &[f64],
+    dt_s: f64,
+    mut observe: impl FnMut(&Step, &Controller) -> ControlFlow<()>,
+) -> Stop {
+    run::<VirtualRig>(ctl, None, ground_accel_mm_s2, None, dt_s, |st, c, _| {
+        observe(st, c)
+    })
 }

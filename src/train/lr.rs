@@ -8,14 +8,13 @@
 //! (θ4 ≈ 2, θ5 ≈ −1).
 
 use nalgebra::{DMatrix, DVector};
+use rths_core::control::Analytical;
+use rths_core::metamodel::{Lr, LrParams, LR_COEFFS};
 use rths_core::metrics::nrmse_pct;
 
 use super::data::{delayed, PureResponse};
-use super::lstsq;
 use super::TrainError;
-
-/// Number of LR coefficients.
-pub const N_THETA: usize = 6;
+use super::{lstsq, pure};
 
 /// Default relative singular-value cut-off: far above the rounding-level singular value of the
 /// exactly collinear `x_fb`/`F_fb` pair (~1e-16), far below the smallest meaningful direction
@@ -26,7 +25,7 @@ pub const DEFAULT_RCOND: f64 = 1e-10;
 #[derive(Debug, Clone, PartialEq)]
 pub struct LrSolution {
     /// Coefficients θ0..θ5.
-    pub theta: [f64; N_THETA],
+    pub theta: [f64; LR_COEFFS],
     /// Singular values of the column-normalized design matrix, largest first.
     pub singular_values: Vec<f64>,
     /// `σ_max/σ_min` before the cut-off (infinite when `σ_min` is 0).
@@ -48,14 +47,15 @@ pub struct LrFit {
     pub pure_prediction_mm: Vec<f64>,
 }
 
-/// One feature row `[1, ü_g(i), x_fb(i), F_fb(i), x̂(i), x̂(i−1)]`.
+/// One row of the design matrix, `[1, ü_g(i), x_fb(i), F_fb(i), x̂(i), x̂(i−1)]` (the order of
+/// `rths_core::metamodel::LR_FEATURE_NAMES`, whose `Lr::predict` is the one LR inference).
 pub fn features(
     ground_accel_mm_s2: f64,
     disp_fb_mm: f64,
     force_fb_kn: f64,
     disp_pred_mm: f64,
     disp_pred_prev_mm: f64,
-) -> [f64; N_THETA] {
+) -> [f64; LR_COEFFS] {
     [
         1.0,
         ground_accel_mm_s2,
@@ -64,11 +64,6 @@ pub fn features(
         disp_pred_mm,
         disp_pred_prev_mm,
     ]
-}
-
-/// `θ·row`, summed in feature order (the order the `no_std` inference uses).
-pub fn predict(theta: &[f64; N_THETA], row: &[f64; N_THETA]) -> f64 {
-    theta.iter().zip(row).fold(0.0, |acc, (t, x)| acc + t * x)
 }
 
 /// Design matrix and target from aligned series: row `i` (i = 0..n−1) uses `ü_g(i)`, `x_fb(i)`,
@@ -83,14 +78,14 @@ pub fn design_matrix(
     if ground_accel_mm_s2.len() != n || disp_fb_mm.len() != n || force_fb_kn.len() != n {
         return Err(TrainError::Setting("series of different lengths".into()));
     }
-    if n < N_THETA + 2 {
+    if n < LR_COEFFS + 2 {
         return Err(TrainError::TooShort {
             found: n,
-            needed: N_THETA + 2,
+            needed: LR_COEFFS + 2,
         });
     }
     let rows = n - 1;
-    let x = DMatrix::from_fn(rows, N_THETA, |i, j| {
+    let x = DMatrix::from_fn(rows, LR_COEFFS, |i, j| {
         let prev = if i == 0 { 0.0 } else { disp_mm[i - 1] };
         features(
             ground_accel_mm_s2[i],
@@ -105,9 +100,9 @@ pub fn design_matrix(
 }
 
 /// Minimum-norm least squares `x·θ ≈ y` ([`super::lstsq::solve`]: SVD of the column-normalized
-/// `x`, singular values at or below `rcond·σ_max` dropped), for the [`N_THETA`] LR features.
+/// `x`, singular values at or below `rcond·σ_max` dropped), for the [`LR_COEFFS`] LR features.
 pub fn solve(x: &DMatrix<f64>, y: &DVector<f64>, rcond: f64) -> Result<LrSolution, TrainError> {
-    if x.ncols() != N_THETA {
+    if x.ncols() != LR_COEFFS {
         return Err(TrainError::Setting(format!(
             "design matrix {}×{} and target {} do not fit",
             x.nrows(),
@@ -116,7 +111,7 @@ pub fn solve(x: &DMatrix<f64>, y: &DVector<f64>, rcond: f64) -> Result<LrSolutio
         )));
     }
     let fit = lstsq::solve(x, y, rcond)?;
-    let mut theta = [0.0; N_THETA];
+    let mut theta = [0.0; LR_COEFFS];
     theta.iter_mut().zip(&fit.coeffs).for_each(|(t, c)| *t = *c);
     Ok(LrSolution {
         theta,
@@ -141,12 +136,12 @@ pub fn fit_pure(
     let theta_v = DVector::from_column_slice(&solution.theta);
     let one_step = &x * theta_v;
     let train_nrmse_pct = nrmse_pct(one_step.as_slice(), y.as_slice())?;
-    let pure = run_pure_loop(
+    let pure = pure_prediction(
         &solution.theta,
         &response.ground_accel_mm_s2,
         delay_steps,
         brace_k_kn_per_mm,
-    );
+    )?;
     let pure_nrmse_pct = nrmse_pct(&pure, d)?;
     Ok(LrFit {
         solution,
@@ -156,53 +151,40 @@ pub fn fit_pure(
     })
 }
 
-/// The `lr-pure` loop: the LR runs on its own predictions, with feedback from its own prediction
-/// `delay_steps` earlier (`x_fb(i) = x̂(i − delay)`, `F_fb = k_b·x_fb`, zero before the start).
-/// Returns `x̂(0..n)` with `x̂(0) = 0` (at rest).
-pub fn run_pure_loop(
-    theta: &[f64; N_THETA],
+/// The `lr-pure` run: `theta` as core's LR (`rths_core::metamodel::Lr`, the one LR inference) in
+/// the controller, on its own prediction `delay_steps` earlier (`x_fb(i) = x̂(i − delay)`,
+/// `F_fb = k_b·x_fb`, zero before the start), no actuator, run by the host's driver
+/// ([`super::pure`]). Returns `x̂(0..n)` with `x̂(0) = 0` (at rest).
+pub fn pure_prediction(
+    theta: &[f64; LR_COEFFS],
     ground_accel_mm_s2: &[f64],
     delay_steps: usize,
     brace_k_kn_per_mm: f64,
-) -> Vec<f64> {
-    let n = ground_accel_mm_s2.len();
-    let mut x = Vec::with_capacity(n);
-    if n == 0 {
-        return x;
-    }
-    x.push(0.0);
-    for i in 0..n - 1 {
-        let x_fb = if i >= delay_steps {
-            x[i - delay_steps]
-        } else {
-            0.0
-        };
-        let prev = if i == 0 { 0.0 } else { x[i - 1] };
-        let row = features(
-            ground_accel_mm_s2[i],
-            x_fb,
-            brace_k_kn_per_mm * x_fb,
-            x[i],
-            prev,
-        );
-        x.push(predict(theta, &row));
-    }
-    x
+) -> Result<Vec<f64>, TrainError> {
+    let params = LrParams::new(*theta)
+        .map_err(|e| TrainError::Diverged(format!("LR coefficients rejected: {e:?}")))?;
+    pure::prediction(
+        "lr-pure",
+        Analytical::Lr(Lr::new(params)),
+        pure::brace_prototype(brace_k_kn_per_mm)?,
+        delay_steps,
+        ground_accel_mm_s2,
+    )
 }
 
 /// `lr-pure` NRMSE (%) of `theta` against the pure brace deformation of `response`.
 pub fn lr_pure_nrmse_pct(
-    theta: &[f64; N_THETA],
+    theta: &[f64; LR_COEFFS],
     response: &PureResponse,
     delay_steps: usize,
     brace_k_kn_per_mm: f64,
 ) -> Result<f64, TrainError> {
-    let x = run_pure_loop(
+    let x = pure_prediction(
         theta,
         &response.ground_accel_mm_s2,
         delay_steps,
         brace_k_kn_per_mm,
-    );
+    )?;
     Ok(nrmse_pct(&x, &response.brace_disp_mm)?)
 }
 
@@ -211,7 +193,24 @@ mod tests {
     use super::*;
     use crate::train::data::pure_response;
     use rand::{Rng, SeedableRng};
+    use rths_core::metamodel::Features;
     use rths_core::params::{Prototype, DT_S, PAPER_DELAY_STEPS};
+
+    /// The series `x(0..n)` (from rest) of the LR model `theta` driven by the given inputs, through
+    /// core's inference.
+    fn arx_series(theta: [f64; LR_COEFFS], u: &[f64], x_fb: &[f64], f_fb: &[f64]) -> Vec<f64> {
+        let mut lr = Lr::new(LrParams::new(theta).unwrap());
+        let mut x = vec![0.0];
+        for i in 0..u.len() - 1 {
+            let f = Features {
+                ground_accel_mm_s2: u[i],
+                brace_disp_fb_mm: x_fb[i],
+                brace_force_fb_kn: f_fb[i],
+            };
+            x.push(lr.predict(f).unwrap());
+        }
+        x
+    }
 
     /// A stable ARX system driven by independent random inputs: noise-free data must give back its
     /// coefficients to rounding.
@@ -223,11 +222,7 @@ mod tests {
         let u: Vec<f64> = (0..n).map(|_| rng.random_range(-500.0..500.0)).collect();
         let x_fb: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
         let f_fb: Vec<f64> = (0..n).map(|_| rng.random_range(-100.0..100.0)).collect();
-        let mut x = vec![0.0; n];
-        for i in 0..n - 1 {
-            let prev = if i == 0 { 0.0 } else { x[i - 1] };
-            x[i + 1] = predict(&truth, &features(u[i], x_fb[i], f_fb[i], x[i], prev));
-        }
+        let x = arx_series(truth, &u, &x_fb, &f_fb);
         let (a, b) = design_matrix(&u, &x_fb, &f_fb, &x).unwrap();
         let s = solve(&a, &b, DEFAULT_RCOND).unwrap();
         assert_eq!(s.effective_rank, 6);
@@ -251,11 +246,7 @@ mod tests {
         let u: Vec<f64> = (0..n).map(|_| rng.random_range(-500.0..500.0)).collect();
         let x_fb: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..1.0)).collect();
         let f_fb: Vec<f64> = x_fb.iter().map(|v| k * v).collect();
-        let mut x = vec![0.0; n];
-        for i in 0..n - 1 {
-            let prev = if i == 0 { 0.0 } else { x[i - 1] };
-            x[i + 1] = predict(&truth, &features(u[i], x_fb[i], f_fb[i], x[i], prev));
-        }
+        let x = arx_series(truth, &u, &x_fb, &f_fb);
         let (a, b) = design_matrix(&u, &x_fb, &f_fb, &x).unwrap();
         let s = solve(&a, &b, DEFAULT_RCOND).unwrap();
         assert!(s.theta.iter().all(|t| t.is_finite()));

@@ -8,6 +8,7 @@ pub mod lr;
 pub mod lrx;
 pub mod lstsq;
 pub mod nonlinear;
+pub mod pure;
 pub mod rnn;
 
 use rths_core::metrics::MetricError;

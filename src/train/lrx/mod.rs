@@ -25,7 +25,8 @@ use nalgebra::{DMatrix, DVector};
 use rand::rngs::StdRng;
 use rand::SeedableRng;
 use rths_core::compensator::{LEAD_MAX_STRIDE, LEAD_TAPS};
-use rths_core::metamodel::{Lrx, LrxInputs, LrxParams, LRX_COEFFS, LRX_ORDER};
+use rths_core::control::Analytical;
+use rths_core::metamodel::{Lrx, LrxParams, LRX_COEFFS, LRX_ORDER};
 use rths_core::metrics;
 use rths_core::params::{Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{Preset, Specimen};
@@ -193,27 +194,23 @@ fn frame_rows(
 
 /// `lrx-pure`: the model on its own force `k_b·d̂` (fed back as measured at d̂, so the correction
 /// vanishes), no actuator; NRMSE vs the pure FE brace deformation, %. The frame model alone: a
-/// specimen mass and damping removal, if the model has one, is off (that force has none).
+/// specimen mass and damping removal, if the model has one, is off (that force has none). The
+/// model runs as core's LRX in the controller, fed its own target in force
+/// (`FeedbackSource::OwnDelayed` with no delay), run by the host's driver ([`super::pure`]).
 pub fn pure_nrmse_pct(params: LrxParams, ag_mm_s2: &[f64]) -> Result<f64, TrainError> {
     let params = params
         .with_specimen_dynamics(0.0, 0.0, DT_S)
         .map_err(|e| TrainError::Setting(format!("LRX parameters: {e}")))?;
     let proto = Prototype::paper();
     let reference = super::data::pure_response(&proto, ag_mm_s2, DT_S)?.brace_disp_mm;
-    let mut m = Lrx::new(params);
-    let mut out = Vec::with_capacity(ag_mm_s2.len());
-    let mut d = 0.0;
-    for &ag in ag_mm_s2 {
-        out.push(d);
-        d = m
-            .predict(LrxInputs {
-                ground_accel_mm_s2: ag,
-                brace_disp_fb_mm: d,
-                brace_force_fb_kn: proto.brace_force_kn(d),
-            })
-            .map_err(|e| TrainError::Diverged(format!("lrx-pure: {e:?}")))?;
-    }
-    Ok(metrics::nrmse_pct(&out, &reference)?)
+    super::pure::nrmse(
+        "lrx-pure",
+        Analytical::Lrx(Lrx::new(params)),
+        proto,
+        0,
+        ag_mm_s2,
+        &reference,
+    )
 }
 
 /// Train the LRX model.

@@ -1,11 +1,14 @@
-//! A model run over a record: teacher-forced (the true delayed force as input) and `rnn-pure` (its
-//! own delayed prediction as the feedback), with the `rnn-pure` score.
+//! A model run over a record: teacher-forced (the true delayed force as input: training's own
+//! evaluation of its f64 net) and `rnn-pure` (its own delayed prediction as the feedback: the model
+//! in core's controller, run by the host's driver), with the `rnn-pure` score.
 
+use rths_core::control::Analytical;
+use rths_core::metamodel::{Rnn as CoreRnn, RnnParams};
 use rths_core::metrics::nrmse_pct;
 
 use super::model::{Rnn, N_IN};
 use crate::train::data::PureResponse;
-use crate::train::TrainError;
+use crate::train::{pure, TrainError};
 
 /// Run the model over raw inputs from rest; returns `x̂(i+1)` for each input row.
 pub(super) fn run_teacher_forced(model: &Rnn, inputs: &[[f64; N_IN]]) -> Vec<f64> {
@@ -17,37 +20,25 @@ pub(super) fn run_teacher_forced(model: &Rnn, inputs: &[[f64; N_IN]]) -> Vec<f64
         .collect()
 }
 
-/// The `rnn-pure` loop: the RNN runs with `F_fb(i) = k_b·x̂(i − delay)` (its own delayed prediction,
-/// zero before the start). Returns `x̂(0..n)` with `x̂(0) = 0`.
-pub fn run_pure_loop(
+/// The `rnn-pure` run: the model as core's RNN (`rths_core::metamodel::Rnn`, the same weights and
+/// forward step) in the controller, on `F_fb(i) = k_b·x̂(i − delay)` (its own delayed
+/// prediction, zero before the start), no actuator, run by the host's driver
+/// ([`crate::train::pure`]). Returns `x̂(0..n)` with `x̂(0) = 0`.
+pub fn pure_prediction(
     model: &Rnn,
     ground_accel_mm_s2: &[f64],
     delay_steps: usize,
     brace_k_kn_per_mm: f64,
-) -> Vec<f64> {
-    let n = ground_accel_mm_s2.len();
-    let mut x = Vec::with_capacity(n);
-    if n == 0 {
-        return x;
-    }
-    x.push(0.0);
-    let mut h = vec![0.0; model.hidden];
-    let mut s = vec![0.0; model.hidden];
-    for i in 0..n - 1 {
-        let x_fb = if i >= delay_steps {
-            x[i - delay_steps]
-        } else {
-            0.0
-        };
-        let next = model.step(
-            &mut h,
-            &mut s,
-            ground_accel_mm_s2[i],
-            brace_k_kn_per_mm * x_fb,
-        );
-        x.push(next);
-    }
-    x
+) -> Result<Vec<f64>, TrainError> {
+    let params = RnnParams::new(model.core_weights(), *model.scaling())
+        .map_err(|e| TrainError::Diverged(format!("RNN weights rejected: {e:?}")))?;
+    pure::prediction(
+        "rnn-pure",
+        Analytical::Rnn(CoreRnn::new(params)),
+        pure::brace_prototype(brace_k_kn_per_mm)?,
+        delay_steps,
+        ground_accel_mm_s2,
+    )
 }
 
 /// `rnn-pure` NRMSE (%) against the pure brace deformation.
@@ -57,11 +48,11 @@ pub fn rnn_pure_nrmse_pct(
     delay_steps: usize,
     brace_k_kn_per_mm: f64,
 ) -> Result<f64, TrainError> {
-    let x = run_pure_loop(
+    let x = pure_prediction(
         model,
         &response.ground_accel_mm_s2,
         delay_steps,
         brace_k_kn_per_mm,
-    );
+    )?;
     Ok(nrmse_pct(&x, &response.brace_disp_mm)?)
 }

@@ -20,7 +20,7 @@
 //! Files: `model.rs` the trainable net (parameters, initialization from the ARX model or at
 //! random, scaling, model-file conversion; its forward step is `rths-core`'s
 //! [`rths_core::metamodel::elman_step`], the one the controller runs), `eval.rs` a model run over a
-//! record (teacher-forced, and `rnn-pure` on its own delayed prediction), `optimizer.rs` Adam with
+//! record (teacher-forced, and `rnn-pure` on its own delayed prediction in core's controller), `optimizer.rs` Adam with
 //! its per-parameter step scales, `train.rs` the training loop (BPTT windows, validation, early
 //! stopping, progress bar) and the model file of a run.
 
@@ -29,7 +29,7 @@ mod model;
 mod optimizer;
 mod train;
 
-pub use eval::{rnn_pure_nrmse_pct, run_pure_loop};
+pub use eval::{pure_prediction, rnn_pure_nrmse_pct};
 pub use model::{Rnn, RnnInit, Scaling, DEFAULT_ARX_STATE_SCALE, N_IN};
 pub use train::{model_file, train, InitMethod, RnnConfig, RnnTraining, ARX_FINE_TUNE_EPOCHS};
 

@@ -138,7 +138,7 @@ impl Rnn {
     pub fn from_arx(
         hidden: usize,
         scaling: Scaling,
-        theta: &[f64; crate::train::lr::N_THETA],
+        theta: &[f64; rths_core::metamodel::LR_COEFFS],
         brace_k_kn_per_mm: f64,
         state_scale: f64,
         seed: u64,

@@ -150,7 +150,7 @@ fn arx_realization_matches_the_linear_model() {
     let lr_loop = &fit.pure_prediction_mm;
     let err = |eps: f64| {
         let m = Rnn::from_arx(6, scaling, &fit.solution.theta, k_b, eps, 3).unwrap();
-        let x = run_pure_loop(&m, &r.ground_accel_mm_s2, 28, k_b);
+        let x = pure_prediction(&m, &r.ground_accel_mm_s2, 28, k_b).unwrap();
         nrmse_pct(&x, lr_loop).unwrap()
     };
     let (tiny, small, dflt) = (err(1e-6), err(1e-4), err(1e-3));
@@ -184,9 +184,22 @@ fn rnn_pure_el_centro_h10_meets_paper() {
         t.init_pure_nrmse_pct
     );
     assert!(t.best_validation_loss <= t.history[0].1);
-    // Recomputed independently of the training code's own figure.
-    let x = run_pure_loop(&t.model, &r.ground_accel_mm_s2, 28, k_b);
-    assert_eq!(nrmse_pct(&x, &r.brace_disp_mm).unwrap(), t.pure_nrmse_pct);
+    // Recomputed independently of the training code's own figure: the `rnn-pure-10` scenario
+    // (`rths simulate`'s) of the trained model.
+    let file = model_file(&t, &cfg, "el-centro".into(), r.len());
+    let setup = crate::scenario::ScenarioSetup {
+        id: crate::scenario::ScenarioId::RnnPure(10),
+        ground_accel_mm_s2: &r.ground_accel_mm_s2,
+        reference_mm: &r.brace_disp_mm,
+        rig: rths_hal_sim::RigConfig::new(rths_hal_sim::Preset::UnrCompact),
+        stiffness_factor: 1.0,
+        lr: None,
+        rnn: Some(crate::models::rnn_params(&file).unwrap()),
+        delay_steps: 28,
+        lrx: None,
+    };
+    let scenario = crate::scenario::report(&setup).unwrap().nrmse_pct.unwrap();
+    assert_eq!(scenario, t.pure_nrmse_pct);
     cfg.max_epochs = 3;
     let a = train(&r, k_b, &cfg).unwrap();
     let b = train(&r, k_b, &cfg).unwrap();
