@@ -5,6 +5,8 @@
 //! scenarios (`rths simulate`, `reproduce`, `robustness`), the structure scenarios and the
 //! nonlinear study (`rths simulate --structure`, `rths nonlinear-study`) and the vRTHS benchmark
 //! (`rths benchmark`), and training's pure scores (`rths train`, `src/train/pure.rs`).
+//! Identification (`rths identify`) runs the board's identification tick (`rths_app::identify`'s
+//! `identify_step`, which the firmware's control task runs while identifying) through [`identify`].
 //!
 //! What a study keeps of a tick it reads from the [`Step`] (and, for the analytical part's state,
 //! e.g. story drifts, from the controller); the truths of the plant ([`Plant`]) are for
@@ -12,8 +14,13 @@
 
 use std::ops::ControlFlow;
 
+use heapless::spsc::Queue;
+use rths_app::identify::{identify_step, Identification};
+use rths_app::TelemetryRecord;
 use rths_core::control::{Controller, TickOutput};
-use rths_core::hal::{Actuator, Daq, Error as _, ErrorKind, Sample};
+use rths_core::hal::{Actuator, Daq, Error, ErrorKind, Sample};
+use rths_core::identify_excitation::Tables;
+use rths_core::identify_session::IdentifyPhase;
 use rths_core::supervisor::State;
 use rths_hal_sim::VirtualRig;
 
@@ -206,4 +213,41 @@ pub fn run_pure(
     run::<VirtualRig>(ctl, None, ground_accel_mm_s2, None, dt_s, |st, c, _| {
         observe(st, c)
     })
+}
+
+/// The host's identification, as the firmware's control task runs one: per tick the board's
+/// identification tick (`rths_app::identify::identify_step`: the excitation's request through
+/// `ctl`'s supervisor to `rig`, the tick's record queued), then `next_tick` (on the virtual rig,
+/// advance the plant; on a board, wait for the tick), until the identification `id` (started,
+/// with `ctl`'s supervisor running: `rths_app::identify::begin_with`) ends. `observe` sees every
+/// tick's record and whether the excitation was still playing before it (`false` after its end or
+/// a trip). Its outcome is then `id.outcome()`.
+pub fn identify<R, A, T>(
+    ctl: &mut Controller,
+    rig: &mut R,
+    id: &mut Identification,
+    tables: &T,
+    mut next_tick: impl FnMut(&mut R),
+    mut observe: impl FnMut(&TelemetryRecord, bool),
+) where
+    R: Daq<Error = A> + Actuator<Error = A>,
+    A: Error,
+    T: Tables,
+{
+    // The board's telemetry queue; the host takes each tick's record at once.
+    let mut queue: Queue<TelemetryRecord, 4> = Queue::new();
+    let (mut producer, mut consumer) = queue.split();
+    loop {
+        let playing = id.phase() == Some(IdentifyPhase::Excite);
+        let tick = identify_step(id, ctl, rig, &mut producer, tables, false);
+        while let Some(rec) = consumer.dequeue() {
+            observe(&rec, playing);
+        }
+        if tick.ticked {
+            next_tick(rig);
+        }
+        if tick.ended || !tick.ticked {
+            return;
+        }
+    }
 }

@@ -2,8 +2,9 @@
 //!
 //! 1. [`excitation`]: a small (≤ 10% of the stroke), band-limited (0.1–20 Hz), rate-limited
 //!    periodic multisine, ramped in and out.
-//! 2. [`runner`]: drive any `Daq + Actuator` with it through the core [`Supervisor`], tick by tick
-//!    as the control loop does, recording command, displacement and force as read.
+//! 2. [`runner`]: drive any `Daq + Actuator` with it through a controller's [`Supervisor`], tick by
+//!    tick with the board's identification tick (`rths_app::identify::identify_step`) through the
+//!    host's driver, recording command, displacement and force as read.
 //! 3. [`estimate`]: from those arrays alone, the actuator's frequency response (H1, coherence), its
 //!    gain and delay, the lead filter and ATS initial values, and the specimen's stiffness; then
 //!    the checks that refuse a poor characterization.
@@ -119,27 +120,29 @@ pub struct Outcome {
 
 /// Identify on any rig: generate, run under the paper actuator's limits at the excitation's tick
 /// ([`limits_at`]), estimate.
-pub fn identify_rig<R, F>(
+pub fn identify_rig<R, A, F>(
     rig: &mut R,
     cfg: &IdentifyConfig,
     next_tick: F,
 ) -> Result<Outcome, IdentifyError>
 where
-    R: rths_core::hal::Daq + rths_core::hal::Actuator,
+    R: rths_core::hal::Daq<Error = A> + rths_core::hal::Actuator<Error = A>,
+    A: rths_core::hal::Error,
     F: FnMut(&mut R),
 {
     identify_rig_with_limits(rig, cfg, limits_at(cfg.excitation.dt_s)?, next_tick)
 }
 
 /// [`identify_rig`] under the given supervisor limits.
-pub fn identify_rig_with_limits<R, F>(
+pub fn identify_rig_with_limits<R, A, F>(
     rig: &mut R,
     cfg: &IdentifyConfig,
     limits: Limits,
     next_tick: F,
 ) -> Result<Outcome, IdentifyError>
 where
-    R: rths_core::hal::Daq + rths_core::hal::Actuator,
+    R: rths_core::hal::Daq<Error = A> + rths_core::hal::Actuator<Error = A>,
+    A: rths_core::hal::Error,
     F: FnMut(&mut R),
 {
     let excitation = excitation::generate(&cfg.excitation)?;
