@@ -7,11 +7,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use rths::nonlinear::rig::ForceCorrection;
-use rths::nonlinear::scenario::{
-    run_pure, score, SimScenario, StructureCase, StructureFe, StructureModel,
-};
+use rths::nonlinear::scenario::{numerical_fe, run_pure, score, SimScenario, StructureCase};
 use rths::nonlinear::study::{self, StudyConfig};
 use rths::scenario::ScenarioId;
+use rths_core::control::Analytical;
 use rths_core::params::DT_S;
 use rths_files::structure_file::Structure;
 use rths_hal_sim::Preset;
@@ -73,7 +72,7 @@ fn the_structure_fe_in_the_pure_loop_is_its_reference() {
     ] {
         let s = Structure::load(&root(path)).unwrap();
         let case = StructureCase::new(s, &motion.scaled(scale).resample_mm_s2(DT_S)).unwrap();
-        let (series, stop) = run_pure(&case, &mut StructureFe::new(&case.structure).unwrap());
+        let (series, stop) = run_pure(&case, &numerical_fe(&case.structure).unwrap());
         assert!(stop.is_none());
         let sc = SimScenario::Study(ScenarioId::FePure);
         let r = score(&case, sc, &series, stop).report.nrmse_pct.unwrap();
@@ -276,7 +275,7 @@ fn bad_input_is_refused_with_the_reason() {
 #[test]
 fn a_small_study_scores_every_applicable_scenario() {
     let s = Structure::load(&root(YIELDING)).unwrap();
-    let no_model = |_: &Structure| -> anyhow::Result<Option<Box<dyn StructureModel>>> { Ok(None) };
+    let no_model = |_: &Structure| -> anyhow::Result<Option<Analytical>> { Ok(None) };
     let models =
         |id| rths::cmd::simulate::study_models(None, id, Preset::UnrCompact, None).unwrap();
     let lr = models(ScenarioId::LrOnline);
@@ -350,10 +349,10 @@ fn the_structure_loop_is_the_controllers_loop() {
     let case = StructureCase::new(s, &ag).unwrap();
     assert!(case.paper);
     let rig = case.rig(Preset::UnrCompact, 1);
-    let mut fe = StructureFe::new(&case.structure).unwrap();
+    let fe = numerical_fe(&case.structure).unwrap();
     let (mine, stop) = run_hybrid(
         &case,
-        &mut fe,
+        &fe,
         paper_ats(None).unwrap(),
         &rig,
         CompensatorTarget::Next,
@@ -520,10 +519,10 @@ fn the_rig_at_the_models_current_displacement_removes_the_one_tick_lead() {
     let rig = case.rig(Preset::UnrCompact, 1);
     let sc = SimScenario::Study(ScenarioId::FeOnlineAts);
     let figures = |timing, rig: &rths_hal_sim::RigConfig| {
-        let mut fe = StructureFe::new(&case.structure).unwrap();
+        let fe = numerical_fe(&case.structure).unwrap();
         let (series, stop) = run_hybrid(
             &case,
-            &mut fe,
+            &fe,
             paper_ats(None).unwrap(),
             rig,
             timing,
@@ -579,7 +578,7 @@ fn the_test_plan_picks_the_smallest_length_scale_that_fits() {
         let case = StructureCase::new(s.clone(), &ag).unwrap();
         let l = study::plan_length_scale(&case).unwrap().unwrap();
         assert_eq!(l.get() == 1.0, expect_one, "{scale}: {l:?}");
-        let (pred, _) = run_pure(&case, &mut StructureFe::new(&case.structure).unwrap());
+        let (pred, _) = run_pure(&case, &numerical_fe(&case.structure).unwrap());
         let fits = |l: f64| {
             let (p, v) = rig_demand(&pred.target_mm, LengthScale::new(l).unwrap());
             p <= f * lim.stroke_mm() && v <= f * lim.velocity_mm_s()
@@ -594,7 +593,7 @@ fn the_test_plan_picks_the_smallest_length_scale_that_fits() {
 
 #[test]
 fn the_learned_model_in_the_loop_needs_the_force_at_its_own_displacement() {
-    use rths::nonlinear::model::LearnedModel;
+    use rths::nonlinear::model;
     use rths::nonlinear::rig;
     use rths::nonlinear::scenario::{run_hybrid, CompensatorTarget};
     use rths_core::compensator::{Compensator, Lead};
@@ -619,11 +618,11 @@ fn the_learned_model_in_the_loop_needs_the_force_at_its_own_displacement() {
     let sc = SimScenario::NlOnline;
     let model_file = root("data/models/nl-paper-frame-yielding.json");
     let figures = |correction: &ForceCorrection| {
-        let mut m = LearnedModel::load(&model_file, &text).unwrap();
+        let m = Analytical::StructureModal(model::load(&model_file, &text).unwrap());
         let lead = Compensator::Lead(Lead::new(comp.corrected_lead.lead));
         let (series, stop) = run_hybrid(
             &case,
-            &mut m,
+            &m,
             lead,
             &rig,
             CompensatorTarget::Current,

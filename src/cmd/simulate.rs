@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use rths_core::control::Analytical;
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{BoucWen, Preset, RigConfig, Specimen};
 
@@ -425,10 +426,10 @@ fn run_structure(
         }
         _ => None,
     };
-    let mut learned = match sc {
-        SimScenario::NlPure | SimScenario::NlOnline => Some(
+    let learned = match sc {
+        SimScenario::NlPure | SimScenario::NlOnline => Some(Analytical::StructureModal(
             crate::nonlinear::model::for_structure(args.model.as_deref(), &name, structure_json)?,
-        ),
+        )),
         _ => None,
     };
     let (report, series) = nl::run_scenario(
@@ -442,7 +443,7 @@ fn run_structure(
             lr: models.as_ref().and_then(|m| m.lr),
             lrx: models.as_ref().and_then(|m| m.lrx),
             delay_steps: models.as_ref().map_or(PAPER_DELAY_STEPS, |m| m.delay),
-            nl_model: learned.as_mut().map(|m| m as &mut dyn nl::StructureModel),
+            nl_model: learned.as_ref(),
         },
     )?;
     if let Some(dir) = &args.out {

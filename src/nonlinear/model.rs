@@ -1,23 +1,15 @@
 //! The learned model of a structure's numerical part (`rths train nonlinear`: the
-//! modal-hysteretic metamodel, `rths_core::metamodel::ModalHyst`) as a [`StructureModel`] of the
-//! structure scenarios, loaded for one structure file and refused for another.
+//! modal-hysteretic metamodel, `rths_core::metamodel::ModalHyst`) as the numerical part of the
+//! structure scenarios: core's controller part [`StructureModal`] (tick 0 is the initial
+//! condition, as the FE's; story drifts from the model's floors), loaded for one structure file
+//! and refused for another.
 
 use std::path::Path;
 
 use anyhow::Context;
-use rths_core::control::{Analytical, StructureModal};
-use rths_core::metamodel::ModalHystParams;
+use rths_core::control::StructureModal;
 use rths_core::params::DT_S;
 use rths_files::nl_model_file::NlModelFile;
-
-use super::scenario::StructureModel;
-
-/// A learned model for the controller: core's [`StructureModal`] (tick 0 is the initial
-/// condition, as the FE's; story drifts from the model's floors).
-#[derive(Debug, Clone)]
-pub struct LearnedModel {
-    params: Box<ModalHystParams>,
-}
 
 /// Refuse a nonlinear model trained at another controller rate than this build's (its springs were
 /// fitted on the pure loop at its own step), with the command that trains one at this rate.
@@ -33,30 +25,21 @@ pub fn check_rate(file: &NlModelFile) -> Result<(), rths_files::rate::OtherRate>
     )
 }
 
-impl LearnedModel {
-    /// The model file `file` for the structure file whose text is `structure_json`: refused with
-    /// the reason unless it was trained for that structure (name and checksum of its content).
-    pub fn new(file: &NlModelFile, structure_json: &str) -> anyhow::Result<Self> {
-        file.check_structure(structure_json)?;
-        check_rate(file)?;
-        // The parameters are continuous-time: built for this build's controller step.
-        Ok(Self {
-            params: Box::new(file.params(DT_S)?),
-        })
-    }
-
-    /// [`Self::new`] from the model file at `path`.
-    pub fn load(path: &Path, structure_json: &str) -> anyhow::Result<Self> {
-        let file = NlModelFile::load(path).with_context(|| format!("model {}", path.display()))?;
-        Self::new(&file, structure_json)
-            .with_context(|| format!("model {} refused", path.display()))
-    }
+/// The learned model of the model file `file` for the structure file whose text is
+/// `structure_json`, at rest: refused with the reason unless it was trained for that structure
+/// (name and checksum of its content) at this build's rate.
+pub fn learned_model(file: &NlModelFile, structure_json: &str) -> anyhow::Result<StructureModal> {
+    file.check_structure(structure_json)?;
+    check_rate(file)?;
+    // The parameters are continuous-time: built for this build's controller step.
+    Ok(StructureModal::new(file.params(DT_S)?))
 }
 
-impl StructureModel for LearnedModel {
-    fn analytical(&self) -> Analytical {
-        Analytical::StructureModal(StructureModal::new(*self.params))
-    }
+/// [`learned_model`] from the model file at `path`.
+pub fn load(path: &Path, structure_json: &str) -> anyhow::Result<StructureModal> {
+    let file = NlModelFile::load(path).with_context(|| format!("model {}", path.display()))?;
+    learned_model(&file, structure_json)
+        .with_context(|| format!("model {} refused", path.display()))
 }
 
 /// The shipped learned models (`data/models/nl-S.json`, `rths train nonlinear`), by the name
@@ -83,9 +66,9 @@ pub fn for_structure(
     path: Option<&Path>,
     name: &str,
     structure_json: &str,
-) -> anyhow::Result<LearnedModel> {
+) -> anyhow::Result<StructureModal> {
     if let Some(p) = path {
-        return LearnedModel::load(p, structure_json);
+        return load(p, structure_json);
     }
     let Some((_, text)) = SHIPPED.iter().find(|(n, _)| *n == name) else {
         anyhow::bail!(
@@ -95,6 +78,6 @@ pub fn for_structure(
     };
     let file = NlModelFile::from_json(text)
         .with_context(|| format!("the shipped data/models/nl-{name}.json"))?;
-    LearnedModel::new(&file, structure_json)
+    learned_model(&file, structure_json)
         .with_context(|| format!("the shipped data/models/nl-{name}.json refused"))
 }

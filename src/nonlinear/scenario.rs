@@ -2,15 +2,15 @@
 //! against that structure's FE reference (the whole nonlinear structure for a file with yielding
 //! stories; docs/nonlinear.md, "Scenarios").
 //!
-//! - `fe-pure`, `fe-online-ats`: the structure's own numerical part ([`StructureFe`]: the core
+//! - `fe-pure`, `fe-online-ats`: the structure's own numerical part ([`numerical_fe`]: the core
 //!   controller's `StructureNl` for a yielding file, its `StructureFe` for a linear one) takes the
 //!   specimen force at the specimen DOF each tick; pure (the linear specimen at the model's own
 //!   displacement, no plant) or on the virtual plant with the paper's ATS.
 //!
 //! Every run is `rths_core::control::Controller`, the firmware's controller, driven by the host's
 //! one control step ([`crate::drive::run`]): the numerical part is its analytical part.
-//! - `nl-pure`, `nl-online`: a learned model of the numerical part (any [`StructureModel`]) in the
-//!   same two loops; online with a lead filter (the rig file's, or the shipped LRX's).
+//! - `nl-pure`, `nl-online`: a learned model of the numerical part (core's `StructureModal`,
+//!   [`super::model`]) in the same two loops; online with a lead filter (the rig file's, or the shipped LRX's).
 //! - `lr-online`, `lrx-online`: the shipped *linear* metamodels of the paper's frame, run exactly as
 //!   `rths simulate` runs them, only judged against the nonlinear reference (they must fail
 //!   visibly once the frame yields). Only for a file that *is* the paper's frame.
@@ -228,46 +228,26 @@ pub const STRUCTURE_SCENARIOS: [SimScenario; 7] = [
     SimScenario::Study(ScenarioId::LrxOnline),
 ];
 
-/// The numerical part of a structure run: an analytical part of the core controller
-/// (`rths_core::control::Analytical`: the structure's finite elements, or a learned model of them)
-/// that takes the specimen's force at the specimen DOF (kN, prototype, along the DOF) each tick
-/// and gives the next displacement there, mm; its story drifts are read from the controller.
-pub trait StructureModel {
-    /// The analytical part, at rest.
-    fn analytical(&self) -> Analytical;
-}
-
-/// The finite elements of a structure file's numerical part: yielding stories
-/// (`rths_core::control::StructureNl`) or linear (`rths_core::control::StructureFe`).
-#[derive(Debug, Clone)]
-pub struct StructureFe {
-    analytical: Analytical,
-}
-
-impl StructureFe {
-    /// The numerical part of `structure` at the controller's step.
-    pub fn new(structure: &Structure) -> anyhow::Result<Self> {
-        let dof = structure.specimen_dof();
-        let analytical = if structure.story_laws().is_some() {
-            Analytical::StructureNl(core_control::StructureNl::new(
-                structure.nonlinear_numerical(DT_S)?,
-                dof,
-            )?)
-        } else {
-            Analytical::StructureFe(core_control::StructureFe::new(
-                structure.numerical()?,
-                dof,
-                DT_S,
-            )?)
-        };
-        Ok(Self { analytical })
-    }
-}
-
-impl StructureModel for StructureFe {
-    fn analytical(&self) -> Analytical {
-        self.analytical.clone()
-    }
+/// The finite elements of a structure file's numerical part at the controller's step, as the core
+/// controller's analytical part: `rths_core::control::StructureNl` for yielding stories,
+/// `rths_core::control::StructureFe` for a linear one. Like every numerical part of a structure
+/// run (this, or a learned model of it: [`super::model`]), it takes the specimen's force at the
+/// specimen DOF (kN, prototype, along the DOF) each tick and gives the next displacement there,
+/// mm; its story drifts are read from the controller.
+pub fn numerical_fe(structure: &Structure) -> anyhow::Result<Analytical> {
+    let dof = structure.specimen_dof();
+    Ok(if structure.story_laws().is_some() {
+        Analytical::StructureNl(core_control::StructureNl::new(
+            structure.nonlinear_numerical(DT_S)?,
+            dof,
+        )?)
+    } else {
+        Analytical::StructureFe(core_control::StructureFe::new(
+            structure.numerical()?,
+            dof,
+            DT_S,
+        )?)
+    })
 }
 
 /// A structure, a record and its reference: what every scenario of one row shares.
@@ -422,7 +402,7 @@ impl StructureSeries {
 /// The pure loop: `model` in the controller with the structure's linear specimen at the model's
 /// own displacement (no delay, no plant, [`FeedbackSource::OwnLinearSpecimen`]). Stopped at the
 /// first step the model refuses.
-pub fn run_pure(case: &StructureCase, model: &mut dyn StructureModel) -> (StructureSeries, Stop) {
+pub fn run_pure(case: &StructureCase, model: &Analytical) -> (StructureSeries, Stop) {
     let n = case.ground_accel_mm_s2.len();
     let mut s = StructureSeries {
         target_mm: Vec::with_capacity(n),
@@ -443,7 +423,7 @@ pub fn run_pure(case: &StructureCase, model: &mut dyn StructureModel) -> (Struct
         Ok(c) => c,
         Err(e) => return (s, Some((format!("{e}"), 0.0))),
     };
-    let mut ctl = Controller::new(config, model.analytical(), Compensator::None);
+    let mut ctl = Controller::new(config, model.clone(), Compensator::None);
     let stories = case.structure.dofs();
     // A pure run measures nothing: the rows are the target in force at each tick (the command
     // is the target), until the first step the model refuses.
@@ -473,7 +453,7 @@ pub fn run_pure(case: &StructureCase, model: &mut dyn StructureModel) -> (Struct
 /// actuator's supervisor, the command held for one tick.
 pub fn run_hybrid(
     case: &StructureCase,
-    model: &mut dyn StructureModel,
+    model: &Analytical,
     compensator: Compensator,
     rig: &RigConfig,
     timing: CompensatorTarget,
@@ -489,7 +469,7 @@ pub fn run_hybrid(
     .context("the controller of the structure's hybrid run")?
     .with_force_correction(*correction)
     .with_compensator_target(timing);
-    let mut ctl = Controller::new(config, model.analytical(), compensator);
+    let mut ctl = Controller::new(config, model.clone(), compensator);
     let mut plant = VirtualRig::new(rig.build().context("the virtual plant")?);
     let n = case.ground_accel_mm_s2.len();
     let mut s = StructureSeries {
@@ -749,8 +729,8 @@ pub struct ScenarioInputs<'a> {
     pub lrx: Option<(LrxParams, LeadParams)>,
     /// The LR/LRX model's feedback delay, ticks.
     pub delay_steps: usize,
-    /// The learned model of `nl-pure` and `nl-online`.
-    pub nl_model: Option<&'a mut dyn StructureModel>,
+    /// The learned model of `nl-pure` and `nl-online` (core's `StructureModal`).
+    pub nl_model: Option<&'a Analytical>,
 }
 
 /// Does scenario `sc` apply to `structure`? `Err` says why not.
@@ -797,12 +777,10 @@ pub fn run_scenario(
         SimScenario::MetaPure | SimScenario::MetaOnline => {
             anyhow::bail!("{sc} runs an imported structure (`rths import opensees`)")
         }
-        SimScenario::Study(ScenarioId::FePure) => {
-            run_pure(case, &mut StructureFe::new(&case.structure)?)
-        }
+        SimScenario::Study(ScenarioId::FePure) => run_pure(case, &numerical_fe(&case.structure)?),
         SimScenario::Study(ScenarioId::FeOnlineAts) => run_hybrid(
             case,
-            &mut StructureFe::new(&case.structure)?,
+            &numerical_fe(&case.structure)?,
             paper_ats(inputs.ats_initial)?,
             &rig,
             CompensatorTarget::Current,
@@ -830,12 +808,12 @@ pub fn run_scenario(
                      identified on the virtual rig)"
                 )
             })?;
-            let mut fe;
-            let model: &mut dyn StructureModel = if sc == SimScenario::NlOnline {
+            let fe;
+            let model = if sc == SimScenario::NlOnline {
                 inputs.nl_model.ok_or_else(missing)?
             } else {
-                fe = StructureFe::new(&case.structure)?;
-                &mut fe
+                fe = numerical_fe(&case.structure)?;
+                &fe
             };
             run_hybrid(
                 case,

@@ -12,6 +12,7 @@
 
 use anyhow::Context;
 use rayon::prelude::*;
+use rths_core::control::Analytical;
 use rths_core::metrics;
 use rths_core::params::DT_S;
 use rths_files::structure_file::Structure;
@@ -19,8 +20,8 @@ use serde::Serialize;
 
 use super::rig::RigCompensation;
 use super::scenario::{
-    self as nl, check_applies, rig_demand, run_pure, LengthScale, ScenarioInputs, SimScenario,
-    StructureCase, StructureFe, StructureModel, StructureReport, STRUCTURE_SCENARIOS,
+    self as nl, check_applies, numerical_fe, rig_demand, run_pure, LengthScale, ScenarioInputs,
+    SimScenario, StructureCase, StructureReport, STRUCTURE_SCENARIOS,
 };
 use super::{elastic_drifts, fe_reference};
 use crate::motion::GroundMotion;
@@ -38,7 +39,7 @@ pub const PLAN_FRACTION: f64 = 0.8;
 /// the lab has before the test) asks at most [`PLAN_FRACTION`] of the actuator's supervised
 /// stroke and velocity. `None`: even the largest does not fit.
 pub fn plan_length_scale(case: &StructureCase) -> anyhow::Result<Option<LengthScale>> {
-    let (prediction, stop) = run_pure(case, &mut StructureFe::new(&case.structure)?);
+    let (prediction, stop) = run_pure(case, &numerical_fe(&case.structure)?);
     if let Some((why, t)) = stop {
         anyhow::bail!("the FE prediction of the test plan stopped: {why} at {t:.3} s");
     }
@@ -106,8 +107,7 @@ pub fn scale_for_ductility(
 }
 
 /// Builds the learned model of a structure for `nl-pure`/`nl-online` (`None`: no model for it).
-pub type ModelFactory<'a> =
-    &'a (dyn Fn(&Structure) -> anyhow::Result<Option<Box<dyn StructureModel>>> + Sync);
+pub type ModelFactory<'a> = &'a (dyn Fn(&Structure) -> anyhow::Result<Option<Analytical>> + Sync);
 
 /// What the study runs with.
 pub struct StudyConfig<'a> {
@@ -275,7 +275,7 @@ fn row(
             });
             continue;
         }
-        let mut model = match sc {
+        let model = match sc {
             SimScenario::NlPure | SimScenario::NlOnline => match (cfg.models)(structure)? {
                 Some(m) => Some(m),
                 None => {
@@ -296,7 +296,7 @@ fn row(
             lr: cfg.lr,
             lrx: cfg.lrx,
             delay_steps: cfg.delay_steps,
-            nl_model: model.as_deref_mut().map(|m| m as &mut dyn StructureModel),
+            nl_model: model.as_ref(),
         };
         // The shipped linear models run exactly as `rths simulate` runs them: at length scale 1.
         let sc_case = match sc {
