@@ -15,7 +15,8 @@ use rths_core::reference::Reference;
 use rths_core::structure::{LinearStructure, Vector};
 
 /// Header of the CSV written by [`write_csv`].
-pub const CSV_HEADER: &str = "time_s,ground_accel_mm_s2,story_disp_mm,brace_disp_mm,brace_force_kn";
+pub const ANALYSIS_CSV_HEADER: &str =
+    "time_s,ground_accel_mm_s2,story_disp_mm,brace_disp_mm,brace_force_kn";
 
 /// Time integration method of a pure analysis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -269,7 +270,7 @@ impl fmt::Display for Summary {
     }
 }
 
-/// Write `r` as CSV with the header [`CSV_HEADER`], one row per step.
+/// Write `r` as CSV with the header [`ANALYSIS_CSV_HEADER`], one row per step.
 pub fn write_csv(r: &PureResponse, path: &Path) -> Result<(), AnalysisError> {
     let io = |source| AnalysisError::Io {
         path: path.to_path_buf(),
@@ -277,7 +278,7 @@ pub fn write_csv(r: &PureResponse, path: &Path) -> Result<(), AnalysisError> {
     };
     let file = std::fs::File::create(path).map_err(io)?;
     let mut w = std::io::BufWriter::new(file);
-    writeln!(w, "{CSV_HEADER}").map_err(io)?;
+    writeln!(w, "{ANALYSIS_CSV_HEADER}").map_err(io)?;
     let rows = r
         .time_s
         .iter()
@@ -372,7 +373,7 @@ mod tests {
         write_csv(&r, &path).unwrap();
         let text = std::fs::read_to_string(&path).unwrap();
         let mut lines = text.lines();
-        assert_eq!(lines.next(), Some(CSV_HEADER));
+        assert_eq!(lines.next(), Some(ANALYSIS_CSV_HEADER));
         let rows: Vec<Vec<f64>> = lines
             .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
             .collect();

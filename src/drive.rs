@@ -9,7 +9,7 @@
 //! `identify_step`, which the firmware's control task runs while identifying) through [`identify`].
 //!
 //! What a study keeps of a tick it reads from the [`Step`] (and, for the analytical part's state,
-//! e.g. story drifts, from the controller); the truths of the plant ([`Plant`]) are for
+//! e.g. story drifts, from the controller); the truths of the plant ([`HostPlant`]) are for
 //! evaluation only, the controller never sees them.
 
 use std::ops::ControlFlow;
@@ -29,7 +29,7 @@ pub type Stop = Option<(String, f64)>;
 
 /// A plant the host drives: what the controller's step sees (the DAQ and the actuator), the
 /// plant's clock, and its truths for the evaluation.
-pub trait Plant: Daq + Actuator {
+pub trait HostPlant: Daq + Actuator {
     /// Move the plant one controller tick holding the last command.
     fn advance_tick(&mut self);
     /// The true (noise-free) actuator displacement, mm: evaluation only.
@@ -40,7 +40,7 @@ pub trait Plant: Daq + Actuator {
     fn held_command_mm(&self) -> f64;
 }
 
-impl Plant for VirtualRig {
+impl HostPlant for VirtualRig {
     fn advance_tick(&mut self) {
         VirtualRig::advance_tick(self);
     }
@@ -126,7 +126,7 @@ impl Driver {
 
     /// Tick k: the plant's sample (`None`: a pure run, a zero sample), `ctl.tick(ü_g, sample,
     /// overrun)`; the [`Step`] as the study sees it.
-    pub fn tick<P: Plant>(
+    pub fn tick<P: HostPlant>(
         &mut self,
         ctl: &mut Controller,
         mut plant: Option<&mut P>,
@@ -169,7 +169,7 @@ impl Driver {
     }
 
     /// The command of the last tick to the plant, which holds it for one tick.
-    pub fn actuate<P: Plant>(&self, plant: Option<&mut P>) {
+    pub fn actuate<P: HostPlant>(&self, plant: Option<&mut P>) {
         if let Some(p) = plant {
             // The supervisor's command is finite and within the stroke, so the actuator accepts
             // it; an error would only report a clip, which the next reading shows.
@@ -183,7 +183,7 @@ impl Driver {
 /// a pure run, the DAQ a zero sample): one tick per sample, as the firmware's control step. After
 /// each tick `observe` sees the [`Step`], the controller and the plant, and may end the run
 /// ([`ControlFlow::Break`]). Returns the supervisor's first stop.
-pub fn run<P: Plant>(
+pub fn run<P: HostPlant>(
     ctl: &mut Controller,
     mut plant: Option<&mut P>,
     ground_accel_mm_s2: &[f64],

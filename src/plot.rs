@@ -41,7 +41,7 @@ pub fn bitmap(
 
 /// How a curve is drawn, so that curves on top of each other stay apart.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Line {
+pub enum LineStyle {
     /// A thin solid line in the series' palette colour.
     #[default]
     Solid,
@@ -63,7 +63,7 @@ pub struct Series<'a> {
     /// Values, in the unit of the panel's y label.
     pub values: &'a [f64],
     /// How it is drawn.
-    pub line: Line,
+    pub line: LineStyle,
 }
 
 /// One stacked panel of [`stacked_time_series`]: a y-axis label (with its unit) and one or more
@@ -96,7 +96,7 @@ impl<'a> Panel<'a> {
 
     /// Add a labelled solid curve (builder style).
     pub fn with(self, label: impl Into<String>, time_s: &'a [f64], values: &'a [f64]) -> Self {
-        self.with_line(label, time_s, values, Line::Solid)
+        self.with_line(label, time_s, values, LineStyle::Solid)
     }
 
     /// Add a labelled curve drawn as `line` (builder style).
@@ -105,7 +105,7 @@ impl<'a> Panel<'a> {
         label: impl Into<String>,
         time_s: &'a [f64],
         values: &'a [f64],
-        line: Line,
+        line: LineStyle,
     ) -> Self {
         self.series.push(Series {
             label: label.into(),
@@ -285,7 +285,7 @@ pub fn stacked_time_series(path: &Path, title: &str, panels: &[Panel<'_>]) -> an
     )
 }
 
-/// Grey of [`Line::Reference`].
+/// Grey of [`LineStyle::Reference`].
 const REFERENCE_GREY: plotters::style::RGBColor = plotters::style::RGBColor(150, 150, 150);
 /// Colour of a [`Marker`] (Okabe–Ito vermillion is a curve's; this is a darker red).
 const MARKER_RED: plotters::style::RGBColor = plotters::style::RGBColor(190, 0, 0);
@@ -394,7 +394,7 @@ pub fn draw(path: &Path, figure: &Figure<'_>) -> anyhow::Result<()> {
         for (s, pts) in panel.series.iter().zip(series) {
             let pts = pts.iter().copied();
             let drawn = match s.line {
-                Line::Reference => {
+                LineStyle::Reference => {
                     let style = REFERENCE_GREY.stroke_width(4);
                     let d = chart
                         .draw_series(LineSeries::new(pts, style))
@@ -406,11 +406,11 @@ pub fn draw(path: &Path, figure: &Figure<'_>) -> anyhow::Result<()> {
                     }
                     !s.label.is_empty()
                 }
-                Line::Solid | Line::Dashed => {
+                LineStyle::Solid | LineStyle::Dashed => {
                     let colour = PALETTE[colour_index % PALETTE.len()];
                     colour_index += 1;
                     let style = colour.stroke_width(1);
-                    let d = if s.line == Line::Dashed {
+                    let d = if s.line == LineStyle::Dashed {
                         chart
                             .draw_series(DashedLineSeries::new(pts, 6, 4, style))
                             .map_err(|e| err(&e))?
@@ -421,7 +421,7 @@ pub fn draw(path: &Path, figure: &Figure<'_>) -> anyhow::Result<()> {
                     };
                     if !s.label.is_empty() {
                         let legend = colour.stroke_width(2);
-                        if s.line == Line::Dashed {
+                        if s.line == LineStyle::Dashed {
                             d.label(s.label.as_str()).legend(move |(x, y)| {
                                 plotters::element::DashedPathElement::new(
                                     vec![(x, y), (x + 24, y)],
@@ -544,8 +544,8 @@ mod tests {
         let t: Vec<f64> = (0..400).map(|k| k as f64 * 0.01).collect();
         let a: Vec<f64> = t.iter().map(|t| t.sin()).collect();
         let panel = Panel::new("A (mm)")
-            .with_line("reference", &t, &a, Line::Reference)
-            .with_line("command", &t, &a, Line::Dashed)
+            .with_line("reference", &t, &a, LineStyle::Reference)
+            .with_line("command", &t, &a, LineStyle::Dashed)
             .with("measured", &t, &a);
         let fig = Figure {
             title: "test".into(),

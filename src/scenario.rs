@@ -211,7 +211,7 @@ pub struct ScenarioSetup<'a> {
 
 /// One row per tick.
 #[derive(Debug, Clone, Default)]
-pub struct History {
+pub struct RunHistory {
     /// Time, s.
     pub time_s: Vec<f64>,
     /// Ground acceleration, mm/s².
@@ -228,7 +228,7 @@ pub struct History {
     pub measured_force_kn: Vec<f64>,
 }
 
-impl History {
+impl RunHistory {
     fn with_capacity(n: usize) -> Self {
         let v = || Vec::with_capacity(n);
         Self {
@@ -331,7 +331,7 @@ pub struct ScenarioRun {
     /// The figures.
     pub report: ScenarioReport,
     /// Per-tick history.
-    pub history: History,
+    pub history: RunHistory,
 }
 
 /// Largest lag searched for J1, ticks (0.1 s: far beyond any plant here).
@@ -379,7 +379,7 @@ pub fn run_with_ats_start(
     setup: &ScenarioSetup<'_>,
     ats_initial: Option<[f64; 3]>,
 ) -> Result<ScenarioRun, ScenarioError> {
-    let mut h = History::with_capacity(setup.ground_accel_mm_s2.len());
+    let mut h = RunHistory::with_capacity(setup.ground_accel_mm_s2.len());
     let stop = closed_loop(setup, &Injection::default(), ats_initial, |r| h.push(r))?;
     let report = figures(setup.id, &h, stop);
     Ok(ScenarioRun { report, history: h })
@@ -428,7 +428,7 @@ pub struct Injection {
     pub overruns: Option<(u64, u64)>,
 }
 
-/// One tick of a closed-loop run, as [`simulate_observed`] reports it (a row of [`History`], plus
+/// One tick of a closed-loop run, as [`simulate_observed`] reports it (a row of [`RunHistory`], plus
 /// the supervisor's state after the tick and the command it produced for the next one).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TickRow {
@@ -463,8 +463,8 @@ pub struct TickRow {
 
 /// The closed loop alone: run one scenario to the end of the record, returning the history and the
 /// supervisor's stop (reason, time), if any.
-pub fn simulate(setup: &ScenarioSetup<'_>) -> Result<(History, Stop), ScenarioError> {
-    let mut h = History::with_capacity(setup.ground_accel_mm_s2.len());
+pub fn simulate(setup: &ScenarioSetup<'_>) -> Result<(RunHistory, Stop), ScenarioError> {
+    let mut h = RunHistory::with_capacity(setup.ground_accel_mm_s2.len());
     let stop = simulate_observed(setup, &Injection::default(), |r| h.push(r))?;
     Ok((h, stop))
 }
@@ -572,7 +572,7 @@ fn closed_loop(
 }
 
 /// The figures of a finished run (docs/design.md §7).
-pub fn figures(id: ScenarioId, h: &History, stop: Stop) -> ScenarioReport {
+pub fn figures(id: ScenarioId, h: &RunHistory, stop: Stop) -> ScenarioReport {
     let series = Series {
         target_mm: &h.target_mm,
         command_mm: &h.command_mm,

@@ -217,9 +217,9 @@ impl RunFigure {
                 "reference (pure FE)",
                 t,
                 cut(&h.reference_mm),
-                plot::Line::Reference,
+                plot::LineStyle::Reference,
             )
-            .with_line("command", t, cut(&h.command_mm), plot::Line::Dashed);
+            .with_line("command", t, cut(&h.command_mm), plot::LineStyle::Dashed);
         let mut error = Panel::new("Error vs reference (mm)").with(
             "command − reference",
             t,
@@ -286,7 +286,7 @@ fn study_progress(cfg: &StudyConfig, units: u64) -> indicatif::ProgressBar {
 /// Train the study's RNNs (in parallel, returned in `cfg.rnn_hidden` order).
 fn train_rnns(
     cfg: &StudyConfig,
-    train_resp: &data::PureResponse,
+    train_resp: &data::TrainingResponse,
     k_b: f64,
     progress: &indicatif::ProgressBar,
 ) -> anyhow::Result<Vec<(rnn::RnnConfig, rnn::RnnTraining)>> {
@@ -698,7 +698,7 @@ pub fn report_md(cfg: &StudyConfig, r: &StudyResult) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scenario::History;
+    use crate::scenario::RunHistory;
 
     /// A run of 100 ticks at 0.01 s: reference a sine peaking at 0.4 s, command 0.1 mm and
     /// measured 0.2 mm above it; stopped at `stop_s` if given.
@@ -708,7 +708,7 @@ mod tests {
             .iter()
             .map(|t| (std::f64::consts::PI * t / 0.8).sin() * t.min(0.4))
             .collect();
-        let history = History {
+        let history = RunHistory {
             command_mm: reference_mm.iter().map(|r| r + 0.1).collect(),
             measured_mm: reference_mm.iter().map(|r| r + 0.2).collect(),
             target_mm: reference_mm.clone(),
@@ -753,8 +753,8 @@ mod tests {
             labels(&panels[0]),
             ["reference (pure FE)", "command", "measured"]
         );
-        assert_eq!(panels[0].series[0].line, plot::Line::Reference);
-        assert_eq!(panels[0].series[1].line, plot::Line::Dashed);
+        assert_eq!(panels[0].series[0].line, plot::LineStyle::Reference);
+        assert_eq!(panels[0].series[1].line, plot::LineStyle::Dashed);
         let error = &panels[1];
         assert_eq!(error.y_label, "Error vs reference (mm)");
         assert_eq!(

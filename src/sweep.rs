@@ -25,7 +25,7 @@ use crate::reference::reference_for;
 use crate::scenario::{self, ScenarioId, ScenarioReport, ScenarioSetup};
 
 /// The specimen stiffness factors of the sweep.
-pub const FACTORS: [f64; 5] = [0.6, 0.8, 1.0, 1.2, 1.4];
+pub const SWEEP_FACTORS: [f64; 5] = [0.6, 0.8, 1.0, 1.2, 1.4];
 
 /// The three scenarios compared.
 pub const SCENARIOS: [ScenarioId; 3] = [
@@ -37,10 +37,13 @@ pub const SCENARIOS: [ScenarioId; 3] = [
 /// Fraction of the supervisor's velocity and stroke interlocks the reference may use.
 pub const MARGIN: f64 = 0.9;
 
-/// The cases of the sweep: linear specimens at [`FACTORS`], then the default (yielding) Bouc–Wen
+/// The cases of the sweep: linear specimens at [`SWEEP_FACTORS`], then the default (yielding) Bouc–Wen
 /// brace at factor 1.
 pub fn cases() -> Vec<(Specimen, f64)> {
-    let mut c: Vec<(Specimen, f64)> = FACTORS.iter().map(|f| (Specimen::Linear, *f)).collect();
+    let mut c: Vec<(Specimen, f64)> = SWEEP_FACTORS
+        .iter()
+        .map(|f| (Specimen::Linear, *f))
+        .collect();
     c.push((Specimen::BoucWen(BoucWen::default()), 1.0));
     c
 }

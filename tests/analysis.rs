@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use rths::analysis::{pure_response, Method, PureResponse, Summary, CSV_HEADER};
+use rths::analysis::{pure_response, Method, PureResponse, Summary, ANALYSIS_CSV_HEADER};
 use rths::motion::{parse_at2, GroundMotion};
 use rths_core::metrics::{nrmse_pct, peak_abs};
 use rths_core::params::{Prototype, DT_S};
@@ -122,9 +122,9 @@ fn analyze_binary_writes_csv_png_and_summary() {
 
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
-    assert_eq!(lines.next(), Some(CSV_HEADER));
+    assert_eq!(lines.next(), Some(ANALYSIS_CSV_HEADER));
     assert_eq!(
-        CSV_HEADER,
+        ANALYSIS_CSV_HEADER,
         "time_s,ground_accel_mm_s2,story_disp_mm,brace_disp_mm,brace_force_kn"
     );
     let rows: Vec<&str> = lines.collect();

@@ -8,7 +8,7 @@ use std::process::{Command, Output};
 
 use rths::nonlinear::rig::ForceCorrection;
 use rths::nonlinear::scenario::{numerical_fe, run_pure, score, SimScenario, StructureCase};
-use rths::nonlinear::study::{self, StudyConfig};
+use rths::nonlinear::study::{self, NonlinearStudyConfig};
 use rths::scenario::ScenarioId;
 use rths_core::control::Analytical;
 use rths_core::params::DT_S;
@@ -279,7 +279,7 @@ fn a_small_study_scores_every_applicable_scenario() {
     let models =
         |id| rths::cmd::simulate::study_models(None, id, Preset::UnrCompact, None).unwrap();
     let lr = models(ScenarioId::LrOnline);
-    let cfg = StudyConfig {
+    let cfg = NonlinearStudyConfig {
         structures: vec![s],
         models: &no_model,
         lr: lr.lr,

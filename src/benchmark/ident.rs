@@ -19,7 +19,7 @@ use rths_hal_sim::rig::{quantize_bits, SimError};
 use rths_hal_sim::VirtualRig;
 
 use super::run::{plant_params, PlantDraw};
-use super::{ACTUATOR_CAPACITY_N, BENCHMARK_DT_S, CONVERTER_BITS};
+use super::{ACTUATOR_CAPACITY_N, BENCHMARK_CONVERTER_BITS, BENCHMARK_DT_S};
 use crate::identify::estimate::{lead, lead_residual_pct, SpecimenFit};
 use crate::identify::{identify_rig_with_limits, IdentifyConfig};
 use rths_core::supervisor::Limits;
@@ -63,7 +63,7 @@ impl Converters {
     }
 }
 
-impl crate::drive::Plant for Converters {
+impl crate::drive::HostPlant for Converters {
     fn advance_tick(&mut self) {
         Converters::advance_tick(self);
     }
@@ -84,8 +84,8 @@ impl Daq for Converters {
         let s = self.rig.read()?;
         self.force_clipped = s.force_kn.abs() >= self.capacity_kn;
         Ok(Sample {
-            disp_mm: quantize_bits(s.disp_mm, self.stroke_mm, CONVERTER_BITS),
-            force_kn: quantize_bits(s.force_kn, self.capacity_kn, CONVERTER_BITS),
+            disp_mm: quantize_bits(s.disp_mm, self.stroke_mm, BENCHMARK_CONVERTER_BITS),
+            force_kn: quantize_bits(s.force_kn, self.capacity_kn, BENCHMARK_CONVERTER_BITS),
         })
     }
 }
@@ -93,8 +93,11 @@ impl Daq for Converters {
 impl Actuator for Converters {
     type Error = SimError;
     fn command(&mut self, disp_mm: f64) -> Result<(), SimError> {
-        self.rig
-            .command(quantize_bits(disp_mm, self.stroke_mm, CONVERTER_BITS))
+        self.rig.command(quantize_bits(
+            disp_mm,
+            self.stroke_mm,
+            BENCHMARK_CONVERTER_BITS,
+        ))
     }
 }
 

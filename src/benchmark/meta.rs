@@ -11,7 +11,7 @@
 use anyhow::Context;
 use nalgebra::{DMatrix, DVector};
 use rths_core::metamodel::{
-    delta_features, push_history, DeltaArx, DeltaArxParams, History, DELTA_ARX_COEFFS,
+    delta_features, push_history, DeltaArx, DeltaArxHistory, DeltaArxParams, DELTA_ARX_COEFFS,
     DELTA_ARX_ORDER,
 };
 use rths_core::structure_n::{ChangN, MAX_DOF};
@@ -71,7 +71,8 @@ pub fn train_at(structure: &Structure, intensity: f64, dt_s: f64) -> anyhow::Res
             .map(|i| (0.5 + i as f64, 2.0 * std::f64::consts::PI * rnd()))
             .collect();
         let mut integ = ChangN::new(structure.numerical()?, dt_s)?;
-        let (mut disp, mut ags, mut forces): (History, History, History) = Default::default();
+        let (mut disp, mut ags, mut forces): (DeltaArxHistory, DeltaArxHistory, DeltaArxHistory) =
+            Default::default();
         for (k, &a) in ag.iter().enumerate() {
             let d_k = if k == 0 {
                 0.0

@@ -29,7 +29,7 @@ pub const DISP_NOISE_POWER_M2: f64 = 6.25e-14;
 /// Noise power of the force sensor's band-limited white noise, N² (benchmark).
 pub const FORCE_NOISE_POWER_N2: f64 = 1.16e-3;
 /// Resolution of the benchmark's converters, bits.
-pub const CONVERTER_BITS: u32 = 18;
+pub const BENCHMARK_CONVERTER_BITS: u32 = 18;
 /// The benchmark actuator's force capacity, N: the load cell's full scale here.
 pub const ACTUATOR_CAPACITY_N: f64 = 8900.0;
 /// Perturbed plants of the grid (seeds 1..=20), as the benchmark evaluates robustness.

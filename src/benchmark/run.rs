@@ -9,7 +9,7 @@
 //! What the controller sees: the ground acceleration, the measured (noisy, quantized) actuator
 //! displacement and load-cell force, and the nominal plant model the benchmark hands its
 //! participants (the ATS starts from its phase delay). It never sees the drawn plant, the specimen's
-//! true force or the reference: only the evaluation ([`RunResult::criteria`]) does.
+//! true force or the reference: only the evaluation ([`BenchmarkRun::criteria`]) does.
 
 use std::ops::ControlFlow;
 use std::sync::OnceLock;
@@ -107,7 +107,7 @@ pub struct RunConfig {
 
 /// The time histories of a run, one value per tick (mm).
 #[derive(Debug, Clone, Default, PartialEq)]
-pub struct History {
+pub struct BenchmarkHistory {
     /// Time, s.
     pub time_s: Vec<f64>,
     /// Measured first-floor (actuator) displacement.
@@ -124,7 +124,7 @@ pub struct History {
 
 /// The outcome of a run.
 #[derive(Debug, Clone, PartialEq)]
-pub struct RunResult {
+pub struct BenchmarkRun {
     /// Its settings.
     pub config: RunConfig,
     /// J1-J9 (`None` if the run went unstable).
@@ -132,7 +132,7 @@ pub struct RunResult {
     /// Why the run was stopped, if it was (divergence, stroke).
     pub unstable: Option<String>,
     /// The histories (up to where the run stopped).
-    pub history: History,
+    pub history: BenchmarkHistory,
     /// The ATS coefficients at the end `[a0, a1 (s), a2 (s²)]` (fe-ats).
     pub ats_coefficients: Option<[f64; 3]>,
     /// The rig's identification (the `*-id` controllers).
@@ -306,7 +306,7 @@ fn trained(case: u8, structure: &Structure) -> anyhow::Result<super::meta::Meta>
 }
 
 /// Run one benchmark case.
-pub fn run(cfg: &RunConfig) -> anyhow::Result<RunResult> {
+pub fn run(cfg: &RunConfig) -> anyhow::Result<BenchmarkRun> {
     check_intensity(cfg.intensity)?;
     let structure = super::case_structure(cfg.case)?;
     if structure.dofs() != 3 || structure.specimen_dof() != 0 {
@@ -371,7 +371,7 @@ pub fn run_on(
     structure: &Structure,
     motion: &GroundMotion,
     cfg: &RunConfig,
-) -> anyhow::Result<RunResult> {
+) -> anyhow::Result<BenchmarkRun> {
     check_intensity(cfg.intensity)?;
     check_record(motion)?;
     let ag = motion.scaled(cfg.intensity).resample_mm_s2(BENCHMARK_DT_S);
@@ -445,9 +445,9 @@ pub fn run_on(
     let mut ctl = Controller::new(config, analytical, compensator);
     let dofs = structure.dofs();
     let n = ag.len();
-    let mut h = History {
+    let mut h = BenchmarkHistory {
         floors_mm: (0..dofs).map(|_| Vec::with_capacity(n)).collect(),
-        ..History::default()
+        ..BenchmarkHistory::default()
     };
     let mut unstable = None;
     let mut clipped_force_ticks = 0;
@@ -534,7 +534,7 @@ pub fn run_on(
         ),
         None => None,
     };
-    Ok(RunResult {
+    Ok(BenchmarkRun {
         config: *cfg,
         j2_noise_free_pct,
         criteria,
@@ -554,7 +554,7 @@ pub fn run_on(
 
 /// J1-J9: J1-J5 on the specimen's DOF, J6-J9 on the first two other floors in order (floors 2 and
 /// 3 of the benchmark's frame); NaN where the structure has fewer.
-fn criteria(h: &History, dof: usize) -> anyhow::Result<BenchmarkCriteria> {
+fn criteria(h: &BenchmarkHistory, dof: usize) -> anyhow::Result<BenchmarkCriteria> {
     let others: Vec<usize> = (0..h.floors_mm.len()).filter(|&j| j != dof).collect();
     let pick = |i: usize| others.get(i).copied().unwrap_or(dof);
     let (a, b) = (pick(0), pick(1));

@@ -30,7 +30,7 @@ impl ModelKindArg {
             ModelKindArg::Lr => "lr",
             ModelKindArg::Rnn => "rnn",
             ModelKindArg::Lrx => "lrx",
-            ModelKindArg::Meta => rths_files::structure_meta::KIND,
+            ModelKindArg::Meta => rths_files::structure_meta::META_KIND,
             ModelKindArg::Nonlinear => rths_files::nl_model_file::NL_KIND,
         }
     }
@@ -110,7 +110,7 @@ pub fn check(path: &std::path::Path, kind: Option<ModelKindArg>) -> Result<Strin
             );
             return Ok(s);
         }
-        (Some(crate::model_file::FORMAT), rths_files::structure_meta::KIND) => {
+        (Some(crate::model_file::MODEL_FORMAT), rths_files::structure_meta::META_KIND) => {
             let m = rths_files::structure_meta::MetaFile::from_json(&text)
                 .map_err(|e| reject(e.to_string()))?;
             m.params().map_err(|e| reject(e.to_string()))?;

@@ -11,7 +11,7 @@ use crate::identify::estimate::compensated;
 use crate::identify::excitation::MAX_AMPLITUDE_MM;
 use crate::identify::rig_file::{
     iso8601_utc, ActuatorInfo, CompensationInfo, ExcitationInfo, Provenance, QualityInfo, RigFile,
-    FORMAT, SCHEMA_VERSION,
+    RIG_FORMAT, SCHEMA_VERSION,
 };
 use crate::identify::{self, IdentifyConfig, Outcome};
 
@@ -91,7 +91,7 @@ pub fn rig_file(args: &Args, cfg: &IdentifyConfig, o: &Outcome) -> RigFile {
     let e = &o.excitation;
     let x = &e.config;
     RigFile {
-        format: FORMAT.into(),
+        format: RIG_FORMAT.into(),
         schema_version: SCHEMA_VERSION,
         preset: preset(args.preset).name().into(),
         board: "virtual".into(),

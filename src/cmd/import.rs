@@ -15,12 +15,12 @@ use crate::imported::DofLabel;
 pub struct Args {
     /// What to import from.
     #[command(subcommand)]
-    pub source: Source,
+    pub source: ImportSource,
 }
 
 /// The programs `rths import` reads.
 #[derive(Debug, clap::Subcommand)]
-pub enum Source {
+pub enum ImportSource {
     /// An openseespy model script (run with python3 and openseespy: `RTHS_PYTHON` overrides).
     Opensees(OpenseesArgs),
 }
@@ -74,7 +74,7 @@ fn spinner() -> indicatif::ProgressBar {
 /// Run `rths import`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     match args.source {
-        Source::Opensees(a) => opensees(a),
+        ImportSource::Opensees(a) => opensees(a),
     }
 }
 

@@ -9,7 +9,7 @@ use rths_hal_sim::Preset;
 
 use crate::cmd::plant::PresetArg;
 use crate::nonlinear::model;
-use crate::nonlinear::study::{self, StudyConfig, RECORDS, TARGET_DUCTILITIES};
+use crate::nonlinear::study::{self, NonlinearStudyConfig, RECORDS, TARGET_DUCTILITIES};
 use crate::scenario::ScenarioId;
 use rths_files::nl_model_file::NlModelFile;
 
@@ -163,7 +163,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         Ok(None)
     };
-    let cfg = StudyConfig {
+    let cfg = NonlinearStudyConfig {
         structures,
         models: &models,
         lr: lr.lr,

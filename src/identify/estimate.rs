@@ -86,7 +86,7 @@ pub struct SpecimenFit {
 
 /// Everything identified.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Identification {
+pub struct Characterization {
     /// Measured frequency response at the excited lines.
     pub frf: Vec<FrfLine>,
     /// The actuator's delay: phase delay at low frequency ([`phase_delay_s`]), s.
@@ -450,7 +450,7 @@ pub fn specimen(
 
 /// Identify everything from the measured signals, then check it; a failed check is a refusal
 /// ([`IdentifyError::Refused`]) with the reason.
-pub fn identify(sig: Signals<'_>, design: &Design) -> Result<Identification, IdentifyError> {
+pub fn identify(sig: Signals<'_>, design: &Design) -> Result<Characterization, IdentifyError> {
     let (from, to) = (
         design.window_start,
         design.window_start + design.periods * design.period_ticks,
@@ -536,7 +536,7 @@ pub fn identify(sig: Signals<'_>, design: &Design) -> Result<Identification, Ide
         (tau + lag) / gain,
         (tau * tau / 2.0 + tau * lag) / gain,
     ];
-    Ok(Identification {
+    Ok(Characterization {
         frf,
         delay_s,
         model,

@@ -28,7 +28,7 @@ use rths_core::params::DT_S;
 use rths_core::supervisor::Limits;
 use rths_hal_sim::{FaultPlan, RigConfig, VirtualRig};
 
-pub use estimate::{Design, Identification, Signals};
+pub use estimate::{Characterization, Design, Signals};
 pub use excitation::{Excitation, ExcitationConfig};
 pub use rig_file::RigFile;
 pub use runner::IdentificationRecord;
@@ -115,7 +115,7 @@ pub struct Outcome {
     /// The measured record.
     pub record: IdentificationRecord,
     /// What was identified.
-    pub identification: Identification,
+    pub identification: Characterization,
 }
 
 /// Identify on any rig: generate, run under the paper actuator's limits at the excitation's tick

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use super::estimate::{FrfLine, SpecimenFit};
 
 /// The `format` tag of every rig file.
-pub const FORMAT: &str = "rths-rig";
+pub const RIG_FORMAT: &str = "rths-rig";
 /// The rig-file schema version this code reads and writes.
 pub const SCHEMA_VERSION: u64 = 1;
 
@@ -105,7 +105,7 @@ pub struct Provenance {
 /// A whole rig file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RigFile {
-    /// Always [`FORMAT`].
+    /// Always [`RIG_FORMAT`].
     pub format: String,
     /// Always [`SCHEMA_VERSION`].
     pub schema_version: u64,
@@ -152,7 +152,7 @@ pub enum RigFileError {
     #[error("rig file is not valid JSON of the expected shape: {0}")]
     Json(#[from] serde_json::Error),
     /// Not a rig file.
-    #[error("not a rig file (format `{found}`, expected `{FORMAT}`)")]
+    #[error("not a rig file (format `{found}`, expected `{RIG_FORMAT}`)")]
     UnknownFormat {
         /// The format tag found.
         found: String,
@@ -237,7 +237,7 @@ impl RigFile {
     /// Check tags, shapes, finiteness and physical ranges (refused with the field and the limit,
     /// never clamped), and that it was identified at this build's controller rate.
     pub fn validate(&self) -> Result<(), RigFileError> {
-        if self.format != FORMAT {
+        if self.format != RIG_FORMAT {
             return Err(RigFileError::UnknownFormat {
                 found: self.format.clone(),
             });
@@ -421,7 +421,7 @@ impl RigFile {
     pub fn from_json(text: &str) -> Result<Self, RigFileError> {
         let header: Header = serde_json::from_str(text)?;
         let format = header.format.unwrap_or_default();
-        if format != FORMAT {
+        if format != RIG_FORMAT {
             return Err(RigFileError::UnknownFormat { found: format });
         }
         let version = header.schema_version.unwrap_or(0);

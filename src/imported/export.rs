@@ -10,10 +10,12 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use nalgebra_sparse::io::load_coo_from_matrix_market_file;
-use rths_files::structure_file::{Units, FORMAT};
+use rths_files::structure_file::{Units, STRUCTURE_FORMAT};
 use serde::Deserialize;
 
-use super::file::{DofLabel, ImportedFile, ImportedSpecimen, Source, Triplet, KIND, VERSION};
+use super::file::{
+    DofLabel, ImportedFile, ImportedSpecimen, Source, Triplet, IMPORTED_KIND, IMPORTED_VERSION,
+};
 
 /// The exporter (`scripts/opensees/export_model.py`).
 pub const EXPORTER: &str = include_str!("../../scripts/opensees/export_model.py");
@@ -269,9 +271,9 @@ pub fn read_export(req: &ImportRequest, dir: &Path) -> Result<ImportedFile, Expo
     let damping = read_mtx(&out.join(&m.matrices.damping), n)?;
     let stiffness = read_mtx(&out.join(&m.matrices.stiffness), n)?;
     Ok(ImportedFile {
-        format: FORMAT.to_string(),
-        version: VERSION,
-        kind: KIND.to_string(),
+        format: STRUCTURE_FORMAT.to_string(),
+        version: IMPORTED_VERSION,
+        kind: IMPORTED_KIND.to_string(),
         description: format!(
             "The OpenSees model {script} (rths import opensees: its M, C, K over {n} free DOFs); \
              the specimen is {} kN/mm at {}",

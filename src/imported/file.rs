@@ -36,15 +36,15 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{DMatrix, DVector};
 use nalgebra_sparse::{CooMatrix, CscMatrix};
-use rths_files::structure_file::{Units, FORMAT, SYMMETRY_TOLERANCE};
+use rths_files::structure_file::{Units, STRUCTURE_FORMAT, SYMMETRY_TOLERANCE};
 use serde::{Deserialize, Serialize};
 
 use super::condense::{self, Condensed, FactorError};
 
 /// The version of an imported structure file.
-pub const VERSION: u64 = 2;
+pub const IMPORTED_VERSION: u64 = 2;
 /// The `kind` tag of an imported structure file.
-pub const KIND: &str = "sparse";
+pub const IMPORTED_KIND: &str = "sparse";
 
 /// A DOF of the model: an OpenSees node tag and its DOF (1-based), written `NODE:DOF`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -129,11 +129,11 @@ pub type Triplet = (usize, usize, f64);
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ImportedFile {
-    /// Always `structure_file::FORMAT`.
+    /// Always `structure_file::STRUCTURE_FORMAT`.
     pub format: String,
-    /// Always [`VERSION`].
+    /// Always [`IMPORTED_VERSION`].
     pub version: u64,
-    /// Always [`KIND`].
+    /// Always [`IMPORTED_KIND`].
     pub kind: String,
     /// Short name.
     pub name: String,
@@ -319,7 +319,9 @@ pub fn is_imported(text: &str) -> bool {
         version: Option<u64>,
     }
     serde_json::from_str::<Header>(text)
-        .map(|h| h.format.as_deref() == Some(FORMAT) && h.version == Some(VERSION))
+        .map(|h| {
+            h.format.as_deref() == Some(STRUCTURE_FORMAT) && h.version == Some(IMPORTED_VERSION)
+        })
         .unwrap_or(false)
 }
 
@@ -465,12 +467,12 @@ impl ImportedFile {
             kind: Option<String>,
         }
         let h: Header = serde_json::from_str(text)?;
-        if h.format.as_deref() != Some(FORMAT)
-            || h.version != Some(VERSION)
-            || h.kind.as_deref() != Some(KIND)
+        if h.format.as_deref() != Some(STRUCTURE_FORMAT)
+            || h.version != Some(IMPORTED_VERSION)
+            || h.kind.as_deref() != Some(IMPORTED_KIND)
         {
             return Err(ImportedStructureError::Header(format!(
-                "format {:?}, version {:?}, kind {:?} (expected \"{FORMAT}\", {VERSION}, \"{KIND}\")",
+                "format {:?}, version {:?}, kind {:?} (expected \"{STRUCTURE_FORMAT}\", {IMPORTED_VERSION}, \"{IMPORTED_KIND}\")",
                 h.format, h.version, h.kind
             )));
         }
@@ -750,9 +752,9 @@ mod tests {
     fn file() -> ImportedFile {
         let l = |dof| DofLabel { node: 2, dof };
         ImportedFile {
-            format: FORMAT.to_string(),
-            version: VERSION,
-            kind: KIND.to_string(),
+            format: STRUCTURE_FORMAT.to_string(),
+            version: IMPORTED_VERSION,
+            kind: IMPORTED_KIND.to_string(),
             name: "t".to_string(),
             description: String::new(),
             units: Units::MmKn,

@@ -830,14 +830,14 @@ pub fn run_scenario(
 
 /// A run's series as `rths simulate`'s history (time, ground acceleration, reference, target,
 /// command, measured displacement and force; NaN where the run has none), for its CSV and figure.
-pub fn history(case: &StructureCase, series: &StructureSeries) -> scenario::History {
+pub fn history(case: &StructureCase, series: &StructureSeries) -> scenario::RunHistory {
     let n = series.target_mm.len();
     let or_nan = |v: &[f64]| -> Vec<f64> {
         (0..n)
             .map(|k| v.get(k).copied().unwrap_or(f64::NAN))
             .collect()
     };
-    scenario::History {
+    scenario::RunHistory {
         time_s: (0..n).map(|k| k as f64 * DT_S).collect(),
         ground_accel_mm_s2: case.ground_accel_mm_s2[..n.min(case.ground_accel_mm_s2.len())]
             .to_vec(),

@@ -110,7 +110,7 @@ pub fn scale_for_ductility(
 pub type ModelFactory<'a> = &'a (dyn Fn(&Structure) -> anyhow::Result<Option<Analytical>> + Sync);
 
 /// What the study runs with.
-pub struct StudyConfig<'a> {
+pub struct NonlinearStudyConfig<'a> {
     /// The structures (yielding ones: the shipped three by default).
     pub structures: Vec<Structure>,
     /// The learned models (`nl-*` rows), by structure.
@@ -242,7 +242,7 @@ pub struct StudyReport {
 
 /// Run one row.
 fn row(
-    cfg: &StudyConfig<'_>,
+    cfg: &NonlinearStudyConfig<'_>,
     structure: &Structure,
     comp: &RigCompensation,
     record_name: &str,
@@ -323,7 +323,7 @@ fn row(
 
 /// Run the study (rows in parallel on rayon's pool). Each structure's rig is identified first
 /// ([`super::rig::identify`]); its hybrid runs use that compensation.
-pub fn run(cfg: &StudyConfig<'_>) -> anyhow::Result<StudyReport> {
+pub fn run(cfg: &NonlinearStudyConfig<'_>) -> anyhow::Result<StudyReport> {
     // One bar over the three phases: the rigs, the rows, each record's capacity on each rig.
     let units = cfg.structures.len() * (1 + cfg.records.len() * (cfg.ductilities.len() + 1));
     let bar = crate::progress::bar(units as u64, "rigs, rows and capacities", false);

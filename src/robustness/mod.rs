@@ -48,7 +48,7 @@ const SHIPPED_LR: &str = include_str!("../../data/models/lr.json");
 const MORGAN_HILL_CSV: &str = include_str!("../../data/vrths_benchmark/morgan.csv");
 
 /// The specimen stiffness factors of the linear cases.
-pub const FACTORS: [f64; 3] = [0.7, 1.0, 1.3];
+pub const ROBUSTNESS_FACTORS: [f64; 3] = [0.7, 1.0, 1.3];
 
 /// The controllers compared, in report order: the specimen sweep's `lr-online`, `fe-online-ats`,
 /// `lrx-online`.
@@ -67,9 +67,12 @@ pub mod goals {
     pub const J4_MEDIAN_PCT: f64 = 5.0;
 }
 
-/// The specimen cases: linear at [`FACTORS`], then the default (yielding) Bouc–Wen brace at 1.
+/// The specimen cases: linear at [`ROBUSTNESS_FACTORS`], then the default (yielding) Bouc–Wen brace at 1.
 pub fn cases() -> Vec<(Specimen, f64)> {
-    let mut c: Vec<(Specimen, f64)> = FACTORS.iter().map(|f| (Specimen::Linear, *f)).collect();
+    let mut c: Vec<(Specimen, f64)> = ROBUSTNESS_FACTORS
+        .iter()
+        .map(|f| (Specimen::Linear, *f))
+        .collect();
     c.push((Specimen::BoucWen(BoucWen::default()), 1.0));
     c
 }
@@ -179,12 +182,12 @@ pub struct DrawCase {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub identification_refused: Option<String>,
     /// The runs, record by record, controller by controller.
-    pub runs: Vec<RunResult>,
+    pub runs: Vec<RobustnessRun>,
 }
 
 /// One closed-loop run.
 #[derive(Debug, Clone, Serialize)]
-pub struct RunResult {
+pub struct RobustnessRun {
     /// Record name.
     pub record: String,
     /// Controller (scenario id).
@@ -251,8 +254,8 @@ fn identified(
     ))
 }
 
-fn failed(record: &str, id: ScenarioId, why: String) -> RunResult {
-    RunResult {
+fn failed(record: &str, id: ScenarioId, why: String) -> RobustnessRun {
+    RobustnessRun {
         record: record.to_string(),
         controller: id.to_string(),
         stable: false,
@@ -308,7 +311,7 @@ fn run_job(
                 .then_some(ats_initial)
                 .flatten();
             let r = scenario::report_with_ats_start(&setup, start)?;
-            runs.push(RunResult {
+            runs.push(RobustnessRun {
                 record: rec.name.clone(),
                 controller: r.id,
                 stable: r.stable,

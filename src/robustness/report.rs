@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use serde::Serialize;
 
-use super::{case_label, cases, goals, median, DrawCase, Robustness, RunResult, CONTROLLERS};
+use super::{case_label, cases, goals, median, DrawCase, Robustness, RobustnessRun, CONTROLLERS};
 use crate::scenario::ScenarioId;
 use crate::study::DrawnPlant;
 
@@ -154,7 +154,7 @@ fn runs_of<'a>(
     preset: &'a str,
     case: &'a str,
     id: ScenarioId,
-) -> impl Iterator<Item = &'a RunResult> + 'a {
+) -> impl Iterator<Item = &'a RobustnessRun> + 'a {
     let name = id.to_string();
     r.jobs
         .iter()
@@ -170,8 +170,9 @@ pub fn rows(r: &Robustness) -> Vec<Row> {
         for (spec, f) in cases() {
             let case = case_label(spec, f);
             for id in CONTROLLERS {
-                let runs: Vec<&RunResult> = runs_of(r, preset, &case, id).collect();
-                let stable: Vec<&RunResult> = runs.iter().copied().filter(|x| x.stable).collect();
+                let runs: Vec<&RobustnessRun> = runs_of(r, preset, &case, id).collect();
+                let stable: Vec<&RobustnessRun> =
+                    runs.iter().copied().filter(|x| x.stable).collect();
                 let mut nrmse: Vec<f64> =
                     stable.iter().filter_map(|x| x.nrmse_measured_pct).collect();
                 let mut j4: Vec<f64> = stable.iter().filter_map(|x| x.j4_pct).collect();
@@ -421,7 +422,7 @@ pub fn markdown(r: &Robustness, j: &RobustnessJson<'_>) -> String {
                 .iter()
                 .map(|id| {
                     let name = id.to_string();
-                    let runs: Vec<&RunResult> = r
+                    let runs: Vec<&RobustnessRun> = r
                         .jobs
                         .iter()
                         .filter(|x| &x.preset == preset)

@@ -45,26 +45,26 @@ pub struct ElementOutcome {
 }
 
 /// A client's connection: whole messages in, replies out.
-pub enum Channel {
+pub enum ElementChannel {
     /// TCP: a stream, Nagle off, quick ACKs re-armed after each receive.
     Tcp(TcpStream),
     /// UDP: one datagram per message, to and from the client's address.
     Udp(UdpSocket, SocketAddr),
 }
 
-impl Channel {
+impl ElementChannel {
     /// Exactly `len` bytes (TCP) or one datagram of at most `len + 1` bytes (UDP: longer is
     /// oversized and reported by its length).
     fn recv(&mut self, len: usize) -> std::io::Result<Vec<u8>> {
         match self {
-            Channel::Tcp(s) => {
+            ElementChannel::Tcp(s) => {
                 let mut b = vec![0u8; len];
                 s.read_exact(&mut b)?;
                 // The client leaves Nagle on and waits for ACKs of its no-reply messages.
                 let _ = socket2::SockRef::from(&*s).set_quickack(true);
                 Ok(b)
             }
-            Channel::Udp(s, peer) => loop {
+            ElementChannel::Udp(s, peer) => loop {
                 let mut b = vec![0u8; len + 1];
                 let (got, from) = s.recv_from(&mut b)?;
                 if from != *peer {
@@ -79,15 +79,15 @@ impl Channel {
 
     fn try_clone(&self) -> std::io::Result<Self> {
         Ok(match self {
-            Channel::Tcp(s) => Channel::Tcp(s.try_clone()?),
-            Channel::Udp(s, peer) => Channel::Udp(s.try_clone()?, *peer),
+            ElementChannel::Tcp(s) => ElementChannel::Tcp(s.try_clone()?),
+            ElementChannel::Udp(s, peer) => ElementChannel::Udp(s.try_clone()?, *peer),
         })
     }
 
     fn send(&mut self, bytes: &[u8]) -> std::io::Result<()> {
         match self {
-            Channel::Tcp(s) => s.write_all(bytes),
-            Channel::Udp(s, peer) => s.send_to(bytes, *peer).map(|_| ()),
+            ElementChannel::Tcp(s) => s.write_all(bytes),
+            ElementChannel::Udp(s, peer) => s.send_to(bytes, *peer).map(|_| ()),
         }
     }
 }
@@ -129,7 +129,7 @@ fn deformation(m: &Message) -> f64 {
 }
 
 /// The client's messages, read by their own thread (so that a paced rig ticks while it waits).
-fn reader(mut ch: Channel, len: usize) -> mpsc::Receiver<std::io::Result<Vec<u8>>> {
+fn reader(mut ch: ElementChannel, len: usize) -> mpsc::Receiver<std::io::Result<Vec<u8>>> {
     let (tx, rx) = mpsc::sync_channel(64);
     std::thread::spawn(move || loop {
         let r = ch.recv(len);
@@ -174,7 +174,7 @@ fn next_message(
 
 /// Serve one client on `channel` to its DIE (or a fault): the whole test of one element.
 pub fn serve(
-    mut channel: Channel,
+    mut channel: ElementChannel,
     setup: &ElementSetup,
     exp: &mut dyn Experiment,
 ) -> anyhow::Result<ElementOutcome> {
@@ -352,13 +352,13 @@ pub fn serve(
 }
 
 /// Accept the UDP client: its 'a', our 'b'; then its address is the test's.
-pub fn udp_accept(sock: UdpSocket) -> std::io::Result<Channel> {
+pub fn udp_accept(sock: UdpSocket) -> std::io::Result<ElementChannel> {
     let mut b = [0u8; 64];
     loop {
         let (n, from) = sock.recv_from(&mut b)?;
         if n == 1 && b[0] == b'a' {
             sock.send_to(b"b", from)?;
-            return Ok(Channel::Udp(sock, from));
+            return Ok(ElementChannel::Udp(sock, from));
         }
         eprintln!("site: ignored a {n}-byte datagram from {from} before the client's 'a'");
     }

@@ -153,14 +153,14 @@ fn serve_element(
                         }
                     });
                 }
-                element::serve(element::Channel::Tcp(stream), setup, exp)
+                element::serve(element::ElementChannel::Tcp(stream), setup, exp)
             })();
             (local, "tcp", r)
         }
         Bound::Udp(s) => {
             let r = (|| {
                 let ch = element::udp_accept(s)?;
-                if let element::Channel::Udp(s, _) = &ch {
+                if let element::ElementChannel::Udp(s, _) = &ch {
                     s.set_read_timeout(Some(element::SILENT_CLIENT))?;
                 }
                 element::serve(ch, setup, exp)

@@ -13,7 +13,7 @@ use super::TrainError;
 
 /// The pure response sampled at `k·dt_s`, k = 0..n.
 #[derive(Debug, Clone, PartialEq)]
-pub struct PureResponse {
+pub struct TrainingResponse {
     /// Ground acceleration ü_g, mm/s².
     pub ground_accel_mm_s2: Vec<f64>,
     /// Brace axial deformation d, mm.
@@ -24,7 +24,7 @@ pub struct PureResponse {
     pub dt_s: f64,
 }
 
-impl PureResponse {
+impl TrainingResponse {
     /// Number of steps.
     pub fn len(&self) -> usize {
         self.brace_disp_mm.len()
@@ -41,7 +41,7 @@ pub fn pure_response(
     prototype: &Prototype,
     ground_accel_mm_s2: &[f64],
     dt_s: f64,
-) -> Result<PureResponse, TrainError> {
+) -> Result<TrainingResponse, TrainError> {
     if let Some(i) = ground_accel_mm_s2.iter().position(|a| !a.is_finite()) {
         return Err(TrainError::NonFiniteInput(i));
     }
@@ -58,7 +58,7 @@ pub fn pure_response(
             .map(|&ag| reference.advance(ag)),
     );
     let force = disp.iter().map(|&d| prototype.brace_force_kn(d)).collect();
-    Ok(PureResponse {
+    Ok(TrainingResponse {
         ground_accel_mm_s2: ground_accel_mm_s2.to_vec(),
         brace_disp_mm: disp,
         brace_force_kn: force,

@@ -12,7 +12,7 @@ use rths_core::control::Analytical;
 use rths_core::metamodel::{Lr, LrParams, LR_COEFFS};
 use rths_core::metrics::nrmse_pct;
 
-use super::data::{delayed, PureResponse};
+use super::data::{delayed, TrainingResponse};
 use super::TrainError;
 use super::{lstsq, pure};
 
@@ -123,7 +123,7 @@ pub fn solve(x: &DMatrix<f64>, y: &DVector<f64>, rcond: f64) -> Result<LrSolutio
 
 /// Phase-1 fit: `x_fb(i) = d(i − delay)`, `F_fb(i) = N(i − delay)`, `x̂ = d` (teacher forcing).
 pub fn fit_pure(
-    response: &PureResponse,
+    response: &TrainingResponse,
     delay_steps: usize,
     brace_k_kn_per_mm: f64,
     rcond: f64,
@@ -175,7 +175,7 @@ pub fn pure_prediction(
 /// `lr-pure` NRMSE (%) of `theta` against the pure brace deformation of `response`.
 pub fn lr_pure_nrmse_pct(
     theta: &[f64; LR_COEFFS],
-    response: &PureResponse,
+    response: &TrainingResponse,
     delay_steps: usize,
     brace_k_kn_per_mm: f64,
 ) -> Result<f64, TrainError> {

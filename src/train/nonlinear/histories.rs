@@ -11,7 +11,7 @@
 
 use std::path::Path;
 
-use rths_files::history::{History, OutputDof, RecorderUnits};
+use rths_files::history::{OutputDof, RecorderUnits, TimeHistory};
 use rths_files::structure_file::{Structure, Units};
 
 use super::runs::FeRun;
@@ -28,12 +28,12 @@ pub fn floor_outputs(floors: usize) -> Vec<OutputDof> {
         .collect()
 }
 
-fn source(h: &History) -> String {
+fn source(h: &TimeHistory) -> String {
     h.source.display().to_string()
 }
 
 /// A training run from the history `h` of the story structure `s`.
-pub fn run_from_history(s: &Structure, h: &History) -> Result<FeRun, TrainError> {
+pub fn run_from_history(s: &Structure, h: &TimeHistory) -> Result<FeRun, TrainError> {
     let n = s.dofs();
     let steps = h.len();
     if steps < 3 {
@@ -163,12 +163,12 @@ pub fn read_runs(
 
 /// The history of the FE run `run` of `s` (its linear specimen as the stand-in), every floor an
 /// output.
-pub fn history_of_run(s: &Structure, run: &FeRun, dt_s: f64, source: &Path) -> History {
+pub fn history_of_run(s: &Structure, run: &FeRun, dt_s: f64, source: &Path) -> TimeHistory {
     history_of_floors(s, &run.ground_accel_mm_s2, &run.floor_disp_mm, dt_s, source)
 }
 
 /// The history of rths's FE response `r` of `s`: what `rths analyze --structure --history` writes.
-pub fn history_of_response(s: &Structure, r: &NlResponse, dt_s: f64, source: &Path) -> History {
+pub fn history_of_response(s: &Structure, r: &NlResponse, dt_s: f64, source: &Path) -> TimeHistory {
     let floors: Vec<Vec<f64>> = (0..r.story_drift_mm.len())
         .map(|j| {
             (0..r.time_s.len())
@@ -185,11 +185,11 @@ fn history_of_floors(
     floor_disp_mm: &[Vec<f64>],
     dt_s: f64,
     source: &Path,
-) -> History {
+) -> TimeHistory {
     let sd = s.specimen_dof();
     let k_e = s.specimen().1;
     let interface_mm = floor_disp_mm[sd].clone();
-    History {
+    TimeHistory {
         source: source.to_path_buf(),
         dt_s,
         ground_accel_mm_s2: ground_accel_mm_s2.to_vec(),

@@ -27,7 +27,7 @@ use rand_distr::{Distribution, Normal};
 use rths_core::hysteresis::Law;
 use rths_core::metamodel::{ModalHyst, ModalHystParams, ModalMode};
 use rths_files::nl_model_file::{
-    structure_checksum, ModeSpec, NlModelFile, NlTraining, SpringSpec, StructureId, NL_FORMAT,
+    structure_checksum, ModeSpec, NlModelFile, NlStructureId, NlTraining, SpringSpec, NL_FORMAT,
     NL_KIND, NL_VERSION,
 };
 use rths_files::structure_file::Structure;
@@ -305,7 +305,7 @@ impl Template {
     pub fn file(
         &self,
         th: &[f64],
-        structure: StructureId,
+        structure: NlStructureId,
         dt_s: f64,
         training: NlTraining,
     ) -> Result<NlModelFile, TrainError> {
@@ -520,10 +520,10 @@ pub fn train(
         let initial_loss = loss(&template, &x0, &fit_runs, &fit_daq, cfg.dt_s);
         // Stage 1: each spring on its story's force–drift history, from its random draw.
         for k in 0..springs {
-            let histories: Vec<stage1::History<'_>> = fit_runs
+            let histories: Vec<stage1::StoryHistory<'_>> = fit_runs
                 .iter()
                 .filter_map(|r| {
-                    Some(stage1::History {
+                    Some(stage1::StoryHistory {
                         drift_mm: r.story_drift_mm.get(k)?,
                         force_kn: r.story_force_kn.get(k)?,
                     })
@@ -629,7 +629,7 @@ pub fn train(
     };
     let file = template.file(
         &res.best,
-        StructureId {
+        NlStructureId {
             name: s.name().to_string(),
             checksum,
         },

@@ -123,7 +123,7 @@ pub fn keeps_story_physical(spec: &SpringSpec, k_el_kn_per_mm: f64) -> bool {
 
 /// One story's recorded history: drift (mm) and force (kN), step by step.
 #[derive(Debug, Clone, Copy)]
-pub struct History<'a> {
+pub struct StoryHistory<'a> {
     /// Story drift, mm.
     pub drift_mm: &'a [f64],
     /// Story force, kN.
@@ -137,7 +137,7 @@ pub struct History<'a> {
 /// story has `f(u) + (k_el − k0)·u`, the law's force exactly when `k0 = k_el`. (Fitting `f` alone
 /// let a law outside the model's form trade a stiffer `k0` for a lower `α`, equal for the law,
 /// a negative yielding tangent in the model: its drift grew without bound at high ductility.)
-pub fn force_nrmse_pct(law: Law, k_el_kn_per_mm: f64, h: History<'_>) -> f64 {
+pub fn force_nrmse_pct(law: Law, k_el_kn_per_mm: f64, h: StoryHistory<'_>) -> f64 {
     let mut story = Story::new(law);
     let elastic_gap = k_el_kn_per_mm - law.k0_kn_per_mm();
     let (mut sq, mut peak, mut n) = (0.0, 0.0_f64, 0usize);
@@ -157,7 +157,7 @@ pub fn story_loss(
     k0_base_kn_per_mm: f64,
     fy_base_kn: f64,
     t: &[f64],
-    histories: &[History<'_>],
+    histories: &[StoryHistory<'_>],
 ) -> f64 {
     story_loss_with(law, k0_base_kn_per_mm, fy_base_kn, t, histories, true)
 }
@@ -167,7 +167,7 @@ fn story_loss_with(
     k0_base_kn_per_mm: f64,
     fy_base_kn: f64,
     t: &[f64],
-    histories: &[History<'_>],
+    histories: &[StoryHistory<'_>],
     whole_exponent: bool,
 ) -> f64 {
     let spec = spring_spec_with(
@@ -201,7 +201,7 @@ pub fn fit_spring(
     k0_base_kn_per_mm: f64,
     fy_base_kn: f64,
     t0: &[f64],
-    histories: &[History<'_>],
+    histories: &[StoryHistory<'_>],
     generations: usize,
     population: Option<usize>,
     seed: u64,
@@ -261,7 +261,7 @@ mod tests {
         let drift = drift_history(truth.yield_drift_mm());
         let mut s = Story::new(truth);
         let force: Vec<f64> = drift.iter().map(|d| s.update(*d)).collect();
-        let h = [History {
+        let h = [StoryHistory {
             drift_mm: &drift,
             force_kn: &force,
         }];

@@ -6,12 +6,12 @@ use rths_core::control::Analytical;
 use rths_core::metamodel::{Rnn as CoreRnn, RnnParams};
 use rths_core::metrics::nrmse_pct;
 
-use super::model::{Rnn, N_IN};
-use crate::train::data::PureResponse;
+use super::model::{TrainableRnn, N_IN};
+use crate::train::data::TrainingResponse;
 use crate::train::{pure, TrainError};
 
 /// Run the model over raw inputs from rest; returns `x̂(i+1)` for each input row.
-pub(super) fn run_teacher_forced(model: &Rnn, inputs: &[[f64; N_IN]]) -> Vec<f64> {
+pub(super) fn run_teacher_forced(model: &TrainableRnn, inputs: &[[f64; N_IN]]) -> Vec<f64> {
     let mut h = vec![0.0; model.hidden];
     let mut s = vec![0.0; model.hidden];
     inputs
@@ -25,7 +25,7 @@ pub(super) fn run_teacher_forced(model: &Rnn, inputs: &[[f64; N_IN]]) -> Vec<f64
 /// prediction, zero before the start), no actuator, run by the host's driver
 /// ([`crate::train::pure`]). Returns `x̂(0..n)` with `x̂(0) = 0`.
 pub fn pure_prediction(
-    model: &Rnn,
+    model: &TrainableRnn,
     ground_accel_mm_s2: &[f64],
     delay_steps: usize,
     brace_k_kn_per_mm: f64,
@@ -43,8 +43,8 @@ pub fn pure_prediction(
 
 /// `rnn-pure` NRMSE (%) against the pure brace deformation.
 pub fn rnn_pure_nrmse_pct(
-    model: &Rnn,
-    response: &PureResponse,
+    model: &TrainableRnn,
+    response: &TrainingResponse,
     delay_steps: usize,
     brace_k_kn_per_mm: f64,
 ) -> Result<f64, TrainError> {

@@ -3,7 +3,7 @@
 //!
 //! Initialization (default, [`InitMethod::Arx`]): the linear ARX model of the training response is
 //! identified by least squares (the LR metamodel's fit, [`super::lr::fit_pure`]) and realized as the
-//! RNN in tanh's near-linear range ([`Rnn::from_arx`]). Training from random weights
+//! RNN in tanh's near-linear range ([`TrainableRnn::from_arx`]). Training from random weights
 //! ([`InitMethod::Random`]) learns the one-step map but not the lightly damped 3.4 Hz dynamics at
 //! 2048 Hz, and its `rnn-pure` error is ~64 % (`docs/training.md`).
 //!
@@ -30,7 +30,7 @@ mod optimizer;
 mod train;
 
 pub use eval::{pure_prediction, rnn_pure_nrmse_pct};
-pub use model::{Rnn, RnnInit, Scaling, DEFAULT_ARX_STATE_SCALE, N_IN};
+pub use model::{RnnInit, Scaling, TrainableRnn, DEFAULT_ARX_STATE_SCALE, N_IN};
 pub use train::{model_file, train, InitMethod, RnnConfig, RnnTraining, ARX_FINE_TUNE_EPOCHS};
 
 #[cfg(test)]

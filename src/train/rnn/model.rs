@@ -27,7 +27,7 @@ pub(super) fn mean_std(x: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
     (mean, std)
 }
 
-/// Initial-weight distribution (see [`Rnn::random`]).
+/// Initial-weight distribution (see [`TrainableRnn::random`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RnnInit {
     /// Scale of the input weights.
@@ -56,13 +56,13 @@ pub const DEFAULT_ARX_STATE_SCALE: f64 = 1e-3;
 /// An Elman RNN with its weights in one flat vector
 /// `[w_ih (H×2, row-major), w_hh (H×H, row-major), b_h (H), w_ho (H), b_o]`.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Rnn {
+pub struct TrainableRnn {
     pub(super) hidden: usize,
     pub(super) params: Vec<f64>,
     pub(super) scaling: Scaling,
 }
 
-impl Rnn {
+impl TrainableRnn {
     pub(super) fn n_params(h: usize) -> usize {
         N_IN * h + h * h + h + h + 1
     }

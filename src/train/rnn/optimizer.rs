@@ -1,13 +1,13 @@
 //! The optimizer of the RNN training: Adam, with per-parameter step scales.
 
-use super::model::Rnn;
+use super::model::TrainableRnn;
 
 /// Per-parameter step scales. Adam moves every parameter by about the learning rate whatever its
 /// magnitude; the ARX realization mixes weights of order 1/ε, 1 and ε·1e-4, and its recurrent
 /// weights carry the pole radius 1 − 2e-4 in their fifth digit, so its steps are made relative to
 /// each weight's magnitude (the largest in its group where the weight is zero, times 1e-2).
 /// Without `relative` (random initial weights, all of order 1) every scale is 1.
-pub(super) fn step_scales(model: &Rnn, relative: bool) -> Vec<f64> {
+pub(super) fn step_scales(model: &TrainableRnn, relative: bool) -> Vec<f64> {
     let p = &model.params;
     if !relative {
         return vec![1.0; p.len()];

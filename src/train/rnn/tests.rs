@@ -2,7 +2,7 @@
 //! and the shipped models.
 
 use super::*;
-use crate::train::data::{pure_response, PureResponse};
+use crate::train::data::{pure_response, TrainingResponse};
 use rths_core::metrics::nrmse_pct;
 use rths_core::params::{Prototype, DT_S};
 
@@ -18,7 +18,7 @@ fn scaling() -> Scaling {
 /// The analytic BPTT gradient agrees with central finite differences of the window loss.
 #[test]
 fn gradient_check() {
-    let mut model = Rnn::random(4, scaling(), 11, &RnnInit::default()).unwrap();
+    let mut model = TrainableRnn::random(4, scaling(), 11, &RnnInit::default()).unwrap();
     // Non-zero biases so every term is exercised.
     let (bh, bo) = (model.off_bh(), model.off_bo());
     for j in 0..4 {
@@ -35,7 +35,7 @@ fn gradient_check() {
     let mut inp = inputs.clone();
     model.window_grad(&h0, &mut inp, &targets, &mut grad, &mut hs, None);
     let mut scratch = vec![0.0; model.params.len()];
-    let loss = |m: &Rnn, s: &mut Vec<f64>| {
+    let loss = |m: &TrainableRnn, s: &mut Vec<f64>| {
         let mut hs = Vec::new();
         let mut inp = inputs.clone();
         m.window_grad(&h0, &mut inp, &targets, s, &mut hs, None)
@@ -56,14 +56,14 @@ fn gradient_check() {
 
 #[test]
 fn weights_round_trip_and_physical_step_matches_normalized() {
-    let mut m = Rnn::random(5, scaling(), 2, &RnnInit::default()).unwrap();
+    let mut m = TrainableRnn::random(5, scaling(), 2, &RnnInit::default()).unwrap();
     m.scaling = Scaling {
         input_mean: [1.0, -2.0],
         input_std: [100.0, 3.0],
         output_mean: 0.5,
         output_std: 2.0,
     };
-    let back = Rnn::from_weights(&m.to_weights()).unwrap();
+    let back = TrainableRnn::from_weights(&m.to_weights()).unwrap();
     assert_eq!(back, m);
     let (mut h, mut s) = (vec![0.0; 5], vec![0.0; 5]);
     let x = m.step(&mut h, &mut s, 201.0, 1.0);
@@ -77,7 +77,7 @@ fn weights_round_trip_and_physical_step_matches_normalized() {
 #[test]
 fn bit_identical_to_core_inference() {
     use rths_core::metamodel as core_mm;
-    let mut m = Rnn::random(7, scaling(), 5, &RnnInit::default()).unwrap();
+    let mut m = TrainableRnn::random(7, scaling(), 5, &RnnInit::default()).unwrap();
     m.scaling = Scaling {
         input_mean: [3.0, -40.0],
         input_std: [900.0, 4000.0],
@@ -103,7 +103,7 @@ fn bit_identical_to_core_inference() {
     }
 }
 
-fn short_response() -> PureResponse {
+fn short_response() -> TrainingResponse {
     // The strong first 6 s of El Centro.
     let ag = crate::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     pure_response(&Prototype::paper(), &ag[..6 * 2048], DT_S).unwrap()
@@ -127,7 +127,7 @@ fn training_reduces_validation_loss_and_is_seed_reproducible() {
     assert_ne!(a.model, c.model);
 }
 
-fn el_centro_response() -> PureResponse {
+fn el_centro_response() -> TrainingResponse {
     let ag = crate::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     pure_response(&Prototype::paper(), &ag, DT_S).unwrap()
 }
@@ -149,7 +149,7 @@ fn arx_realization_matches_the_linear_model() {
     };
     let lr_loop = &fit.pure_prediction_mm;
     let err = |eps: f64| {
-        let m = Rnn::from_arx(6, scaling, &fit.solution.theta, k_b, eps, 3).unwrap();
+        let m = TrainableRnn::from_arx(6, scaling, &fit.solution.theta, k_b, eps, 3).unwrap();
         let x = pure_prediction(&m, &r.ground_accel_mm_s2, 28, k_b).unwrap();
         nrmse_pct(&x, lr_loop).unwrap()
     };
@@ -160,7 +160,7 @@ fn arx_realization_matches_the_linear_model() {
         small < dflt / 50.0 && dflt < 0.5,
         "ε=1e-4: {small}%, 1e-3: {dflt}%"
     );
-    assert!(Rnn::from_arx(1, scaling, &fit.solution.theta, k_b, 1e-3, 3).is_err());
+    assert!(TrainableRnn::from_arx(1, scaling, &fit.solution.theta, k_b, 1e-3, 3).is_err());
 }
 
 /// The target: `rnn-pure` (the RNN fed its own prediction 28 steps earlier) on El Centro
@@ -219,7 +219,7 @@ fn shipped_models_meet_paper_in_core_closed_loop() {
         let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
             .join(format!("data/models/rnn-{h}.json"));
         let f = ModelFile::load_kind(&path, ModelKind::Rnn).unwrap();
-        let m = Rnn::from_weights(f.rnn.as_ref().unwrap()).unwrap();
+        let m = TrainableRnn::from_weights(f.rnn.as_ref().unwrap()).unwrap();
         assert_eq!(m.hidden(), h);
         let params = core_mm::RnnParams::new(m.core_weights(), *m.scaling()).unwrap();
         let mut net = core_mm::Rnn::new(params);

@@ -8,10 +8,10 @@ use std::time::Instant;
 use rths_core::metrics::nrmse_pct;
 
 use super::eval::{rnn_pure_nrmse_pct, run_teacher_forced};
-use super::model::{mean_std, Rnn, RnnInit, Scaling, DEFAULT_ARX_STATE_SCALE, N_IN};
+use super::model::{mean_std, RnnInit, Scaling, TrainableRnn, DEFAULT_ARX_STATE_SCALE, N_IN};
 use super::optimizer::{step_scales, Adam};
 use crate::model_file::{ModelFile, Scores, Training};
-use crate::train::data::{delayed, PureResponse};
+use crate::train::data::{delayed, TrainingResponse};
 use crate::train::TrainError;
 
 /// Closed-loop feedback during training: `F_fb(i) = k_b·x̂(i − delay)` from the model's own
@@ -23,7 +23,7 @@ pub(super) struct OwnFeedback<'a> {
     k_b: f64,
 }
 
-impl Rnn {
+impl TrainableRnn {
     /// Loss (mean squared error over the window, normalized units) from initial state `h0`, with its
     /// gradient added to `grad`. `hs` receives the hidden states (the last `H` values are the final
     /// state).
@@ -99,10 +99,10 @@ impl Rnn {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum InitMethod {
     /// Data-driven: the least-squares ARX model of the training response realized as an RNN
-    /// ([`Rnn::from_arx`]), spare units small random.
+    /// ([`TrainableRnn::from_arx`]), spare units small random.
     #[default]
     Arx,
-    /// Seeded random weights ([`Rnn::random`]).
+    /// Seeded random weights ([`TrainableRnn::random`]).
     Random,
 }
 
@@ -134,7 +134,7 @@ pub struct RnnConfig {
     pub init_method: InitMethod,
     /// Random initial weights (with [`InitMethod::Random`]).
     pub init: RnnInit,
-    /// Hidden-state scale ε of the ARX realization (see [`Rnn::from_arx`]).
+    /// Hidden-state scale ε of the ARX realization (see [`TrainableRnn::from_arx`]).
     pub arx_state_scale: f64,
     /// Relative singular-value cut-off of the ARX least squares (see [`crate::train::lr::solve`]).
     pub arx_rcond: f64,
@@ -193,7 +193,7 @@ impl RnnConfig {
 #[derive(Debug, Clone, PartialEq)]
 pub struct RnnTraining {
     /// The best model (lowest validation loss).
-    pub model: Rnn,
+    pub model: TrainableRnn,
     /// Epochs run.
     pub epochs: usize,
     /// Epoch (1-based) of the best validation loss.
@@ -213,7 +213,7 @@ pub struct RnnTraining {
 }
 
 /// Teacher-forced inputs `[ü_g(i), N(i − delay)]` and targets `d(i+1)`, i = 0..n−1 (raw units).
-fn teacher_forced(resp: &PureResponse, delay: usize) -> (Vec<[f64; N_IN]>, Vec<f64>) {
+fn teacher_forced(resp: &TrainingResponse, delay: usize) -> (Vec<[f64; N_IN]>, Vec<f64>) {
     let f_fb = delayed(&resp.brace_force_kn, delay);
     let n = resp.len().saturating_sub(1);
     let inputs = (0..n)
@@ -238,7 +238,7 @@ fn progress(epochs: usize, quiet: bool) -> indicatif::ProgressBar {
 
 /// Train an RNN on the pure response (phase 1, teacher forcing) and score it.
 pub fn train(
-    response: &PureResponse,
+    response: &TrainingResponse,
     brace_k_kn_per_mm: f64,
     cfg: &RnnConfig,
 ) -> Result<RnnTraining, TrainError> {
@@ -277,7 +277,7 @@ pub fn train(
     let targets: Vec<f64> = raw_out.iter().map(|y| (y - mo) / so).collect();
 
     let mut model = match cfg.init_method {
-        InitMethod::Random => Rnn::random(cfg.hidden, scaling, cfg.seed, &cfg.init)?,
+        InitMethod::Random => TrainableRnn::random(cfg.hidden, scaling, cfg.seed, &cfg.init)?,
         InitMethod::Arx => {
             let fit = crate::train::lr::fit_pure(
                 response,
@@ -285,7 +285,7 @@ pub fn train(
                 brace_k_kn_per_mm,
                 cfg.arx_rcond,
             )?;
-            Rnn::from_arx(
+            TrainableRnn::from_arx(
                 cfg.hidden,
                 scaling,
                 &fit.solution.theta,
