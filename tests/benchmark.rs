@@ -4,7 +4,8 @@
 
 use std::path::Path;
 
-use rths::benchmark::run::{check_record, run, run_on, ControllerKind, PlantDraw, RunConfig};
+use rths::benchmark::plant::PlantDraw;
+use rths::benchmark::run::{check_record, run, run_on, ControllerKind, RunConfig};
 use rths::benchmark::{case_structure, BenchmarkRecord};
 use rths::cmd::benchmark::history_columns;
 use rths_core::integrator::{Chang, ExplicitIntegrator};

@@ -7,7 +7,8 @@ use rayon::prelude::*;
 use rths_core::metrics::BenchmarkCriteria;
 
 use super::ident::RigIdentification;
-use super::run::{run, ControllerKind, PlantDraw, RunConfig};
+use super::plant::PlantDraw;
+use super::run::{run, ControllerKind, RunConfig};
 use super::BenchmarkRecord;
 
 /// One case × record of the grid.

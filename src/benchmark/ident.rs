@@ -18,7 +18,7 @@ use rths_core::hal::{Actuator, Daq, Sample};
 use rths_hal_sim::rig::{quantize_bits, SimError};
 use rths_hal_sim::VirtualRig;
 
-use super::run::{plant_params, PlantDraw};
+use super::plant::{plant_params, PlantDraw};
 use super::{ACTUATOR_CAPACITY_N, BENCHMARK_CONVERTER_BITS, BENCHMARK_DT_S};
 use crate::identify::estimate::{lead, lead_residual_pct, SpecimenFit};
 use crate::identify::{identify_rig_with_limits, IdentifyConfig};

@@ -3,6 +3,9 @@
 //! `data/structures/vrths-case1.json` to `-case4.json`), its three records, its plant, sensors and
 //! converters at 4096 Hz, and its criteria J1-J9 (`docs/benchmark.md`).
 //!
+//! - [`plant`]: the benchmark's plant, nominal or drawn, and its sensors.
+//! - [`ident`]: the rig identified through the benchmark's converters (`*-id` controllers).
+//! - [`meta`]: the metamodel of a case's numerical substructure (`meta-*` controllers).
 //! - [`run`]: one run (case × record × plant × controller) and its reference.
 //! - [`grid`]: every case × record on the nominal and the perturbed plants, on every core.
 //!
@@ -12,6 +15,7 @@
 pub mod grid;
 pub mod ident;
 pub mod meta;
+pub mod plant;
 pub mod run;
 
 use anyhow::Context;

@@ -27,14 +27,15 @@ use rths_core::structure::{LinearStructure, Mat};
 use rths_core::structure_n::{ChangN, MAX_DOF};
 use rths_core::supervisor::{Limits, State};
 use rths_files::structure_file::{Structure, SI_TO_MM_KN};
-use rths_hal_sim::{PlantParams, Preset, RigConfig, Sensors, VirtualRig};
+use rths_hal_sim::{PlantParams, VirtualRig};
 
 use crate::motion::GroundMotion;
 
 use super::ident::Converters;
+use super::meta::META_FORCE_CORRECTION;
+use super::plant::{plant_params, PlantDraw};
 use super::{
     noise_sigma, BenchmarkRecord, ACTUATOR_CAPACITY_N, BENCHMARK_DT_S, DISP_NOISE_POWER_M2,
-    FORCE_NOISE_POWER_N2,
 };
 use crate::drive;
 
@@ -78,16 +79,6 @@ impl ControllerKind {
     pub fn identifies(self) -> bool {
         matches!(self, ControllerKind::FeId | ControllerKind::MetaId)
     }
-}
-
-/// The plant of a run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum PlantDraw {
-    /// The nominal benchmark plant (sensor noise seed 0).
-    Nominal,
-    /// The benchmark's uncertainty drawn from this seed (β1, β2, a3, k_e; and the noise).
-    Perturbed(u64),
 }
 
 /// One run's settings.
@@ -154,35 +145,6 @@ pub struct BenchmarkRun {
     pub record_name: String,
     /// J2 of the true (noise-free) displacement, %: how much of J2 is sensor noise (evaluation only).
     pub j2_noise_free_pct: Option<f64>,
-}
-
-/// The benchmark plant of a run at 4096 Hz holding a specimen of stiffness `specimen_kn_per_mm`
-/// (the structure file's; the benchmark's mass and damping ratio), its noise (quantization at 18
-/// bits is the [`Converters`]').
-pub fn plant_params(plant: PlantDraw, specimen_kn_per_mm: f64) -> anyhow::Result<PlantParams> {
-    rig_config(plant, specimen_kn_per_mm)
-        .build()
-        .map_err(|e| anyhow::anyhow!("benchmark plant: {e}"))
-}
-
-/// The configuration of [`plant_params`].
-pub fn rig_config(plant: PlantDraw, specimen_kn_per_mm: f64) -> RigConfig {
-    let mut cfg = RigConfig::new(Preset::Benchmark);
-    cfg.dt_s = BENCHMARK_DT_S;
-    cfg.specimen_stiffness_kn_per_mm = specimen_kn_per_mm;
-    cfg.sensors = Sensors {
-        disp_noise_mm: noise_sigma(DISP_NOISE_POWER_M2, BENCHMARK_DT_S) * 1e3,
-        force_noise_kn: noise_sigma(FORCE_NOISE_POWER_N2, BENCHMARK_DT_S) * 1e-3,
-        quantize: false,
-    };
-    match plant {
-        PlantDraw::Nominal => {}
-        PlantDraw::Perturbed(seed) => {
-            cfg.uncertainty = true;
-            cfg.seed = seed;
-        }
-    }
-    cfg
 }
 
 /// The ATS's starting delay: the nominal plant's phase delay at the structure's second mode (the
@@ -278,13 +240,6 @@ pub fn actuator_limits(specimen_kn_per_mm: f64) -> anyhow::Result<Limits> {
     .and_then(|l| l.with_sensor_noise_mm(noise_sigma(DISP_NOISE_POWER_M2, BENCHMARK_DT_S) * 1e3))
     .map_err(|e| anyhow::anyhow!("the benchmark actuator's limits: {e}"))
 }
-
-/// Fraction of the nominal specimen stiffness used in the metamodel's force correction
-/// `F̃ = F_m + k_c·(d̂ − x_m)`. With the full nominal stiffness the loop grows late in the run on
-/// perturbed plants whose specimen is stiffer than nominal (case 1 El Centro, seeds 1 and 4:
-/// J4 20.4 % and 11.3 %); half of it keeps them at 2.7 % and still beats `fe-ats` on the nominal
-/// plant. Chosen on those two evaluation runs (disclosed in `docs/benchmark.md`), not derived.
-pub const META_FORCE_CORRECTION: f64 = 0.5;
 
 /// The metamodel of case `case` (1..=4), trained once per process.
 fn trained(case: u8, structure: &Structure) -> anyhow::Result<super::meta::Meta> {

@@ -8,9 +8,8 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use crate::benchmark::grid::run_grid;
-use crate::benchmark::run::{
-    run as run_one, run_on, BenchmarkRun, ControllerKind, PlantDraw, RunConfig,
-};
+use crate::benchmark::plant::PlantDraw;
+use crate::benchmark::run::{run as run_one, run_on, BenchmarkRun, ControllerKind, RunConfig};
 use crate::benchmark::{BenchmarkRecord, DEFAULT_INTENSITY, PERTURBED_PLANTS};
 use crate::plot::{self, Panel};
 

@@ -512,7 +512,7 @@ fn train_meta(args: &Args) -> anyhow::Result<()> {
                 .collect(),
             intensity,
             method: "svd-least-squares (column-scaled), delta-form ARX".into(),
-            force_correction_ratio: crate::benchmark::run::META_FORCE_CORRECTION,
+            force_correction_ratio: crate::benchmark::meta::META_FORCE_CORRECTION,
         },
     );
     std::fs::write(&args.out, file.to_json()?)
