@@ -94,7 +94,7 @@ pub fn rig_file(args: &Args, cfg: &IdentifyConfig, o: &Outcome) -> RigFile {
         format: RIG_FORMAT.into(),
         schema_version: SCHEMA_VERSION,
         preset: preset(args.preset).name().into(),
-        board: "virtual".into(),
+        board: crate::identify::rig_file::VIRTUAL_BOARD.into(),
         specimen: specimen(args.specimen).name().into(),
         specimen_stiffness_factor: args.specimen_stiffness_factor,
         seed: args.seed,

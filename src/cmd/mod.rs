@@ -14,6 +14,7 @@ pub mod report;
 pub mod reproduce;
 pub mod robustness;
 pub mod simulate;
+pub mod simulate_args;
 pub mod simulate_imported;
 pub mod simulate_imported_online;
 pub mod site;

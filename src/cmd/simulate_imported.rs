@@ -8,7 +8,7 @@ use std::time::Instant;
 use anyhow::Context;
 use rths_core::params::DT_S;
 
-use crate::cmd::simulate::Args;
+use crate::cmd::simulate_args::Args;
 use crate::imported::fe;
 use crate::imported::reduced::{self, ReducedModelFile};
 use crate::imported::ImportedStructure;

@@ -12,7 +12,8 @@ use rths_hal_sim::Preset;
 use serde::Serialize;
 
 use crate::cmd::plant::{PresetArg, SpecimenArg};
-use crate::cmd::simulate::{check_rig_plant, Args, BOARD};
+use crate::cmd::simulate_args::Args;
+use crate::identify::rig_file::VIRTUAL_BOARD;
 use crate::identify::RigFile;
 use crate::imported::hybrid::{self, Compensation, OnlineScore, ReducedReadOut};
 use crate::imported::reduced::ReducedModelFile;
@@ -117,9 +118,9 @@ pub fn run(
     let comp = match &args.rig {
         Some(p) => {
             let file = RigFile::load(p).with_context(|| format!("rig file {}", p.display()))?;
-            file.check(preset.name(), BOARD)
+            file.check(preset.name(), VIRTUAL_BOARD)
                 .with_context(|| format!("rig file {} refused", p.display()))?;
-            check_rig_plant(&file, &rig_config, factor)
+            file.check_plant(&rig_config, factor)
                 .with_context(|| format!("rig file {} refused", p.display()))?;
             rig::from_rig_file_named(s.name(), &file, &p.display().to_string())?
         }

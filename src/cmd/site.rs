@@ -9,6 +9,7 @@ use rths_core::compensator::LeadParams;
 use rths_hal_sim::{FaultPlan, Specimen};
 
 use crate::cmd::plant::PresetArg;
+use crate::identify::rig_file::VIRTUAL_BOARD;
 use crate::identify::{identify_virtual, IdentifyConfig, RigFile};
 use crate::link_host::{Link, Qemu};
 use crate::site::board::{BoardExperiment, BoardLink};
@@ -16,9 +17,6 @@ use crate::site::element::{median_max, ElementSetup};
 use crate::site::experiment::Experiment;
 use crate::site::virtual_rig::VirtualExperiment;
 use crate::site::{self, SiteConfig};
-
-/// The board of a virtual-rig site.
-const BOARD: &str = "virtual";
 
 /// Arguments of `rths site`.
 #[derive(Debug, clap::Args)]
@@ -183,7 +181,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     "unr-compact" => rths_hal_sim::Preset::UnrCompact,
                     other => anyhow::bail!("rig file {}: unknown preset `{other}`", path.display()),
                 };
-                file.check(preset.name(), BOARD)
+                file.check(preset.name(), VIRTUAL_BOARD)
                     .with_context(|| format!("rig file {} refused", path.display()))?;
                 if file.specimen != "linear" {
                     anyhow::bail!(

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 use rths_core::checksum::{fnv1a64, Fnv1a64Label};
 use rths_core::compensator::{LeadParams, LEAD_MAX_STRIDE, LEAD_TAPS};
+use rths_hal_sim::RigConfig;
 use serde::{Deserialize, Serialize};
 
 use super::estimate::{FrfLine, SpecimenFit};
@@ -16,6 +17,9 @@ use super::estimate::{FrfLine, SpecimenFit};
 pub const RIG_FORMAT: &str = "rths-rig";
 /// The rig-file schema version this code reads and writes.
 pub const SCHEMA_VERSION: u64 = 1;
+/// The `board` of a rig identified on the host's virtual plant (`rths identify`, and what every
+/// host run's plant is: `rths simulate`, `rths site` on the virtual rig).
+pub const VIRTUAL_BOARD: &str = "virtual";
 
 /// The excitation, as played.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -396,6 +400,42 @@ impl RigFile {
         w.copy_from_slice(&self.compensation.lead_weights);
         LeadParams::new(w, self.compensation.lead_stride)
             .map_err(|e| invalid("compensation", format!("{e:?}")))
+    }
+
+    /// Refuse the file if it was identified on another plant than the run's `rig` (configured with specimen
+    /// stiffness factor `factor`): another specimen model or factor, or another draw of the uncertain
+    /// parameters (`--uncertainty`, and its seed). Without a draw the seed sets the sensor noise alone:
+    /// the plant is the same one and its rig file fits. Preset and board: [`Self::check`].
+    pub fn check_plant(&self, rig: &RigConfig, factor: f64) -> anyhow::Result<()> {
+        let run_specimen = rig.specimen.name();
+        if self.specimen != run_specimen {
+            anyhow::bail!(
+                "the rig was identified with the {} specimen, this run has the {run_specimen} one",
+                self.specimen
+            );
+        }
+        let f_file = self.specimen_stiffness_factor;
+        // Both come from the same kind of argument; a relative 1e-9 only absorbs printing round-off.
+        if (f_file - factor).abs() > 1e-9 * factor.abs().max(1.0) {
+            anyhow::bail!(
+                "the rig was identified with specimen stiffness factor {f_file}, this run has {factor}"
+            );
+        }
+        let draw = |u: bool, seed: u64| {
+            if u {
+                format!("the uncertainty draw of seed {seed}")
+            } else {
+                "the nominal plant (no --uncertainty)".to_string()
+            }
+        };
+        if self.uncertainty != rig.uncertainty || (rig.uncertainty && self.seed != rig.seed) {
+            anyhow::bail!(
+                "the rig was identified on {}, this run is on {}: another plant",
+                draw(self.uncertainty, self.seed),
+                draw(rig.uncertainty, rig.seed)
+            );
+        }
+        Ok(())
     }
 
     /// Refuse the file for a run on another preset or board.
