@@ -394,17 +394,40 @@ pub fn handle(
             ticks_per_step,
             lead_weights,
             lead_stride,
-        } => crate::site::begin(
-            ctl,
-            run,
-            s,
-            finished,
-            ticks_per_step,
-            &lead_weights,
-            lead_stride,
-        ),
-        HostMsg::SiteTarget { step, target_mm } => crate::site::target(ctl, s, step, target_mm),
-        HostMsg::SiteEnd { fault } => crate::site::end(ctl, fault),
+        } => {
+            let (may_arm, at_measured) = arm_mode(s, run, finished);
+            crate::site::begin(
+                ctl,
+                run,
+                may_arm,
+                at_measured,
+                ticks_per_step,
+                &lead_weights,
+                lead_stride,
+            )
+            .map(|()| {
+                // The stream restarts at `seq` 0, every tick. A real rig ramps down if the host
+                // falls silent; the emulated board waits for each target (its plant holds), so
+                // its virtual clock is no host's silence.
+                s.identifying = false;
+                s.every = 1;
+                s.seq = 0;
+                s.site_step = 0;
+                s.owner = 0;
+                s.link_loss = match s.rearm {
+                    Rearm::OncePerPowerUp => LinkLoss::Complete,
+                    Rearm::AtMeasured => LinkLoss::RampDown,
+                };
+                Effect::Started
+            })
+        }
+        HostMsg::SiteTarget { step, target_mm } => {
+            crate::site::target(ctl, s.site_step, step, target_mm).map(|()| {
+                s.site_step = s.site_step.wrapping_add(1);
+                Effect::None
+            })
+        }
+        HostMsg::SiteEnd { fault } => crate::site::end(ctl, fault).map(|()| Effect::None),
     };
     match result {
         Ok(e) => (DeviceMsg::Ack(req), e),
@@ -456,11 +479,7 @@ fn identify_request(
     amplitude_mm: f64,
 ) -> Result<Effect, NackReason> {
     let tables = s.excitation.ok_or(NackReason::Unsupported)?;
-    let at_measured = match s.rearm {
-        Rearm::OncePerPowerUp => None,
-        Rearm::AtMeasured => Some(run.last_disp_mm),
-    };
-    let may_arm = !(finished && s.rearm == Rearm::OncePerPowerUp);
+    let (may_arm, at_measured) = arm_mode(s, run, finished);
     let player = crate::identify::begin(ctl, &tables, amplitude_mm, may_arm, at_measured)?;
     s.identifying = true;
     s.every = 1;
@@ -469,6 +488,16 @@ fn identify_request(
     s.owner = 0;
     run.restart();
     Ok(Effect::Identify(player))
+}
+
+/// How a test that starts now is armed: (it may arm: the emulated plant plays once per
+/// power-up, `finished` says it has; the position to arm at: a real rig's measured one, `None`
+/// for the emulated plant's 0).
+fn arm_mode(s: &Session<'_>, run: &Run, finished: bool) -> (bool, Option<f64>) {
+    match s.rearm {
+        Rearm::OncePerPowerUp => (!finished, None),
+        Rearm::AtMeasured => (true, Some(run.last_disp_mm)),
+    }
 }
 
 /// The host counts as lost: the run's policy is [`LinkLoss::RampDown`] and no valid frame came
