@@ -12,7 +12,7 @@ use rths_core::compensator::{LEAD_MAX_STRIDE, LEAD_TAPS};
 use rths_core::filter::{Butterworth, ButterworthParams};
 use rths_core::metrics;
 
-use super::IdentifyError;
+use super::error::IdentifyError;
 
 /// Lines at least this coherent count as well measured.
 pub const COHERENCE_GOOD: f64 = 0.9;

@@ -5,7 +5,7 @@
 pub use rths_core::identify_excitation::{ExcitationConfig, MAX_AMPLITUDE_MM};
 use rths_core::identify_excitation::{Player, StdTables};
 
-use super::IdentifyError;
+use super::error::IdentifyError;
 
 /// The generated excitation.
 #[derive(Debug, Clone, PartialEq)]

@@ -17,6 +17,7 @@
 //!
 //! [`Supervisor`]: rths_core::supervisor::Supervisor
 
+pub mod error;
 pub mod estimate;
 pub mod excitation;
 pub mod figure;
@@ -28,32 +29,11 @@ use rths_core::params::DT_S;
 use rths_core::supervisor::Limits;
 use rths_hal_sim::{FaultPlan, RigConfig, VirtualRig};
 
+pub use error::IdentifyError;
 pub use estimate::{Characterization, Design, Signals};
 pub use excitation::{Excitation, ExcitationConfig};
 pub use rig_file::RigFile;
 pub use runner::IdentificationRecord;
-
-/// Why an identification did not produce a rig file.
-#[derive(Debug, thiserror::Error)]
-pub enum IdentifyError {
-    /// A setting is out of range.
-    #[error("invalid setting: {0}")]
-    Setting(String),
-    /// The supervisor tripped: the excitation was stopped and the actuator ramped to safety.
-    #[error("the supervisor tripped ({reason}) at {time_s:.3} s: excitation stopped")]
-    Tripped {
-        /// The supervisor's fault reason.
-        reason: String,
-        /// Time of the trip, s.
-        time_s: f64,
-    },
-    /// The data do not characterize the rig well enough.
-    #[error("refused: {0}")]
-    Refused(String),
-    /// The virtual plant's configuration is invalid.
-    #[error("invalid plant configuration: {0}")]
-    Plant(String),
-}
 
 /// The settings of one identification.
 #[derive(Debug, Clone, Copy, PartialEq)]

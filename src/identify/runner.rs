@@ -19,8 +19,8 @@ use rths_core::metamodel::Lr;
 use rths_core::params::{Prototype, SpecimenScale};
 use rths_core::supervisor::Limits;
 
+use super::error::IdentifyError;
 use super::excitation::Excitation;
-use super::IdentifyError;
 
 /// What the controller saw during an identification run, one entry per tick.
 #[derive(Debug, Clone, Default, PartialEq)]

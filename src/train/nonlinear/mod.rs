@@ -17,6 +17,7 @@ pub mod eval;
 pub mod histories;
 pub mod modal;
 pub mod runs;
+pub mod spring;
 pub mod stage1;
 
 use std::time::Instant;
@@ -37,6 +38,8 @@ use crate::train::TrainError;
 use daq::ForceDaq;
 use modal::ElasticModes;
 use runs::FeRun;
+pub use spring::SpringLaw;
+use spring::PER_SPRING;
 
 /// The records the nonlinear metamodel is scored on: never trained on (names and file stems,
 /// compared without case).
@@ -55,10 +58,6 @@ pub const DEFAULT_RECORDS: [&str; 2] = ["northridge", "loma-prieta"];
 /// The default peak ductilities of the training runs (FE), per record: elastic to past 5.
 pub const DEFAULT_DUCTILITIES: [f64; 4] = [0.7, 2.0, 4.0, 6.0];
 
-/// θ's numbers per spring (yield force, post-yield ratio, exponent, γ, and one unused since the
-/// spring's `k0` is its story's elastic stiffness: [`stage1::spring_spec`]) and per mode
-/// (frequency and damping scale).
-pub(crate) const PER_SPRING: usize = 5;
 const PER_MODE: usize = 2;
 
 /// Initial CMA-ES step of stage 2 (θ units). Stage 1 has put each spring near its story's law, so
@@ -70,25 +69,6 @@ pub const STAGE2_SIGMA0: f64 = 0.15;
 /// The model file's name of the method: stage 1 (CMA-ES per spring on its story's force–drift
 /// history), then stage 2 (CMA-ES on the whole model's pure loop).
 pub const TRAINING_METHOD: &str = "story-fit+cma-es";
-
-/// The law family of the latent springs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum SpringLaw {
-    /// Bilinear kinematic hardening (sharp yield; cheap: a clamp per tick).
-    Bilinear,
-    /// Bouc–Wen (smooth knee; exponent and shape learned too).
-    BoucWen,
-}
-
-impl SpringLaw {
-    /// The model file's name of the law.
-    pub fn name(self) -> &'static str {
-        match self {
-            SpringLaw::Bilinear => "bilinear",
-            SpringLaw::BoucWen => "bouc-wen",
-        }
-    }
-}
 
 /// How to train.
 #[derive(Debug, Clone)]

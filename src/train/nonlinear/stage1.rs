@@ -13,7 +13,7 @@ use rths_core::hysteresis::{Law, Story, MIN_POST_YIELD_RATIO};
 use rths_files::nl_model_file::SpringSpec;
 
 use super::cmaes::{self, CmaResult};
-use super::{SpringLaw, PER_SPRING};
+use super::spring::{SpringLaw, PER_SPRING};
 
 /// The law is driven along every `STRIDE`-th sample of the recorded drift: the law is
 /// rate-independent, and at 2048 Hz / 4 a 10 Hz drift cycle still has 50 samples, so the loops
