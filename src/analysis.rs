@@ -7,12 +7,14 @@
 
 use std::fmt;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use rths_core::integrator::{ChenRicles, ExplicitIntegrator, Newmark};
-use rths_core::params::{ParamError, Prototype, G_MM_S2};
+use rths_core::params::{Prototype, G_MM_S2};
 use rths_core::reference::Reference;
 use rths_core::structure::{LinearStructure, Vector};
+
+pub use crate::reference::AnalysisError;
 
 /// Header of the CSV written by [`write_csv`].
 pub const ANALYSIS_CSV_HEADER: &str =
@@ -39,37 +41,6 @@ impl fmt::Display for Method {
             Method::Newmark => "Newmark average acceleration",
         })
     }
-}
-
-/// Why an analysis could not run or its result could not be written.
-#[derive(Debug, thiserror::Error)]
-pub enum AnalysisError {
-    /// No ground-acceleration samples.
-    #[error("the ground motion has no samples")]
-    EmptyMotion,
-    /// A ground-acceleration sample is NaN or infinite.
-    #[error("ground acceleration sample {index} is not finite")]
-    NonFiniteMotion {
-        /// Index of the sample.
-        index: usize,
-    },
-    /// Bad model parameters or time step.
-    #[error("model: {0}")]
-    Param(#[from] ParamError),
-    /// The response blew up (NaN or infinity).
-    #[error("the response became non-finite at step {step}")]
-    Diverged {
-        /// The step.
-        step: usize,
-    },
-    /// The CSV could not be written.
-    #[error("cannot write {path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The underlying error.
-        source: std::io::Error,
-    },
 }
 
 /// Time histories of a pure analysis, one entry per step `k` at `t = k·dt_s`.

@@ -516,7 +516,7 @@ impl Bench {
             id,
             ground_accel_mm_s2: &self.ag,
             reference_mm: &self.reference,
-            rig: scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+            rig: crate::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
             stiffness_factor: 1.0,
             lr: Some(self.lr),
             rnn: None,

@@ -15,8 +15,10 @@ use rths_core::metamodel::{LrParams, LrxParams, ModelError, RnnParams};
 use rths_core::metrics;
 use rths_core::model::Model;
 use rths_core::params::{ParamError, Prototype, SpecimenScale, DT_S, PAPER_DELAY_STEPS};
+
+use crate::reference::specimen_prototype;
 use rths_core::supervisor::{Limits, State};
-use rths_hal_sim::{FaultPlan, Preset, RigConfig, Specimen, VirtualRig};
+use rths_hal_sim::{FaultPlan, RigConfig, VirtualRig};
 use serde::Serialize;
 
 use crate::drive;
@@ -674,38 +676,4 @@ fn figures_named(id: String, uses_rig: bool, h: &Series<'_>, stop: Stop) -> Scen
         };
     }
     r
-}
-
-/// The paper's frame with its brace (specimen) stiffness scaled by `factor`, the frame's damping
-/// coefficient c = 1.496 kN·s/mm unchanged: the damping belongs to the analytical substructure,
-/// which does not change when another specimen is installed (the hybrid split computes exactly that
-/// structure). [`Prototype::with_brace_factor`] alone would keep the damping *ratio* at 2% instead,
-/// i.e. give the frame a damping that depends on the specimen (c ∝ √(k_a + F·k_e): −11% at F = 0.6,
-/// +10% at F = 1.4), which no hybrid test of that frame can reproduce.
-pub fn specimen_prototype(factor: f64) -> Result<Prototype, ParamError> {
-    let paper = Prototype::paper();
-    let p = paper.with_brace_factor(factor)?;
-    let zeta = paper.damping_kn_s_per_mm() / (2.0 * p.mass_kn_s2_per_mm() * p.omega_rad_s());
-    Prototype::new(
-        p.mass_kn_s2_per_mm(),
-        p.frame_stiffness_kn_per_mm(),
-        p.brace_axial_stiffness_kn_per_mm(),
-        p.cos_theta() * p.cos_theta(),
-        zeta,
-    )
-}
-
-/// The plant of the study's runs: `preset`, a `specimen` of `stiffness_factor` × the paper's brace at
-/// specimen scale, default sensors, `seed`.
-pub fn rig_config(
-    preset: Preset,
-    specimen: Specimen,
-    stiffness_factor: f64,
-    seed: u64,
-) -> RigConfig {
-    let mut c = RigConfig::new(preset);
-    c.specimen = specimen;
-    c.specimen_stiffness_kn_per_mm *= stiffness_factor;
-    c.seed = seed;
-    c
 }

@@ -125,7 +125,7 @@ pub fn run(ticks: usize, window_ticks: usize, seed: u64) -> Result<SoakReport, F
     let model = ModelFile::from_json(include_str!("../data/models/lr.json"))
         .map_err(|e| FaultsError::Model(e.to_string()))?;
     let lr = crate::models::lr_params(&model).map_err(|e| FaultsError::Model(e.to_string()))?;
-    let rig = scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, seed);
+    let rig = crate::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, seed);
     let noise = (rig.sensors.disp_noise_mm, rig.sensors.force_noise_kn);
     let setup = ScenarioSetup {
         id: ScenarioId::LrOnline,

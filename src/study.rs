@@ -144,7 +144,7 @@ fn setup<'a>(
         id,
         ground_accel_mm_s2: ag,
         reference_mm: reference,
-        rig: scenario::rig_config(cfg.preset, Specimen::Linear, factor, cfg.seed),
+        rig: crate::reference::rig_config(cfg.preset, Specimen::Linear, factor, cfg.seed),
         stiffness_factor: factor,
         lr,
         rnn,

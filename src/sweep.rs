@@ -186,7 +186,7 @@ pub fn run_record(
                         id,
                         ground_accel_mm_s2: &ag,
                         reference_mm: &reference,
-                        rig: scenario::rig_config(preset, spec, f, seed),
+                        rig: crate::reference::rig_config(preset, spec, f, seed),
                         stiffness_factor: f,
                         lr: Some(models.lr),
                         rnn: None,

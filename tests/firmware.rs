@@ -227,7 +227,7 @@ fn host_lr_online_nrmse() -> f64 {
         id: ScenarioId::LrOnline,
         ground_accel_mm_s2: &ag,
         reference_mm: &reference,
-        rig: scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: Some(rths_core::metamodel::LrParams::new(theta).unwrap()),
         rnn: None,
@@ -619,7 +619,7 @@ fn reduced_model_on_the_m7_matches_the_host_tick_by_tick() {
     .unwrap();
     let mut ctl = Controller::new(cfg, analytical, compensator);
     let mut rig = rths_hal_sim::VirtualRig::new(
-        scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
+        rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
             .build()
             .unwrap(),
     );

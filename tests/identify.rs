@@ -9,7 +9,7 @@ use rths::cmd::identify::{run_with_faults, Args};
 use rths::cmd::plant::{PresetArg, SpecimenArg};
 use rths::identify::rig_file::{RigFile, RigFileError};
 use rths::identify::{identify_virtual, IdentifyConfig, IdentifyError, Outcome};
-use rths::scenario::rig_config;
+use rths::reference::rig_config;
 use rths_hal_sim::{BoucWen, Channel, Fault, FaultKind, FaultPlan, Preset, Specimen};
 
 /// Truth and identified figures of one run.

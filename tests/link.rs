@@ -122,7 +122,7 @@ fn setup<'a>(
         ground_accel_mm_s2: ag,
         reference_mm: reference,
         // The qemu board's plant: unr-compact, linear specimen, seed 1.
-        rig: scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: Some(LrParams::from_slice(theta).unwrap()),
         rnn: None,

@@ -212,7 +212,7 @@ fn identify_train_upload_run_and_report_through_the_board() {
         id: ScenarioId::LrxOnline,
         ground_accel_mm_s2: &ag,
         reference_mm: &reference,
-        rig: scenario::rig_config(
+        rig: rths::reference::rig_config(
             rths_hal_sim::Preset::UnrCompact,
             rths_hal_sim::Specimen::Linear,
             1.0,

@@ -184,7 +184,7 @@ fn lrx_firmware_matches_the_host_and_fits_the_budget() {
         id: ScenarioId::LrxOnline,
         ground_accel_mm_s2: &ag,
         reference_mm: &reference,
-        rig: scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: None,
         rnn: None,
@@ -211,7 +211,7 @@ fn lrx_run(
         id: ScenarioId::LrxOnline,
         ground_accel_mm_s2: ag,
         reference_mm: reference,
-        rig: scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: None,
         rnn: None,
@@ -251,7 +251,7 @@ fn residual_at_f1_is_the_specimen_mass_and_damping() {
     let reference = reference_for(&ag, Specimen::Linear, 1.0).unwrap();
     let lead = models::lrx_params(&shipped("lrx.json")).unwrap().1;
     let run = lrx_run(&ag, &reference, lead);
-    let plant = scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
+    let plant = rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
         .build()
         .unwrap();
     // kg → kN·s²/mm is 1e-6, N·s/m → kN·s/mm is 1e-6; force scale 1000.

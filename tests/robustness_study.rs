@@ -92,7 +92,7 @@ fn a_quick_study_has_every_row_and_lists_the_draws() {
         let f = j["stiffness_factor"].as_f64().unwrap();
         let seed = j["seed"].as_u64().unwrap();
         assert!((5..5 + draws as u64).contains(&seed));
-        let mut rig = scenario::rig_config(preset, Specimen::Linear, f, seed);
+        let mut rig = rths::reference::rig_config(preset, Specimen::Linear, f, seed);
         rig.uncertainty = true;
         let d = DrawnPlant::of(&rig, f).unwrap();
         assert_eq!(j["plant"]["beta1"].as_f64().unwrap(), d.beta1);
@@ -140,7 +140,7 @@ fn a_quick_study_has_every_row_and_lists_the_draws() {
     assert!(body.iter().all(|r| r.len() == header.len()));
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
     let first = &body[0];
-    let mut rig = scenario::rig_config(
+    let mut rig = rths::reference::rig_config(
         Preset::UnrCompact,
         Specimen::Linear,
         first[col("stiffness_factor")].parse().unwrap(),
@@ -279,7 +279,7 @@ fn fe_online_ats_starts_from_the_identified_values() {
         .scaled(0.4)
         .resample_mm_s2(DT_S);
     let ag = &ag[..20_000];
-    let rig_cfg = scenario::rig_config(Preset::Benchmark, Specimen::Linear, 1.0, 1);
+    let rig_cfg = rths::reference::rig_config(Preset::Benchmark, Specimen::Linear, 1.0, 1);
     let reference = study::reference_for(ag, Specimen::Linear, 1.0).unwrap();
     let setup = ScenarioSetup {
         id: ScenarioId::FeOnlineAts,

@@ -25,7 +25,7 @@ fn held_out(name: &str) -> (Vec<f64>, f64) {
 }
 
 fn uncertain_rig(seed: u64) -> RigConfig {
-    let mut rig = scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, seed);
+    let mut rig = rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, seed);
     rig.uncertainty = true;
     rig
 }
@@ -56,7 +56,7 @@ fn a_nominal_plant_keeps_its_reference_bit_for_bit() {
         (Specimen::Linear, 0.8),
         (Specimen::BoucWen(BoucWen::default()), 1.0),
     ] {
-        let rig = scenario::rig_config(Preset::UnrCompact, specimen, f, 1);
+        let rig = rths::reference::rig_config(Preset::UnrCompact, specimen, f, 1);
         let (fair, draw) = study::reference_for_rig(&ag, &rig, f).unwrap();
         assert!(!draw.uncertainty);
         assert_eq!(draw.specimen_stiffness_factor.to_bits(), f.to_bits());
@@ -91,7 +91,7 @@ fn the_draw_is_the_plants_and_the_reference_follows_it() {
     assert!((f - plant.specimen_stiffness_n_per_m() / nominal_k).abs() < 1e-12);
     // At F = 0.8 the same seed draws the same offset (σ·z is additive), and the effective factor
     // is the drawn stiffness over the paper's brace.
-    let mut c08 = scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 0.8, 3);
+    let mut c08 = rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 0.8, 3);
     c08.uncertainty = true;
     let d08 = DrawnPlant::of(&c08, 0.8).unwrap();
     let k08 = c08.specimen_stiffness_kn_per_mm * 1e6;

@@ -160,7 +160,7 @@ pub fn run_with_faults(args: &Args, faults: FaultPlan) -> anyhow::Result<RigFile
     }
     let cfg = config(args)?;
     let mut rig =
-        crate::scenario::rig_config(preset(args.preset), specimen(args.specimen), f, args.seed);
+        crate::reference::rig_config(preset(args.preset), specimen(args.specimen), f, args.seed);
     rig.uncertainty = args.uncertainty;
     let o = identify::identify_virtual(&rig, faults, &cfg)
         .context("identification refused, nothing written")?;

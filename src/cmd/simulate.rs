@@ -470,7 +470,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             m.display()
         );
     }
-    let mut rig = scenario::rig_config(preset, specimen, f, args.seed);
+    let mut rig = crate::reference::rig_config(preset, specimen, f, args.seed);
     rig.uncertainty = args.uncertainty;
     rig.drift = rths_hal_sim::Drift::over(args.drift, ag.len() as u64);
     let mut rig_checksum = None;

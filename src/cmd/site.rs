@@ -190,7 +190,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         file.specimen
                     );
                 }
-                let mut rig = crate::scenario::rig_config(
+                let mut rig = crate::reference::rig_config(
                     preset,
                     Specimen::Linear,
                     file.specimen_stiffness_factor,
@@ -209,7 +209,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     PresetArg::Benchmark => rths_hal_sim::Preset::Benchmark,
                     PresetArg::UnrCompact => rths_hal_sim::Preset::UnrCompact,
                 };
-                let rig = crate::scenario::rig_config(preset, Specimen::Linear, 1.0, seed);
+                let rig = crate::reference::rig_config(preset, Specimen::Linear, 1.0, seed);
                 eprintln!(
                     "site: element {}: identifying the {} rig",
                     i + 1,

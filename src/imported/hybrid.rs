@@ -40,7 +40,7 @@ use crate::scenario::{self, ScenarioReport};
 /// structure's band, and whose load cell's noise is 25 times larger against its force.
 pub fn rig_of(preset: Preset, seed: u64, uncertainty: bool) -> (RigConfig, f64) {
     let factor = 1.0;
-    let mut rig = scenario::rig_config(preset, Specimen::Linear, factor, seed);
+    let mut rig = crate::reference::rig_config(preset, Specimen::Linear, factor, seed);
     rig.uncertainty = uncertainty;
     (rig, factor)
 }

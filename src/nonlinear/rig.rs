@@ -38,7 +38,7 @@ pub fn rig_specimen_factor(structure: &Structure) -> f64 {
 /// The virtual plant a structure is tested on: `preset` with the structure's specimen at specimen
 /// scale ([`rig_specimen_factor`]), sensor noise `seed`.
 pub fn structure_rig(structure: &Structure, preset: Preset, seed: u64) -> RigConfig {
-    crate::scenario::rig_config(
+    crate::reference::rig_config(
         preset,
         Specimen::Linear,
         rig_specimen_factor(structure),

@@ -274,7 +274,7 @@ fn run_job(
     lr: rths_core::metamodel::LrParams,
     frame: &ModelFile,
 ) -> anyhow::Result<DrawCase> {
-    let mut rig = scenario::rig_config(preset, specimen, factor, seed);
+    let mut rig = crate::reference::rig_config(preset, specimen, factor, seed);
     rig.uncertainty = true;
     let ident = identified(&rig, frame);
     let lrx_params = match &ident {
@@ -382,7 +382,7 @@ pub fn run(cfg: &RobustnessConfig) -> anyhow::Result<Robustness> {
     // record for every preset and draw keeps the rows comparable.
     let mut planning_delay_s: f64 = 0.0;
     for &p in &cfg.presets {
-        let rig = scenario::rig_config(p, Specimen::Linear, 1.0, cfg.first_seed);
+        let rig = crate::reference::rig_config(p, Specimen::Linear, 1.0, cfg.first_seed);
         let o = identify::identify_virtual(&rig, FaultPlan::none(), &IdentifyConfig::default())
             .map_err(|e| anyhow::anyhow!("identifying the nominal {} rig: {e}", p.name()))?;
         planning_delay_s = planning_delay_s.max(o.identification.delay_s);

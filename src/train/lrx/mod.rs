@@ -326,7 +326,7 @@ fn fit_lead(
     let (mut rows, mut ys) = (Vec::<[f64; LEAD_TAPS]>::new(), Vec::new());
     for ag in ags {
         for &factor in &cfg.lead_factors {
-            let p = crate::scenario::specimen_prototype(factor)?;
+            let p = crate::reference::specimen_prototype(factor)?;
             let cmd: Vec<f64> = super::data::pure_response(&p, ag, DT_S)?
                 .brace_disp_mm
                 .iter()

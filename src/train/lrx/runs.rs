@@ -44,7 +44,7 @@ pub fn frame_run(
 /// Like [`frame_run`], but the reference discretization: the whole structure (frame and a linear
 /// brace of `factor`·k_b) by Newmark's average-acceleration method, with the perturbation as an
 /// external brace force (known at every step, so the implicit method applies); the frame's damping
-/// coefficient is the paper's ([`crate::scenario::specimen_prototype`]). This is the discretization
+/// coefficient is the paper's ([`crate::reference::specimen_prototype`]). This is the discretization
 /// the pure FE reference has (Chang's method equals it when its initial stiffness is the true one;
 /// the hybrid Chang, whose initial stiffness is the paper's brace, departs from it by 3e-3% NRMSE at
 /// F = 0.6 on El Centro, the ARX fitted on these runs by 6e-4%).
@@ -53,7 +53,7 @@ pub fn frame_run_exact(
     factor: f64,
     perturbation_kn: &[f64],
 ) -> Result<(Vec<f64>, Vec<f64>), TrainError> {
-    let proto = crate::scenario::specimen_prototype(factor)?;
+    let proto = crate::reference::specimen_prototype(factor)?;
     let (m, c, k) = (
         proto.mass_kn_s2_per_mm(),
         proto.damping_kn_s_per_mm(),
@@ -115,7 +115,7 @@ pub fn plant_run(
     seed: u64,
     cmd_mm: &[f64],
 ) -> Result<(Vec<f64>, Vec<f64>), TrainError> {
-    let cfg = crate::scenario::rig_config(preset, specimen, factor, seed);
+    let cfg = crate::reference::rig_config(preset, specimen, factor, seed);
     let params = cfg
         .build()
         .map_err(|e| TrainError::Setting(format!("plant: {e}")))?;

@@ -8,7 +8,7 @@ fn trained() -> LrxTraining {
 
 /// The frame model run on its own brace force (no actuator), vs the pure FE response, %.
 fn pure_at(params: LrxParams, ag: &[f64], factor: f64) -> f64 {
-    let proto = crate::scenario::specimen_prototype(factor).unwrap();
+    let proto = crate::reference::specimen_prototype(factor).unwrap();
     let reference = super::super::data::pure_response(&proto, ag, DT_S)
         .unwrap()
         .brace_disp_mm;
@@ -67,14 +67,14 @@ fn lead_filter_inverts_the_plant() {
 }
 
 /// The hybrid split (frame by Chang with its initial stiffness, brace force fed in) equals the pure FE
-/// response of [`crate::scenario::specimen_prototype`] (frame damping coefficient unchanged), not the
+/// response of [`crate::reference::specimen_prototype`] (frame damping coefficient unchanged), not the
 /// one that keeps the damping *ratio* at 2% for every specimen (1% to 3% away at F = 0.6..1.4).
 #[test]
 fn the_hybrid_split_keeps_the_frame_damping_coefficient() {
     let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
     for f in [0.6, 1.4] {
         let (d, _) = frame_run(&ag, f, &[]).unwrap();
-        let same_c = crate::scenario::specimen_prototype(f).unwrap();
+        let same_c = crate::reference::specimen_prototype(f).unwrap();
         let same_zeta = Prototype::paper().with_brace_factor(f).unwrap();
         let r_c = super::super::data::pure_response(&same_c, &ag, DT_S)
             .unwrap()
