@@ -4,8 +4,8 @@
 use std::path::Path;
 use std::process::Command;
 
-use rths::analysis::{pure_response, Method, PureResponse, Summary, ANALYSIS_CSV_HEADER};
-use rths::motion::{parse_at2, GroundMotion};
+use rths::machinery::motion::{parse_at2, GroundMotion};
+use rths::studies::analysis::{pure_response, Method, PureResponse, Summary, ANALYSIS_CSV_HEADER};
 use rths_core::metrics::{nrmse_pct, peak_abs};
 use rths_core::params::{Prototype, DT_S};
 
@@ -209,7 +209,7 @@ fn one_reference_response_for_analysis_trainer_and_firmware() {
     }
     let p = Prototype::paper();
     let analysis = pure_response(&p, &ag, DT_S, Method::Chang).unwrap();
-    let trainer = rths::train::data::pure_response(&p, &ag, DT_S).unwrap();
+    let trainer = rths::machinery::train::data::pure_response(&p, &ag, DT_S).unwrap();
     let mut reference = Reference::new(&p, DT_S, ag[0]).unwrap();
     let per_tick: Vec<f64> = std::iter::once(reference.brace_disp_mm())
         .chain(ag[1..].iter().map(|&a| reference.advance(a)))

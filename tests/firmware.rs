@@ -13,9 +13,9 @@ use std::process::{Command, Stdio};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use rths::analysis::{pure_response, Method};
-use rths::motion::GroundMotion;
-use rths::scenario::{self, ScenarioId, ScenarioSetup};
+use rths::machinery::motion::GroundMotion;
+use rths::studies::analysis::{pure_response, Method};
+use rths::studies::scenario::{self, ScenarioId, ScenarioSetup};
 use rths_core::params::{Prototype, DT_S};
 use rths_hal_sim::{Preset, Specimen};
 
@@ -221,13 +221,13 @@ fn host_lr_online_nrmse() -> f64 {
         .unwrap()
         .brace_disp_mm;
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json");
-    let model = rths::model_file::ModelFile::load(&path).unwrap();
+    let model = rths::machinery::model_file::ModelFile::load(&path).unwrap();
     let theta: [f64; 6] = model.lr.as_ref().unwrap().theta.clone().try_into().unwrap();
     let setup = ScenarioSetup {
         id: ScenarioId::LrOnline,
         ground_accel_mm_s2: &ag,
         reference_mm: &reference,
-        rig: rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: Some(rths_core::metamodel::LrParams::new(theta).unwrap()),
         rnn: None,
@@ -475,8 +475,8 @@ fn fault_matrix_subset_in_qemu_matches_the_host() {
     if qemu_missing("firmware-in-the-loop test") {
         return;
     }
-    let bench = rths::faults::Bench::el_centro().unwrap();
-    let cases = rths::faults::cases().unwrap();
+    let bench = rths::studies::faults::Bench::el_centro().unwrap();
+    let cases = rths::studies::faults::cases().unwrap();
     let lim = rths_core::supervisor::Limits::paper_actuator();
     for (spec, host_name) in [
         ("dropout@10+7", "dropout 7 ticks"),
@@ -529,7 +529,7 @@ fn fault_matrix_subset_in_qemu_matches_the_host() {
 
 /// An imported OpenSees frame's reduced-order model on the emulated Cortex-M7 against the emulated
 /// plant (`structure-meta` with an `rths-reduced-model` file) and the host's run of the same
-/// controller (`rths::drive`, the same `VirtualRig` and seed, the same El Centro ticks): the
+/// controller (`rths::machinery::drive`, the same `VirtualRig` and seed, the same El Centro ticks): the
 /// command of every tick of the record, bit for bit (the RESULT line's `command_fnv` against the
 /// host's, both through `rths_app::run::Run`), and the same trip, if any, at the same tick.
 #[test]
@@ -538,8 +538,8 @@ fn fault_matrix_subset_in_qemu_matches_the_host() {
     ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
 )]
 fn reduced_model_on_the_m7_matches_the_host_tick_by_tick() {
-    use rths::imported::reduced::{self, ReducedModelFile};
-    use rths::imported::ImportedStructure;
+    use rths::machinery::imported::reduced::{self, ReducedModelFile};
+    use rths::machinery::imported::ImportedStructure;
     use rths_app::run::{Run, TickFacts};
     use rths_core::control::{ControlConfig, Controller, FeedbackSource};
     use rths_core::model::{assemble, ModelSpec};
@@ -619,13 +619,13 @@ fn reduced_model_on_the_m7_matches_the_host_tick_by_tick() {
     .unwrap();
     let mut ctl = Controller::new(cfg, analytical, compensator);
     let mut rig = rths_hal_sim::VirtualRig::new(
-        rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
+        rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
             .build()
             .unwrap(),
     );
     let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
     let mut run = Run::new();
-    rths::drive::run(&mut ctl, Some(&mut rig), &ag, None, DT_S, |st, _, _| {
+    rths::machinery::drive::run(&mut ctl, Some(&mut rig), &ag, None, DT_S, |st, _, _| {
         let notify = run.after_tick(&TickFacts {
             k: st.k as u32,
             counted: true,

@@ -14,10 +14,10 @@ use std::process::Command;
 use std::time::Duration;
 
 use rths::link_host::{upload_message, LinkHostError, Qemu};
-use rths::model_file::ModelFile;
-use rths::scenario::{self, ScenarioId, ScenarioRun, ScenarioSetup};
-use rths::study;
-use rths::train::{data, lr};
+use rths::machinery::model_file::ModelFile;
+use rths::machinery::train::{data, lr};
+use rths::studies::scenario::{self, ScenarioId, ScenarioRun, ScenarioSetup};
+use rths::studies::study;
 use rths_core::metamodel::LrParams;
 use rths_core::params::{Prototype, DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{Preset, Specimen};
@@ -83,7 +83,7 @@ struct Trained {
 
 /// The paper's two-phase LR training, from scratch (as `rths reproduce` does it).
 fn train() -> Trained {
-    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let ag = rths::machinery::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     let proto = Prototype::paper();
     let reference = study::reference_mm(&ag, 1.0).unwrap();
     let resp = data::pure_response(&proto, &ag, DT_S).unwrap();
@@ -122,7 +122,7 @@ fn setup<'a>(
         ground_accel_mm_s2: ag,
         reference_mm: reference,
         // The qemu board's plant: unr-compact, linear specimen, seed 1.
-        rig: rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: Some(LrParams::from_slice(theta).unwrap()),
         rnn: None,
@@ -562,7 +562,7 @@ fn bad_record_uploads_are_refused_with_their_reason_and_the_record_in_force_stay
 
     // Boot: the compiled-in El Centro, the host's embedded one bit for bit.
     let s0 = link.status().unwrap();
-    let el = rths::motion::GroundMotion::el_centro();
+    let el = rths::machinery::motion::GroundMotion::el_centro();
     assert_eq!(s0.record.source, RecordSource::Compiled);
     assert_eq!(
         s0.record.checksum,
@@ -578,7 +578,7 @@ fn bad_record_uploads_are_refused_with_their_reason_and_the_record_in_force_stay
     );
 
     // A good upload first (Northridge × 0.5): in force, and reported.
-    let nr = rths::motion::GroundMotion::try_embedded("northridge")
+    let nr = rths::machinery::motion::GroundMotion::try_embedded("northridge")
         .unwrap()
         .scaled(0.5);
     let c = link.upload_record(&nr.accel_g, nr.dt_s, 0.5).unwrap();
@@ -596,7 +596,7 @@ fn bad_record_uploads_are_refused_with_their_reason_and_the_record_in_force_stay
         unreachable!()
     };
     // Too long for memory: Loma Prieta's 7998 samples.
-    let lp = rths::motion::GroundMotion::try_embedded("loma-prieta").unwrap();
+    let lp = rths::machinery::motion::GroundMotion::try_embedded("loma-prieta").unwrap();
     let lp_begin = rths::link_host::record_messages(&lp.accel_g, lp.dt_s, 1.0).unwrap()[0];
     assert_eq!(refusal(link, &lp_begin), Some(NackReason::TooLong));
     // Wrong rates: 0.5 s (a unit mistake), 0.1 ms (faster than the controller), NaN.
@@ -709,7 +709,7 @@ fn cli_link_run(elf: &Path, dir: &Path, csv_motion: &Path, run_csv: &Path) -> St
 /// The recording's commands, bit for bit, against the host simulation of the same record (as the
 /// CSV file reads back) × 0.5 with the compiled-in model (data/models/lr.json).
 fn assert_lr_commands_equal_the_host(rec: &rths::link_host::Recording, csv_motion: &Path) {
-    let motion = rths::motion::GroundMotion::from_path(csv_motion)
+    let motion = rths::machinery::motion::GroundMotion::from_path(csv_motion)
         .unwrap()
         .scaled(0.5);
     let ag = motion.resample_mm_s2(DT_S);
@@ -767,7 +767,7 @@ fn a_csv_record_uploaded_run_and_reported_equals_the_host_simulation() {
     let exe = env!("CARGO_BIN_EXE_rths");
     let dir = tempfile::tempdir().unwrap();
     let csv_motion = dir.path().join("northridge.csv");
-    let nr = rths::motion::GroundMotion::try_embedded("northridge").unwrap();
+    let nr = rths::machinery::motion::GroundMotion::try_embedded("northridge").unwrap();
     std::fs::write(&csv_motion, nr.to_csv()).unwrap();
     let run_csv = dir.path().join("run.csv");
     cli_link_run(&elf, dir.path(), &csv_motion, &run_csv);
@@ -951,11 +951,11 @@ fn an_lrx_model_uploaded_to_the_lr_image_runs_as_the_host_simulates_it() {
     assert!(summary.complete(), "lost telemetry: {summary:?}");
     let rows = read_csv(&csv);
 
-    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let ag = rths::machinery::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     let reference = study::reference_mm(&ag, 1.0).unwrap();
     let mut st = setup(ScenarioId::LrxOnline, &ag, &reference, &[0.0; 6]);
     st.lr = None;
-    st.lrx = Some(rths::models::lrx_params(&other).unwrap());
+    st.lrx = Some(rths::machinery::models::lrx_params(&other).unwrap());
     st.delay_steps = other.delay_steps;
     let host = scenario::run(&st).unwrap();
     let mut identical = 0;
@@ -1239,11 +1239,11 @@ fn an_rnn_of_another_size_uploaded_to_the_rnn_image_runs_as_the_host_simulates_i
     assert_eq!(refusal(link, &msgs[0]), Some(NackReason::Busy));
     let rows = record_run(link, &dir.path().join("run.csv"));
 
-    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let ag = rths::machinery::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     let reference = study::reference_mm(&ag, 1.0).unwrap();
     let mut st = setup(ScenarioId::RnnOnline(5), &ag, &reference, &[0.0; 6]);
     st.lr = None;
-    st.rnn = Some(rths::models::rnn_params(&five).unwrap());
+    st.rnn = Some(rths::machinery::models::rnn_params(&five).unwrap());
     st.delay_steps = five.delay_steps;
     let host = scenario::run(&st).unwrap();
     assert_bit_identical(
@@ -1351,7 +1351,7 @@ fn a_rig_compensation_uploaded_to_the_fe_ats_build_runs_as_the_host_simulates_it
     assert_eq!(refused(link, K::FeAts, &paper), NackReason::Busy);
     let rows = record_run(link, &dir.path().join("run.csv"));
 
-    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let ag = rths::machinery::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     let reference = study::reference_mm(&ag, 1.0).unwrap();
     let st = setup(ScenarioId::FeOnlineAts, &ag, &reference, &[0.0; 6]);
     let host = scenario::run_with_ats_start(&st, Some(initial)).unwrap();
@@ -1405,7 +1405,7 @@ fn the_lr_image_made_fe_ats_at_run_time_runs_as_the_host_simulates_it() {
     link.start().unwrap();
     let rows = record_run(link, &dir.path().join("run.csv"));
 
-    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let ag = rths::machinery::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     let reference = study::reference_mm(&ag, 1.0).unwrap();
     let st = setup(ScenarioId::FeOnlineAts, &ag, &reference, &[0.0; 6]);
     let host = scenario::run_with_ats_start(&st, None).unwrap();
@@ -1427,8 +1427,8 @@ fn the_lr_image_made_fe_ats_at_run_time_runs_as_the_host_simulates_it() {
 }
 
 /// The first `samples` samples of El Centro at `dt_s` (linear between its 20 ms samples).
-fn el_centro_at(dt_s: f64, samples: usize) -> rths::motion::GroundMotion {
-    let el = rths::motion::GroundMotion::el_centro();
+fn el_centro_at(dt_s: f64, samples: usize) -> rths::machinery::motion::GroundMotion {
+    let el = rths::machinery::motion::GroundMotion::el_centro();
     let accel_g = (0..samples)
         .map(|i| {
             let pos = i as f64 * dt_s / el.dt_s;
@@ -1437,7 +1437,7 @@ fn el_centro_at(dt_s: f64, samples: usize) -> rths::motion::GroundMotion {
             el.accel_g[j] + f * (el.accel_g[j + 1] - el.accel_g[j])
         })
         .collect();
-    rths::motion::GroundMotion {
+    rths::machinery::motion::GroundMotion {
         name: format!("el-centro-{samples}-at-{dt_s}"),
         dt_s,
         accel_g,
@@ -1463,7 +1463,7 @@ fn a_record_longer_than_the_boards_memory_is_streamed_and_every_command_equals_t
     // 34 s at 250 Hz: 8,501 samples, more than the board's whole record memory (64 KiB: 8,192
     // samples; an upload holds 4,096).
     std::fs::write(&csv_motion, el_centro_at(0.004, 8501).to_csv()).unwrap();
-    let motion = rths::motion::GroundMotion::from_path(&csv_motion)
+    let motion = rths::machinery::motion::GroundMotion::from_path(&csv_motion)
         .unwrap()
         .scaled(0.5);
     assert!(

@@ -198,21 +198,21 @@ fn identify_train_upload_run_and_report_through_the_board() {
     // 4. The commands, bit for bit, against the host simulation of the same rig (the emulated
     // board's plant: unr-compact, linear, seed 1), record (as the CSV file reads back), scale and
     // model: what `rths simulate` runs (its history.csv rounds to 1e-6 mm, so compare in process).
-    use rths::scenario::{self, ScenarioId, ScenarioSetup};
+    use rths::studies::scenario::{self, ScenarioId, ScenarioSetup};
     let rec = rths::link_host::read_recording(&std::fs::read_to_string(d.join("run.csv")).unwrap())
         .unwrap();
     assert_eq!(rec.header.get("scenario"), Some("lrx-online"));
-    let model = rths::model_file::ModelFile::load(&d.join("lrx.json")).unwrap();
-    let ag = rths::motion::GroundMotion::from_path(&d.join(motion))
+    let model = rths::machinery::model_file::ModelFile::load(&d.join("lrx.json")).unwrap();
+    let ag = rths::machinery::motion::GroundMotion::from_path(&d.join(motion))
         .unwrap()
         .scaled(0.5)
         .resample_mm_s2(rths_core::params::DT_S);
-    let reference = rths::study::reference_mm(&ag, 1.0).unwrap();
+    let reference = rths::studies::study::reference_mm(&ag, 1.0).unwrap();
     let host = scenario::run(&ScenarioSetup {
         id: ScenarioId::LrxOnline,
         ground_accel_mm_s2: &ag,
         reference_mm: &reference,
-        rig: rths::reference::rig_config(
+        rig: rths::machinery::reference::rig_config(
             rths_hal_sim::Preset::UnrCompact,
             rths_hal_sim::Specimen::Linear,
             1.0,
@@ -221,7 +221,7 @@ fn identify_train_upload_run_and_report_through_the_board() {
         stiffness_factor: 1.0,
         lr: None,
         rnn: None,
-        lrx: Some(rths::models::lrx_params(&model).unwrap()),
+        lrx: Some(rths::machinery::models::lrx_params(&model).unwrap()),
         delay_steps: model.delay_steps,
     })
     .unwrap();

@@ -8,12 +8,12 @@ use common::*;
 use std::path::Path;
 use std::process::Command;
 
-use rths::model_file::ModelFile;
-use rths::models;
-use rths::motion::GroundMotion;
-use rths::scenario::{self, ScenarioId, ScenarioSetup};
-use rths::study::reference_for;
-use rths::sweep::{self, RecordSweep, SweepModels};
+use rths::machinery::model_file::ModelFile;
+use rths::machinery::models;
+use rths::machinery::motion::GroundMotion;
+use rths::studies::scenario::{self, ScenarioId, ScenarioSetup};
+use rths::studies::study::reference_for;
+use rths::studies::sweep::{self, RecordSweep, SweepModels};
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{Preset, Specimen};
 
@@ -184,7 +184,7 @@ fn lrx_firmware_matches_the_host_and_fits_the_budget() {
         id: ScenarioId::LrxOnline,
         ground_accel_mm_s2: &ag,
         reference_mm: &reference,
-        rig: rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: None,
         rnn: None,
@@ -211,7 +211,7 @@ fn lrx_run(
         id: ScenarioId::LrxOnline,
         ground_accel_mm_s2: ag,
         reference_mm: reference,
-        rig: rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: None,
         rnn: None,
@@ -251,9 +251,10 @@ fn residual_at_f1_is_the_specimen_mass_and_damping() {
     let reference = reference_for(&ag, Specimen::Linear, 1.0).unwrap();
     let lead = models::lrx_params(&shipped("lrx.json")).unwrap().1;
     let run = lrx_run(&ag, &reference, lead);
-    let plant = rths::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
-        .build()
-        .unwrap();
+    let plant =
+        rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
+            .build()
+            .unwrap();
     // kg → kN·s²/mm is 1e-6, N·s/m → kN·s/mm is 1e-6; force scale 1000.
     let (m_s, c_s) = (
         plant.specimen_mass_kg() * 1e-3,

@@ -7,12 +7,12 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use rths::imported::export;
-use rths::motion::GroundMotion;
-use rths::nonlinear::{drift_nrmse_pct, elastic_drifts, fe_reference};
-use rths::train::nonlinear::histories::{history_of_run, read_runs};
-use rths::train::nonlinear::runs::fe_run;
-use rths::train::nonlinear::{eval, train, NlTrainConfig, SpringLaw};
+use rths::machinery::imported::export;
+use rths::machinery::motion::GroundMotion;
+use rths::machinery::structure::{drift_nrmse_pct, elastic_drifts, fe_reference};
+use rths::machinery::train::nonlinear::histories::{history_of_run, read_runs};
+use rths::machinery::train::nonlinear::runs::fe_run;
+use rths::machinery::train::nonlinear::{eval, train, NlTrainConfig, SpringLaw};
 use rths_core::params::DT_S;
 use rths_files::history::RecorderUnits;
 use rths_files::structure_file::Structure;
@@ -203,7 +203,7 @@ fn opensees_histories_train_a_model_scored_against_opensees_s_own_held_out_run()
     let run = &read_runs(&s, &[held.as_path()], RecorderUnits::MM_KN, DT_S).unwrap()[0];
     let row = eval::evaluate_run(&t.file, &s, run, DT_S).unwrap();
     // The linear path: the elastic structure's own response to the same record.
-    let input = rths::nonlinear::NlResponse {
+    let input = rths::machinery::structure::NlResponse {
         time_s: (0..run.ground_accel_mm_s2.len())
             .map(|k| k as f64 * DT_S)
             .collect(),

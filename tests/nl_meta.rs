@@ -5,10 +5,10 @@
 
 use std::path::Path;
 
-use rths::motion::GroundMotion;
-use rths::nonlinear::{drift_nrmse_pct, elastic_drifts, fe_reference};
-use rths::train::nonlinear::runs::{fe_run, pure_loop};
-use rths::train::nonlinear::{eval, modal, train, NlTrainConfig, SpringLaw};
+use rths::machinery::motion::GroundMotion;
+use rths::machinery::structure::{drift_nrmse_pct, elastic_drifts, fe_reference};
+use rths::machinery::train::nonlinear::runs::{fe_run, pure_loop};
+use rths::machinery::train::nonlinear::{eval, modal, train, NlTrainConfig, SpringLaw};
 use rths_core::metamodel::ModalHyst;
 use rths_core::params::DT_S;
 use rths_files::nl_model_file::{

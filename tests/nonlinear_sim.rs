@@ -6,10 +6,12 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use rths::nonlinear::rig::ForceCorrection;
-use rths::nonlinear::scenario::{numerical_fe, run_pure, score, SimScenario, StructureCase};
-use rths::nonlinear::study::{self, NonlinearStudyConfig};
-use rths::scenario::ScenarioId;
+use rths::machinery::structure::rig::ForceCorrection;
+use rths::studies::nonlinear::scenario::{
+    numerical_fe, run_pure, score, SimScenario, StructureCase,
+};
+use rths::studies::nonlinear::study::{self, NonlinearStudyConfig};
+use rths::studies::scenario::ScenarioId;
 use rths_core::control::Analytical;
 use rths_core::params::DT_S;
 use rths_files::structure_file::Structure;
@@ -307,7 +309,7 @@ fn a_small_study_scores_every_applicable_scenario() {
             "lrx-online"
         ]
     );
-    let nrmse = |id: &str, key: fn(&rths::scenario::ScenarioReport) -> Option<f64>| {
+    let nrmse = |id: &str, key: fn(&rths::studies::scenario::ScenarioReport) -> Option<f64>| {
         key(&row.runs.iter().find(|x| x.report.id == id).unwrap().report)
     };
     assert!(nrmse("fe-pure", |r| r.nrmse_pct).unwrap() < 1e-9);
@@ -339,8 +341,8 @@ fn a_small_study_scores_every_applicable_scenario() {
 
 #[test]
 fn the_structure_loop_is_the_controllers_loop() {
-    use rths::nonlinear::scenario::{paper_ats, run_hybrid, CompensatorTarget};
-    use rths::scenario::{self, ScenarioSetup};
+    use rths::studies::nonlinear::scenario::{paper_ats, run_hybrid, CompensatorTarget};
+    use rths::studies::scenario::{self, ScenarioSetup};
     // The paper's linear frame through the structure loop (ChangN of the file, the ATS, the
     // supervisor, the same rig) against `rths simulate`'s fe-online-ats (the core controller with
     // its SDOF FE): the same tick, so the same run up to the integrators' round-off.
@@ -360,7 +362,8 @@ fn the_structure_loop_is_the_controllers_loop() {
     )
     .unwrap();
     assert!(stop.is_none());
-    let reference = rths::study::reference_for(&ag, rths_hal_sim::Specimen::Linear, 1.0).unwrap();
+    let reference =
+        rths::studies::study::reference_for(&ag, rths_hal_sim::Specimen::Linear, 1.0).unwrap();
     let setup = ScenarioSetup {
         id: ScenarioId::FeOnlineAts,
         ground_accel_mm_s2: &ag,
@@ -506,7 +509,7 @@ fn a_ductility_4_record_beyond_the_stroke_runs_at_length_scale_2() {
 
 #[test]
 fn the_rig_at_the_models_current_displacement_removes_the_one_tick_lead() {
-    use rths::nonlinear::scenario::{paper_ats, run_hybrid, CompensatorTarget};
+    use rths::studies::nonlinear::scenario::{paper_ats, run_hybrid, CompensatorTarget};
     // Kobe × 0.576 on the yielding paper frame (peak ductility 1.99): the compensator given d_{k+1}
     // (the core controller's tick) brings the rig there one tick before the model reads its
     // force, which damps the response; given d_k it does not.
@@ -550,7 +553,7 @@ fn the_rig_at_the_models_current_displacement_removes_the_one_tick_lead() {
         assert!((a - b).abs() < 0.005, "{timing:?}: {a} noisy, {b} ideal");
     }
     let mu_ref = current.peak_ductility.unwrap();
-    let low = |f: &rths::nonlinear::scenario::StructureFigures| {
+    let low = |f: &rths::studies::nonlinear::scenario::StructureFigures| {
         1.0 - f.peak_ductility_model.unwrap() / mu_ref
     };
     // Measured: 3.3 % low and 74 % residual error (d_{k+1}); 0.0 % and 6.5 % (d_k).
@@ -565,7 +568,7 @@ fn the_rig_at_the_models_current_displacement_removes_the_one_tick_lead() {
 
 #[test]
 fn the_test_plan_picks_the_smallest_length_scale_that_fits() {
-    use rths::nonlinear::scenario::{rig_demand, LengthScale};
+    use rths::studies::nonlinear::scenario::{rig_demand, LengthScale};
     use rths_core::supervisor::Limits;
     let s = Structure::load(&root(YIELDING)).unwrap();
     let lim = Limits::paper_actuator();
@@ -593,9 +596,9 @@ fn the_test_plan_picks_the_smallest_length_scale_that_fits() {
 
 #[test]
 fn the_learned_model_in_the_loop_needs_the_force_at_its_own_displacement() {
-    use rths::nonlinear::model;
-    use rths::nonlinear::rig;
-    use rths::nonlinear::scenario::{run_hybrid, CompensatorTarget};
+    use rths::machinery::structure::model;
+    use rths::machinery::structure::rig;
+    use rths::studies::nonlinear::scenario::{run_hybrid, CompensatorTarget};
     use rths_core::compensator::{Compensator, Lead};
     // Kobe × 0.576 on the yielding paper frame (peak ductility 1.99), the learned model behind the
     // lead identified on this rig: fed the measured force as is, the rig's tracking error enters

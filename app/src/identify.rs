@@ -12,7 +12,7 @@
 //! [`Player`] applies the envelope, scale and slew limit per tick.
 //!
 //! The host's `rths identify` runs this same tick ([`identify_step`]) against its virtual rig,
-//! through its one driver (`src/drive.rs` `identify`), with the excitation's tables computed at run
+//! through its one driver (`src/machinery/drive.rs` `identify`), with the excitation's tables computed at run
 //! time (any [`Tables`]) and the schedule of its settings ([`begin_with`]).
 
 use heapless::spsc::Producer;

@@ -7,11 +7,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::benchmark::grid::run_grid;
-use crate::benchmark::plant::PlantDraw;
-use crate::benchmark::run::{run as run_one, run_on, BenchmarkRun, ControllerKind, RunConfig};
-use crate::benchmark::{BenchmarkRecord, DEFAULT_INTENSITY, PERTURBED_PLANTS};
-use crate::plot::{self, Panel};
+use crate::machinery::plot::{self, Panel};
+use crate::studies::benchmark::grid::run_grid;
+use crate::studies::benchmark::plant::PlantDraw;
+use crate::studies::benchmark::run::{
+    run as run_one, run_on, BenchmarkRun, ControllerKind, RunConfig,
+};
+use crate::studies::benchmark::{BenchmarkRecord, DEFAULT_INTENSITY, PERTURBED_PLANTS};
 
 /// Arguments of `rths benchmark`.
 #[derive(Debug, clap::Args)]
@@ -59,7 +61,7 @@ pub struct Args {
 /// Run `rths benchmark`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(dir) = &args.out {
-        crate::output::writable_dir(dir)?;
+        crate::machinery::output::writable_dir(dir)?;
     }
     if let Some(path) = &args.structure {
         return structure_run(&args, path);
@@ -88,7 +90,7 @@ fn structure_run(args: &Args, path: &Path) -> anyhow::Result<()> {
     let (record, motion) = match (&args.record_file, args.record) {
         (Some(csv), None) => (
             BenchmarkRecord::ElCentro,
-            crate::motion::GroundMotion::from_path(csv)
+            crate::machinery::motion::GroundMotion::from_path(csv)
                 .with_context(|| format!("record {}", csv.display()))?,
         ),
         (None, Some(r)) => (r, r.motion()?),
@@ -447,7 +449,7 @@ fn grid(args: &Args) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::benchmark::run::BenchmarkHistory;
+    use crate::studies::benchmark::run::BenchmarkHistory;
 
     /// A 3-floor run of 200 ticks at 0.01 s, the specimen on floor 1: each floor's reference a
     /// sine, the run `j + 1` × 0.01 mm above it; stopped after `ticks` if fewer than 200.

@@ -7,8 +7,8 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use rths_files::structure_file::Units;
 
-use crate::imported::export::{self, ImportRequest};
-use crate::imported::DofLabel;
+use crate::machinery::imported::export::{self, ImportRequest};
+use crate::machinery::imported::DofLabel;
 
 /// Arguments of `rths import`.
 #[derive(Debug, clap::Args)]

@@ -10,7 +10,7 @@ use clap::{Args as ClapArgs, Subcommand};
 
 use crate::cmd::analyze::load_motion;
 use crate::link_host::{self, Link, Qemu, RecordSummary, RunHeader};
-use crate::model_file::ModelFile;
+use crate::machinery::model_file::ModelFile;
 
 /// `rths link` arguments.
 #[derive(Debug, ClapArgs)]
@@ -75,7 +75,7 @@ pub enum LinkCommand {
         rig: Option<PathBuf>,
         /// LRX with --rig: the lead's adaptation time constant, ticks (0: fixed), as `rths train
         /// lrx --rig` defaults it.
-        #[arg(long, default_value_t = crate::train::lrx::RIG_LEAD_ADAPT_TICKS)]
+        #[arg(long, default_value_t = crate::machinery::train::lrx::RIG_LEAD_ADAPT_TICKS)]
         lead_adapt_ticks: f64,
     },
     /// Set the stroke, velocity and force limits (at rest, command at 0 mm).
@@ -387,7 +387,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 h.set("model", "fe-ats");
             }
             if let Some(p) = &rig {
-                let c = upload_rig(&mut link, p, crate::train::lrx::RIG_LEAD_ADAPT_TICKS)?;
+                let c = upload_rig(
+                    &mut link,
+                    p,
+                    crate::machinery::train::lrx::RIG_LEAD_ADAPT_TICKS,
+                )?;
                 h.set("rig", p.display());
                 h.set("rig_checksum", format!("{c:08x}"));
             }
@@ -630,8 +634,8 @@ fn status_json(s: &rths_link::Status, h: &rths_link::Holdings) -> serde_json::Va
 
 /// Upload the compensation rig file `p` gives the device's analytical part; its checksum.
 fn upload_rig(link: &mut Link, p: &std::path::Path, lead_adapt_ticks: f64) -> anyhow::Result<u32> {
-    let rig =
-        crate::identify::RigFile::load(p).with_context(|| format!("rig file {}", p.display()))?;
+    let rig = crate::machinery::identify::RigFile::load(p)
+        .with_context(|| format!("rig file {}", p.display()))?;
     let kind = link.status()?.model_kind;
     let v = link_host::rig_values(&rig, kind, lead_adapt_ticks)?;
     let c = link.upload_rig(kind, &v)?;
@@ -684,7 +688,7 @@ fn with_budget_reason(e: link_host::LinkHostError, why: impl FnOnce() -> String)
 /// Why the board's tick cannot run `m`, in the budget's figures for both cores (the host does not
 /// know which core the board has).
 fn tick_budget_reason(m: &ModelFile) -> String {
-    use crate::model_file::ModelKind as FileKind;
+    use crate::machinery::model_file::ModelKind as FileKind;
     match (m.kind, m.rnn.as_ref()) {
         (FileKind::Rnn, Some(r)) => budget_figures(
             rths_link::ModelKind::Rnn,
@@ -821,7 +825,9 @@ fn identify(
     idle: Duration,
 ) -> anyhow::Result<()> {
     use crate::cmd::identify as host;
-    use crate::identify::{estimate, excitation, runner::IdentificationRecord, Outcome, Signals};
+    use crate::machinery::identify::{
+        estimate, excitation, runner::IdentificationRecord, Outcome, Signals,
+    };
     let args = host::Args {
         preset: crate::cmd::plant::PresetArg::UnrCompact,
         seed: 1,

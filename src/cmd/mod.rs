@@ -43,7 +43,7 @@ pub struct RunStopped(pub String);
 
 impl RunStopped {
     /// `Err(RunStopped)` when `report` says the supervisor stopped its run, else `Ok`.
-    pub fn check(report: &crate::scenario::ScenarioReport) -> anyhow::Result<()> {
+    pub fn check(report: &crate::studies::scenario::ScenarioReport) -> anyhow::Result<()> {
         match (&report.stop_reason, report.stop_time_s) {
             (Some(why), Some(t)) => {
                 Err(RunStopped(format!("the supervisor stopped the run: {why} at {t:.3} s")).into())

@@ -8,9 +8,9 @@ use rths_files::structure_file::Structure;
 use rths_hal_sim::Preset;
 
 use crate::cmd::plant::PresetArg;
-use crate::nonlinear::model;
-use crate::nonlinear::study::{self, NonlinearStudyConfig, RECORDS, TARGET_DUCTILITIES};
-use crate::scenario::ScenarioId;
+use crate::machinery::structure::model;
+use crate::studies::nonlinear::study::{self, NonlinearStudyConfig, RECORDS, TARGET_DUCTILITIES};
+use crate::studies::scenario::ScenarioId;
 use rths_files::nl_model_file::NlModelFile;
 
 /// The shipped yielding structures, scored by default.
@@ -66,7 +66,7 @@ pub struct Args {
 /// Run `rths nonlinear-study`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(dir) = &args.out {
-        crate::output::writable_dir(dir)?;
+        crate::machinery::output::writable_dir(dir)?;
     }
     // Each structure with its file's text (a learned model is checked against its checksum).
     let texts: Vec<(String, String)> = if args.structure.is_empty() {

@@ -12,8 +12,8 @@ use rths_hal_sim::{BoucWen, Specimen};
 
 use crate::cmd::analyze::load_motion;
 use crate::link_host::{self, Recording, RecordingRow};
-use crate::scenario::{self, RunHistory, ScenarioId, ScenarioReport, ScenarioRun};
-use crate::study::{self, StudyJson};
+use crate::studies::scenario::{self, RunHistory, ScenarioId, ScenarioReport, ScenarioRun};
+use crate::studies::study::{self, StudyJson};
 
 /// Arguments of `rths report`.
 #[derive(Debug, clap::Args)]

@@ -8,15 +8,15 @@ use rths_hal_sim::{BoucWen, Preset, Specimen};
 use crate::cmd::analyze::load_motion;
 use crate::cmd::plant::{PresetArg, SpecimenArg};
 use crate::cmd::simulate_args::Args;
-use crate::identify::rig_file::VIRTUAL_BOARD;
-use crate::identify::RigFile;
-use crate::model_file::{ModelFile, ModelKind};
-use crate::models;
-use crate::nonlinear::scenario::{
+use crate::machinery::identify::rig_file::VIRTUAL_BOARD;
+use crate::machinery::identify::RigFile;
+use crate::machinery::model_file::{ModelFile, ModelKind};
+use crate::machinery::models;
+use crate::studies::nonlinear::scenario::{
     self as nl, is_paper_frame, LengthScale, SimScenario, StructureCase, StructureReport,
 };
-use crate::scenario::{self, ScenarioId, ScenarioSetup};
-use crate::study::{self, DrawnPlant, StudyJson};
+use crate::studies::scenario::{self, ScenarioId, ScenarioSetup};
+use crate::studies::study::{self, DrawnPlant, StudyJson};
 use rths_files::structure_file::Structure;
 
 /// The LR model `rths reproduce` trained on El Centro (phase 2), shipped as the default.
@@ -107,7 +107,7 @@ fn load_model(
 
 /// Print a run's figures (stability, NRMSE, J1-J5, peak command): `rths simulate`'s lines, which
 /// `rths report` prints for a recording too.
-pub fn print_figures(r: &crate::scenario::ScenarioReport) {
+pub fn print_figures(r: &crate::studies::scenario::ScenarioReport) {
     let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
     match (&r.stop_reason, r.stop_time_s) {
         (Some(why), Some(t)) => {
@@ -204,7 +204,7 @@ struct StructureJson {
     /// The hybrid run's compensation (fe-online-ats: its ATS start; nl-online: its lead and
     /// force correction): `--rig`'s, else identified on the virtual plant before the run.
     #[serde(skip_serializing_if = "Option::is_none")]
-    compensation: Option<crate::nonlinear::rig::RigCompensation>,
+    compensation: Option<crate::machinery::structure::rig::RigCompensation>,
 }
 
 /// `rths simulate --structure FILE` for a structure that is not the paper's linear frame.
@@ -269,8 +269,8 @@ fn run_structure(
                 .with_context(|| format!("rig file {} refused", path.display()))?;
             let bytes =
                 std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-            rig_checksum = Some(crate::identify::rig_file::checksum_hex(&bytes));
-            Some(crate::nonlinear::rig::from_rig_file(
+            rig_checksum = Some(crate::machinery::identify::rig_file::checksum_hex(&bytes));
+            Some(crate::machinery::structure::rig::from_rig_file(
                 &case.structure,
                 &file,
                 &path.display().to_string(),
@@ -283,7 +283,7 @@ fn run_structure(
                 | SimScenario::Study(ScenarioId::FeOnlineAts)
         ) =>
         {
-            Some(crate::nonlinear::rig::identify(
+            Some(crate::machinery::structure::rig::identify(
                 &case.structure,
                 preset,
                 args.seed,
@@ -309,7 +309,11 @@ fn run_structure(
     };
     let learned = match sc {
         SimScenario::NlPure | SimScenario::NlOnline => Some(Analytical::StructureModal(
-            crate::nonlinear::model::for_structure(args.model.as_deref(), &name, structure_json)?,
+            crate::machinery::structure::model::for_structure(
+                args.model.as_deref(),
+                &name,
+                structure_json,
+            )?,
         )),
         _ => None,
     };
@@ -435,7 +439,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("reading structure file {}", p.display()))?;
             // An imported (OpenSees) structure: its own host FE (`simulate_imported`).
-            if crate::imported::file::is_imported(&text) {
+            if crate::machinery::imported::file::is_imported(&text) {
                 return crate::cmd::simulate_imported::run(&args, p, &text, &ag, &motion_label);
             }
             let s = Structure::from_json(&text)
@@ -470,7 +474,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             m.display()
         );
     }
-    let mut rig = crate::reference::rig_config(preset, specimen, f, args.seed);
+    let mut rig = crate::machinery::reference::rig_config(preset, specimen, f, args.seed);
     rig.uncertainty = args.uncertainty;
     rig.drift = rths_hal_sim::Drift::over(args.drift, ag.len() as u64);
     let mut rig_checksum = None;
@@ -482,7 +486,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         file.check_plant(&rig, f)
             .with_context(|| format!("rig file {} refused", path.display()))?;
         let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-        rig_checksum = Some(crate::identify::rig_file::checksum_hex(&bytes));
+        rig_checksum = Some(crate::machinery::identify::rig_file::checksum_hex(&bytes));
         if id == ScenarioId::FeOnlineAts {
             ats_initial = Some(file.compensation.ats_initial);
         }

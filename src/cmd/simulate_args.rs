@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 
 use crate::cmd::plant::{PresetArg, SpecimenArg};
-use crate::nonlinear::scenario::SimScenario;
-use crate::scenario::ScenarioId;
+use crate::studies::nonlinear::scenario::SimScenario;
+use crate::studies::scenario::ScenarioId;
 
 /// Arguments of `rths simulate`.
 #[derive(Debug, clap::Args)]
@@ -75,7 +75,7 @@ pub struct Args {
 /// `--scenario`'s help, from the scenario lists themselves (a new scenario is named at once).
 fn scenario_help() -> String {
     let study: Vec<String> = ScenarioId::ALL.iter().map(|s| s.to_string()).collect();
-    let structure: Vec<String> = crate::nonlinear::scenario::STRUCTURE_SCENARIOS
+    let structure: Vec<String> = crate::studies::nonlinear::scenario::STRUCTURE_SCENARIOS
         .iter()
         .map(|s| s.to_string())
         .collect();

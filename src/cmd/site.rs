@@ -9,14 +9,14 @@ use rths_core::compensator::LeadParams;
 use rths_hal_sim::{FaultPlan, Specimen};
 
 use crate::cmd::plant::PresetArg;
-use crate::identify::rig_file::VIRTUAL_BOARD;
-use crate::identify::{identify_virtual, IdentifyConfig, RigFile};
 use crate::link_host::{Link, Qemu};
-use crate::site::board::{BoardExperiment, BoardLink};
-use crate::site::element::{median_max, ElementSetup};
-use crate::site::experiment::Experiment;
-use crate::site::virtual_rig::VirtualExperiment;
-use crate::site::{self, SiteConfig};
+use crate::machinery::identify::rig_file::VIRTUAL_BOARD;
+use crate::machinery::identify::{identify_virtual, IdentifyConfig, RigFile};
+use crate::machinery::site::board::{BoardExperiment, BoardLink};
+use crate::machinery::site::element::{median_max, ElementSetup};
+use crate::machinery::site::experiment::Experiment;
+use crate::machinery::site::virtual_rig::VirtualExperiment;
+use crate::machinery::site::{self, SiteConfig};
 
 /// Arguments of `rths site`.
 #[derive(Debug, clap::Args)]
@@ -190,7 +190,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         file.specimen
                     );
                 }
-                let mut rig = crate::reference::rig_config(
+                let mut rig = crate::machinery::reference::rig_config(
                     preset,
                     Specimen::Linear,
                     file.specimen_stiffness_factor,
@@ -209,7 +209,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     PresetArg::Benchmark => rths_hal_sim::Preset::Benchmark,
                     PresetArg::UnrCompact => rths_hal_sim::Preset::UnrCompact,
                 };
-                let rig = crate::reference::rig_config(preset, Specimen::Linear, 1.0, seed);
+                let rig =
+                    crate::machinery::reference::rig_config(preset, Specimen::Linear, 1.0, seed);
                 eprintln!(
                     "site: element {}: identifying the {} rig",
                     i + 1,

@@ -17,7 +17,7 @@ use super::wire::{
     fe_ats_messages, lrx_rig_extras, model_messages, record_messages, rig_message, stream_messages,
     upload_message,
 };
-use crate::model_file::{ModelFile, ModelKind};
+use crate::machinery::model_file::{ModelFile, ModelKind};
 
 /// How a run's telemetry ended.
 #[derive(Debug, Clone, PartialEq)]

@@ -7,7 +7,7 @@ use rths_link::{
 };
 
 use super::error::LinkHostError;
-use crate::model_file::{ModelFile, ModelKind};
+use crate::machinery::model_file::{ModelFile, ModelKind};
 use rths_core::supervisor::FaultReason;
 
 /// The upload message of an LR model file (validated here too: kind, 6 coefficients, finite).
@@ -208,7 +208,7 @@ fn chunked_messages(
 /// adaptation time constant `lead_adapt_ticks`, and the specimen's moving mass and damping at the
 /// prototype's scale (as `rths train lrx --rig` writes them into a model). Another kind has none.
 pub fn rig_values(
-    rig: &crate::identify::RigFile,
+    rig: &crate::machinery::identify::RigFile,
     kind: WireModelKind,
     lead_adapt_ticks: f64,
 ) -> Result<Vec<f64>, LinkHostError> {
@@ -218,7 +218,7 @@ pub fn rig_values(
             let lead = rig
                 .lead_params()
                 .map_err(|e| LinkHostError::Model(format!("rig file: {e}")))?;
-            let dynamics = crate::train::lrx::prototype_dynamics(&rig.specimen_fit);
+            let dynamics = crate::machinery::train::lrx::prototype_dynamics(&rig.specimen_fit);
             let v =
                 rths_link::rig_values(lead.weights(), lead.stride(), lead_adapt_ticks, dynamics)
                     .ok_or_else(|| LinkHostError::Model("rig file: 8 lead weights".into()))?;
