@@ -1,6 +1,7 @@
 //! The checks that an output can be written, made before the work that fills it: a command that
 //! computes for seconds must not end on an unwritable folder, and plotters would report a figure it
-//! cannot write only once drawn, as a Debug struct.
+//! cannot write only once drawn, as a Debug struct. And standard output itself ([`write_stdout`],
+//! the `outln!` and `out!` macros), which the commands and the site print through.
 
 use std::path::Path;
 
@@ -40,4 +41,47 @@ pub fn writable_file(file: &Path) -> anyhow::Result<()> {
         .with_context(why)?;
     std::fs::remove_file(file).with_context(why)?;
     Ok(())
+}
+
+/// Exit status of a command whose standard output was closed by its reader (`rths … | head -1`):
+/// 0, the reader took what it wanted; the command ends quietly at its next line of output.
+pub const EXIT_STDOUT_CLOSED: i32 = 0;
+
+/// Exit status when standard output cannot be written for another reason (a full disk): 1, as any
+/// error.
+pub const EXIT_STDOUT_FAILED: i32 = 1;
+
+/// Write `args` to standard output (what [`crate::outln!`] and [`crate::out!`] call). A closed
+/// pipe ends the process quietly with [`EXIT_STDOUT_CLOSED`]; any other write error is printed to
+/// standard error and ends it with [`EXIT_STDOUT_FAILED`]. Never a panic (`println!` panics).
+pub fn write_stdout(args: std::fmt::Arguments<'_>) {
+    use std::io::Write as _;
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_fmt(args).and_then(|()| out.flush()) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(EXIT_STDOUT_CLOSED);
+        }
+        eprintln!("error: writing to standard output: {e}");
+        std::process::exit(EXIT_STDOUT_FAILED);
+    }
+}
+
+/// `println!` for the commands' output: a closed standard output ends the command quietly
+/// ([`write_stdout`](crate::machinery::output::write_stdout)).
+#[macro_export]
+macro_rules! outln {
+    () => {
+        $crate::machinery::output::write_stdout(format_args!("\n"))
+    };
+    ($($arg:tt)*) => {
+        $crate::machinery::output::write_stdout(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
+/// `print!` for the commands' output (see [`outln!`](crate::outln)).
+#[macro_export]
+macro_rules! out {
+    ($($arg:tt)*) => {
+        $crate::machinery::output::write_stdout(format_args!($($arg)*))
+    };
 }
