@@ -1,5 +1,5 @@
 //! `rths` host library, used by the `rths` binary and the integration tests. Three layers, imports
-//! running one way:
+//! running one way (`tests/layers.rs` checks it, and that no two files import from each other):
 //!
 //! - [`cmd`]: one module per subcommand, on top;
 //! - [`studies`]: what is measured and reported (the scenarios, the study, the sweep, robustness,
