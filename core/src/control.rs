@@ -461,6 +461,10 @@ pub struct TickOutput {
 #[derive(Debug, Clone)]
 pub struct Controller {
     config: ControlConfig,
+    /// The configuration the controller was made with: a new analytical part starts from its
+    /// specimen scale, force correction and compensator target ([`Self::set_structure_rig`]
+    /// replaces them for a structure part).
+    base: ControlConfig,
     analytical: Analytical,
     compensator: Compensator,
     supervisor: Supervisor,
@@ -476,6 +480,7 @@ impl Controller {
     pub fn new(config: ControlConfig, analytical: Analytical, compensator: Compensator) -> Self {
         let mut c = Self {
             config,
+            base: config,
             analytical,
             compensator,
             supervisor: Supervisor::new(config.limits),
@@ -498,6 +503,7 @@ impl Controller {
         // stack once every image held the structure parts).
         let c = slot.write(Self {
             config,
+            base: config,
             analytical: Analytical::Lr(Lr::PARKED),
             compensator: Compensator::None,
             supervisor: Supervisor::new(config.limits),
@@ -516,6 +522,7 @@ impl Controller {
         self.check_at_rest()?;
         self.analytical = Analytical::Lr(Lr::new(params));
         self.compensator = Compensator::None;
+        self.config = self.base;
         self.start_over()
     }
 
@@ -531,6 +538,7 @@ impl Controller {
         crate::metamodel::RnnParams::check(&weights, &scaling)?;
         self.analytical = Analytical::Rnn(Rnn::PARKED);
         self.compensator = Compensator::None;
+        self.config = self.base;
         self.load_rnn(weights, scaling)
     }
 
@@ -540,6 +548,7 @@ impl Controller {
         self.check_at_rest()?;
         self.analytical = Analytical::Fe(fe);
         self.compensator = Compensator::None;
+        self.config = self.base;
         self.start_over()
     }
 
@@ -549,6 +558,7 @@ impl Controller {
         self.check_at_rest()?;
         self.analytical = analytical;
         self.compensator = Compensator::None;
+        self.config = self.base;
         self.start_over()
     }
 
@@ -576,6 +586,7 @@ impl Controller {
     ) -> Result<(), ReplaceError> {
         self.check_at_rest()?;
         self.analytical = Analytical::Site(PredictorCorrector::new(pc));
+        self.config = self.base;
         self.compensator = match lead {
             Some(l) => Compensator::Lead(crate::compensator::Lead::new(l)),
             None => Compensator::None,
@@ -642,6 +653,7 @@ impl Controller {
         self.supervisor.reset()?;
         self.analytical = Analytical::Lrx(Lrx::new(frame));
         self.compensator = Compensator::Lead(crate::compensator::Lead::new(lead));
+        self.config = self.base;
         self.clear();
         Ok(())
     }
@@ -703,7 +715,8 @@ impl Controller {
     /// the rig, the measured force corrected with the identified specimen (`correction`), the
     /// compensator given the target in force ([`CompensatorTarget::Current`]), and `scale`, how
     /// the rig's specimen stands for the structure's (prototype over rig, displacement and force).
-    /// Only at rest and for a structure part; then start over. Refused: nothing changes.
+    /// Only at rest and for a structure part; then start over. Refused: nothing changes. A new
+    /// analytical part (an `install_*`) starts from the controller's own configuration again.
     pub fn set_structure_rig(
         &mut self,
         lead: crate::compensator::LeadParams,
@@ -721,20 +734,6 @@ impl Controller {
         .with_force_correction(correction)
         .with_compensator_target(CompensatorTarget::Current);
         self.compensator = Compensator::Lead(crate::compensator::Lead::new(lead));
-        self.start_over()
-    }
-
-    /// Back to `config`'s specimen scale, force correction and compensator target (the rig's part
-    /// of a configuration, which [`Self::set_structure_rig`] replaces), the rest kept; only at
-    /// rest, then start over. A new analytical part starts from its board's own mapping.
-    pub fn set_rig_mapping(&mut self, config: &ControlConfig) -> Result<(), ReplaceError> {
-        self.check_at_rest()?;
-        self.config = ControlConfig {
-            scale: config.scale,
-            correction: config.correction,
-            compensator_target: config.compensator_target,
-            ..self.config
-        };
         self.start_over()
     }
 

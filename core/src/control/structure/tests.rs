@@ -507,8 +507,10 @@ fn a_structure_part_takes_the_rig_s_compensation_and_is_named_by_it() {
         assert_eq!(c.config().compensator_target(), CompensatorTarget::Current);
         assert_eq!(c.config().scale(), &rig_scale);
         assert_eq!(c.supervisor().state(), State::Idle);
-        // Back to the board's own mapping: no correction, the next target, its scale.
-        c.set_rig_mapping(&cfg).unwrap();
+        // A new part starts from the controller's own configuration: no correction, the next
+        // target, its scale.
+        crate::model::assemble_in(&mut c, &spec, Prototype::paper(), DT_S).unwrap();
+        assert_eq!(c.scenario_name(), (uncompensated, None));
         assert_eq!(c.config().force_correction(), None);
         assert_eq!(c.config().compensator_target(), CompensatorTarget::Next);
         assert_eq!(c.config().scale(), &scale());
