@@ -191,6 +191,11 @@ impl TickBudget {
         self.instr_dims(kind, dims) + self.cost.structure.map_or(f64::INFINITY, |s| s.rig)
     }
 
+    /// [`Self::instr_dims`] as a share of the tick, % (over 100: the model cannot meet the tick).
+    pub fn pct_of_tick_dims(&self, kind: ModelKind, dims: &Dims) -> f64 {
+        100.0 * self.instr_dims(kind, dims) / self.instr_per_tick()
+    }
+
     /// The tick can run a `kind` model of sizes `dims` (without a rig compensation).
     pub fn fits_dims(&self, kind: ModelKind, dims: &Dims) -> bool {
         self.instr_dims(kind, dims) <= self.instr_per_tick()

@@ -88,6 +88,11 @@ pub fn lay_out_files(
 /// An LR, LRX or RNN model file.
 fn model_file(path: &Path) -> Result<LaidOut, UploadFileError> {
     let m = ModelFile::load(path).map_err(|e| err(path, e))?;
+    lay_out_model_file(&m, path)
+}
+
+/// An LR, LRX or RNN model file already read (`path`: its name in a message).
+pub fn lay_out_model_file(m: &ModelFile, path: &Path) -> Result<LaidOut, UploadFileError> {
     let delay_steps =
         u16::try_from(m.delay_steps).map_err(|_| err(path, "delay_steps does not fit 16 bits"))?;
     let missing = |what: &str| err(path, format!("no {what} section"));
