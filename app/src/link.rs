@@ -440,7 +440,7 @@ fn in_force(ctl: &Controller, s: &Session<'_>) -> crate::rig_upload::InForce {
     crate::rig_upload::InForce {
         kind: s.model_kind,
         dims: crate::rig_upload::dims_of(ctl),
-        budget: s.tick_budget,
+        budget: Some(s.tick_budget),
     }
 }
 

@@ -44,8 +44,9 @@ pub struct InForce {
     pub kind: ModelKind,
     /// Its sizes.
     pub dims: Dims,
-    /// The board's tick.
-    pub budget: TickBudget,
+    /// The board's tick (`None`: not checked, the structure budget that measures the costs the
+    /// check estimates from).
+    pub budget: Option<TickBudget>,
 }
 
 /// Validate the rig compensation `v` (the kind's [`rths_link::rig_value_count`] values) of a
@@ -86,8 +87,10 @@ pub fn install_rig(
         (k, &[w0, w1, w2, w3, w4, w5, w6, w7, stride, adapt, k_kn_per_mm, c, m, disp, force])
             if is_structure(k) =>
         {
-            if part.budget.instr_with_rig(kind, &part.dims) > part.budget.instr_per_tick() {
-                return Err(NackReason::TickBudget);
+            if let Some(b) = &part.budget {
+                if b.instr_with_rig(kind, &part.dims) > b.instr_per_tick() {
+                    return Err(NackReason::TickBudget);
+                }
             }
             let lead = rths_core::model::lead_params(
                 &[w0, w1, w2, w3, w4, w5, w6, w7],
@@ -259,6 +262,13 @@ pub fn dims_of(ctl: &Controller) -> Dims {
         Analytical::StructureNl(m) => Dims {
             dofs: m.frame().dofs(),
             springs: m.frame().dofs(),
+            bouc_wen: m
+                .frame()
+                .stories()
+                .iter()
+                .flatten()
+                .filter(|s| s.law().bouc_wen_shape().is_some())
+                .count(),
             ..d
         },
         Analytical::StructureModal(m) => {
@@ -267,6 +277,12 @@ pub fn dims_of(ctl: &Controller) -> Dims {
                 dofs: p.floors(),
                 modes: p.modes(),
                 springs: p.springs(),
+                bouc_wen: p
+                    .laws()
+                    .iter()
+                    .flatten()
+                    .filter(|l| l.bouc_wen_shape().is_some())
+                    .count(),
                 ..d
             }
         }

@@ -32,20 +32,24 @@ pub struct PathCost {
 }
 
 /// The measured cost of the structure parts on one core, instructions per tick (the structure
-/// budget's `instr max`): an estimate never below a measured row.
+/// budget's `instr max`, `budget.sh`: the Cortex-M7 at 4096 Hz, the Cortex-M4 at 2048 Hz; the
+/// count per tick does not depend on the rate). The estimate equals a measured row at its sizes
+/// and laws (rounded up) and is interpolated between them; a Bouc–Wen law costs more than a
+/// bilinear one, so the laws count apart.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StructureCost {
     /// The linear finite elements at N = 1, 3, 8 DOFs: a dense Chang step is O(N²), the estimate
     /// the quadratic through them.
     pub fe: [f64; 3],
-    /// What a yielding story adds to the linear FE of its N: the largest measured
-    /// (FE yielding − FE linear) / N.
-    pub per_yielding_story: f64,
+    /// What a yielding story adds to the linear FE of its N: bilinear (the N = 1 and 8 rows),
+    /// Bouc–Wen (the N = 3 row), the largest (FE yielding − FE linear) / N measured.
+    pub per_story: [f64; 2],
     /// The structure metamodel (its cost does not grow with N: the largest measured).
     pub meta: f64,
-    /// The modal-hysteretic model at 1 mode and 1 spring, and the largest measured cost of each
-    /// further mode or spring.
-    pub modal: [f64; 2],
+    /// The modal-hysteretic model at 1 mode and 1 bilinear spring, each further mode or bilinear
+    /// spring (the 8-mode, 8-spring row), and what a Bouc–Wen spring adds to a bilinear one (the
+    /// 3-mode, 3-spring Bouc–Wen row).
+    pub modal: [f64; 3],
     /// The reduced model at `reduced_modes` modes, and the largest measured cost of each further
     /// mode (its cost grows with the modes, not the DOFs).
     pub reduced: [f64; 2],
@@ -67,13 +71,17 @@ impl StructureCost {
     /// A structure part of `kind` and sizes `dims`, without its rig compensation.
     pub fn instr(&self, kind: ModelKind, dims: &Dims) -> f64 {
         let n = dims.dofs as f64;
+        let bw = dims.bouc_wen.min(dims.springs) as f64;
+        let bilinear = dims.springs as f64 - bw;
         match kind {
             ModelKind::StructureFe => self.fe_instr(n),
-            ModelKind::StructureNl => self.fe_instr(n) + self.per_yielding_story * n,
+            ModelKind::StructureNl => {
+                self.fe_instr(n) + self.per_story[0] * bilinear + self.per_story[1] * bw
+            }
             ModelKind::StructureMeta => self.meta,
             ModelKind::StructureModal => {
                 let units = (dims.modes + dims.springs).saturating_sub(2) as f64;
-                self.modal[0] + self.modal[1] * units
+                self.modal[0] + self.modal[1] * units + self.modal[2] * bw
             }
             ModelKind::StructureReduced => {
                 let more = (dims.modes as f64 - self.reduced_modes).max(0.0);
@@ -92,7 +100,19 @@ impl PathCost {
         lrx: 3_333.0,
         fe_ats: 31_196.0,
         rnn_per_term: 393.0,
-        structure: None,
+        // The structure budget on the emulated M4 at 2048 Hz: FE 3,226 / 13,000 / 65,726 (N = 1,
+        // 3, 8); FE yielding 4,458 / 24,393 (Bouc–Wen) / 75,220; metamodel 10,583 at most; modal
+        // 4,982 (1, 1), 22,869 (3, 3, Bouc–Wen), 52,565 (8, 8); reduced 6,845 / 19,982 /
+        // 63,060 (2, 9, 32 modes); a rig compensation at most +2,464.
+        structure: Some(StructureCost {
+            fe: [3_226.0, 13_000.0, 65_726.0],
+            per_story: [1_232.0, 3_798.0],
+            meta: 10_583.0,
+            modal: [4_982.0, 3_399.0, 1_431.0],
+            reduced: [6_845.0, 1_877.0],
+            reduced_modes: 2.0,
+            rig: 2_464.0,
+        }),
     };
     /// The Cortex-M7 (hardware f64): LR 375, LRX 535, FE + ATS 3,165, RNN-10 2,445, so
     /// (2,445 − 375) / 140 = 14.8 → 15 per term.
@@ -101,14 +121,18 @@ impl PathCost {
         lrx: 535.0,
         fe_ats: 3_165.0,
         rnn_per_term: 15.0,
+        // The structure budget on the emulated M7 at 4096 Hz: FE 830 / 1,145 / 2,590 (N = 1, 3,
+        // 8); FE yielding 935 / 1,750 (Bouc–Wen) / 3,160; metamodel 735 at most; modal 870
+        // (1, 1), 1,585 (3, 3, Bouc–Wen), 2,480 (8, 8); reduced 2,055 / 2,395 / 3,455 (2, 9, 32
+        // modes); a rig compensation at most +390.
         structure: Some(StructureCost {
-            fe: [790.0, 1_105.0, 2_555.0],
-            per_yielding_story: 202.0,
-            meta: 695.0,
-            modal: [845.0, 174.0],
-            reduced: [2_035.0, 50.0],
+            fe: [830.0, 1_145.0, 2_590.0],
+            per_story: [105.0, 202.0],
+            meta: 735.0,
+            modal: [870.0, 115.0, 85.0],
+            reduced: [2_055.0, 49.0],
             reduced_modes: 2.0,
-            rig: 160.0,
+            rig: 390.0,
         }),
     };
 }

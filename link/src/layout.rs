@@ -120,6 +120,8 @@ pub struct Dims {
     pub springs: usize,
     /// Read-outs (the reduced model).
     pub outputs: usize,
+    /// Of the laws (yielding stories or latent springs), those of Bouc–Wen's (the costlier law).
+    pub bouc_wen: usize,
 }
 
 /// The hidden size of an RNN model of `values` values ([`rnn_value_count`]'s inverse), if any.
@@ -209,6 +211,13 @@ fn law(v: &[f64]) -> Result<StoryLawSpec, LayoutError> {
     })
 }
 
+/// How many of the laws (7 values each) are Bouc–Wen's (their flag is 1).
+fn bouc_wen_laws(laws: &[f64]) -> usize {
+    laws.chunks_exact(LAW_VALUES)
+        .filter(|l| l.get(3).copied() == Some(1.0))
+        .count()
+}
+
 /// The structure header (N, the specimen's DOF, L) of a `StructureFe`/`StructureNl` model.
 fn structure_dims(
     kind: ModelKind,
@@ -239,11 +248,13 @@ pub fn dims(kind: ModelKind, values: &[f64]) -> Result<Dims, LayoutError> {
         },
         ModelKind::StructureFe | ModelKind::StructureNl => {
             let (n, _, laws) = structure_dims(kind, &mut r)?;
-            r.take(structure_value_count(n, laws) - 3)?;
+            r.take(4 * n * n + n)?;
+            let bouc_wen = bouc_wen_laws(r.take(LAW_VALUES * laws)?);
             r.end()?;
             Dims {
                 dofs: n,
                 springs: laws,
+                bouc_wen,
                 ..Dims::default()
             }
         }
@@ -251,12 +262,15 @@ pub fn dims(kind: ModelKind, values: &[f64]) -> Result<Dims, LayoutError> {
             let m = r.count(1, MODAL_MAX_MODES)?;
             let f = r.count(1, MODAL_MAX_FLOORS)?;
             let s = r.count(1, MODAL_MAX_SPRINGS)?;
-            r.take(modal_value_count(m, f, s) - 3)?;
+            r.take(2 + 3 * m + f * m)?;
+            let bouc_wen = bouc_wen_laws(r.take(LAW_VALUES * s)?);
+            r.take(s * m)?;
             r.end()?;
             Dims {
                 dofs: f,
                 modes: m,
                 springs: s,
+                bouc_wen,
                 ..Dims::default()
             }
         }

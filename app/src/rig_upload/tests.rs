@@ -52,7 +52,7 @@ fn part(build: ModelKind) -> InForce {
     InForce {
         kind: build,
         dims: Dims::default(),
-        budget: TickBudget::cortex_m7_480mhz(2048.0),
+        budget: Some(TickBudget::cortex_m7_480mhz(2048.0)),
     }
 }
 
@@ -231,7 +231,7 @@ fn a_structure_part_takes_the_rig_s_lead_force_correction_and_scale_in_chunks() 
     let p = InForce {
         kind: sm,
         dims: dims_of(&ctl),
-        budget: TickBudget::cortex_m7_480mhz(2048.0),
+        budget: Some(TickBudget::cortex_m7_480mhz(2048.0)),
     };
     assert_eq!((p.dims.modes, p.dims.springs, p.dims.dofs), (2, 2, 2));
     assert_eq!(rig_checksum_of(&ctl), 0, "no compensation yet");
@@ -270,7 +270,7 @@ fn bad_structure_rig_compensations_are_refused_and_nothing_changes() {
     let p = InForce {
         kind: sm,
         dims: dims_of(&ctl),
-        budget: TickBudget::cortex_m7_480mhz(2048.0),
+        budget: Some(TickBudget::cortex_m7_480mhz(2048.0)),
     };
     let before = (ctl.analytical().clone(), ctl.compensator().clone());
     let mut st = RigStaging::new();
@@ -314,17 +314,18 @@ fn bad_structure_rig_compensations_are_refused_and_nothing_changes() {
             "{i}"
         );
     }
-    // A board whose structure costs were not measured refuses it for its tick.
-    let unmeasured = InForce {
-        budget: TickBudget::cortex_m4_168mhz(2048.0),
+    // A tick too short for the part with its compensation: refused for the tick.
+    let slow = InForce {
+        budget: Some(TickBudget {
+            clock_hz: 1e6,
+            ..TickBudget::cortex_m7_480mhz(2048.0)
+        }),
         ..p
     };
-    if unmeasured.budget.cost.structure.is_none() {
-        assert_eq!(
-            chunked(&mut st, &mut ctl, &unmeasured, sm, &good, c),
-            Err(NackReason::TickBudget)
-        );
-    }
+    assert_eq!(
+        chunked(&mut st, &mut ctl, &slow, sm, &good, c),
+        Err(NackReason::TickBudget)
+    );
     assert_eq!(
         (ctl.analytical().clone(), ctl.compensator().clone()),
         before

@@ -147,6 +147,8 @@ fn every_kind_reads_back_as_laid_out() {
         (kind, v.len()),
         (ModelKind::StructureNl, structure_value_count(3, 3))
     );
+    let d = dims(kind, &v).unwrap();
+    assert_eq!((d.dofs, d.springs, d.bouc_wen), (3, 3, 1));
     let theta = ramp(DELTA_ARX_COEFFS, 0.0);
     assert_eq!(
         round_trip(&ModelSpec::StructureMeta {
@@ -185,6 +187,8 @@ fn every_kind_reads_back_as_laid_out() {
         (kind, v.len()),
         (ModelKind::StructureModal, modal_value_count(2, 3, 2))
     );
+    let d = dims(kind, &v).unwrap();
+    assert_eq!((d.modes, d.dofs, d.springs, d.bouc_wen), (2, 3, 2, 1));
     let rmodes = [
         ReducedMode {
             omega_rad_s: 10.0,
