@@ -714,7 +714,9 @@ impl Controller {
     /// give it (`nl-online`, `meta-online`, `fe-online-lead`): the identified `lead` in front of
     /// the rig, the measured force corrected with the identified specimen (`correction`), the
     /// compensator given the target in force ([`CompensatorTarget::Current`]), and `scale`, how
-    /// the rig's specimen stands for the structure's (prototype over rig, displacement and force).
+    /// the rig's specimen stands for the structure's (prototype over rig, displacement and force);
+    /// a reduced model as a hybrid loop runs it
+    /// ([`crate::metamodel::ReducedModalParams::for_hybrid_loop`]).
     /// Only at rest and for a structure part; then start over. Refused: nothing changes. A new
     /// analytical part (an `install_*`) starts from the controller's own configuration again.
     pub fn set_structure_rig(
@@ -726,6 +728,12 @@ impl Controller {
         self.check_at_rest()?;
         if !self.analytical.is_structure() {
             return Err(ReplaceError::Kind);
+        }
+        // A reduced model on a rig low-passes its static term's force deviation (the rig's noise
+        // and tracking error would reach the target in the same tick, through the lead).
+        if let Analytical::StructureReduced(m) = &self.analytical {
+            let p = m.model().params().for_hybrid_loop()?;
+            self.analytical = Analytical::StructureReduced(StructureReduced::new(p));
         }
         self.config = ControlConfig {
             scale,
