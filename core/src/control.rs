@@ -729,12 +729,7 @@ impl Controller {
         if !self.analytical.is_structure() {
             return Err(ReplaceError::Kind);
         }
-        // A reduced model on a rig low-passes its static term's force deviation (the rig's noise
-        // and tracking error would reach the target in the same tick, through the lead).
-        if let Analytical::StructureReduced(m) = &self.analytical {
-            let p = m.model().params().for_hybrid_loop()?;
-            self.analytical = Analytical::StructureReduced(StructureReduced::new(p));
-        }
+        self.reduced_for_hybrid_loop()?;
         self.config = ControlConfig {
             scale,
             ..self.config
@@ -743,6 +738,18 @@ impl Controller {
         .with_compensator_target(CompensatorTarget::Current);
         self.compensator = Compensator::Lead(crate::compensator::Lead::new(lead));
         self.start_over()
+    }
+
+    /// A reduced model on a rig low-passes its static term's force deviation (the rig's noise and
+    /// tracking error would reach the target in the same tick, through the lead); another part is
+    /// left as it is. Out of line: the rebuilt model's frame is only this call's.
+    #[inline(never)]
+    fn reduced_for_hybrid_loop(&mut self) -> Result<(), ReplaceError> {
+        if let Analytical::StructureReduced(m) = &self.analytical {
+            let p = m.model().params().for_hybrid_loop()?;
+            self.analytical = Analytical::StructureReduced(StructureReduced::new(p));
+        }
+        Ok(())
     }
 
     fn check_at_rest(&self) -> Result<(), Busy> {
