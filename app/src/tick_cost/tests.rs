@@ -68,9 +68,9 @@ const STRUCTURE_ROWS: [(ModelKind, usize, usize, usize, usize, f64, f64); 15] = 
     (ModelKind::StructureMeta, 8, 0, 0, 0, 735.0, 10_482.0),
     (ModelKind::StructureModal, 1, 1, 1, 0, 870.0, 4_982.0),
     (ModelKind::StructureModal, 3, 3, 3, 3, 1_585.0, 22_869.0),
-    (ModelKind::StructureModal, 8, 8, 8, 0, 2_480.0, 52_565.0),
+    (ModelKind::StructureModal, 8, 8, 8, 0, 2_485.0, 52_565.0),
     (ModelKind::StructureReduced, 0, 2, 0, 0, 2_055.0, 6_845.0),
-    (ModelKind::StructureReduced, 0, 9, 0, 0, 2_395.0, 19_982.0),
+    (ModelKind::StructureReduced, 0, 9, 0, 0, 2_400.0, 19_982.0),
     (ModelKind::StructureReduced, 0, 32, 0, 0, 3_455.0, 63_060.0),
 ];
 
