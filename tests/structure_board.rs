@@ -7,8 +7,9 @@
 //!   specimen and the compensator given the target in force;
 //! - `meta-online`: the reduced model of the imported `opensees-frame-1x1` (trained here), with the
 //!   same compensation;
-//! - `fe-online-lead`: the yielding finite elements of `shear3-yielding`, the same compensation;
-//! each run against the plant in the MCU (the `unr-compact` virtual rig, seed 1) through the whole
+//! - `fe-online-lead`: the yielding finite elements of `shear3-yielding`, the same compensation.
+//!
+//! Each runs against the plant in the MCU (the `unr-compact` virtual rig, seed 1) through the whole
 //! El Centro record, and the host's run of the same controller (core's, installed by the device's
 //! own functions from the same values, driven by `rths::drive` against the same virtual rig): every
 //! command bit for bit, and the RESULT line's ticks and command checksum. The rig file is `rths
