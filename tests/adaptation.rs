@@ -480,20 +480,16 @@ fn adaptive_lrx_firmware_matches_the_host_and_fits_the_budget() {
     let file = rig_model(dir.path(), "unr-compact");
     let status = Command::new(env!("CARGO"))
         .current_dir(firmware_dir())
-        .args([
-            "build",
-            "--release",
-            "--no-default-features",
-            "--features",
-            "board-qemu,model-lrx",
-        ])
+        .args(["build", "--release"])
         .env_remove("CARGO_TARGET_DIR")
-        .env("RTHS_LRX_MODEL", dir.path().join("lrx.json"))
+        .env_remove("RTHS_STRUCTURE")
+        .env_remove("RTHS_BUDGET")
+        .env("RTHS_MODEL", dir.path().join("lrx.json"))
         .status()
         .unwrap();
     assert!(
         status.success(),
-        "firmware build (adaptive model-lrx) failed"
+        "firmware build (the adaptive LRX default) failed"
     );
     let elf = dir.path().join("rths-firmware-lrx-adaptive.elf");
     std::fs::copy(

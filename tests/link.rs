@@ -31,20 +31,27 @@ fn link_elf() -> PathBuf {
         .clone()
 }
 
-/// The LRX build with the link (`--no-default-features --features board-qemu,model-lrx,link`).
+/// The link image with the shipped LRX model as its default (`--features link`,
+/// `RTHS_MODEL=data/models/lrx.json`).
 fn lrx_link_elf() -> PathBuf {
     static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     ELF.get_or_init(|| {
-        build_elf(
-            &[
-                "--no-default-features",
-                "--features",
-                "board-qemu,model-lrx,link",
-            ],
+        build_elf_default(
+            &["--features", "link"],
             "rths-firmware-lrx-link.elf",
+            &shipped_path("lrx.json"),
         )
     })
     .clone()
+}
+
+/// The shipped model file `name` (`data/models/`).
+fn shipped_path(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("data/models")
+        .join(name)
+        .display()
+        .to_string()
 }
 
 /// Build the firmware with `args` and copy its ELF to `name`; one build at a time (they share the
@@ -53,18 +60,34 @@ fn build_elf(args: &[&str], name: &str) -> PathBuf {
     build_elf_with(args, name, None)
 }
 
+/// [`build_elf`] with the default model `model` (`RTHS_MODEL`: a model file, or `fe-ats`).
+fn build_elf_default(args: &[&str], name: &str, model: &str) -> PathBuf {
+    build_elf_env(args, name, None, Some(model))
+}
+
 /// [`build_elf`] with the `fault-inject` plan `RTHS_FAULT` set to `fault` (or unset).
 fn build_elf_with(args: &[&str], name: &str, fault: Option<&str>) -> PathBuf {
+    build_elf_env(args, name, fault, None)
+}
+
+/// [`build_elf`] with the fault plan `fault` and the default model `model` (each unset if `None`).
+fn build_elf_env(args: &[&str], name: &str, fault: Option<&str>, model: Option<&str>) -> PathBuf {
     static BUILD: std::sync::Mutex<()> = std::sync::Mutex::new(());
     let _one = BUILD.lock().unwrap_or_else(|e| e.into_inner());
     let mut cmd = Command::new(env!("CARGO"));
     cmd.current_dir(firmware_dir())
         .args(["build", "--release"])
         .args(args)
-        .env_remove("CARGO_TARGET_DIR");
+        .env_remove("CARGO_TARGET_DIR")
+        .env_remove("RTHS_STRUCTURE")
+        .env_remove("RTHS_BUDGET");
     match fault {
         Some(f) => cmd.env("RTHS_FAULT", f),
         None => cmd.env_remove("RTHS_FAULT"),
+    };
+    match model {
+        Some(m) => cmd.env("RTHS_MODEL", m),
+        None => cmd.env_remove("RTHS_MODEL"),
     };
     let status = cmd.status().unwrap();
     assert!(status.success(), "firmware build {args:?} failed");
@@ -1065,33 +1088,28 @@ fn a_silent_host_ramps_the_run_down_when_armed_so() {
     assert_eq!(rows.last().unwrap().command_mm, 0.0);
 }
 
-/// The RNN build with the link (`--no-default-features --features board-qemu,model-rnn,link`).
+/// The link image with the shipped RNN-10 as its default (`--features link`,
+/// `RTHS_MODEL=data/models/rnn-10.json`; the emulated M4 builds it, to measure it).
 fn rnn_link_elf() -> PathBuf {
     static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     ELF.get_or_init(|| {
-        build_elf(
-            &[
-                "--no-default-features",
-                "--features",
-                "board-qemu,model-rnn,link",
-            ],
+        build_elf_default(
+            &["--features", "link"],
             "rths-firmware-rnn-link.elf",
+            &shipped_path("rnn-10.json"),
         )
     })
     .clone()
 }
 
-/// The FE + ATS build with the link (`--no-default-features --features board-qemu,fe-ats,link`).
+/// The link image with FE + ATS as its default (`--features link`, `RTHS_MODEL=fe-ats`).
 fn fe_ats_link_elf() -> PathBuf {
     static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     ELF.get_or_init(|| {
-        build_elf(
-            &[
-                "--no-default-features",
-                "--features",
-                "board-qemu,fe-ats,link",
-            ],
+        build_elf_default(
+            &["--features", "link"],
             "rths-firmware-fe-ats-link.elf",
+            "fe-ats",
         )
     })
     .clone()

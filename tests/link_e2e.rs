@@ -17,19 +17,17 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-/// The LRX build with the link and the identification (`--no-default-features --features
-/// board-qemu,model-lrx,identify`): an image that can identify (`identify` = `link` + the
-/// excitation's tables); any image takes an uploaded LRX model.
+/// The link image with the shipped LRX model as its default (`--features link`,
+/// `RTHS_MODEL=data/models/lrx.json`): every link image identifies (the excitation's tables) and
+/// takes an uploaded LRX model.
 fn lrx_link_elf() -> PathBuf {
     static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     ELF.get_or_init(|| {
-        build_elf(
-            &[
-                "--no-default-features",
-                "--features",
-                "board-qemu,model-lrx,identify",
-            ],
+        let lrx = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lrx.json");
+        build_elf_model(
+            &["--features", "link"],
             None,
+            Some(&lrx.display().to_string()),
             "rths-firmware-e2e.elf",
         )
     })
@@ -39,16 +37,27 @@ fn lrx_link_elf() -> PathBuf {
 /// Build the firmware with `args` (and the `fault-inject` plan `fault`) and copy its ELF to `name`;
 /// one build at a time (they share the firmware's target directory and its output path).
 fn build_elf(args: &[&str], fault: Option<&str>, name: &str) -> PathBuf {
+    build_elf_model(args, fault, None, name)
+}
+
+/// [`build_elf`] with the default model `model` (`RTHS_MODEL`; unset if `None`).
+fn build_elf_model(args: &[&str], fault: Option<&str>, model: Option<&str>, name: &str) -> PathBuf {
     static BUILD: std::sync::Mutex<()> = std::sync::Mutex::new(());
     let _one = BUILD.lock().unwrap_or_else(|e| e.into_inner());
     let mut cmd = Command::new(env!("CARGO"));
     cmd.current_dir(firmware_dir())
         .args(["build", "--release"])
         .args(args)
-        .env_remove("CARGO_TARGET_DIR");
+        .env_remove("CARGO_TARGET_DIR")
+        .env_remove("RTHS_STRUCTURE")
+        .env_remove("RTHS_BUDGET");
     match fault {
         Some(f) => cmd.env("RTHS_FAULT", f),
         None => cmd.env_remove("RTHS_FAULT"),
+    };
+    match model {
+        Some(m) => cmd.env("RTHS_MODEL", m),
+        None => cmd.env_remove("RTHS_MODEL"),
     };
     assert!(
         cmd.status().unwrap().success(),
@@ -314,7 +323,7 @@ fn a_nan_during_an_identification_trips_and_nothing_is_written() {
         return;
     }
     let elf = build_elf(
-        &["--features", "identify,fault-inject"],
+        &["--features", "link,fault-inject"],
         Some("nan-disp@5"),
         "rths-firmware-e2e-nan.elf",
     );

@@ -1,4 +1,4 @@
-//! The firmware's structure budget (`firmware/budget.sh`, `budget-structures`) rerun on the host:
+//! The firmware's structure budget (`firmware/budget.sh`, `RTHS_BUDGET=structures`) rerun on the host:
 //! the same twelve controllers (FE linear, FE yielding, structure metamodel, modal-hysteretic
 //! metamodel of `data/models/nl-S.json`; N = 1, 3, 8), the same
 //! El Centro ticks at 4096 Hz, the same ideal rig, and the same FNV-1a checksum of each command

@@ -140,6 +140,8 @@ pub struct Session<'a> {
     pub model_kind: ModelKind,
     /// A chunked model upload in progress.
     pub model_upload: ModelStaging<'a>,
+    /// A chunked rig-compensation upload in progress.
+    pub rig_upload: crate::rig_upload::RigStaging,
     /// What the run in progress does if the host falls silent (chosen at arm time).
     pub link_loss: LinkLoss,
     /// The arming host's token (0: none, anyone may start).
@@ -178,6 +180,7 @@ impl<'a> Session<'a> {
             rearm,
             model_kind,
             model_upload: ModelStaging::new(staging),
+            rig_upload: crate::rig_upload::RigStaging::new(),
             link_loss: LinkLoss::Complete,
             owner: 0,
             excitation: None,
@@ -345,12 +348,32 @@ pub fn handle(
             count,
             values,
             checksum,
-        } => crate::rig_upload::upload_rig(ctl, s.model_kind, kind, count, &values, checksum).map(
-            |_| {
+        } => {
+            let part = in_force(ctl, s);
+            crate::rig_upload::upload_rig(ctl, &part, kind, count, &values, checksum).map(|_| {
                 s.rig_source = RecordSource::Uploaded;
                 Effect::None
-            },
-        ),
+            })
+        }
+        HostMsg::RigBegin {
+            kind,
+            values,
+            checksum,
+        } => s
+            .rig_upload
+            .begin(s.model_kind, kind, values, checksum, at_rest)
+            .map(|()| Effect::None),
+        HostMsg::RigChunk { seq, count, values } => s
+            .rig_upload
+            .chunk(seq, count, &values, at_rest)
+            .map(|()| Effect::None),
+        HostMsg::RigCommit => {
+            let part = in_force(ctl, s);
+            s.rig_upload.commit(ctl, &part).map(|_| {
+                s.rig_source = RecordSource::Uploaded;
+                Effect::None
+            })
+        }
         HostMsg::UploadLr {
             features,
             theta,
@@ -432,6 +455,15 @@ pub fn handle(
     match result {
         Ok(e) => (DeviceMsg::Ack(req), e),
         Err(n) => (DeviceMsg::Nack(req, n), Effect::None),
+    }
+}
+
+/// The part in force, as a rig compensation is checked against it.
+fn in_force(ctl: &Controller, s: &Session<'_>) -> crate::rig_upload::InForce {
+    crate::rig_upload::InForce {
+        kind: s.model_kind,
+        dims: crate::rig_upload::dims_of(ctl),
+        budget: Some(s.tick_budget),
     }
 }
 

@@ -76,12 +76,7 @@ pub fn hybrid_params(
     dt_s: f64,
 ) -> Result<ReducedModalParams, ReducedError> {
     let arrays = file.arrays_for(structure)?;
-    let params = arrays.spec().params(dt_s)?;
-    let lowest = params
-        .mode_list()
-        .first()
-        .map_or(0.0, |m| m.omega_rad_s / (2.0 * std::f64::consts::PI));
-    Ok(params.with_static_force_cutoff_hz(lowest)?)
+    Ok(arrays.spec().params(dt_s)?.for_hybrid_loop()?)
 }
 
 /// A checksum of what an imported structure *is*: its condensed `M*`, `C*`, `K*` (row-major), the
