@@ -684,8 +684,8 @@ fn upload_rig(
     part: Option<&rths_files::upload::LaidOut>,
     length_scale: f64,
 ) -> anyhow::Result<u32> {
-    let rig =
-        crate::machinery::identify::RigFile::load(p).with_context(|| format!("rig file {}", p.display()))?;
+    let rig = crate::machinery::identify::RigFile::load(p)
+        .with_context(|| format!("rig file {}", p.display()))?;
     let kind = link.status()?.model_kind;
     let v = match part.and_then(|l| l.specimen_k_kn_per_mm.filter(|_| l.kind == kind)) {
         Some(k) => link_host::structure_rig_values(&rig, k, length_scale, lead_adapt_ticks)?,
