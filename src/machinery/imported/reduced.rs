@@ -10,11 +10,16 @@
 //! ([`super::fe`]) on the training records at every read-out, the interface and each output. The
 //! training records' runs are all it sees; held-out records are scored elsewhere.
 
+use std::ops::ControlFlow;
+
 use nalgebra::{DMatrix, DVector};
 use rths_core::checksum::{Fnv1a64, Fnv1a64Label};
-use rths_core::control::StructureReduced;
+use rths_core::compensator::Compensator;
+use rths_core::control::{Analytical, ControlConfig, Controller, FeedbackSource, StructureReduced};
 use rths_core::metamodel::{ModelError, ReducedModalParams, REDUCED_MAX_MODES};
 use rths_core::metrics::nrmse_pct;
+use rths_core::params::{Prototype, SpecimenScale};
+use rths_core::supervisor::Limits;
 pub use rths_files::reduced_model_file::{
     ReducedArrays, ReducedFileError, ReducedModeEntry, ReducedModelFile, ReducedRecordError,
     ReducedTraining, StaticEntry, StructureIdentity, REDUCED_FORMAT, REDUCED_VERSION,
@@ -22,6 +27,7 @@ pub use rths_files::reduced_model_file::{
 
 use super::fe::{self, FeHistory};
 use super::ImportedStructure;
+use crate::machinery::drive;
 
 /// The records the reduced model is trained (its size chosen) on: the embedded Northridge and
 /// Loma Prieta, the structure metamodel's training records; El Centro, Kobe and Morgan Hill stay
@@ -53,6 +59,14 @@ pub enum ReducedError {
     /// The model file (its format, its structure, its arrays).
     #[error(transparent)]
     File(#[from] ReducedFileError),
+    /// The controller's supervisor stopped the pure loop (a step that was not finite).
+    #[error("the reduced model's pure loop stopped ({reason}) at {time_s:.3} s")]
+    Stopped {
+        /// The supervisor's reason.
+        reason: String,
+        /// When, s.
+        time_s: f64,
+    },
 }
 
 impl From<ModelError> for ReducedError {
@@ -257,28 +271,49 @@ fn reduced_of(s: &ImportedStructure, md: &Modes, r: usize, dt_s: f64) -> Reduced
     }
 }
 
-/// The pure loop of a reduced model (the controller's analytical part coupled with the numerical
-/// stand-in specimen, `F = k_e·target`) under `ag_mm_s2`, one sample per step (row 0: rest), as
-/// [`fe::run_pure`] gives the host FE's.
+/// The pure loop of a reduced model under `ag_mm_s2`, one sample per step (row 0: rest), as
+/// [`fe::run_pure`] gives the host FE's: the model as the analytical part of core's controller
+/// (`rths_core::control::Controller`, the tick the firmware runs), coupled with the numerical
+/// stand-in specimen (`FeedbackSource::OwnLinearSpecimen`: `F = k_e·target`), no actuator, run by
+/// the host's driver ([`crate::machinery::drive::run_pure`]); each row the part's interface and
+/// outputs as the controller holds them after the tick (`Analytical::interface_disp_mm`,
+/// `Analytical::output_disp_mm`).
 pub fn run_pure(
     params: ReducedModalParams,
     output_columns: Vec<String>,
     ag_mm_s2: &[f64],
 ) -> Result<FeHistory, ReducedError> {
-    let k_e = params.specimen_k_kn_per_mm();
-    let n_out = params.outputs();
     let dt_s = params.dt_s();
-    let mut part = StructureReduced::new(params);
+    let n_out = params.outputs();
+    let config = ControlConfig::new(
+        Prototype::paper(),
+        SpecimenScale::default(),
+        FeedbackSource::OwnLinearSpecimen {
+            stiffness_kn_per_mm: params.specimen_k_kn_per_mm(),
+        },
+        // No actuator: nothing physical to protect, only a non-finite step trips.
+        Limits::unbounded(),
+    )
+    .map_err(ModelError::from)?;
+    let mut ctl = Controller::new(
+        config,
+        Analytical::StructureReduced(StructureReduced::new(params)),
+        Compensator::None,
+    );
     let mut interface_mm = Vec::with_capacity(ag_mm_s2.len());
     let mut outputs_mm = Vec::with_capacity(ag_mm_s2.len());
-    let mut target = 0.0;
-    for &ag in ag_mm_s2 {
-        target = part
-            .next_target(ag, k_e * target)
-            .map_err(|_| ModelError::Param(rths_core::params::ParamError::NotFinite("step")))?;
-        let m = part.model();
-        interface_mm.push(m.interface_mm());
-        outputs_mm.push((0..n_out).map(|o| m.output_mm(o)).collect());
+    let stop = drive::run_pure(&mut ctl, ag_mm_s2, dt_s, |_, ctl| {
+        let part = ctl.analytical();
+        interface_mm.push(part.interface_disp_mm().unwrap_or(f64::NAN));
+        outputs_mm.push(
+            (0..n_out)
+                .map(|o| part.output_disp_mm(o).unwrap_or(f64::NAN))
+                .collect(),
+        );
+        ControlFlow::Continue(())
+    });
+    if let Some((reason, time_s)) = stop {
+        return Err(ReducedError::Stopped { reason, time_s });
     }
     Ok(FeHistory {
         dt_s,
