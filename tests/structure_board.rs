@@ -165,7 +165,7 @@ fn on_the_board_and_the_host(
     let ctl = host_controller(&mut slot, &laid, &rig_values);
     assert_eq!(ctl.scenario_name().0, scenario);
     let mut plant = rths_hal_sim::VirtualRig::new(
-        rths::studies::scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
+        rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
             .build()
             .unwrap(),
     );
