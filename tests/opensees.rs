@@ -204,6 +204,38 @@ fn the_condensed_model_integrates_to_the_sparse_host_fe() {
     assert_eq!(full.interface_mm, column(&full.outputs_mm, 0));
 }
 
+/// The training's modal reference (`rths train meta`: all the modes superposed, the damping
+/// classical but for the specimen's DOF) is the condensed model's Newmark to round-off, every
+/// sample, at the interface and every output.
+#[test]
+fn the_modal_reference_is_the_condensed_newmark_to_round_off() {
+    let s = load(SMALL);
+    let ag = el_centro();
+    let records = vec![("el-centro".to_string(), ag.clone())];
+    let (runs, kind) =
+        rths::machinery::imported::reduced::training_reference(&s, &records, DT_S).expect("runs");
+    assert!(
+        kind.to_string()
+            .starts_with("modal superposition of all 48 modes"),
+        "{kind}"
+    );
+    let (x, outs) = dense_newmark(&s, &ag);
+    let peak = x.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let mut worst: f64 = 0.0;
+    for (k, (a, b)) in runs[0].interface_mm.iter().zip(&x).enumerate() {
+        worst = worst.max((a - b).abs());
+        for (p, q) in runs[0].outputs_mm[k].iter().zip(&outs[k]) {
+            worst = worst.max((p - q).abs());
+        }
+    }
+    eprintln!("modal vs condensed Newmark: largest difference {worst:.2e} mm, peak {peak:.3} mm");
+    assert!(peak > 1.0, "the frame moved: {peak} mm");
+    assert!(
+        worst <= 1e-9 * peak,
+        "{worst} mm against a peak of {peak} mm"
+    );
+}
+
 /// OpenSees's transient analysis of `script` under `ag` at the `dofs`: (samples × dofs, s/step).
 fn opensees_transient(script: &str, ag: &[f64], dofs: &[DofLabel]) -> (Vec<Vec<f64>>, f64) {
     let dir = tempfile::tempdir().expect("a temporary directory");

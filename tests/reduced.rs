@@ -131,3 +131,111 @@ fn a_model_for_another_structure_or_a_corrupted_one_is_refused() {
     );
     assert!(ReducedModelFile::from_json("{").is_err(), "truncated JSON");
 }
+
+/// The training's reference runs (what the mode count is chosen against) are the modal
+/// superposition of all the modes for the shipped frames (Rayleigh damping of the numerical part),
+/// and equal the sparse host FE's runs of the whole uncondensed model within the condensation's
+/// round-off (the bound tests/opensees.rs sets the condensed model against the whole one, 1e-6 %
+/// NRMSE) at the interface and every output. (Against the condensed model's own Newmark they agree
+/// to round-off: tests/opensees.rs.)
+#[test]
+fn the_modal_training_reference_is_the_sparse_host_fe_to_round_off() {
+    for (file, seconds) in [(SMALL, None), (LARGE, Some(10.0))] {
+        let s = load(file);
+        let records: Vec<(String, Vec<f64>)> = REDUCED_TRAINING_RECORDS
+            .iter()
+            .map(|n| (n.to_string(), record(n, seconds)))
+            .collect();
+        let (runs, kind) = reduced::training_reference(&s, &records, DT_S).expect("reference");
+        assert!(
+            matches!(kind, reduced::TrainingReference::Modal { modes, .. } if modes == s.mass_dofs()),
+            "{}: {kind}",
+            s.name()
+        );
+        for ((name, ag), modal) in records.iter().zip(&runs) {
+            let fe = fe::run_pure(&s, ag, DT_S, |_| {}).expect("host FE");
+            assert_eq!(modal.output_columns, fe.output_columns);
+            assert_eq!(modal.interface_mm.len(), fe.interface_mm.len());
+            let peak = fe.interface_mm.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+            let mut worst: f64 = 0.0;
+            for (k, (a, b)) in modal.interface_mm.iter().zip(&fe.interface_mm).enumerate() {
+                worst = worst.max((a - b).abs());
+                for (x, y) in modal.outputs_mm[k].iter().zip(&fe.outputs_mm[k]) {
+                    worst = worst.max((x - y).abs());
+                }
+            }
+            let (i, o) = reduced::history_nrmse_pct(modal, &fe);
+            eprintln!(
+                "{} {name}: modal vs sparse FE: largest difference {worst:.3e} mm (peak \
+                 interface {peak:.3} mm), NRMSE interface {i:.2e} %, outputs {o:.2e} %; {kind}",
+                s.name()
+            );
+            assert!(peak > 1.0, "the frame moved: {peak} mm");
+            assert!(i < 1e-6 && o < 1e-6, "modal vs sparse FE: {i} %, {o} %");
+        }
+    }
+}
+
+/// Where the damping is not classical (a dashpot of its own at a massless DOF, which the
+/// condensation cannot keep exactly; or at a DOF with mass away from the specimen, which couples the
+/// modes), the training's reference is the sparse host FE's run itself, and says why.
+#[test]
+fn damping_that_is_not_classical_falls_back_to_the_sparse_host_fe() {
+    use rths::machinery::imported::modal_reference::NotClassical;
+    use serde_json::Value;
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(SMALL);
+    let json: Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).expect("the shipped frame"))
+            .expect("JSON");
+    let triplets = |key: &str| -> Vec<(u64, u64, f64)> {
+        json[key]
+            .as_array()
+            .expect("triplets")
+            .iter()
+            .map(|t| {
+                let (r, c) = (t[0].as_u64().expect("row"), t[1].as_u64().expect("column"));
+                (r, c, t[2].as_f64().expect("value"))
+            })
+            .collect()
+    };
+    let massive: Vec<u64> = triplets("mass")
+        .into_iter()
+        .filter(|&(r, c, v)| r == c && v > 0.0)
+        .map(|(r, _, _)| r)
+        .collect();
+    let equations = json["equations"].as_array().expect("equations");
+    let specimen = &json["specimen"]["at"];
+    let massless = (0..equations.len() as u64)
+        .find(|e| !massive.contains(e))
+        .expect("a massless DOF");
+    let away = *massive
+        .iter()
+        .find(|&&e| &equations[e as usize] != specimen)
+        .expect("a DOF with mass away from the specimen");
+    let ag = record("northridge", Some(2.0));
+    let records = vec![("northridge".to_string(), ag.clone())];
+    for equation in [massless, away] {
+        // Half as much damping again on the DOF's diagonal: a dashpot of its own.
+        let mut changed = json.clone();
+        for t in changed["damping"].as_array_mut().expect("triplets") {
+            if t[0].as_u64() == Some(equation) && t[1].as_u64() == Some(equation) {
+                t[2] = Value::from(t[2].as_f64().expect("value") * 1.5);
+            }
+        }
+        let s = ImportedStructure::from_json(&changed.to_string()).expect("a valid structure");
+        let (runs, kind) = reduced::training_reference(&s, &records, DT_S).expect("reference");
+        eprintln!("a dashpot at equation {equation}: {kind}");
+        match &kind {
+            reduced::TrainingReference::SparseFe {
+                why: NotClassical::MasslessDamping { equation: e, .. },
+            } => assert_eq!((equation, *e as u64), (massless, massless)),
+            reduced::TrainingReference::SparseFe {
+                why: NotClassical::Coupled { .. },
+            } => assert_eq!(equation, away),
+            other => panic!("equation {equation}: {other}"),
+        }
+        let fe = fe::run_pure(&s, &ag, DT_S, |_| {}).expect("host FE");
+        assert_eq!(runs[0].interface_mm, fe.interface_mm);
+        assert_eq!(runs[0].outputs_mm, fe.outputs_mm);
+    }
+}

@@ -288,6 +288,52 @@ impl Analytical {
         }
     }
 
+    /// The interface's (the specimen DOF's) displacement at the last completed step (after the
+    /// tick of k: at d_k), mm, of a structure part that holds its DOFs' state; `None` for the
+    /// others (the paper frame's parts, a site, the structure metamodel's ARX).
+    pub fn interface_disp_mm(&self) -> Option<f64> {
+        match self {
+            Analytical::StructureFe(m) => m.chang().disp().get(m.specimen_dof()).copied(),
+            Analytical::StructureNl(m) => m.frame().chang().disp().get(m.specimen_dof()).copied(),
+            Analytical::StructureModal(m) => {
+                let model = m.model();
+                Some(model.floor_disp_mm(model.params().specimen_dof()))
+            }
+            Analytical::StructureReduced(m) => Some(m.model().interface_mm()),
+            _ => None,
+        }
+    }
+
+    /// How many displacement read-outs [`Self::output_disp_mm`] gives: a structure file's DOFs
+    /// (its floors) for its FE parts and its modal-hysteretic model, an imported structure's
+    /// outputs (the lab's `--output` DOFs) for its reduced model; 0 for the other parts.
+    pub fn output_count(&self) -> usize {
+        match self {
+            Analytical::StructureFe(m) => m.chang().model().dofs(),
+            Analytical::StructureNl(m) => m.frame().dofs(),
+            Analytical::StructureModal(m) => m.model().params().floors(),
+            Analytical::StructureReduced(m) => m.model().params().outputs(),
+            _ => 0,
+        }
+    }
+
+    /// Read-out `i`'s displacement at the last completed step (after the tick of k: at d_k), mm
+    /// ([`Self::output_count`] says what the read-outs are); `None` past them. What a study's
+    /// history records beside the target (a pure loop's floors and outputs), read from the part
+    /// the controller steps.
+    pub fn output_disp_mm(&self, i: usize) -> Option<f64> {
+        if i >= self.output_count() {
+            return None;
+        }
+        match self {
+            Analytical::StructureFe(m) => m.chang().disp().get(i).copied(),
+            Analytical::StructureNl(m) => m.frame().chang().disp().get(i).copied(),
+            Analytical::StructureModal(m) => Some(m.model().floor_disp_mm(i)),
+            Analytical::StructureReduced(m) => Some(m.model().output_mm(i)),
+            _ => None,
+        }
+    }
+
     fn reset(&mut self) {
         match self {
             Analytical::Fe(m) => m.reset(),

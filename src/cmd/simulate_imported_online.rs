@@ -19,7 +19,7 @@ use crate::machinery::imported::reduced::ReducedModelFile;
 use crate::machinery::imported::ImportedStructure;
 use crate::machinery::reference::DrawnPlant;
 use crate::machinery::structure::rig::{self, RigCompensation};
-use crate::studies::imported_hybrid::{self as hybrid, Compensation, OnlineScore, ReducedReadOut};
+use crate::studies::imported_hybrid::{self as hybrid, Compensation, OnlineScore};
 use crate::studies::nonlinear::scenario::SimScenario;
 
 /// The JSON of an imported structure's hybrid run.
@@ -137,7 +137,6 @@ pub fn run(
         &rig_config,
         ag_mm_s2,
         columns,
-        &ReducedReadOut,
     )?;
     let (reference, plant) = hybrid::reference(s, &rig_config, factor, ag_mm_s2)
         .with_context(|| format!("the reference of {}", path.display()))?;

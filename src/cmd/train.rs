@@ -669,17 +669,18 @@ fn train_reduced(args: &Args, path: &std::path::Path, text: &str) -> anyhow::Res
         indicatif::ProgressBar::hidden()
     };
     if let Ok(style) =
-        indicatif::ProgressStyle::with_template("{msg:32} {bar:30} {pos}/{len} [{elapsed}]")
+        indicatif::ProgressStyle::with_template("{msg:40} {bar:30} {pos}/{len} [{elapsed}]")
     {
         bar.set_style(style);
     }
     let start = std::time::Instant::now();
-    let file = reduced::train(&structure, &records, dt_s, |stage, done, total| {
-        bar.set_message(stage.to_string());
-        bar.set_length(total);
-        bar.set_position(done);
-    })
-    .with_context(|| format!("training the reduced model of {}", path.display()))?;
+    let (file, reference) =
+        reduced::train_reporting(&structure, &records, dt_s, |stage, done, total| {
+            bar.set_message(stage.to_string());
+            bar.set_length(total);
+            bar.set_position(done);
+        })
+        .with_context(|| format!("training the reduced model of {}", path.display()))?;
     bar.finish_and_clear();
     std::fs::write(&args.out, file.to_json()?)
         .with_context(|| format!("writing {}", args.out.display()))?;
@@ -697,6 +698,7 @@ fn train_reduced(args: &Args, path: &std::path::Path, text: &str) -> anyhow::Res
             .map_or("none".to_string(), |f| format!("{f:.2} Hz")),
         file.outputs.len()
     );
+    crate::outln!("  the training records' runs: {reference}");
     for r in &t.per_record {
         crate::outln!(
             "  {:<12} pure loop vs host FE: interface {:.4} %, largest output {:.4} %",

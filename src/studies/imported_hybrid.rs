@@ -99,33 +99,13 @@ pub struct OnlineRun {
     pub model: FeHistory,
 }
 
-/// A hybrid run's analytical part as the history reads it: its interface displacement and its
-/// outputs (in the structure's order) at the last completed step, mm.
-pub trait ReadOut {
-    /// `(interface, outputs)` of `analytical` (pushed into `outputs`).
-    fn read(&self, analytical: &Analytical, outputs: &mut Vec<f64>) -> f64;
-}
-
-/// The reduced model's read-outs (`meta-online`).
-pub struct ReducedReadOut;
-
-impl ReadOut for ReducedReadOut {
-    fn read(&self, analytical: &Analytical, outputs: &mut Vec<f64>) -> f64 {
-        match analytical {
-            Analytical::StructureReduced(m) => {
-                let m = m.model();
-                outputs.extend((0..m.params().outputs()).map(|o| m.output_mm(o)));
-                m.interface_mm()
-            }
-            _ => f64::NAN,
-        }
-    }
-}
-
 /// Run `analytical` in core's controller on the virtual plant `rig` over `ag_mm_s2` (one sample
-/// per tick) at specimen scale `scale` ([`specimen_scale`]), with `compensation`, the compensator given the target in force (the rig is at the
-/// displacement whose force the model reads, as every structure's hybrid run), the paper
-/// actuator's supervisor. `output_columns` names the outputs `read` gives.
+/// per tick) at specimen scale `scale` ([`specimen_scale`]), with `compensation`, the compensator
+/// given the target in force (the rig is at the displacement whose force the model reads, as
+/// every structure's hybrid run), the paper actuator's supervisor. The history records the
+/// part's own interface and outputs as the controller holds them after each tick
+/// (`Analytical::interface_disp_mm`, `Analytical::output_disp_mm`), which `output_columns`
+/// names.
 pub fn run_online(
     scale: SpecimenScale,
     analytical: Analytical,
@@ -133,7 +113,6 @@ pub fn run_online(
     rig: &RigConfig,
     ag_mm_s2: &[f64],
     output_columns: Vec<String>,
-    read: &dyn ReadOut,
 ) -> anyhow::Result<(OnlineRun, Stop)> {
     let config = ControlConfig::new(
         Prototype::paper(),
@@ -171,11 +150,15 @@ pub fn run_online(
             run.measured_mm
                 .push(scale.prototype_disp_mm(st.measured_mm));
             run.measured_force_kn.push(st.measured_force_kn);
-            let mut outs = Vec::with_capacity(run.model.output_columns.len());
+            let part = ctl.analytical();
             run.model
                 .interface_mm
-                .push(read.read(ctl.analytical(), &mut outs));
-            run.model.outputs_mm.push(outs);
+                .push(part.interface_disp_mm().unwrap_or(f64::NAN));
+            run.model.outputs_mm.push(
+                (0..run.model.output_columns.len())
+                    .map(|o| part.output_disp_mm(o).unwrap_or(f64::NAN))
+                    .collect(),
+            );
             ControlFlow::Continue(())
         },
     );

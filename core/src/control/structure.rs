@@ -183,6 +183,11 @@ impl StructureFe {
         &self.chang
     }
 
+    /// The specimen's DOF, 0-based.
+    pub fn specimen_dof(&self) -> usize {
+        self.dof
+    }
+
     /// Tick k: complete step k with `ü_g(k)` and the specimen's measured force, return the target
     /// displacement at the specimen's DOF for k+1, mm.
     #[inline]
@@ -255,6 +260,11 @@ impl StructureNl {
     /// The frame (every floor's and story's state).
     pub fn frame(&self) -> &NonlinearFrame {
         &self.frame
+    }
+
+    /// The specimen's DOF, 0-based.
+    pub fn specimen_dof(&self) -> usize {
+        self.dof
     }
 
     /// As [`StructureFe::next_target`].

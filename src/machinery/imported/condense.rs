@@ -180,6 +180,71 @@ pub fn condense(
     })
 }
 
+/// How far the damping of the massless DOFs is from making the condensation exact: for each DOF
+/// not in `retained`, its column of `c` against `b·`(its column of `k`), `b` by least squares,
+/// the largest departure over the column's largest `|c|` (0 for an undamped DOF). The worst DOF
+/// (its index in the whole model) and its departure; `None` without massless DOFs. 0 means each
+/// massless dashpot acts on the combination `K_s·x` the statics keeps at zero (Rayleigh damping),
+/// so the condensed model integrates as the whole one does.
+pub fn massless_damping_residual(
+    c: &CscMatrix<f64>,
+    k: &CscMatrix<f64>,
+    retained: &[usize],
+) -> Option<(usize, f64)> {
+    let mut worst: Option<(usize, f64)> = None;
+    let mut next = 0;
+    for j in 0..k.ncols() {
+        if retained.get(next) == Some(&j) {
+            next += 1;
+            continue;
+        }
+        let (cc, kc) = (c.col(j), k.col(j));
+        // The two columns merged on their (sorted) row indices.
+        let mut pairs = Vec::with_capacity(cc.nnz() + kc.nnz());
+        let (ci, cv, ki, kv) = (cc.row_indices(), cc.values(), kc.row_indices(), kc.values());
+        let (mut a, mut b) = (0, 0);
+        while a < ci.len() || b < ki.len() {
+            match (ci.get(a), ki.get(b)) {
+                (Some(x), Some(y)) if x == y => {
+                    pairs.push((cv[a], kv[b]));
+                    a += 1;
+                    b += 1;
+                }
+                (Some(x), Some(y)) if x < y => {
+                    pairs.push((cv[a], 0.0));
+                    a += 1;
+                }
+                (Some(_), None) => {
+                    pairs.push((cv[a], 0.0));
+                    a += 1;
+                }
+                _ => {
+                    pairs.push((0.0, kv[b]));
+                    b += 1;
+                }
+            }
+        }
+        let largest = pairs.iter().fold(0.0_f64, |m, p| m.max(p.0.abs()));
+        let residual = if largest == 0.0 {
+            0.0
+        } else {
+            let (num, den) = pairs
+                .iter()
+                .fold((0.0, 0.0), |(n, d), (cv, kv)| (n + cv * kv, d + kv * kv));
+            let factor = if den > 0.0 { num / den } else { 0.0 };
+            pairs
+                .iter()
+                .fold(0.0_f64, |m, (cv, kv)| m.max((cv - factor * kv).abs()))
+                / largest
+        };
+        // A NaN counts as the worst.
+        if worst.is_none_or(|(_, w)| residual.is_nan() || residual > w) {
+            worst = Some((j, residual));
+        }
+    }
+    worst
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -231,6 +296,46 @@ mod tests {
             DMatrix::from_row_slice(2, 2, &[2.0, 0.0, 0.0, 1.0])
         );
         Ok(())
+    }
+
+    #[test]
+    fn massless_damping_is_checked_against_its_stiffness() {
+        let k = csc(
+            3,
+            &[
+                (0, 0, 4.0),
+                (0, 1, -1.0),
+                (1, 0, -1.0),
+                (1, 1, 3.0),
+                (1, 2, -1.5),
+                (2, 1, -1.5),
+                (2, 2, 2.0),
+            ],
+        );
+        // C = 0.1·K: DOF 1 (massless) is exact.
+        let c = csc(
+            3,
+            &[
+                (0, 0, 0.4),
+                (0, 1, -0.1),
+                (1, 0, -0.1),
+                (1, 1, 0.3),
+                (1, 2, -0.15),
+                (2, 1, -0.15),
+                (2, 2, 0.2),
+            ],
+        );
+        let (eq, r) = massless_damping_residual(&c, &k, &[0, 2]).expect("one massless DOF");
+        assert_eq!(eq, 1);
+        assert!(r < 1e-15, "{r}");
+        // An undamped massless DOF is exact too.
+        let c0 = csc(3, &[(0, 0, 0.4), (2, 2, 0.2)]);
+        assert_eq!(massless_damping_residual(&c0, &k, &[0, 2]), Some((1, 0.0)));
+        // A dashpot of its own at DOF 1 is not.
+        let c1 = csc(3, &[(1, 1, 0.3)]);
+        let (_, r) = massless_damping_residual(&c1, &k, &[0, 2]).expect("one massless DOF");
+        assert!(r > 0.1, "{r}");
+        assert_eq!(massless_damping_residual(&c, &k, &[0, 1, 2]), None);
     }
 
     #[test]

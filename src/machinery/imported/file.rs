@@ -742,6 +742,13 @@ impl ImportedStructure {
             outputs: self.output_equations.clone(),
         }
     }
+
+    /// How far the massless DOFs' damping is from making the condensation exact
+    /// ([`condense::massless_damping_residual`]): the worst massless equation of the whole model
+    /// and its departure (0: exact); `None` without massless DOFs.
+    pub fn massless_damping_residual(&self) -> Option<(usize, f64)> {
+        condense::massless_damping_residual(&self.damping, &self.stiffness, &self.retained)
+    }
 }
 
 #[cfg(test)]

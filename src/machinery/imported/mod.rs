@@ -19,6 +19,7 @@ pub mod condense;
 pub mod export;
 pub mod fe;
 pub mod file;
+pub mod modal_reference;
 pub mod reduced;
 
 pub use file::{DofLabel, ImportedFile, ImportedStructure, ImportedStructureError};

@@ -10,18 +10,27 @@
 //! ([`super::fe`]) on the training records at every read-out, the interface and each output. The
 //! training records' runs are all it sees; held-out records are scored elsewhere.
 
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 use rths_core::checksum::{Fnv1a64, Fnv1a64Label};
-use rths_core::control::StructureReduced;
+use rths_core::compensator::Compensator;
+use rths_core::control::{Analytical, ControlConfig, Controller, FeedbackSource, StructureReduced};
 use rths_core::metamodel::{ModelError, ReducedModalParams, REDUCED_MAX_MODES};
 use rths_core::metrics::nrmse_pct;
+use rths_core::params::{Prototype, SpecimenScale};
+use rths_core::supervisor::Limits;
 pub use rths_files::reduced_model_file::{
     ReducedArrays, ReducedFileError, ReducedModeEntry, ReducedModelFile, ReducedRecordError,
     ReducedTraining, StaticEntry, StructureIdentity, REDUCED_FORMAT, REDUCED_VERSION,
 };
 
 use super::fe::{self, FeHistory};
+use super::modal_reference::{ModalInputs, ModalReference, NotClassical};
 use super::ImportedStructure;
+use crate::machinery::drive;
 
 /// The records the reduced model is trained (its size chosen) on: the embedded Northridge and
 /// Loma Prieta, the structure metamodel's training records; El Centro, Kobe and Morgan Hill stay
@@ -53,6 +62,14 @@ pub enum ReducedError {
     /// The model file (its format, its structure, its arrays).
     #[error(transparent)]
     File(#[from] ReducedFileError),
+    /// The controller's supervisor stopped the pure loop (a step that was not finite).
+    #[error("the reduced model's pure loop stopped ({reason}) at {time_s:.3} s")]
+    Stopped {
+        /// The supervisor's reason.
+        reason: String,
+        /// When, s.
+        time_s: f64,
+    },
 }
 
 impl From<ModelError> for ReducedError {
@@ -113,6 +130,8 @@ impl StructureIdentity for ImportedStructure {
 
 /// The whole structure's modes and static responses, lowest mode first.
 struct Modes {
+    /// ω², (rad/s)² (the eigenvalues).
+    lambda: Vec<f64>,
     /// ω, rad/s.
     omega: Vec<f64>,
     /// Mass-normalized shapes, one column per mode.
@@ -127,6 +146,8 @@ struct Modes {
     static_ground: DVector<f64>,
     /// `K⁻¹·e`.
     static_force: DVector<f64>,
+    /// [`imported_checksum`] of the structure, once: each mode count tried writes it.
+    checksum: String,
 }
 
 fn modes_of(s: &ImportedStructure) -> Result<Modes, ReducedError> {
@@ -149,6 +170,7 @@ fn modes_of(s: &ImportedStructure) -> Result<Modes, ReducedError> {
     let lt = l.transpose();
     let mut shapes = DMatrix::zeros(n, n);
     let mut omega = Vec::with_capacity(n);
+    let mut lambdas = Vec::with_capacity(n);
     for (col, &i) in order.iter().enumerate() {
         let lambda = eig.eigenvalues[i];
         if lambda.is_nan() || lambda <= 0.0 {
@@ -163,6 +185,7 @@ fn modes_of(s: &ImportedStructure) -> Result<Modes, ReducedError> {
         }
         shapes.set_column(col, &phi);
         omega.push(lambda.sqrt());
+        lambdas.push(lambda);
     }
     let modal_damping = shapes.transpose() * &c * &shapes;
     let zeta = omega
@@ -181,6 +204,7 @@ fn modes_of(s: &ImportedStructure) -> Result<Modes, ReducedError> {
     }
     let static_force = kc.solve(&unit);
     Ok(Modes {
+        lambda: lambdas,
         omega,
         shapes,
         zeta,
@@ -188,6 +212,7 @@ fn modes_of(s: &ImportedStructure) -> Result<Modes, ReducedError> {
         modal_damping,
         static_ground,
         static_force,
+        checksum: imported_checksum(s),
     })
 }
 
@@ -236,7 +261,7 @@ fn reduced_of(s: &ImportedStructure, md: &Modes, r: usize, dt_s: f64) -> Reduced
         format: REDUCED_FORMAT.into(),
         version: REDUCED_VERSION,
         structure: s.name().to_string(),
-        structure_checksum: imported_checksum(s),
+        structure_checksum: md.checksum.clone(),
         dt_s,
         dofs: s.equations().len(),
         mass_dofs: s.mass_dofs(),
@@ -257,28 +282,49 @@ fn reduced_of(s: &ImportedStructure, md: &Modes, r: usize, dt_s: f64) -> Reduced
     }
 }
 
-/// The pure loop of a reduced model (the controller's analytical part coupled with the numerical
-/// stand-in specimen, `F = k_e·target`) under `ag_mm_s2`, one sample per step (row 0: rest), as
-/// [`fe::run_pure`] gives the host FE's.
+/// The pure loop of a reduced model under `ag_mm_s2`, one sample per step (row 0: rest), as
+/// [`fe::run_pure`] gives the host FE's: the model as the analytical part of core's controller
+/// (`rths_core::control::Controller`, the tick the firmware runs), coupled with the numerical
+/// stand-in specimen (`FeedbackSource::OwnLinearSpecimen`: `F = k_e·target`), no actuator, run by
+/// the host's driver ([`crate::machinery::drive::run_pure`]); each row the part's interface and
+/// outputs as the controller holds them after the tick (`Analytical::interface_disp_mm`,
+/// `Analytical::output_disp_mm`).
 pub fn run_pure(
     params: ReducedModalParams,
     output_columns: Vec<String>,
     ag_mm_s2: &[f64],
 ) -> Result<FeHistory, ReducedError> {
-    let k_e = params.specimen_k_kn_per_mm();
-    let n_out = params.outputs();
     let dt_s = params.dt_s();
-    let mut part = StructureReduced::new(params);
+    let n_out = params.outputs();
+    let config = ControlConfig::new(
+        Prototype::paper(),
+        SpecimenScale::default(),
+        FeedbackSource::OwnLinearSpecimen {
+            stiffness_kn_per_mm: params.specimen_k_kn_per_mm(),
+        },
+        // No actuator: nothing physical to protect, only a non-finite step trips.
+        Limits::unbounded(),
+    )
+    .map_err(ModelError::from)?;
+    let mut ctl = Controller::new(
+        config,
+        Analytical::StructureReduced(StructureReduced::new(params)),
+        Compensator::None,
+    );
     let mut interface_mm = Vec::with_capacity(ag_mm_s2.len());
     let mut outputs_mm = Vec::with_capacity(ag_mm_s2.len());
-    let mut target = 0.0;
-    for &ag in ag_mm_s2 {
-        target = part
-            .next_target(ag, k_e * target)
-            .map_err(|_| ModelError::Param(rths_core::params::ParamError::NotFinite("step")))?;
-        let m = part.model();
-        interface_mm.push(m.interface_mm());
-        outputs_mm.push((0..n_out).map(|o| m.output_mm(o)).collect());
+    let stop = drive::run_pure(&mut ctl, ag_mm_s2, dt_s, |_, ctl| {
+        let part = ctl.analytical();
+        interface_mm.push(part.interface_disp_mm().unwrap_or(f64::NAN));
+        outputs_mm.push(
+            (0..n_out)
+                .map(|o| part.output_disp_mm(o).unwrap_or(f64::NAN))
+                .collect(),
+        );
+        ControlFlow::Continue(())
+    });
+    if let Some((reason, time_s)) = stop {
+        return Err(ReducedError::Stopped { reason, time_s });
     }
     Ok(FeHistory {
         dt_s,
@@ -308,71 +354,254 @@ pub fn history_nrmse_pct(run: &FeHistory, reference: &FeHistory) -> (f64, f64) {
     (i, worst)
 }
 
+/// What the training records' runs (the reduced model's reference) were computed with.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TrainingReference {
+    /// Modal superposition of all the structure's modes ([`ModalReference`]): the condensed
+    /// model's Newmark to round-off, `O(n)` per step.
+    Modal {
+        /// The modes superposed (every one).
+        modes: usize,
+        /// The damping's largest departure from the classical form, relative.
+        residual: f64,
+    },
+    /// The sparse host FE ([`fe::run_pure`]), because the modal superposition does not apply.
+    SparseFe {
+        /// Why not.
+        why: NotClassical,
+    },
+}
+
+impl std::fmt::Display for TrainingReference {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            TrainingReference::Modal { modes, residual } => write!(
+                f,
+                "modal superposition of all {modes} modes (the damping classical but for the \
+                 specimen's DOF, to {residual:.1e})"
+            ),
+            TrainingReference::SparseFe { why } => write!(f, "the sparse host FE ({why})"),
+        }
+    }
+}
+
+/// The modal superposition of all of `structure`'s modes `md`, if its damping allows it.
+fn modal_reference(
+    structure: &ImportedStructure,
+    md: &Modes,
+) -> Result<ModalReference, NotClassical> {
+    let row = |r: usize| -> Vec<f64> { md.shapes.row(r).iter().copied().collect() };
+    ModalReference::new(
+        structure.massless_damping_residual(),
+        ModalInputs {
+            omega_sq: &md.lambda,
+            modal_damping: &md.modal_damping,
+            gamma: &md.gamma,
+            interface_row: row(structure.interface_index()),
+            output_rows: structure.output_indices().into_iter().map(row).collect(),
+        },
+    )
+}
+
+/// Run `work` on other threads while this one reports `stage` through `progress` with the count
+/// `work` keeps in its counter (out of `total`), every 50 ms: the bar moves while the records run
+/// in parallel.
+fn reporting<T: Send>(
+    stage: &str,
+    total: u64,
+    progress: &mut impl FnMut(&str, u64, u64),
+    work: impl FnOnce(&AtomicU64) -> T + Send,
+) -> T {
+    let done = AtomicU64::new(0);
+    std::thread::scope(|scope| {
+        let handle = scope.spawn(|| work(&done));
+        while !handle.is_finished() {
+            progress(stage, done.load(Ordering::Relaxed).min(total), total);
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        progress(stage, total, total);
+        handle
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+    })
+}
+
+/// The training's score of the model of the `r` lowest modes.
+enum Scored {
+    /// Mode `r` cannot be kept (critical damping or beyond: core refuses ζ ≥ 1); the model stops
+    /// at the last mode below.
+    Stop,
+    /// The file's arrays are not a model (the next count may be).
+    Skip,
+    /// The error bound (the largest NRMSE on the training records, %) and the file with its
+    /// training record.
+    Model(f64, Box<ReducedModelFile>),
+}
+
+/// Score the model of the `r` lowest modes: per record, its pure loop against the reference.
+fn score_modes(
+    structure: &ImportedStructure,
+    md: &Modes,
+    r: usize,
+    dt_s: f64,
+    records: &[(String, Vec<f64>)],
+    reference: &[FeHistory],
+) -> Result<Scored, ReducedError> {
+    if md.zeta.get(r - 1).is_none_or(|z| !(0.0..1.0).contains(z)) {
+        return Ok(Scored::Stop);
+    }
+    let mut file = reduced_of(structure, md, r, dt_s);
+    let Ok(arrays) = file.arrays() else {
+        return Ok(Scored::Skip);
+    };
+    let params = arrays.spec().params(dt_s)?;
+    let mut per_record = Vec::new();
+    let mut bound: f64 = 0.0;
+    for ((name, ag), reference) in records.iter().zip(reference) {
+        let run = run_pure(params, file.outputs.clone(), ag)?;
+        let (i, o) = history_nrmse_pct(&run, reference);
+        bound = if i.is_nan() || o.is_nan() {
+            f64::INFINITY
+        } else {
+            bound.max(i).max(o)
+        };
+        per_record.push(ReducedRecordError {
+            record: name.clone(),
+            interface_nrmse_pct: i,
+            max_output_nrmse_pct: o,
+        });
+    }
+    file.training.records = records.iter().map(|(n, _)| n.clone()).collect();
+    file.training.error_bound_pct = bound;
+    file.training.per_record = per_record;
+    Ok(Scored::Model(bound, Box::new(file)))
+}
+
+/// The training records' runs the mode count is chosen against, and what computed them: the
+/// modal superposition of all of `structure`'s modes `md` where it applies, else the sparse host
+/// FE; the records in parallel.
+fn reference_runs(
+    structure: &ImportedStructure,
+    md: &Modes,
+    records: &[(String, Vec<f64>)],
+    dt_s: f64,
+    mut progress: impl FnMut(&str, u64, u64),
+) -> Result<(Vec<FeHistory>, TrainingReference), ReducedError> {
+    let steps: u64 = records.iter().map(|(_, ag)| ag.len() as u64).sum();
+    let (reference, kind) = match modal_reference(structure, md) {
+        Ok(modal) => {
+            let columns: Vec<String> = structure.outputs().iter().map(|o| o.column()).collect();
+            let runs = reporting(
+                "modal reference on the training records",
+                steps,
+                &mut progress,
+                |done| {
+                    records
+                        .par_iter()
+                        .map(|(_, ag)| {
+                            let h = modal.run(ag, dt_s, columns.clone());
+                            done.fetch_add(ag.len() as u64, Ordering::Relaxed);
+                            h
+                        })
+                        .collect::<Vec<_>>()
+                },
+            );
+            let kind = TrainingReference::Modal {
+                modes: modal.modes(),
+                residual: modal.residual(),
+            };
+            (runs, kind)
+        }
+        Err(why) => {
+            let runs = reporting(
+                "host FE on the training records",
+                steps,
+                &mut progress,
+                |done| {
+                    records
+                        .par_iter()
+                        .map(|(_, ag)| {
+                            let mut last = 0;
+                            fe::run_pure(structure, ag, dt_s, |k| {
+                                done.fetch_add((k - last) as u64, Ordering::Relaxed);
+                                last = k;
+                            })
+                        })
+                        .collect::<Result<Vec<_>, _>>()
+                },
+            )?;
+            (runs, TrainingReference::SparseFe { why })
+        }
+    };
+    Ok((reference, kind))
+}
+
+/// The runs [`train`] scores its models against on `records` (name, ground acceleration at
+/// `dt_s`), and what computed them ([`TrainingReference`]): evaluation of the training's own
+/// reference (tests/reduced.rs compares it with the sparse host FE).
+pub fn training_reference(
+    structure: &ImportedStructure,
+    records: &[(String, Vec<f64>)],
+    dt_s: f64,
+) -> Result<(Vec<FeHistory>, TrainingReference), ReducedError> {
+    let md = modes_of(structure)?;
+    reference_runs(structure, &md, records, dt_s, |_, _, _| {})
+}
+
 /// Train the reduced model of `structure` at control step `dt_s` on `records` (name, ground
 /// acceleration at `dt_s`, mm/s²). `progress(stage, done, total)` reports the work.
 pub fn train(
     structure: &ImportedStructure,
     records: &[(String, Vec<f64>)],
     dt_s: f64,
-    mut progress: impl FnMut(&str, u64, u64),
+    progress: impl FnMut(&str, u64, u64),
 ) -> Result<ReducedModelFile, ReducedError> {
+    train_reporting(structure, records, dt_s, progress).map(|(file, _)| file)
+}
+
+/// [`train`], and what the training records' runs were computed with: the modal superposition of
+/// all the modes where the damping is classical but for the specimen's DOF, the sparse host FE
+/// otherwise. The records run in parallel, and so do the mode counts tried (in batches of the
+/// threads; the choice is the sequential one's: the fewest modes within the target, else the
+/// smallest bound).
+pub fn train_reporting(
+    structure: &ImportedStructure,
+    records: &[(String, Vec<f64>)],
+    dt_s: f64,
+    mut progress: impl FnMut(&str, u64, u64),
+) -> Result<(ReducedModelFile, TrainingReference), ReducedError> {
     progress("modes", 0, 1);
     let md = modes_of(structure)?;
     progress("modes", 1, 1);
-    let mut reference = Vec::with_capacity(records.len());
-    for (i, (_, ag)) in records.iter().enumerate() {
-        progress(
-            "host FE on the training records",
-            i as u64,
-            records.len() as u64,
-        );
-        reference.push(fe::run_pure(structure, ag, dt_s, |_| {})?);
-    }
-    progress(
-        "host FE on the training records",
-        records.len() as u64,
-        records.len() as u64,
-    );
+    let (reference, kind) = reference_runs(structure, &md, records, dt_s, &mut progress)?;
     let max_r = REDUCED_MAX_MODES.min(md.omega.len());
+    let batch = rayon::current_num_threads().max(1);
     let mut best: Option<(f64, ReducedModelFile)> = None;
-    for r in 1..=max_r {
-        progress("modes kept", r as u64, max_r as u64);
-        // A mode whose damping is critical or beyond cannot be kept (core refuses ζ ≥ 1): the
-        // model stops at the last one below.
-        if md.zeta.get(r - 1).is_none_or(|z| !(0.0..1.0).contains(z)) {
-            break;
-        }
-        let mut file = reduced_of(structure, &md, r, dt_s);
-        let Ok(arrays) = file.arrays() else { continue };
-        let params = arrays.spec().params(dt_s)?;
-        let mut per_record = Vec::new();
-        let mut bound: f64 = 0.0;
-        for ((name, ag), reference) in records.iter().zip(&reference) {
-            let run = run_pure(params, file.outputs.clone(), ag)?;
-            let (i, o) = history_nrmse_pct(&run, reference);
-            bound = if i.is_nan() || o.is_nan() {
-                f64::INFINITY
-            } else {
-                bound.max(i).max(o)
+    let mut first = 1;
+    'counts: while first <= max_r {
+        let counts: Vec<usize> = (first..=(first + batch - 1).min(max_r)).collect();
+        progress("modes kept", first as u64 - 1, max_r as u64);
+        let scored: Vec<_> = counts
+            .par_iter()
+            .map(|&r| score_modes(structure, &md, r, dt_s, records, &reference))
+            .collect();
+        for outcome in scored {
+            let (bound, file) = match outcome? {
+                Scored::Stop => break 'counts,
+                Scored::Skip => continue,
+                Scored::Model(bound, file) => (bound, *file),
             };
-            per_record.push(ReducedRecordError {
-                record: name.clone(),
-                interface_nrmse_pct: i,
-                max_output_nrmse_pct: o,
-            });
+            if best.as_ref().is_none_or(|(b, _)| bound < *b) {
+                best = Some((bound, file));
+            }
+            if bound <= REDUCED_TARGET_NRMSE_PCT {
+                break 'counts;
+            }
         }
-        file.training.records = records.iter().map(|(n, _)| n.clone()).collect();
-        file.training.error_bound_pct = bound;
-        file.training.per_record = per_record;
-        let better = best.as_ref().is_none_or(|(b, _)| bound < *b);
-        if better {
-            best = Some((bound, file));
-        }
-        if bound <= REDUCED_TARGET_NRMSE_PCT {
-            break;
-        }
+        first += batch;
     }
-    best.map(|(_, f)| f)
+    progress("modes kept", max_r as u64, max_r as u64);
+    best.map(|(_, f)| (f, kind))
         .ok_or(ReducedError::Model(ModelError::Param(
             rths_core::params::ParamError::OutOfRange("no mode below critical damping"),
         )))

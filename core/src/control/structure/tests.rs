@@ -516,3 +516,108 @@ fn a_structure_part_takes_the_rig_s_compensation_and_is_named_by_it() {
         assert_eq!(c.config().scale(), &scale());
     }
 }
+
+/// The controller's read-outs of a structure part (`Analytical::interface_disp_mm`,
+/// `Analytical::output_disp_mm`: what a study's history records) are the part's own state after
+/// every tick: the FE parts' DOFs, the modal-hysteretic model's floors, the reduced model's
+/// interface and outputs; a part without them gives none.
+#[test]
+fn the_read_outs_are_the_part_s_own_state_after_every_tick() {
+    let reduced_modes = [
+        crate::metamodel::ReducedMode {
+            omega_rad_s: 15.0,
+            damping_ratio: 0.02,
+            ground_participation: 1.1,
+            interface_shape: 0.7,
+        },
+        crate::metamodel::ReducedMode {
+            omega_rad_s: 70.0,
+            damping_ratio: 0.04,
+            ground_participation: -0.2,
+            interface_shape: 0.4,
+        },
+    ];
+    let reduced_statics = [
+        crate::metamodel::StaticCorrection {
+            ground_mm_per_mm_s2: 2e-6,
+            force_mm_per_kn: 1e-4,
+        },
+        crate::metamodel::StaticCorrection {
+            ground_mm_per_mm_s2: -1e-6,
+            force_mm_per_kn: 2e-5,
+        },
+    ];
+    let reduced = ReducedSpec {
+        modes: &reduced_modes,
+        output_shape: &[0.3, -0.1, 0.9, 0.2],
+        interface_static: crate::metamodel::StaticCorrection {
+            ground_mm_per_mm_s2: 1e-6,
+            force_mm_per_kn: 1e-4,
+        },
+        output_static: &reduced_statics,
+        specimen_k_kn_per_mm: 5.0,
+    };
+    let th = theta();
+    let specs = [
+        ModelSpec::StructureFe {
+            structure: linear_spec(),
+        },
+        ModelSpec::StructureNl {
+            structure: yielding_spec(),
+        },
+        ModelSpec::StructureModal {
+            model: modal_spec(),
+        },
+        ModelSpec::StructureReduced { model: reduced },
+        ModelSpec::StructureMeta {
+            theta: &th,
+            k_corr_kn_per_mm: 50.0,
+        },
+    ];
+    for spec in &specs {
+        let mut c = controller(spec);
+        for k in 0..2000 {
+            let x = c.supervisor().output_mm();
+            let s = Sample {
+                disp_mm: x,
+                force_kn: K_SPECIMEN * x / 1000.0,
+            };
+            c.tick(ground(k), Ok(s), false);
+            let a = c.analytical();
+            let n = a.output_count();
+            let outs: std::vec::Vec<Option<f64>> = (0..=n).map(|i| a.output_disp_mm(i)).collect();
+            assert_eq!(outs[n], None, "past the read-outs");
+            let (iface, want): (Option<f64>, std::vec::Vec<f64>) = match a {
+                Analytical::StructureFe(m) => {
+                    (Some(m.chang().disp()[0]), m.chang().disp()[..3].to_vec())
+                }
+                Analytical::StructureNl(m) => (
+                    Some(m.frame().chang().disp()[0]),
+                    m.frame().chang().disp()[..3].to_vec(),
+                ),
+                Analytical::StructureModal(m) => (
+                    Some(m.model().floor_disp_mm(0)),
+                    (0..2).map(|i| m.model().floor_disp_mm(i)).collect(),
+                ),
+                Analytical::StructureReduced(m) => (
+                    Some(m.model().interface_mm()),
+                    (0..2).map(|i| m.model().output_mm(i)).collect(),
+                ),
+                _ => (None, std::vec::Vec::new()),
+            };
+            assert_eq!(
+                a.interface_disp_mm().map(f64::to_bits),
+                iface.map(f64::to_bits)
+            );
+            let got: std::vec::Vec<u64> = outs[..n].iter().map(|o| o.unwrap().to_bits()).collect();
+            let want: std::vec::Vec<u64> = want.iter().map(|w| w.to_bits()).collect();
+            assert_eq!(got, want, "tick {k}");
+        }
+        if !matches!(spec, ModelSpec::StructureMeta { .. }) {
+            assert!(
+                c.analytical().interface_disp_mm().unwrap().abs() > 0.0,
+                "the structure moved"
+            );
+        }
+    }
+}
