@@ -281,8 +281,8 @@ fn report_is_the_hosts_score(
         story_drift_mm: Vec::new(),
     };
     let sc: nl::SimScenario = scenario.parse().unwrap();
-    let host = nl::score(&case, sc, &series, stop).report;
-    let host = serde_json::to_value(&host).unwrap();
+    let scored = nl::score(&case, sc, &series, stop);
+    let host = serde_json::to_value(&scored.report).unwrap();
     println!("{what}: rths report's figures {}", report["scenarios"][0]);
     // serde_json writes an f64 in its shortest exact form: equal values are equal bits.
     assert_eq!(
@@ -293,6 +293,12 @@ fn report_is_the_hosts_score(
     let st = &report["structure"];
     assert_eq!(st["ticks"], ag.len(), "{what}: {st}");
     assert_eq!(st["length_scale"], length_scale, "{what}");
+    // The reference's ductility needs no run: `rths simulate --structure`'s, exactly.
+    let f = serde_json::to_value(&scored.figures).unwrap();
+    assert!(f["peak_ductility"].is_number(), "{what}: {f}");
+    for key in ["peak_ductility", "peak_ductility_specimen_story"] {
+        assert_eq!(st[key], f[key], "{what}: {key}");
+    }
     for absent in [
         "peak_ductility_model",
         "residual_drift_mm",

@@ -65,6 +65,11 @@ pub struct StructureScoring {
     pub ticks: usize,
     /// What `rths simulate --structure` scores that this report does not, and why.
     pub window: &'static str,
+    /// The reference's peak ductility over all stories (`null`: a linear structure), as `rths
+    /// simulate --structure` gives it (computed here, record and free vibration).
+    pub peak_ductility: Option<f64>,
+    /// The reference's peak ductility at the specimen's story.
+    pub peak_ductility_specimen_story: Option<f64>,
     /// The structure figures the recording cannot give (`null`, never estimated).
     pub peak_ductility_model: Option<f64>,
     /// As [`Self::peak_ductility_model`].
@@ -319,7 +324,10 @@ pub fn analyze_structure(
         &history.reference_mm,
         stop,
     );
+    let (peak_ductility, peak_ductility_specimen_story) = nl::reference_ductility(&case);
     let scoring = StructureScoring {
+        peak_ductility,
+        peak_ductility_specimen_story,
         name: case.structure.name().to_string(),
         file: path.display().to_string(),
         checksum: sum,
@@ -428,6 +436,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             st.cos_theta
         );
         crate::outln!("scored              {} ticks: {}", st.ticks, st.window);
+        if let (Some(all), Some(specimen)) = (st.peak_ductility, st.peak_ductility_specimen_story) {
+            crate::outln!(
+                "reference ductility {all:.4} (peak, all stories), {specimen:.4} (specimen's story)"
+            );
+        }
         crate::outln!(
             "story figures       absent (ductility, residual drift): {}",
             st.absent
