@@ -279,14 +279,16 @@ pub fn analyze_structure(
         .parse()
         .context("header `length_scale`")?;
     let length = LengthScale::new(length)?;
-    let sc: SimScenario = field("scenario")?.parse()?;
-    if !matches!(sc, SimScenario::NlOnline | SimScenario::FeOnlineLead) {
-        anyhow::bail!(
-            "a structure recording of scenario {sc}: `rths report` scores nl-online and \
+    let named_sc = field("scenario")?;
+    let sc = match named_sc.parse::<SimScenario>() {
+        Ok(sc @ (SimScenario::NlOnline | SimScenario::FeOnlineLead)) => sc,
+        _ => anyhow::bail!(
+            "a structure recording of scenario {named_sc}: `rths report` scores nl-online and \
              fe-online-lead recordings (a structure part with --rig); an imported structure's \
-             (meta-online) reference is not computed here yet"
-        );
-    }
+             (meta-online) reference is not computed here yet, and a structure part without \
+             --rig has no rig to score"
+        ),
+    };
     if crate::machinery::imported::file::is_imported(&text) {
         anyhow::bail!(
             "{} is an imported structure: its reference (`rths simulate --structure`'s \
@@ -632,6 +634,18 @@ mod tests {
             let e = format!("{:#}", analyze_structure(&rec, None, None).unwrap_err());
             assert!(e.contains(&format!("no `{field}`")), "{field}: {e}");
         }
+        // A structure part run without --rig (`structure-nl`): no hybrid figures, refused.
+        let mut rec = structure_recording("", None);
+        for f in rec.header.fields.iter_mut() {
+            if f.0 == "scenario" {
+                f.1 = "structure-nl".into();
+            }
+        }
+        let e = format!("{:#}", analyze_structure(&rec, None, None).unwrap_err());
+        assert!(
+            e.contains("scenario structure-nl: `rths report` scores"),
+            "{e}"
+        );
         // A scenario other than the board's is refused, not rescored.
         let rec = structure_recording("", None);
         let e = format!(
