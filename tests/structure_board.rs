@@ -172,8 +172,16 @@ fn on_the_board_and_the_host(
     let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
     let mut run = Run::new();
     let mut commands = Vec::with_capacity(ag.len());
-    rths::machinery::drive::run(ctl, Some(&mut plant), &ag, None, DT_S, |st, _, _| {
+    // The host's rows as `run_hybrid` takes them (target, command in force, measured; rig scale).
+    let mut rows: Vec<[f64; 4]> = Vec::with_capacity(ag.len());
+    let stop = rths::machinery::drive::run(ctl, Some(&mut plant), &ag, None, DT_S, |st, _, _| {
         commands.push(st.out.command_mm);
+        rows.push([
+            st.target_mm,
+            st.command_mm,
+            st.measured_mm,
+            st.measured_force_kn,
+        ]);
         let notify = run.after_tick(&TickFacts {
             k: st.k as u32,
             counted: true,
@@ -216,7 +224,95 @@ fn on_the_board_and_the_host(
     assert_eq!(r["ticks"], run.ticks, "{what}");
     assert_eq!(r["command_fnv"], host_fnv, "{what}");
     assert_eq!(r["overruns"], 0, "{what}");
+    report_is_the_hosts_score(
+        dir,
+        what,
+        scenario,
+        &csv,
+        structure,
+        length_scale,
+        &rows,
+        stop,
+    );
     r
+}
+
+/// `rths report RUN.csv --json` of the board's recording: its study figures are, bit for bit,
+/// `rths simulate --structure`'s scoring (`score`: its reference, the series brought to the
+/// prototype as `run_hybrid` brings them) of the host's run of the same controller on the same
+/// plant, over the record the board played. (`rths simulate --structure` itself runs another
+/// plant, the structure's specimen at the rig, where the board's image has the paper's brace,
+/// and 10 s of free vibration more: its figures are not the board's.)
+#[allow(clippy::too_many_arguments)]
+fn report_is_the_hosts_score(
+    dir: &Path,
+    what: &str,
+    scenario: &str,
+    csv: &Path,
+    structure: &Path,
+    length_scale: f64,
+    rows: &[[f64; 4]],
+    stop: rths::machinery::drive::Stop,
+) {
+    use rths::studies::nonlinear::scenario as nl;
+    let (ok, out, err) = rths(dir, &["report", &csv.display().to_string(), "--json"]);
+    if scenario == "meta-online" {
+        // An imported structure's reference is not the report's yet: refused, saying so.
+        assert!(!ok, "{what}: {out}");
+        assert!(err.contains("imported structure"), "{what}: {err}");
+        println!("{what}: rths report refuses it: {}", err.trim());
+        return;
+    }
+    assert!(ok, "{what}: rths report failed: {err}");
+    let report: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    let text = std::fs::read_to_string(structure).unwrap();
+    let s = rths_files::structure_file::Structure::from_json(&text).unwrap();
+    let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let mut case = nl::StructureCase::new(s, &ag)
+        .unwrap()
+        .with_length_scale(nl::LengthScale::new(length_scale).unwrap());
+    case.reference_mm.truncate(ag.len());
+    let scale = case.length.specimen_scale();
+    let series = nl::StructureSeries {
+        target_mm: rows.iter().map(|r| r[0] * case.cos_theta).collect(),
+        command_mm: rows.iter().map(|r| scale.prototype_disp_mm(r[1])).collect(),
+        measured_mm: rows.iter().map(|r| scale.prototype_disp_mm(r[2])).collect(),
+        measured_force_kn: rows.iter().map(|r| r[3]).collect(),
+        story_drift_mm: Vec::new(),
+    };
+    let sc: nl::SimScenario = scenario.parse().unwrap();
+    let scored = nl::score(&case, sc, &series, stop);
+    let host = serde_json::to_value(&scored.report).unwrap();
+    println!("{what}: rths report's figures {}", report["scenarios"][0]);
+    // serde_json writes an f64 in its shortest exact form: equal values are equal bits.
+    assert_eq!(
+        report["scenarios"][0], host,
+        "{what}: report vs the host's score"
+    );
+    assert!(host["nrmse_pct"].is_number(), "{what}: {host}");
+    let st = &report["structure"];
+    assert_eq!(st["ticks"], ag.len(), "{what}: {st}");
+    assert_eq!(st["length_scale"], length_scale, "{what}");
+    // The reference's ductility needs no run: `rths simulate --structure`'s, exactly.
+    let f = serde_json::to_value(&scored.figures).unwrap();
+    assert!(f["peak_ductility"].is_number(), "{what}: {f}");
+    for key in ["peak_ductility", "peak_ductility_specimen_story"] {
+        assert_eq!(st[key], f[key], "{what}: {key}");
+    }
+    for absent in [
+        "peak_ductility_model",
+        "residual_drift_mm",
+        "residual_drift_error_pct",
+    ] {
+        assert!(
+            st[absent].is_null(),
+            "{what}: {absent} must be absent: {st}"
+        );
+    }
+    assert!(
+        st["absent"].as_str().unwrap().contains("story drifts"),
+        "{st}"
+    );
 }
 
 #[test]

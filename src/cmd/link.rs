@@ -468,6 +468,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 // A structure part: the structure file it stands for, and the rig's mapping.
                 Some(s) => {
                     h.set("structure", s.display());
+                    // `rths report` refuses a structure file of another checksum.
+                    let text = std::fs::read_to_string(s)
+                        .with_context(|| format!("reading structure file {}", s.display()))?;
+                    h.set(
+                        "structure_checksum",
+                        rths_files::nl_model_file::structure_checksum(&text)
+                            .with_context(|| format!("structure file {}", s.display()))?,
+                    );
                     h.set("length_scale", format!("{length_scale:?}"));
                 }
                 // The structure the firmware's controller is built for (`analytical.rs`): the

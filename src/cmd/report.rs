@@ -12,6 +12,7 @@ use rths_hal_sim::{BoucWen, Specimen};
 
 use crate::cmd::analyze::load_motion;
 use crate::link_host::{self, Recording, RecordingRow};
+use crate::studies::nonlinear::scenario::{self as nl, LengthScale, SimScenario, StructureCase};
 use crate::studies::scenario::{self, RunHistory, ScenarioId, ScenarioReport, ScenarioRun};
 use crate::studies::study::{self, StudyJson};
 
@@ -23,6 +24,10 @@ pub struct Args {
     /// The scenario id of the figures (default: the header's, from the device's model kind).
     #[arg(long)]
     pub scenario: Option<ScenarioId>,
+    /// A structure recording (`rths link run --structure`): read the structure from this file
+    /// instead of the header's path (refused unless its checksum is the header's).
+    #[arg(long, value_name = "S.json")]
+    pub structure: Option<PathBuf>,
     /// Output directory for `history.csv` and the figure (as `rths simulate --out`).
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
@@ -38,7 +43,52 @@ struct ReportJson {
     study: StudyJson,
     /// The recording's header fields.
     recording: std::collections::BTreeMap<String, String>,
+    /// A structure recording: the structure scored against, and what the figures leave out.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    structure: Option<StructureScoring>,
 }
+
+/// How a structure recording (`rths link run --structure`) was scored.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct StructureScoring {
+    /// The structure's name.
+    pub name: String,
+    /// The structure file read (the header's path or `--structure`).
+    pub file: String,
+    /// Its checksum (`structure_checksum`, the header's).
+    pub checksum: String,
+    /// The length scale L of the run (prototype over rig).
+    pub length_scale: f64,
+    /// cos θ between the specimen's DOF and the actuator.
+    pub cos_theta: f64,
+    /// The ticks scored: the record the board played (the reference is cut there).
+    pub ticks: usize,
+    /// What `rths simulate --structure` scores that this report does not, and why.
+    pub window: &'static str,
+    /// The reference's peak ductility over all stories (`null`: a linear structure), as `rths
+    /// simulate --structure` gives it (computed here, record and free vibration).
+    pub peak_ductility: Option<f64>,
+    /// The reference's peak ductility at the specimen's story.
+    pub peak_ductility_specimen_story: Option<f64>,
+    /// The structure figures the recording cannot give (`null`, never estimated).
+    pub peak_ductility_model: Option<f64>,
+    /// As [`Self::peak_ductility_model`].
+    pub residual_drift_mm: Option<f64>,
+    /// As [`Self::peak_ductility_model`].
+    pub residual_drift_error_pct: Option<f64>,
+    /// Why those are absent.
+    pub absent: &'static str,
+    /// Why the reference is beyond the rig at this length scale, if it is.
+    pub beyond_rig: Option<String>,
+}
+
+/// The window of a structure recording's figures.
+const STRUCTURE_WINDOW: &str = "the record the board played; `rths simulate --structure` also \
+     scores the 10 s of free vibration after it, which the board does not run";
+
+/// Why a structure recording has no story figures.
+const STRUCTURE_ABSENT: &str = "story drifts, residual drift and ductility need the model's \
+     story drifts, which a board's recording does not carry (it records the specimen's DOF only)";
 
 /// The host history of a recording: row k as `scenario::simulate` fills it (time k·Δt, ü_g and the
 /// reference at k, the command and target the controller produced at tick k−1, 0 at k = 0, the
@@ -110,7 +160,11 @@ pub fn history_of(
 }
 
 /// The figures of a recording, and the run (history) they come from.
-pub fn analyze(rec: &Recording, scenario: Option<ScenarioId>) -> anyhow::Result<ScenarioRun> {
+pub fn analyze(
+    rec: &Recording,
+    scenario: Option<ScenarioId>,
+    structure: Option<&std::path::Path>,
+) -> anyhow::Result<ScenarioRun> {
     let hd = &rec.header;
     if hd.get("source") == Some("site") {
         return analyze_site(rec);
@@ -120,30 +174,20 @@ pub fn analyze(rec: &Recording, scenario: Option<ScenarioId>) -> anyhow::Result<
             format!("the recording's header has no `{k}` (record it with `rths link run`)")
         })
     };
+    if hd.get("structure").is_some_and(|s| s != "paper") {
+        return analyze_structure(rec, structure, scenario).map(|(run, _)| run);
+    }
+    if let Some(p) = structure {
+        anyhow::bail!(
+            "--structure {}: the recording is of the paper's frame (no structure part)",
+            p.display()
+        );
+    }
     let id: ScenarioId = match scenario {
         Some(id) => id,
         None => field("scenario")?.parse()?,
     };
-    let scale: f64 = field("scale")?.parse().context("header `scale`")?;
-    let named = field("motion")?;
-    if std::path::Path::new(named).exists() {
-        // A file named by the header is read within a limit (never a device that never ends).
-        link_host::check_named_file("motion", std::path::Path::new(named))?;
-    }
-    let motion = load_motion(Some(named))?.scaled(scale);
-    // The record the device played must be the one named: same samples, step and scale.
-    let sum = format!(
-        "{:08x}",
-        rths_link::record_checksum(&motion.accel_g, motion.dt_s)
-    );
-    let want = field("record_checksum")?;
-    if sum != want {
-        anyhow::bail!(
-            "the ground motion `{}` × {scale} has checksum {sum}, the device played {want}: \
-             not the record of this recording",
-            field("motion")?
-        );
-    }
+    let motion = recorded_motion(rec)?;
     if field("structure")? != "paper" {
         anyhow::bail!("unknown structure `{}`", field("structure")?);
     }
@@ -161,6 +205,145 @@ pub fn analyze(rec: &Recording, scenario: Option<ScenarioId>) -> anyhow::Result<
     let (history, stop) = history_of(&rec.rows, &ag, &reference)?;
     let report: ScenarioReport = scenario::figures(id, &history, stop);
     Ok(ScenarioRun { report, history })
+}
+
+/// Header field `k` of a recording, or an error naming it.
+fn header_field<'a>(rec: &'a Recording, k: &str) -> anyhow::Result<&'a str> {
+    rec.header.get(k).with_context(|| {
+        format!("the recording's header has no `{k}` (record it with `rths link run`)")
+    })
+}
+
+/// The ground motion the header names, checked against the record the device played (same
+/// samples, step and scale).
+fn recorded_motion(rec: &Recording) -> anyhow::Result<crate::machinery::motion::GroundMotion> {
+    let field = |k: &str| header_field(rec, k);
+    let scale: f64 = field("scale")?.parse().context("header `scale`")?;
+    let named = field("motion")?;
+    if std::path::Path::new(named).exists() {
+        // A file named by the header is read within a limit (never a device that never ends).
+        link_host::check_named_file("motion", std::path::Path::new(named))?;
+    }
+    let motion = load_motion(Some(named))?.scaled(scale);
+    let sum = format!(
+        "{:08x}",
+        rths_link::record_checksum(&motion.accel_g, motion.dt_s)
+    );
+    let want = field("record_checksum")?;
+    if sum != want {
+        anyhow::bail!(
+            "the ground motion `{named}` × {scale} has checksum {sum}, the device played {want}: \
+             not the record of this recording"
+        );
+    }
+    Ok(motion)
+}
+
+/// The figures of a structure recording (`rths link run --structure S.json --rig RIG.json`):
+/// the structure read from `given` or the header's path (its checksum must be the header's),
+/// its reference computed here over the record the board played (as `rths simulate
+/// --structure` computes it, cut at the record's end), the recording's rig-scale series brought
+/// to the prototype as `run_hybrid` does (× L for the command and the measured displacement,
+/// × cos θ for the target), and the study's figures of them as `score` computes them. The
+/// story figures are absent: the recording has no story drifts.
+pub fn analyze_structure(
+    rec: &Recording,
+    given: Option<&std::path::Path>,
+    scenario: Option<ScenarioId>,
+) -> anyhow::Result<(ScenarioRun, StructureScoring)> {
+    let field = |k: &str| header_field(rec, k);
+    if let Some(id) = scenario {
+        anyhow::bail!(
+            "--scenario {id}: a structure recording is scored as the scenario the board ran \
+             (the header's `{}`)",
+            field("scenario").unwrap_or("?")
+        );
+    }
+    let named = field("structure")?;
+    let want = field("structure_checksum")?;
+    let path = given.unwrap_or(std::path::Path::new(named));
+    link_host::check_named_file("structure", path)
+        .with_context(|| format!("structure file {}", path.display()))?;
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("reading structure file {}", path.display()))?;
+    let sum = rths_files::nl_model_file::structure_checksum(&text)
+        .with_context(|| format!("structure file {}", path.display()))?;
+    if sum != want {
+        anyhow::bail!(
+            "the structure file {} has checksum {sum}, the recording's structure `{named}` had \
+             {want}: not the structure of this recording",
+            path.display()
+        );
+    }
+    let length: f64 = field("length_scale")?
+        .parse()
+        .context("header `length_scale`")?;
+    let length = LengthScale::new(length)?;
+    let named_sc = field("scenario")?;
+    let sc = match named_sc.parse::<SimScenario>() {
+        Ok(sc @ (SimScenario::NlOnline | SimScenario::FeOnlineLead)) => sc,
+        _ => anyhow::bail!(
+            "a structure recording of scenario {named_sc}: `rths report` scores nl-online and \
+             fe-online-lead recordings (a structure part with --rig); an imported structure's \
+             (meta-online) reference is not computed here yet, and a structure part without \
+             --rig has no rig to score"
+        ),
+    };
+    if crate::machinery::imported::file::is_imported(&text) {
+        anyhow::bail!(
+            "{} is an imported structure: its reference (`rths simulate --structure`'s \
+             imported FE) is not computed by `rths report` yet",
+            path.display()
+        );
+    }
+    let structure = rths_files::structure_file::Structure::from_json(&text)
+        .with_context(|| format!("structure file {}", path.display()))?;
+    nl::check_applies(sc, &structure)?;
+    let ag = recorded_motion(rec)?.resample_mm_s2(DT_S);
+    // The evaluation's reference: the whole structure's response, computed here (never read
+    // from the board).
+    let case = StructureCase::new(structure, &ag)?.with_length_scale(length);
+    let n = ag.len();
+    let (mut history, stop) = history_of(&rec.rows, &ag, &case.reference_mm[..n])?;
+    // The rig's series in the structure's actuator coordinates, as `run_hybrid` pushes them.
+    let scale = length.specimen_scale();
+    for x in &mut history.target_mm {
+        *x *= case.cos_theta;
+    }
+    for x in history
+        .command_mm
+        .iter_mut()
+        .chain(history.measured_mm.iter_mut())
+    {
+        *x = scale.prototype_disp_mm(*x);
+    }
+    let report = scenario::figures_of_series(
+        &sc.to_string(),
+        sc.uses_rig(),
+        &history.target_mm,
+        &history.command_mm,
+        &history.measured_mm,
+        &history.reference_mm,
+        stop,
+    );
+    let (peak_ductility, peak_ductility_specimen_story) = nl::reference_ductility(&case);
+    let scoring = StructureScoring {
+        peak_ductility,
+        peak_ductility_specimen_story,
+        name: case.structure.name().to_string(),
+        file: path.display().to_string(),
+        checksum: sum,
+        length_scale: length.get(),
+        cos_theta: case.cos_theta,
+        ticks: history.len(),
+        window: STRUCTURE_WINDOW,
+        peak_ductility_model: None,
+        residual_drift_mm: None,
+        residual_drift_error_pct: None,
+        absent: STRUCTURE_ABSENT,
+        beyond_rig: case.beyond_rig(),
+    };
+    Ok((ScenarioRun { report, history }, scoring))
 }
 
 /// The figures of an `rths site` recording (docs/site.md): the structure lives in the client's
@@ -197,8 +380,17 @@ fn analyze_site(rec: &Recording) -> anyhow::Result<ScenarioRun> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let rec = link_host::read_recording_file(&args.recording)
         .with_context(|| format!("recording {}", args.recording.display()))?;
-    let run = analyze(&rec, args.scenario)
-        .with_context(|| format!("recording {}", args.recording.display()))?;
+    let is_structure = rec.header.get("source") != Some("site")
+        && rec.header.get("structure").is_some_and(|s| s != "paper");
+    let (run, scoring) = if is_structure {
+        let (run, scoring) = analyze_structure(&rec, args.structure.as_deref(), args.scenario)
+            .with_context(|| format!("recording {}", args.recording.display()))?;
+        (run, Some(scoring))
+    } else {
+        let run = analyze(&rec, args.scenario, args.structure.as_deref())
+            .with_context(|| format!("recording {}", args.recording.display()))?;
+        (run, None)
+    };
     let id = &run.report.id;
     let motion = rec.header.get("motion_name").or(rec.header.get("motion"));
     if let Some(dir) = &args.out {
@@ -223,6 +415,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 specimen_sweep: None,
             },
             recording: rec.header.fields.iter().cloned().collect(),
+            structure: scoring,
         };
         crate::outln!("{}", serde_json::to_string(&json)?);
         return crate::cmd::RunStopped::check(&run.report);
@@ -235,6 +428,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         rec.header.get("record_checksum").unwrap_or("?"),
     );
     crate::cmd::simulate::print_figures(&run.report);
+    if let Some(st) = &scoring {
+        crate::outln!(
+            "structure           {} ({}, checksum {}), length scale {}, cos θ {}",
+            st.name,
+            st.file,
+            st.checksum,
+            st.length_scale,
+            st.cos_theta
+        );
+        crate::outln!("scored              {} ticks: {}", st.ticks, st.window);
+        if let (Some(all), Some(specimen)) = (st.peak_ductility, st.peak_ductility_specimen_story) {
+            crate::outln!(
+                "reference ductility {all:.4} (peak, all stories), {specimen:.4} (specimen's story)"
+            );
+        }
+        crate::outln!(
+            "story figures       absent (ductility, residual drift): {}",
+            st.absent
+        );
+        if let Some(b) = &st.beyond_rig {
+            crate::outln!("beyond the rig       {b}");
+        }
+    }
     if let Some(dir) = &args.out {
         crate::outln!("wrote {}", dir.join("history.csv").display());
         crate::outln!("wrote {}", dir.join(format!("{id}.png")).display());
@@ -322,13 +538,13 @@ mod tests {
             link_host::CSV_HEADER
         );
         let rec = read_recording(&csv).unwrap();
-        let e = analyze(&rec, None).unwrap_err().to_string();
+        let e = analyze(&rec, None, None).unwrap_err().to_string();
         assert!(e.contains("no `scenario`"), "{e}");
         let text = format!(
             "# format: rths-recording 1\n# scenario: lr-online\n# motion: el-centro\n# scale: 1.0\n\
              # record_checksum: 00000000\n{csv}"
         );
-        let e = analyze(&read_recording(&text).unwrap(), None)
+        let e = analyze(&read_recording(&text).unwrap(), None, None)
             .unwrap_err()
             .to_string();
         assert!(e.contains("not the record of this recording"), "{e}");
@@ -345,9 +561,106 @@ mod tests {
              # record_checksum: 00000000\n{}\n",
             link_host::CSV_HEADER
         );
-        let e = analyze(&read_recording(&text).unwrap(), None)
+        let e = analyze(&read_recording(&text).unwrap(), None, None)
             .unwrap_err()
             .to_string();
         assert!(e.contains("not a regular file"), "{e}");
+    }
+    /// A structure recording's header (`rths link run --structure`), with `drop` left out and
+    /// `checksum` as its structure checksum.
+    fn structure_recording(drop: &str, checksum: Option<&str>) -> Recording {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("data/structures/shear3-yielding.json");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let sum = rths_files::nl_model_file::structure_checksum(&text).unwrap();
+        let el = crate::machinery::motion::GroundMotion::el_centro();
+        let fields = [
+            ("scenario", "nl-online".to_string()),
+            ("motion", "el-centro".to_string()),
+            ("scale", "1.0".to_string()),
+            (
+                "record_checksum",
+                format!("{:08x}", rths_link::record_checksum(&el.accel_g, el.dt_s)),
+            ),
+            ("structure", path.display().to_string()),
+            ("structure_checksum", checksum.map_or(sum, str::to_string)),
+            ("length_scale", "2.0".to_string()),
+        ];
+        let mut head = String::from("# format: rths-recording 1\n");
+        for (k, v) in fields.iter().filter(|(k, _)| *k != drop) {
+            head.push_str(&format!("# {k}: {v}\n"));
+        }
+        read_recording(&format!(
+            "{head}{}\n0,0,0.0,running,0.0,0.0,0.0,0.0\n",
+            link_host::CSV_HEADER
+        ))
+        .unwrap()
+    }
+
+    #[test]
+    fn a_structure_recording_of_another_structure_file_is_refused() {
+        let rec = structure_recording("", Some("fnv1a64:0000000000000000"));
+        let e = format!("{:#}", analyze_structure(&rec, None, None).unwrap_err());
+        for part in [
+            "has checksum fnv1a64:",
+            "not the structure of this recording",
+        ] {
+            assert!(e.contains(part), "`{part}` not in: {e}");
+        }
+        // `--structure` of another file than the one recorded: refused the same way.
+        let other = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("data/structures/shear8-yielding.json");
+        let rec = structure_recording("", None);
+        let e = format!(
+            "{:#}",
+            analyze_structure(&rec, Some(&other), None).unwrap_err()
+        );
+        assert!(e.contains("not the structure of this recording"), "{e}");
+        assert!(e.contains("shear8-yielding.json"), "{e}");
+        // Through `analyze` too (a structure recording is never scored as the paper's frame).
+        let e = format!("{:#}", analyze(&rec, None, Some(&other)).unwrap_err());
+        assert!(e.contains("not the structure of this recording"), "{e}");
+    }
+
+    #[test]
+    fn a_structure_recording_without_its_header_fields_is_refused() {
+        for field in [
+            "structure_checksum",
+            "length_scale",
+            "scenario",
+            "record_checksum",
+        ] {
+            let rec = structure_recording(field, None);
+            let e = format!("{:#}", analyze_structure(&rec, None, None).unwrap_err());
+            assert!(e.contains(&format!("no `{field}`")), "{field}: {e}");
+        }
+        // A structure part run without --rig (`structure-nl`): no hybrid figures, refused.
+        let mut rec = structure_recording("", None);
+        for f in rec.header.fields.iter_mut() {
+            if f.0 == "scenario" {
+                f.1 = "structure-nl".into();
+            }
+        }
+        let e = format!("{:#}", analyze_structure(&rec, None, None).unwrap_err());
+        assert!(
+            e.contains("scenario structure-nl: `rths report` scores"),
+            "{e}"
+        );
+        // A scenario other than the board's is refused, not rescored.
+        let rec = structure_recording("", None);
+        let e = format!(
+            "{:#}",
+            analyze_structure(&rec, None, Some(ScenarioId::FeOnlineAts)).unwrap_err()
+        );
+        assert!(e.contains("the header's `nl-online`"), "{e}");
+        // A structure file that is not there.
+        let mut rec = structure_recording("", None);
+        for f in rec.header.fields.iter_mut() {
+            if f.0 == "structure" {
+                f.1 = "/nonexistent/s.json".into();
+            }
+        }
+        let e = format!("{:#}", analyze_structure(&rec, None, None).unwrap_err());
+        assert!(e.contains("/nonexistent/s.json"), "{e}");
     }
 }

@@ -637,19 +637,15 @@ pub fn score(
     let r = &case.reference;
     let nonlinear = !r.yield_drift_mm.is_empty();
     let dof = case.structure.specimen_dof();
-    let uy = r.yield_drift_mm.get(dof).copied();
+    let (peak_ductility, peak_ductility_specimen_story) = reference_ductility(case);
     let mut f = StructureFigures {
-        peak_ductility: nonlinear.then(|| r.peak_ductility()),
-        peak_ductility_specimen_story: None,
+        peak_ductility,
+        peak_ductility_specimen_story,
         peak_ductility_model: None,
         residual_drift_mm: None,
         residual_drift_error_pct: None,
         startup_error_ratio: None,
     };
-    if let Some(uy) = uy {
-        f.peak_ductility_specimen_story =
-            r.story_drift_mm.get(dof).map(|d| metrics::peak_abs(d) / uy);
-    }
     let (length_scale, beyond_rig) = if name.uses_rig() {
         (Some(case.length.get()), case.beyond_rig())
     } else {
@@ -712,6 +708,20 @@ pub fn score(
     let rest_rms = metrics::rms(rest);
     f.startup_error_ratio = (rest_rms > 0.0).then(|| metrics::rms(first) / rest_rms);
     out(f)
+}
+
+/// The reference's peak ductility over all stories and at the specimen's story (`None`: a linear
+/// structure): [`StructureFigures::peak_ductility`] and
+/// [`StructureFigures::peak_ductility_specimen_story`], which need no run.
+pub fn reference_ductility(case: &StructureCase) -> (Option<f64>, Option<f64>) {
+    let r = &case.reference;
+    let dof = case.structure.specimen_dof();
+    let all = (!r.yield_drift_mm.is_empty()).then(|| r.peak_ductility());
+    let specimen = r
+        .yield_drift_mm
+        .get(dof)
+        .and_then(|uy| Some(metrics::peak_abs(r.story_drift_mm.get(dof)?) / uy));
+    (all, specimen)
 }
 
 /// What a structure scenario runs with besides its case.
