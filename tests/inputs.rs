@@ -269,10 +269,22 @@ fn check_model_takes_every_kind_and_agrees_with_the_runs() {
 #[test]
 fn every_test_that_needs_qemu_or_openseespy_is_ignored_without_it() {
     let marks = [
-        ("qemu_missing(", "#[cfg_attr(rths_no_qemu,ignore="),
-        ("opensees_available(", "#[cfg_attr(rths_no_opensees,ignore="),
-        ("opensees(\"", "#[cfg_attr(rths_no_opensees,ignore="),
+        ("qemu_missing(", "rths_no_qemu"),
+        ("opensees_available(", "rths_no_opensees"),
+        ("opensees(\"", "rths_no_opensees"),
     ];
+    // `#[cfg_attr(FLAG, ignore = ...)]`, or `#[cfg_attr(any(.., FLAG, ..), ignore = ...)]` for a
+    // test that needs both tools (whitespace removed).
+    let ignored_without = |attrs: &str, flag: &str| {
+        attrs.split("#[cfg_attr(").skip(1).any(|a| {
+            a.split_once(",ignore=").is_some_and(|(cond, _)| {
+                cond == flag
+                    || cond
+                        .strip_prefix("any(")
+                        .is_some_and(|c| c.trim_end_matches(')').split(',').any(|f| f == flag))
+            })
+        })
+    };
     let mut checked = 0;
     for entry in std::fs::read_dir(repo().join("tests")).unwrap() {
         let path = entry.unwrap().path();
@@ -298,8 +310,9 @@ fn every_test_that_needs_qemu_or_openseespy_is_ignored_without_it() {
                 // Whitespace-free, as formatted on one line or several.
                 let attrs: String = lines[test..i].concat().split_whitespace().collect();
                 assert!(
-                    attrs.contains(mark),
-                    "{}:{}: a test that skips without the tool has no `{mark}...)]`",
+                    ignored_without(&attrs, mark),
+                    "{}:{}: a test that skips without the tool has no \
+                     `#[cfg_attr({mark}, ignore = ...)]` (or `any(.., {mark}, ..)`)",
                     path.display(),
                     i + 1
                 );
