@@ -191,6 +191,10 @@ pub enum Analytical {
     /// The learned modal-hysteretic metamodel of a yielding numerical substructure (issue 16).
     StructureModal(StructureModal),
     #[cfg(feature = "structures")]
+    /// The learned floor-hysteron metamodel of a yielding numerical substructure (issue 25): the
+    /// elastic floors plus play operators on drifts; its cost depends on floors and hysterons only.
+    StructureHysteron(StructureHysteron),
+    #[cfg(feature = "structures")]
     /// The reduced-order modal model of a large linear numerical substructure (an imported
     /// OpenSees model): constant cost per tick whatever its DOF count.
     StructureReduced(StructureReduced),
@@ -215,6 +219,8 @@ impl Analytical {
             Analytical::StructureMeta(_) => ("structure-meta", None),
             #[cfg(feature = "structures")]
             Analytical::StructureModal(_) => ("structure-modal", None),
+            #[cfg(feature = "structures")]
+            Analytical::StructureHysteron(_) => ("structure-hysteron", None),
             #[cfg(feature = "structures")]
             Analytical::StructureReduced(_) => ("structure-reduced", None),
         }
@@ -255,6 +261,8 @@ impl Analytical {
             #[cfg(feature = "structures")]
             Analytical::StructureModal(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
             #[cfg(feature = "structures")]
+            Analytical::StructureHysteron(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
+            #[cfg(feature = "structures")]
             Analytical::StructureReduced(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
         };
         if y.is_finite() {
@@ -290,6 +298,15 @@ impl Analytical {
                 }
                 Some(d)
             }
+            #[cfg(feature = "structures")]
+            Analytical::StructureHysteron(m) => {
+                let model = m.model();
+                let mut d = [0.0; crate::structure_n::MAX_DOF];
+                for (i, di) in d.iter_mut().enumerate().take(model.params().floors()) {
+                    *di = model.story_drift_mm(i);
+                }
+                Some(d)
+            }
             _ => None,
         }
     }
@@ -309,6 +326,8 @@ impl Analytical {
             Analytical::StructureMeta(m) => m.reset(),
             #[cfg(feature = "structures")]
             Analytical::StructureModal(m) => m.reset(),
+            #[cfg(feature = "structures")]
+            Analytical::StructureHysteron(m) => m.reset(),
             #[cfg(feature = "structures")]
             Analytical::StructureReduced(m) => m.reset(),
         }
@@ -867,8 +886,8 @@ mod structure;
 use crate::metamodel::DeltaArx;
 pub use correction::ForceCorrection;
 pub use structure::{
-    ModalSpec, ReducedSpec, StoryLawSpec, StructureFe, StructureModal, StructureNl,
-    StructureReduced, StructureSpec,
+    ModalSpec, ReducedSpec, StoryLawSpec, StructureFe, StructureHysteron, StructureModal,
+    StructureNl, StructureReduced, StructureSpec,
 };
 
 #[cfg(test)]

@@ -11,8 +11,8 @@
 
 use crate::hysteresis::Law;
 use crate::metamodel::{
-    ModalHyst, ModalHystParams, ModalMode, ModelError, ReducedModal, ReducedModalParams,
-    ReducedMode, StaticCorrection, MODAL_MAX_SPRINGS,
+    FloorHysteron, FloorHysteronParams, ModalHyst, ModalHystParams, ModalMode, ModelError,
+    ReducedModal, ReducedModalParams, ReducedMode, StaticCorrection, MODAL_MAX_SPRINGS,
 };
 use crate::params::ParamError;
 use crate::structure_n::{ChangN, StructureN, MAX_DOF};
@@ -368,6 +368,50 @@ impl StructureModal {
     }
 
     /// Back to rest, every spring virgin.
+    pub fn reset(&mut self) {
+        self.model.reset();
+        self.started = false;
+    }
+}
+
+/// The floor-hysteron metamodel ([`FloorHysteron`]) as the controller steps it: tick 0 rests it
+/// under `ü_g(0)`, each later tick completes the step with `ü_g(k)` and the measured force.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StructureHysteron {
+    model: FloorHysteron,
+    started: bool,
+}
+
+impl StructureHysteron {
+    /// The model of `params`, at rest.
+    pub fn new(params: FloorHysteronParams) -> Self {
+        Self {
+            model: FloorHysteron::new(params),
+            started: false,
+        }
+    }
+
+    /// The model (its floors' and hysterons' state).
+    pub fn model(&self) -> &FloorHysteron {
+        &self.model
+    }
+
+    /// As [`StructureFe::next_target`]; a step that would overflow is refused (state unchanged).
+    #[inline]
+    pub fn next_target(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
+        finite_inputs(ag_mm_s2, force_kn)?;
+        if self.started {
+            self.model
+                .step(ag_mm_s2, force_kn)
+                .map_err(|_| super::StepError::NonFiniteOutput)
+        } else {
+            self.model.reset_at(ag_mm_s2);
+            self.started = true;
+            Ok(self.model.target_mm())
+        }
+    }
+
+    /// Back to rest, every hysteron virgin.
     pub fn reset(&mut self) {
         self.model.reset();
         self.started = false;
