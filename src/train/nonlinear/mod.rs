@@ -11,12 +11,16 @@
 //! used by the FE that produces the training runs. The scoring records (El Centro, Kobe, Morgan
 //! Hill) are refused as training records.
 
+pub mod choose;
 pub mod cmaes;
 pub mod daq;
 pub mod eval;
+pub mod floors;
 pub mod histories;
+pub mod hysteron;
 pub mod modal;
 pub mod runs;
+pub mod score;
 pub mod stage1;
 
 use std::time::Instant;

@@ -1,0 +1,265 @@
+//! Scoring a learned model of either form against a lab's held-out runs (evaluation only: the
+//! held-out histories are read here and never by the training): the pure loop (the model with the
+//! stand-in specimen) and the hybrid loop (core's controller on the virtual rig, with the rig's
+//! identified lead and force correction: `nl-online`), each at the interface and every floor, and
+//! the residual drift of the story with the largest reference residual.
+
+use anyhow::Context;
+use rths_core::compensator::{Compensator, Lead};
+use rths_core::control::{Analytical, StructureHysteron, StructureModal};
+use rths_core::metamodel::{FloorHysteronParams, ModalHyst, ModalHystParams};
+use rths_core::metrics;
+use rths_core::params::{SpecimenScale, ACTUATOR_STROKE_MM, ACTUATOR_VELOCITY_MM_S, DT_S};
+use rths_files::hysteron_model_file::AnyNlModel;
+use rths_hal_sim::{Preset, RigConfig};
+
+use super::floors::{residual_drifts, FloorRun};
+use crate::imported::hybrid::{self, Compensation, ReadOut};
+use crate::nonlinear::rig;
+
+/// A learned model of either form, built for the controller's step.
+#[derive(Debug, Clone, Copy)]
+pub enum Learned {
+    /// The modal-hysteretic form.
+    Modal(ModalHystParams),
+    /// The floor-hysteron form.
+    Hysteron(FloorHysteronParams),
+}
+
+impl Learned {
+    /// The model of `file` at `dt_s`.
+    pub fn of(file: &AnyNlModel, dt_s: f64) -> anyhow::Result<Self> {
+        Ok(match file {
+            AnyNlModel::Modal(m) => Self::Modal(m.params(dt_s)?),
+            AnyNlModel::Hysteron(h) => Self::Hysteron(h.params(dt_s)?),
+        })
+    }
+
+    /// The form's name.
+    pub fn form(&self) -> &'static str {
+        match self {
+            Self::Modal(_) => "modal-hysteretic",
+            Self::Hysteron(_) => "floor-hysteron",
+        }
+    }
+
+    /// The specimen's floor and nominal stiffness.
+    pub fn specimen(&self) -> (usize, f64) {
+        match self {
+            Self::Modal(p) => {
+                // The modal form keeps the specimen's stiffness in its modes; the file has it.
+                (p.specimen_dof(), f64::NAN)
+            }
+            Self::Hysteron(p) => (p.specimen_floor(), p.specimen_k_kn_per_mm()),
+        }
+    }
+
+    /// The controller's analytical part.
+    pub fn analytical(&self) -> Analytical {
+        match self {
+            Self::Modal(p) => Analytical::StructureModal(StructureModal::new(*p)),
+            Self::Hysteron(p) => Analytical::StructureHysteron(StructureHysteron::new(*p)),
+        }
+    }
+
+    /// The pure loop under `ag` with the specimen `k_e` at the model's own target: every floor.
+    pub fn pure_loop(&self, k_e: f64, ag: &[f64]) -> Option<Vec<Vec<f64>>> {
+        match self {
+            Self::Modal(p) => super::runs::pure_loop(&mut ModalHyst::new(*p), k_e, ag),
+            Self::Hysteron(p) => super::hysteron::pure_loop(*p, ag),
+        }
+    }
+}
+
+/// The floors of a learned model in the hybrid loop.
+struct FloorsReadOut {
+    floors: usize,
+    specimen: usize,
+}
+
+impl ReadOut for FloorsReadOut {
+    fn read(&self, analytical: &Analytical, outputs: &mut Vec<f64>) -> f64 {
+        let at = |i: usize| match analytical {
+            Analytical::StructureModal(m) => m.model().floor_disp_mm(i),
+            Analytical::StructureHysteron(m) => m.model().floor_disp_mm(i),
+            _ => f64::NAN,
+        };
+        outputs.extend((0..self.floors).map(at));
+        at(self.specimen)
+    }
+}
+
+/// One loop's figures against a held-out run.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct LoopScore {
+    /// NRMSE of the interface, %.
+    pub interface_nrmse_pct: Option<f64>,
+    /// NRMSE of each floor, %.
+    pub floor_nrmse_pct: Vec<Option<f64>>,
+    /// Each story's residual drift, mm.
+    pub residual_mm: Vec<f64>,
+    /// Why it stopped, if it did.
+    pub stopped: Option<String>,
+}
+
+/// A held-out run's figures.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RunScore {
+    /// The history's file name.
+    pub label: String,
+    /// The reference's peak interface displacement, mm.
+    pub peak_interface_mm: f64,
+    /// The reference's residual drifts, mm.
+    pub residual_ref_mm: Vec<f64>,
+    /// The pure loop.
+    pub pure: LoopScore,
+    /// The hybrid loop (`None`: not run).
+    pub hybrid: Option<LoopScore>,
+    /// The length scale of the hybrid run.
+    pub length_scale: f64,
+}
+
+impl RunScore {
+    /// The residual-drift error of `l` at the story with the largest reference residual, % of it
+    /// (`None` when that residual is under 0.1 mm).
+    pub fn residual_error_pct(&self, l: &LoopScore) -> Option<f64> {
+        let (k, r) = self
+            .residual_ref_mm
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))?;
+        if r.abs() < 0.1 {
+            return None;
+        }
+        Some(100.0 * (l.residual_mm.get(k).copied().unwrap_or(f64::NAN) - r).abs() / r.abs())
+    }
+}
+
+fn loop_score(floors: &[Vec<f64>], run: &FloorRun, specimen: usize) -> LoopScore {
+    let nr = |a: &[f64], b: &[f64]| {
+        let n = a.len().min(b.len());
+        metrics::nrmse_pct(&a[..n], &b[..n]).ok()
+    };
+    LoopScore {
+        interface_nrmse_pct: nr(&floors[specimen], &run.floor_disp_mm[specimen]),
+        floor_nrmse_pct: floors
+            .iter()
+            .zip(&run.floor_disp_mm)
+            .map(|(a, b)| nr(a, b))
+            .collect(),
+        residual_mm: residual_drifts(floors, DT_S),
+        stopped: None,
+    }
+}
+
+/// The rig a hybrid run of a structure whose specimen is `k_e` uses, and the identified
+/// compensation (once per study: a lab identifies its rig before it tests).
+pub struct HybridRig {
+    preset: Preset,
+    config: RigConfig,
+    comp: rig::RigCompensation,
+}
+
+impl HybridRig {
+    /// `preset` with the paper's brace, sensor noise `seed`, identified now.
+    pub fn identified(name: &str, preset: Preset, seed: u64) -> anyhow::Result<Self> {
+        let (config, factor) = hybrid::rig_of(preset, seed, false);
+        let comp = rig::identify_rig(name, &config, factor)?;
+        Ok(Self {
+            preset,
+            config,
+            comp,
+        })
+    }
+}
+
+/// The length scale a lab would choose from the model's own pure-loop prediction: the smallest
+/// L ≥ 1 (in halves) at which the interface stays within 80 % of the stroke and of the velocity
+/// limit.
+pub fn length_scale(interface_mm: &[f64]) -> f64 {
+    let peak = metrics::peak_abs(interface_mm);
+    let vel = interface_mm
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs() / DT_S)
+        .fold(0.0, f64::max);
+    let need = (peak / (0.8 * ACTUATOR_STROKE_MM)).max(vel / (0.8 * ACTUATOR_VELOCITY_MM_S));
+    ((need * 2.0).ceil() / 2.0).max(1.0)
+}
+
+/// Score `model` (specimen nominal stiffness `k_e`) on the held-out `run`: the pure loop, and the
+/// hybrid loop on `rig` if given.
+pub fn score_run(
+    model: &Learned,
+    k_e: f64,
+    run: &FloorRun,
+    rig: Option<&HybridRig>,
+) -> anyhow::Result<RunScore> {
+    let (sf, _) = model.specimen();
+    let ag = &run.ground_accel_mm_s2;
+    let pure_floors = model
+        .pure_loop(k_e, ag)
+        .with_context(|| format!("the {} model diverged on {}", model.form(), run.label))?;
+    let pure = loop_score(&pure_floors, run, sf);
+    let length = length_scale(&pure_floors[sf]);
+    let hybrid = match rig {
+        None => None,
+        Some(r) => {
+            let rig_k = RigConfig::new(r.preset).specimen_stiffness_kn_per_mm;
+            let scale = SpecimenScale::new(length, k_e * length / rig_k)
+                .map_err(|e| anyhow::anyhow!("specimen scale: {e:?}"))?;
+            let c = &r.comp.corrected_lead;
+            let floors = pure_floors.len();
+            let (online, stop) = hybrid::run_online(
+                scale,
+                model.analytical(),
+                Compensation {
+                    compensator: Compensator::Lead(Lead::new(c.lead)),
+                    correction: c.correction,
+                },
+                &r.config,
+                ag,
+                (0..floors).map(|i| format!("floor_{i}")).collect(),
+                &FloorsReadOut {
+                    floors,
+                    specimen: sf,
+                },
+            )?;
+            let cols: Vec<Vec<f64>> = (0..floors)
+                .map(|i| {
+                    online
+                        .model
+                        .outputs_mm
+                        .iter()
+                        .map(|o| o.get(i).copied().unwrap_or(f64::NAN))
+                        .collect()
+                })
+                .collect();
+            let mut s = loop_score(&cols, run, sf);
+            s.stopped = stop.map(|st| format!("{st:?}"));
+            Some(s)
+        }
+    };
+    Ok(RunScore {
+        label: run.label.clone(),
+        peak_interface_mm: metrics::peak_abs(&run.floor_disp_mm[sf]),
+        residual_ref_mm: residual_drifts(&run.floor_disp_mm, DT_S),
+        pure,
+        hybrid,
+        length_scale: length,
+    })
+}
+
+/// Mean floor NRMSE (%) of the pure loop of `model` over `runs` (the validation loss that chooses
+/// the form); `f64::INFINITY` if it diverges on any.
+pub fn validation_loss(model: &Learned, k_e: f64, runs: &[FloorRun]) -> f64 {
+    let mut total = 0.0;
+    for r in runs {
+        let Some(f) = model.pure_loop(k_e, &r.ground_accel_mm_s2) else {
+            return f64::INFINITY;
+        };
+        let s = loop_score(&f, r, 0);
+        let e: Vec<f64> = s.floor_nrmse_pct.iter().map(|x| x.unwrap_or(f64::INFINITY)).collect();
+        total += e.iter().sum::<f64>() / e.len().max(1) as f64;
+    }
+    total / runs.len().max(1) as f64
+}
