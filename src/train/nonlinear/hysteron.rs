@@ -30,7 +30,7 @@ pub const HYSTERON_METHOD: &str = "play-operator-nnls";
 /// [`HYST_MAX_HYSTERONS`] in all).
 pub const THRESHOLDS_PER_DIRECTION: usize = 10;
 /// The smallest and largest threshold, as fractions of the direction's largest training amplitude.
-pub const THRESHOLD_RANGE: (f64, f64) = (0.015, 0.7);
+pub const THRESHOLD_RANGE: (f64, f64) = (0.06, 0.8);
 /// Ridge weight, relative to the Gram matrix's mean diagonal.
 pub const RIDGE: f64 = 1e-4;
 /// The fully yielded tangent keeps at least this fraction of the elastic stiffness in every
