@@ -15,6 +15,7 @@ pub mod reproduce;
 pub mod robustness;
 pub mod simulate;
 pub mod simulate_imported;
+pub mod simulate_imported_nl;
 pub mod simulate_imported_online;
 pub mod site;
 pub mod train;

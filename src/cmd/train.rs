@@ -984,11 +984,7 @@ fn evaluate_floors(
             return "—".into();
         }
         v.sort_by(f64::total_cmp);
-        format!(
-            "median {:.3}%, max {:.3}%",
-            v[v.len() / 2],
-            v[v.len() - 1]
-        )
+        format!("median {:.3}%, max {:.3}%", v[v.len() / 2], v[v.len() - 1])
     };
     crate::outln!(
         "pure loop: NRMSE {}; residual drift error {} ({} of {} runs with a residual of 0.1 mm or \

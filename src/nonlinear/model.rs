@@ -1,13 +1,15 @@
 //! The learned model of a structure's numerical part (`rths train nonlinear`: the
-//! modal-hysteretic metamodel, `rths_core::metamodel::ModalHyst`) as a [`StructureModel`] of the
+//! modal-hysteretic metamodel, `rths_core::metamodel::ModalHyst`, or the floor-hysteron one,
+//! `rths_core::metamodel::FloorHysteron`) as a [`StructureModel`] of the
 //! structure scenarios, loaded for one structure file and refused for another.
 
 use std::path::Path;
 
 use anyhow::Context;
-use rths_core::control::{Analytical, StructureModal};
-use rths_core::metamodel::ModalHystParams;
+use rths_core::control::{Analytical, StructureHysteron, StructureModal};
+use rths_core::metamodel::{FloorHysteronParams, ModalHystParams};
 use rths_core::params::DT_S;
+use rths_files::hysteron_model_file::{AnyNlModel, HysteronModelFile};
 use rths_files::nl_model_file::NlModelFile;
 
 use super::scenario::StructureModel;
@@ -16,7 +18,14 @@ use super::scenario::StructureModel;
 /// condition, as the FE's; story drifts from the model's floors).
 #[derive(Debug, Clone)]
 pub struct LearnedModel {
-    params: Box<ModalHystParams>,
+    params: Box<Params>,
+}
+
+/// Either form's parameters.
+#[derive(Debug, Clone)]
+enum Params {
+    Modal(ModalHystParams),
+    Hysteron(FloorHysteronParams),
 }
 
 /// Refuse a nonlinear model trained at another controller rate than this build's (its springs were
@@ -41,21 +50,45 @@ impl LearnedModel {
         check_rate(file)?;
         // The parameters are continuous-time: built for this build's controller step.
         Ok(Self {
-            params: Box::new(file.params(DT_S)?),
+            params: Box::new(Params::Modal(file.params(DT_S)?)),
         })
     }
 
-    /// [`Self::new`] from the model file at `path`.
+    /// A floor-hysteron model file for the structure file whose text is `structure_json`, refused
+    /// with the reason unless it was trained for that structure at this build's rate.
+    pub fn hysteron(file: &HysteronModelFile, structure_json: &str) -> anyhow::Result<Self> {
+        file.check_structure(structure_json)?;
+        rths_files::rate::check_dt(
+            "the nonlinear model",
+            file.dt_s,
+            DT_S,
+            &format!(
+                "rths train nonlinear --structure {}.json --histories ... --out FILE",
+                file.structure.name
+            ),
+        )?;
+        Ok(Self {
+            params: Box::new(Params::Hysteron(file.params(DT_S)?)),
+        })
+    }
+
+    /// [`Self::new`] (or [`Self::hysteron`], by the file's kind) from the model file at `path`.
     pub fn load(path: &Path, structure_json: &str) -> anyhow::Result<Self> {
-        let file = NlModelFile::load(path).with_context(|| format!("model {}", path.display()))?;
-        Self::new(&file, structure_json)
-            .with_context(|| format!("model {} refused", path.display()))
+        let file = AnyNlModel::load(path).with_context(|| format!("model {}", path.display()))?;
+        match &file {
+            AnyNlModel::Modal(f) => Self::new(f, structure_json),
+            AnyNlModel::Hysteron(f) => Self::hysteron(f, structure_json),
+        }
+        .with_context(|| format!("model {} refused", path.display()))
     }
 }
 
 impl StructureModel for LearnedModel {
     fn analytical(&self) -> Analytical {
-        Analytical::StructureModal(StructureModal::new(*self.params))
+        match *self.params {
+            Params::Modal(p) => Analytical::StructureModal(StructureModal::new(p)),
+            Params::Hysteron(p) => Analytical::StructureHysteron(StructureHysteron::new(p)),
+        }
     }
 }
 

@@ -66,7 +66,10 @@ pub fn fit_hysteron(
         HysteronTraining {
             method: HYSTERON_METHOD.into(),
             seed,
-            runs: runs.iter().map(|r| format!("{} (history)", r.label)).collect(),
+            runs: runs
+                .iter()
+                .map(|r| format!("{} (history)", r.label))
+                .collect(),
             ridge: RIDGE,
             stability_scale: fit.stability_scale,
             force_fit_pct: fit.force_fit_pct,
@@ -150,8 +153,10 @@ pub fn train_form(
         return Ok((TrainedForm::Modal(Box::new(t)), None));
     }
     // Both forms on the same histories, every third held out.
-    let (fit_runs, val_runs): (Vec<(usize, &FloorRun)>, Vec<(usize, &FloorRun)>) =
-        runs.iter().enumerate().partition(|(i, _)| !is_validation(*i));
+    let (fit_runs, val_runs): (Vec<(usize, &FloorRun)>, Vec<(usize, &FloorRun)>) = runs
+        .iter()
+        .enumerate()
+        .partition(|(i, _)| !is_validation(*i));
     let fit_runs: Vec<FloorRun> = fit_runs.into_iter().map(|(_, r)| r.clone()).collect();
     let val_runs: Vec<FloorRun> = val_runs.into_iter().map(|(_, r)| r.clone()).collect();
     let k_e = fm.specimen_k_kn_per_mm;

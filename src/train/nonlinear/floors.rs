@@ -117,7 +117,8 @@ impl FloorModel {
             t[(i, j)] = 1.0;
         }
         if !slaves.is_empty() {
-            let kss = DMatrix::from_fn(slaves.len(), slaves.len(), |a, b| k[(slaves[a], slaves[b])]);
+            let kss =
+                DMatrix::from_fn(slaves.len(), slaves.len(), |a, b| k[(slaves[a], slaves[b])]);
             let ksm = DMatrix::from_fn(slaves.len(), n, |a, b| k[(slaves[a], masters[b])]);
             let x = kss
                 .clone()
@@ -201,7 +202,11 @@ pub fn residual_drifts(floors: &[Vec<f64>], dt_s: f64) -> Vec<f64> {
     (0..floors.len())
         .map(|i| {
             let d: Vec<f64> = match i.checked_sub(1) {
-                Some(j) => floors[i].iter().zip(&floors[j]).map(|(a, b)| a - b).collect(),
+                Some(j) => floors[i]
+                    .iter()
+                    .zip(&floors[j])
+                    .map(|(a, b)| a - b)
+                    .collect(),
                 None => floors[i].clone(),
             };
             let tail = &d[d.len().saturating_sub(w)..];
@@ -299,7 +304,8 @@ pub fn restoring_force_kn(
             let f = &run.floor_disp_mm[i];
             (f[k + 1] - 2.0 * f[k] + f[k - 1]) / (dt_s * dt_s)
         });
-        let mut r = -(&fm.mass * acc) - &fm.damping * vel - &fm.ground_mass * run.ground_accel_mm_s2[k];
+        let mut r =
+            -(&fm.mass * acc) - &fm.damping * vel - &fm.ground_mass * run.ground_accel_mm_s2[k];
         r[fm.specimen_floor] -= run.specimen_force_kn[k];
         out.push((k, r));
         k += every.max(1);

@@ -100,7 +100,9 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// The hysterons' thresholds: per direction, geometric in [`THRESHOLD_RANGE`] of the largest
 /// amplitude the direction reaches in `runs`.
 pub fn thresholds(dirs: &[Vec<f64>], runs: &[FloorRun]) -> Vec<(usize, f64)> {
-    let per = THRESHOLDS_PER_DIRECTION.min(HYST_MAX_HYSTERONS / dirs.len().max(1)).max(1);
+    let per = THRESHOLDS_PER_DIRECTION
+        .min(HYST_MAX_HYSTERONS / dirs.len().max(1))
+        .max(1);
     let mut out = Vec::new();
     for (e, a) in dirs.iter().enumerate() {
         let mut amp = 0.0_f64;
@@ -110,7 +112,11 @@ pub fn thresholds(dirs: &[Vec<f64>], runs: &[FloorRun]) -> Vec<(usize, f64)> {
                 amp = amp.max(dot(a, &x).abs());
             }
         }
-        let amp = if amp > 0.0 && amp.is_finite() { amp } else { 1.0 };
+        let amp = if amp > 0.0 && amp.is_finite() {
+            amp
+        } else {
+            1.0
+        };
         let (lo, hi) = THRESHOLD_RANGE;
         for j in 0..per {
             let f = if per == 1 {
@@ -192,7 +198,10 @@ pub fn fit(fm: &FloorModel, runs: &[FloorRun], dt_s: f64) -> Result<HysteronFit,
     let lambda = RIDGE * mean_diag.max(f64::MIN_POSITIVE);
     // Each spring of the network keeps at least ε of its stiffness once all its hysterons
     // slide: Σ_{h on e} w_h ≤ (1 − ε)·κ_e, hence K − Σ w·a·aᵀ ⪰ ε·K.
-    let caps: Vec<f64> = kappa.iter().map(|k| (1.0 - MIN_TANGENT_FRACTION) * k).collect();
+    let caps: Vec<f64> = kappa
+        .iter()
+        .map(|k| (1.0 - MIN_TANGENT_FRACTION) * k)
+        .collect();
     let groups: Vec<usize> = hs.iter().map(|(e, _)| *e).collect();
     let start_w = nnls(&gram, &rhs, lambda);
     let w = capped_least_squares(&gram, &rhs, lambda, &groups, &caps, start_w);
@@ -261,7 +270,12 @@ fn capped_least_squares(
     for i in 0..h {
         a[(i, i)] += lambda;
     }
-    let l = a.clone().symmetric_eigen().eigenvalues.max().max(f64::MIN_POSITIVE);
+    let l = a
+        .clone()
+        .symmetric_eigen()
+        .eigenvalues
+        .max()
+        .max(f64::MIN_POSITIVE);
     let project = |v: &mut DVector<f64>| {
         for (e, cap) in caps.iter().enumerate() {
             let idx: Vec<usize> = (0..h).filter(|&i| groups[i] == e).collect();

@@ -200,43 +200,21 @@ pub fn score_run(
         .pure_loop(k_e, ag)
         .with_context(|| format!("the {} model diverged on {}", model.form(), run.label))?;
     let pure = loop_score(&pure_floors, run, sf);
-    let length = length_scale(&pure_floors[sf]);
-    let hybrid = match rig {
-        None => None,
+    let (hybrid, length) = match rig {
+        None => (None, length_scale(&pure_floors[sf])),
         Some(r) => {
-            let rig_k = RigConfig::new(r.preset).specimen_stiffness_kn_per_mm;
-            let scale = SpecimenScale::new(length, k_e * length / rig_k)
-                .map_err(|e| anyhow::anyhow!("specimen scale: {e:?}"))?;
-            let c = &r.comp.corrected_lead;
-            let floors = pure_floors.len();
-            let (online, stop) = hybrid::run_online(
-                scale,
-                model.analytical(),
-                Compensation {
-                    compensator: Compensator::Lead(Lead::new(c.lead)),
-                    correction: c.correction,
-                },
-                &r.config,
-                ag,
-                (0..floors).map(|i| format!("floor_{i}")).collect(),
-                &FloorsReadOut {
-                    floors,
-                    specimen: sf,
-                },
-            )?;
-            let cols: Vec<Vec<f64>> = (0..floors)
+            let (h, stop, length) = run_hybrid(model, k_e, ag, r)?;
+            let cols: Vec<Vec<f64>> = (0..pure_floors.len())
                 .map(|i| {
-                    online
-                        .model
-                        .outputs_mm
+                    h.outputs_mm
                         .iter()
                         .map(|o| o.get(i).copied().unwrap_or(f64::NAN))
                         .collect()
                 })
                 .collect();
             let mut s = loop_score(&cols, run, sf);
-            s.stopped = stop.map(|st| format!("{st:?}"));
-            Some(s)
+            s.stopped = stop;
+            (Some(s), length)
         }
     };
     Ok(RunScore {
@@ -249,6 +227,47 @@ pub fn score_run(
     })
 }
 
+/// The hybrid loop of `model` (specimen nominal `k_e`) under `ag` on `rig`, at the length scale a
+/// lab would choose from the model's own pure-loop prediction: the model's floors at each tick
+/// (columns `floor_<i>`), why it stopped if it did, and the length scale.
+pub fn run_hybrid(
+    model: &Learned,
+    k_e: f64,
+    ag: &[f64],
+    rig: &HybridRig,
+) -> anyhow::Result<(crate::imported::fe::FeHistory, Option<String>, f64)> {
+    let (sf, _) = model.specimen();
+    let pure = model
+        .pure_loop(k_e, ag)
+        .with_context(|| format!("the {} model diverged", model.form()))?;
+    let length = length_scale(&pure[sf]);
+    let rig_k = RigConfig::new(rig.preset).specimen_stiffness_kn_per_mm;
+    let scale = SpecimenScale::new(length, k_e * length / rig_k)
+        .map_err(|e| anyhow::anyhow!("specimen scale: {e:?}"))?;
+    let c = &rig.comp.corrected_lead;
+    let floors = pure.len();
+    let (online, stop) = hybrid::run_online(
+        scale,
+        model.analytical(),
+        Compensation {
+            compensator: Compensator::Lead(Lead::new(c.lead)),
+            correction: c.correction,
+        },
+        &rig.config,
+        ag,
+        (0..floors).map(|i| format!("floor_{i}")).collect(),
+        &FloorsReadOut {
+            floors,
+            specimen: sf,
+        },
+    )?;
+    Ok((
+        online.model,
+        stop.map(|(why, t)| format!("{why} at {t:.2} s")),
+        length,
+    ))
+}
+
 /// Mean floor NRMSE (%) of the pure loop of `model` over `runs` (the validation loss that chooses
 /// the form); `f64::INFINITY` if it diverges on any.
 pub fn validation_loss(model: &Learned, k_e: f64, runs: &[FloorRun]) -> f64 {
@@ -258,7 +277,11 @@ pub fn validation_loss(model: &Learned, k_e: f64, runs: &[FloorRun]) -> f64 {
             return f64::INFINITY;
         };
         let s = loop_score(&f, r, 0);
-        let e: Vec<f64> = s.floor_nrmse_pct.iter().map(|x| x.unwrap_or(f64::INFINITY)).collect();
+        let e: Vec<f64> = s
+            .floor_nrmse_pct
+            .iter()
+            .map(|x| x.unwrap_or(f64::INFINITY))
+            .collect();
         total += e.iter().sum::<f64>() / e.len().max(1) as f64;
     }
     total / runs.len().max(1) as f64
