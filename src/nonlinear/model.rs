@@ -21,7 +21,8 @@ pub struct LearnedModel {
     params: Box<Params>,
 }
 
-/// Either form's parameters.
+/// Either form's parameters (boxed once, in [`LearnedModel`]).
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 enum Params {
     Modal(ModalHystParams),

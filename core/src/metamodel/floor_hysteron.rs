@@ -21,6 +21,10 @@
 //! `no_std`, allocation-free, panic-free; a non-finite input is refused before the state is
 //! touched, and a step whose result is not finite is refused with the state left as it was.
 
+// Validation loops over the floors in use (n ≤ MAX_DOF, checked first) index fixed arrays; the
+// tick (`step`) iterates with zips only.
+#![allow(clippy::needless_range_loop)]
+
 use super::ModelError;
 use crate::params::ParamError;
 use crate::structure_n::{ChangN, Dofs, StructureN, MAX_DOF};
@@ -134,11 +138,7 @@ impl FloorHysteronParams {
             s.ground_mass,
         )?;
         let chang = ChangN::new(structure, dt_s)?;
-        let d = if n == 0 {
-            0
-        } else {
-            directions_row_major.len() / n
-        };
+        let d = directions_row_major.len().checked_div(n).unwrap_or(0);
         if d == 0 || d > HYST_MAX_DIRECTIONS || d * n != directions_row_major.len() {
             return Err(ModelError::Shape {
                 what: "directions (1..=16, each one number per floor)",
@@ -244,7 +244,7 @@ fn positive_definite(a: &[[f64; MAX_DOF]; MAX_DOF], n: usize) -> bool {
                 s -= l[i][k] * l[j][k];
             }
             if i == j {
-                if !(s > 0.0) || !s.is_finite() {
+                if !s.is_finite() || s <= 0.0 || s.is_nan() {
                     return false;
                 }
                 l[i][j] = libm::sqrt(s);

@@ -153,12 +153,14 @@ pub fn train_form(
         return Ok((TrainedForm::Modal(Box::new(t)), None));
     }
     // Both forms on the same histories, every third held out.
-    let (fit_runs, val_runs): (Vec<(usize, &FloorRun)>, Vec<(usize, &FloorRun)>) = runs
-        .iter()
-        .enumerate()
-        .partition(|(i, _)| !is_validation(*i));
-    let fit_runs: Vec<FloorRun> = fit_runs.into_iter().map(|(_, r)| r.clone()).collect();
-    let val_runs: Vec<FloorRun> = val_runs.into_iter().map(|(_, r)| r.clone()).collect();
+    let pick = |want: bool| -> Vec<FloorRun> {
+        runs.iter()
+            .enumerate()
+            .filter(|(i, _)| is_validation(*i) == want)
+            .map(|(_, r)| r.clone())
+            .collect()
+    };
+    let (fit_runs, val_runs) = (pick(false), pick(true));
     let k_e = fm.specimen_k_kn_per_mm;
     let h = fit_hysteron(&fm, &fit_runs, structure.clone(), cfg.seed, cfg.dt_s)?;
     let h_loss = validation_loss(

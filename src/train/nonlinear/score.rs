@@ -17,7 +17,9 @@ use super::floors::{residual_drifts, FloorRun};
 use crate::imported::hybrid::{self, Compensation, ReadOut};
 use crate::nonlinear::rig;
 
-/// A learned model of either form, built for the controller's step.
+/// A learned model of either form, built for the controller's step (copied into the controller
+/// as its analytical part, so not boxed).
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy)]
 pub enum Learned {
     /// The modal-hysteretic form.
