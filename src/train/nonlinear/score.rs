@@ -2,7 +2,9 @@
 //! held-out histories are read here and never by the training): the pure loop (the model with the
 //! stand-in specimen) and the hybrid loop (core's controller on the virtual rig, with the rig's
 //! identified lead and force correction: `nl-online`), each at the interface and every floor, and
-//! the residual drift of the story with the largest reference residual.
+//! the residual drift of the story with the largest reference residual. The hybrid loop's
+//! interface is the displacement the rig was *measured* to impose (prototype scale), not the
+//! model's own target: that is what the specimen went through; its other floors are the model's.
 
 use anyhow::Context;
 use rths_core::compensator::{Compensator, Lead};
@@ -94,8 +96,10 @@ impl ReadOut for FloorsReadOut {
 /// One loop's figures against a held-out run.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct LoopScore {
-    /// NRMSE of the interface, %.
+    /// NRMSE of the interface, % (the hybrid loop: the measured displacement).
     pub interface_nrmse_pct: Option<f64>,
+    /// The hybrid loop: NRMSE of the model's own interface displacement, % (`None`: pure loop).
+    pub model_interface_nrmse_pct: Option<f64>,
     /// NRMSE of each floor, %.
     pub floor_nrmse_pct: Vec<Option<f64>>,
     /// Each story's residual drift, mm.
@@ -151,6 +155,7 @@ fn loop_score(floors: &[Vec<f64>], run: &FloorRun, specimen: usize) -> LoopScore
             .collect(),
         residual_mm: residual_drifts(floors, DT_S),
         stopped: None,
+        model_interface_nrmse_pct: None,
     }
 }
 
@@ -205,8 +210,8 @@ pub fn score_run(
     let (hybrid, length) = match rig {
         None => (None, length_scale(&pure_floors[sf])),
         Some(r) => {
-            let (h, stop, length) = run_hybrid(model, k_e, ag, r)?;
-            let cols: Vec<Vec<f64>> = (0..pure_floors.len())
+            let (h, measured, stop, length) = run_hybrid_measured(model, k_e, ag, r)?;
+            let mut cols: Vec<Vec<f64>> = (0..pure_floors.len())
                 .map(|i| {
                     h.outputs_mm
                         .iter()
@@ -214,8 +219,17 @@ pub fn score_run(
                         .collect()
                 })
                 .collect();
+            let own = cols.get(sf).and_then(|c| {
+                let n = c.len().min(run.floor_disp_mm[sf].len());
+                metrics::nrmse_pct(&c[..n], &run.floor_disp_mm[sf][..n]).ok()
+            });
+            // The specimen's floor is what the rig imposed.
+            if let Some(c) = cols.get_mut(sf) {
+                *c = measured;
+            }
             let mut s = loop_score(&cols, run, sf);
             s.stopped = stop;
+            s.model_interface_nrmse_pct = own;
             (Some(s), length)
         }
     };
@@ -238,6 +252,23 @@ pub fn run_hybrid(
     ag: &[f64],
     rig: &HybridRig,
 ) -> anyhow::Result<(crate::imported::fe::FeHistory, Option<String>, f64)> {
+    let (h, _, stop, length) = run_hybrid_measured(model, k_e, ag, rig)?;
+    Ok((h, stop, length))
+}
+
+/// [`run_hybrid`], with the interface displacement the rig was measured to impose at each tick
+/// (prototype scale, mm).
+pub fn run_hybrid_measured(
+    model: &Learned,
+    k_e: f64,
+    ag: &[f64],
+    rig: &HybridRig,
+) -> anyhow::Result<(
+    crate::imported::fe::FeHistory,
+    Vec<f64>,
+    Option<String>,
+    f64,
+)> {
     let (sf, _) = model.specimen();
     let pure = model
         .pure_loop(k_e, ag)
@@ -265,6 +296,7 @@ pub fn run_hybrid(
     )?;
     Ok((
         online.model,
+        online.measured_mm,
         stop.map(|(why, t)| format!("{why} at {t:.2} s")),
         length,
     ))
