@@ -9,7 +9,10 @@
 //! `w_h ≥ 0` and `a_h` one of the model's directions. `δ − p_h(δ)` is an elastic–perfectly-plastic
 //! element of unit stiffness yielding at `r_h`, so each hysteron is an Iwan element in parallel with
 //! the elastic structure: the tangent stiffness is `K` while `|δ| < r_h` and `K − w_h·a_h·a_hᵀ`
-//! once it slides. The parameters are refused unless the fully yielded tangent `K − Σ w_h·a_h·a_hᵀ`
+//! once it slides. With [`HysteronOperator::MenegottoPinto`] every hysteron is instead the
+//! Menegotto–Pinto play ([`mp_play`]): the same element with its reversals rounded by the previous
+//! excursion (steel's Bauschinger effect, outside Masing's rule that binds the plays), at most
+//! [`HYST_MAX_MP`] of them; its tangent stays between the same bounds. The parameters are refused unless the fully yielded tangent `K − Σ w_h·a_h·a_hᵀ`
 //! is positive definite, so the model is passive (it dissipates, never creates energy) and Chang's
 //! explicit method, whose coefficients use the initial stiffness, stays stable.
 //!
@@ -25,6 +28,7 @@
 // tick (`step`) iterates with zips only.
 #![allow(clippy::needless_range_loop)]
 
+use super::mp_play::{mp_play, MpShape, MpState};
 use super::ModelError;
 use crate::params::ParamError;
 use crate::structure_n::{ChangN, Dofs, StructureN, MAX_DOF};
@@ -33,6 +37,18 @@ use crate::structure_n::{ChangN, Dofs, StructureN, MAX_DOF};
 pub const HYST_MAX_DIRECTIONS: usize = 16;
 /// Largest number of hysterons.
 pub const HYST_MAX_HYSTERONS: usize = 128;
+/// Largest number of Menegotto–Pinto hysterons (each carries a branch state and costs two `pow`
+/// per step).
+pub const HYST_MAX_MP: usize = 32;
+
+/// The operator every hysteron of a model is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum HysteronOperator {
+    /// The play (Masing's rule).
+    Play,
+    /// The Menegotto–Pinto play of this shape ([`mp_play`]).
+    MenegottoPinto(MpShape),
+}
 
 /// One play operator: its direction (an index into the model's directions), threshold and weight.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -55,6 +71,7 @@ pub struct FloorHysteronParams {
     dir: [[f64; MAX_DOF]; HYST_MAX_DIRECTIONS],
     count: usize,
     hyst: [Hysteron; HYST_MAX_HYSTERONS],
+    operator: HysteronOperator,
 }
 
 /// The elastic floors of the model, raw (row-major `floors × floors`).
@@ -204,7 +221,25 @@ impl FloorHysteronParams {
             dir,
             count: hysterons.len(),
             hyst,
+            operator: HysteronOperator::Play,
         })
+    }
+
+    /// The same model with every hysteron the operator `op` (a Menegotto–Pinto model has at most
+    /// [`HYST_MAX_MP`] hysterons).
+    pub fn with_operator(mut self, op: HysteronOperator) -> Result<Self, ModelError> {
+        if matches!(op, HysteronOperator::MenegottoPinto(_)) && self.count > HYST_MAX_MP {
+            return Err(
+                ParamError::OutOfRange("number of Menegotto–Pinto hysterons (1..=32)").into(),
+            );
+        }
+        self.operator = op;
+        Ok(self)
+    }
+
+    /// The hysterons' operator.
+    pub fn operator(&self) -> HysteronOperator {
+        self.operator
     }
 
     /// The time step, s.
@@ -262,6 +297,8 @@ pub struct FloorHysteron {
     p: FloorHysteronParams,
     /// Each play operator's output, mm.
     play: [f64; HYST_MAX_HYSTERONS],
+    /// Each Menegotto–Pinto play's state.
+    mp: [MpState; HYST_MAX_MP],
 }
 
 impl FloorHysteron {
@@ -270,6 +307,7 @@ impl FloorHysteron {
         let mut me = Self {
             p,
             play: [0.0; HYST_MAX_HYSTERONS],
+            mp: [MpState::REST; HYST_MAX_MP],
         };
         me.reset();
         me
@@ -294,6 +332,7 @@ impl FloorHysteron {
             0.0
         };
         self.play = [0.0; HYST_MAX_HYSTERONS];
+        self.mp = [MpState::REST; HYST_MAX_MP];
         self.p.chang.reset(ag);
     }
 
@@ -350,22 +389,39 @@ impl FloorHysteron {
             }
             *dv = s;
         }
-        // The play operators move on a copy, committed only if the step is finite; each adds
-        // its force −w·y along its direction.
-        let mut play = self.play;
+        // The operators move on a copy, committed only if the step is finite; each adds its
+        // force −w·p along its direction.
         let mut g = [0.0; HYST_MAX_DIRECTIONS];
-        for (h, y) in self.p.hyst.iter().zip(play.iter_mut()).take(self.p.count) {
-            let (Some(dv), Some(gd)) = (delta.get(h.direction), g.get_mut(h.direction)) else {
-                continue;
-            };
-            let lo = dv - h.threshold_mm;
-            let hi = dv + h.threshold_mm;
-            if *y < lo {
-                *y = lo;
-            } else if *y > hi {
-                *y = hi;
+        let mut play = [0.0; HYST_MAX_HYSTERONS];
+        let mut mp = [MpState::REST; HYST_MAX_MP];
+        match self.p.operator {
+            HysteronOperator::Play => {
+                play = self.play;
+                for (h, y) in self.p.hyst.iter().zip(play.iter_mut()).take(self.p.count) {
+                    let (Some(dv), Some(gd)) = (delta.get(h.direction), g.get_mut(h.direction))
+                    else {
+                        continue;
+                    };
+                    let lo = dv - h.threshold_mm;
+                    let hi = dv + h.threshold_mm;
+                    if *y < lo {
+                        *y = lo;
+                    } else if *y > hi {
+                        *y = hi;
+                    }
+                    *gd -= h.weight_kn_per_mm * *y;
+                }
             }
-            *gd -= h.weight_kn_per_mm * *y;
+            HysteronOperator::MenegottoPinto(shape) => {
+                mp = self.mp;
+                for (h, st) in self.p.hyst.iter().zip(mp.iter_mut()).take(self.p.count) {
+                    let (Some(dv), Some(gd)) = (delta.get(h.direction), g.get_mut(h.direction))
+                    else {
+                        continue;
+                    };
+                    *gd -= h.weight_kn_per_mm * mp_play(&shape, h.threshold_mm, st, *dv);
+                }
+            }
         }
         let mut r: Dofs = [0.0; MAX_DOF];
         for (gd, a) in g.iter().zip(&self.p.dir).take(self.p.directions) {
@@ -386,7 +442,10 @@ impl FloorHysteron {
             self.p.chang = before;
             return Err(ParamError::NotFinite("model state (the step overflowed)").into());
         }
-        self.play = play;
+        match self.p.operator {
+            HysteronOperator::Play => self.play = play,
+            HysteronOperator::MenegottoPinto(_) => self.mp = mp,
+        }
         Ok(next)
     }
 }

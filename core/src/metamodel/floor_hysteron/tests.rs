@@ -148,6 +148,92 @@ fn bad_parameters_are_refused_with_the_reason() {
     assert!(msg(FloorHysteronParams::new(-1.0, &two, &[1.0, 0.0], &[hy(0)])).contains("time step"));
 }
 
+fn mp(r0: f64, cr1: f64, cr2: f64) -> HysteronOperator {
+    HysteronOperator::MenegottoPinto(MpShape::new(r0, cr1, cr2).expect("valid shape"))
+}
+
+/// A Menegotto–Pinto hysteron without degradation and of a sharp R₀ is the play's story within
+/// the rounding of its corners, and with Steel02's degradation it is a different path: the
+/// operator is in force.
+#[test]
+fn a_sharp_menegotto_pinto_hysteron_is_the_play_s_story() {
+    let p = one_story(176.75, 622.54, 8.88, 167.9).expect("valid");
+    let run = |p: FloorHysteronParams| {
+        let mut h = FloorHysteron::new(p);
+        h.reset_at(ag(0));
+        (1..40_000)
+            .map(|k| {
+                let t = h.target_mm();
+                h.step(ag(k), 622.54 * t).expect("finite")
+            })
+            .collect::<Vec<f64>>()
+    };
+    let play = run(p);
+    let sharp = run(p.with_operator(mp(50.0, 0.0, 1.0)).expect("valid"));
+    let steel = run(p.with_operator(mp(20.0, 0.925, 0.15)).expect("valid"));
+    let peak = play.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let diff = |a: &[f64], b: &[f64]| {
+        a.iter()
+            .zip(b)
+            .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()))
+    };
+    // Measured: peak 205 mm, the sharp one within 0.009 mm, the steel-like one 7.5 mm off.
+    assert!(peak > 2.0 * 8.88, "the run must yield: peak {peak}");
+    assert!(
+        diff(&play, &sharp) < 1e-3 * peak,
+        "{} of {peak}",
+        diff(&play, &sharp)
+    );
+    assert!(
+        diff(&play, &steel) > 2e-2 * peak,
+        "{} of {peak}",
+        diff(&play, &steel)
+    );
+}
+
+#[test]
+fn a_menegotto_pinto_model_resets_bit_for_bit_and_is_refused_past_32_hysterons() {
+    let p = one_story(200.0, 100.0, 2.0, 150.0)
+        .expect("valid")
+        .with_operator(mp(20.0, 0.925, 0.15))
+        .expect("valid");
+    assert!(matches!(p.operator(), HysteronOperator::MenegottoPinto(_)));
+    let mut h = FloorHysteron::new(p);
+    let run = |h: &mut FloorHysteron| {
+        h.reset_at(ag(0));
+        (1..3000)
+            .map(|k| {
+                let t = h.target_mm();
+                h.step(ag(k) * 3.0, 100.0 * t).expect("finite").to_bits()
+            })
+            .collect::<Vec<u64>>()
+    };
+    let a = run(&mut h);
+    assert_eq!(a, run(&mut h));
+    let many: Vec<Hysteron> = (0..33)
+        .map(|j| Hysteron {
+            direction: 0,
+            threshold_mm: 1.0 + j as f64,
+            weight_kn_per_mm: 1.0,
+        })
+        .collect();
+    let s = FloorStructure {
+        floors: 1,
+        mass: &[1.0],
+        damping: &[0.1],
+        stiffness: &[200.0],
+        ground_mass: &[1.0],
+        specimen_floor: 0,
+        specimen_k_kn_per_mm: 10.0,
+    };
+    let p = FloorHysteronParams::new(DT_2048_S, &s, &[1.0], &many).expect("valid plays");
+    let e = p
+        .with_operator(mp(20.0, 0.5, 0.5))
+        .expect_err("33 Menegotto–Pinto hysterons");
+    assert!(format!("{e}").contains("Menegotto–Pinto"), "{e}");
+    assert!(p.with_operator(HysteronOperator::Play).is_ok());
+}
+
 #[test]
 fn a_non_finite_input_is_refused_and_the_state_kept() {
     let mut h = FloorHysteron::new(one_story(200.0, 100.0, 2.0, 150.0).expect("valid"));
@@ -212,6 +298,7 @@ proptest! {
         thr in prop::collection::vec(0.05f64..20.0, 24),
         amp in 0.0f64..20_000.0,
         seed in 0u32..1000,
+        shape in prop::option::of((1.0f64..50.0, 0.0f64..0.9, 0.05f64..2.0)),
     ) {
         let n = floors;
         let mut stiff = vec![0.0; n * n];
@@ -245,7 +332,14 @@ proptest! {
         };
         let p = FloorHysteronParams::new(DT_2048_S, &s, &dirs, &hs);
         prop_assert!(p.is_ok(), "{:?}", p.err());
-        let mut h = FloorHysteron::new(p.expect("checked"));
+        let mut p = p.expect("checked");
+        // Some models of Menegotto–Pinto hysterons (an admissible shape: R₀·(1 − c_R1) ≥ 0.5).
+        if let Some((r0, cr1, cr2)) = shape {
+            if let Ok(sh) = MpShape::new(r0, cr1.min(1.0 - 0.5 / r0).max(0.0), cr2) {
+                p = p.with_operator(HysteronOperator::MenegottoPinto(sh)).expect("at most 24");
+            }
+        }
+        let mut h = FloorHysteron::new(p);
         h.reset_at(0.0);
         let mut x = seed as f64;
         for _ in 0..4000 {
