@@ -10,16 +10,21 @@
 //!  "specimen_floor": 0, "specimen_stiffness_kn_per_mm": 20.0,
 //!  "mass": [[…]], "damping": [[…]], "stiffness": [[…]], "ground_mass": […],
 //!  "directions": [[one number per floor], …],
+//!  "operator": {"kind": "menegotto-pinto", "r0": 20.0, "cr1": 0.925, "cr2": 0.15},
 //!  "hysterons": [{"direction": 0, "threshold_mm": 2.5, "weight_kn_per_mm": 4.1}, …],
 //!  "training": {…provenance…}}
 //! ```
+//!
+//! `operator` is the hysterons' operator: `{"kind": "play"}` (the default when absent) or the
+//! Menegotto–Pinto play of that shape (`rths_core::metamodel::mp_play`).
 //!
 //! Every refusal names the field (`hysterons[3].weight_kn_per_mm: …`).
 
 use std::path::Path;
 
 use rths_core::metamodel::{
-    FloorHysteronParams, FloorStructure, Hysteron, HYST_MAX_DIRECTIONS, HYST_MAX_HYSTERONS,
+    FloorHysteronParams, FloorStructure, Hysteron, HysteronOperator, MpShape, HYST_MAX_DIRECTIONS,
+    HYST_MAX_HYSTERONS, HYST_MAX_MP,
 };
 use rths_core::structure_n::MAX_DOF;
 use serde::{Deserialize, Serialize};
@@ -38,6 +43,46 @@ pub struct HysteronSpec {
     pub threshold_mm: f64,
     /// Weight, kN/mm (≥ 0).
     pub weight_kn_per_mm: f64,
+}
+
+/// The hysterons' operator as the file stores it.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum OperatorSpec {
+    /// The play (Masing's rule).
+    #[default]
+    Play,
+    /// The Menegotto–Pinto play: `R₀`, `c_R1`, `c_R2`.
+    MenegottoPinto {
+        /// `R₀`.
+        r0: f64,
+        /// `c_R1`.
+        cr1: f64,
+        /// `c_R2`.
+        cr2: f64,
+    },
+}
+
+impl OperatorSpec {
+    /// The core operator; a refusal names the field.
+    pub fn operator(&self) -> Result<HysteronOperator, NlModelFileError> {
+        match *self {
+            OperatorSpec::Play => Ok(HysteronOperator::Play),
+            OperatorSpec::MenegottoPinto { r0, cr1, cr2 } => MpShape::new(r0, cr1, cr2)
+                .map(HysteronOperator::MenegottoPinto)
+                .map_err(|e| field(format!("operator: {e}"))),
+        }
+    }
+
+    /// How it reads in a report.
+    pub fn describe(&self) -> String {
+        match self {
+            OperatorSpec::Play => "play".into(),
+            OperatorSpec::MenegottoPinto { r0, cr1, cr2 } => {
+                format!("Menegotto–Pinto play (R0 {r0}, cR1 {cr1}, cR2 {cr2})")
+            }
+        }
+    }
 }
 
 /// How the model was trained (provenance; no wall time, so the same input writes the same bytes).
@@ -61,6 +106,37 @@ pub struct HysteronTraining {
     /// How the form was chosen (validation losses), if it was.
     #[serde(default)]
     pub choice: String,
+    /// Mean floor NRMSE of the pure loop over the training histories after the least-squares
+    /// fit alone, %.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub least_squares_loss_pct: Option<f64>,
+    /// Mean floor NRMSE of the pure loop over the validation histories (held out of the fit), %.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub validation_loss_pct: Option<f64>,
+    /// Each operator tried (its description) and its validation loss after the least-squares fit
+    /// (mean floor NRMSE of the pure loop on the validation histories, or the training histories
+    /// without any), %; the lowest was kept.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub operators_tried: Vec<(String, f64)>,
+    /// The refinement on the simulation error, if it ran.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refinement: Option<RefinementRecord>,
+}
+
+/// What the refinement on the simulation error did (provenance).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct RefinementRecord {
+    /// Levenberg–Marquardt steps taken.
+    pub steps: usize,
+    /// The step whose parameters were kept (the lowest validation loss; 0: the least-squares
+    /// fit).
+    pub kept_step: usize,
+    /// The factor on the lab's elastic stiffness (the file's `stiffness` has it applied).
+    pub stiffness_scale: f64,
+    /// The factor on the lab's damping (the file's `damping` has it applied).
+    pub damping_scale: f64,
+    /// Why it stopped.
+    pub stopped: String,
 }
 
 /// A floor-hysteron model file.
@@ -92,6 +168,9 @@ pub struct HysteronModelFile {
     pub ground_mass: Vec<f64>,
     /// The directions the hysterons act along, each one number per floor.
     pub directions: Vec<Vec<f64>>,
+    /// The hysterons' operator.
+    #[serde(default)]
+    pub operator: OperatorSpec,
     /// The hysterons.
     pub hysterons: Vec<HysteronSpec>,
     /// Provenance.
@@ -100,6 +179,8 @@ pub struct HysteronModelFile {
 }
 
 /// A nonlinear model file of either kind.
+// A file is read once per command: the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 pub enum AnyNlModel {
     /// `modal-hysteretic`.
@@ -320,6 +401,13 @@ impl HysteronModelFile {
                 weight_kn_per_mm: x.weight_kn_per_mm,
             })
             .collect();
+        let op = self.operator.operator()?;
+        if matches!(op, HysteronOperator::MenegottoPinto(_)) && hs.len() > HYST_MAX_MP {
+            return Err(field(format!(
+                "hysterons: {} Menegotto–Pinto hysterons (1..={HYST_MAX_MP})",
+                hs.len()
+            )));
+        }
         Ok(FloorHysteronParams::new(
             dt_s,
             &FloorStructure {
@@ -333,7 +421,8 @@ impl HysteronModelFile {
             },
             &directions,
             &hs,
-        )?)
+        )?
+        .with_operator(op)?)
     }
 }
 
@@ -380,6 +469,7 @@ mod tests {
             stiffness: vec![vec![300.0, -100.0], vec![-100.0, 100.0]],
             ground_mass: vec![1.0, 1.0],
             directions: vec![vec![1.0, 0.0], vec![-1.0, 1.0]],
+            operator: OperatorSpec::Play,
             hysterons: vec![
                 HysteronSpec {
                     direction: 0,
@@ -405,6 +495,32 @@ mod tests {
             AnyNlModel::from_json(&text).unwrap(),
             AnyNlModel::Hysteron(_)
         ));
+    }
+
+    #[test]
+    fn the_menegotto_pinto_operator_round_trips_and_a_file_without_one_is_of_plays() {
+        let mut f = file();
+        f.operator = OperatorSpec::MenegottoPinto {
+            r0: 20.0,
+            cr1: 0.925,
+            cr2: 0.15,
+        };
+        let text = f.to_json().unwrap();
+        assert!(text.contains("\"kind\": \"menegotto-pinto\""), "{text}");
+        assert_eq!(HysteronModelFile::from_json(&text).unwrap(), f);
+        assert!(matches!(
+            f.params(f.dt_s).unwrap().operator(),
+            HysteronOperator::MenegottoPinto(_)
+        ));
+        let old = file()
+            .to_json()
+            .unwrap()
+            .replace("  \"operator\": {\n    \"kind\": \"play\"\n  },\n", "");
+        assert!(!old.contains("operator"), "{old}");
+        assert_eq!(
+            HysteronModelFile::from_json(&old).unwrap().operator,
+            OperatorSpec::Play
+        );
     }
 
     #[test]
@@ -445,6 +561,30 @@ mod tests {
         );
         check(&|f| f.stiffness[0][1] = -90.0, "symmetric");
         check(&|f| f.mass[0][0] = -1.0, "mass");
+        check(
+            &|f| {
+                f.operator = OperatorSpec::MenegottoPinto {
+                    r0: 20.0,
+                    cr1: 1.5,
+                    cr2: 0.15,
+                }
+            },
+            "operator: ",
+        );
+        check(
+            &|f| {
+                f.operator = OperatorSpec::MenegottoPinto {
+                    r0: 20.0,
+                    cr1: 0.5,
+                    cr2: 0.15,
+                };
+                f.hysterons = vec![f.hysterons[0]; 33];
+                for h in &mut f.hysterons {
+                    h.weight_kn_per_mm = 1.0;
+                }
+            },
+            "33 Menegotto–Pinto hysterons",
+        );
         let text = file()
             .to_json()
             .unwrap()

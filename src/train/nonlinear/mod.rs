@@ -19,9 +19,12 @@ pub mod floors;
 pub mod histories;
 pub mod hysteron;
 pub mod modal;
+pub mod refine;
 pub mod runs;
 pub mod score;
 pub mod stage1;
+#[cfg(test)]
+mod test_runs;
 
 use std::time::Instant;
 
@@ -123,6 +126,8 @@ pub struct NlTrainConfig {
     /// Train on these time histories of the lab's FE program (CSV files or recorder directories,
     /// [`histories`]) instead of rths's FE runs of `records` at `ductilities`.
     pub histories: Vec<std::path::PathBuf>,
+    /// The floor-hysteron form's refinement on the simulation error ([`refine`]).
+    pub refine: refine::RefineConfig,
 }
 
 impl NlTrainConfig {
@@ -149,6 +154,7 @@ impl NlTrainConfig {
             record_s: None,
             force_noise: true,
             histories: Vec::new(),
+            refine: refine::RefineConfig::default(),
         })
     }
 
