@@ -5,9 +5,9 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rths::motion::GroundMotion;
-use rths::scenario::{self, ScenarioId, ScenarioSetup};
-use rths::study;
+use rths::machinery::motion::GroundMotion;
+use rths::studies::scenario::{self, ScenarioId, ScenarioSetup};
+use rths::studies::study;
 use rths_core::compensator::Compensator;
 use rths_core::control::{Analytical, ControlConfig, Controller, FeedbackSource};
 use rths_core::hal::Sample;
@@ -63,11 +63,11 @@ fn rnn10() -> RnnParams {
 
 fn bench_steps(c: &mut Criterion) {
     let mut g = c.benchmark_group("control_tick");
-    let lrx_file = rths::model_file::ModelFile::load(
+    let lrx_file = rths::machinery::model_file::ModelFile::load(
         &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lrx.json"),
     )
     .expect("shipped LRX model");
-    let (lrx, lead) = rths::models::lrx_params(&lrx_file).expect("valid LRX model");
+    let (lrx, lead) = rths::machinery::models::lrx_params(&lrx_file).expect("valid LRX model");
     // Assembled as the scenarios and the firmware assemble them.
     let cases = [
         ("lr", Model::Lr(lr())),
@@ -127,7 +127,7 @@ fn bench_run(c: &mut Criterion) {
         id: ScenarioId::LrOnline,
         ground_accel_mm_s2: &ag,
         reference_mm: &reference,
-        rig: scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: Some(lr()),
         rnn: None,

@@ -10,8 +10,8 @@ use std::ffi::OsString;
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rths::imported::fe::SparseNewmark;
-use rths::imported::{export, reduced, ImportedStructure};
+use rths::machinery::imported::fe::SparseNewmark;
+use rths::machinery::imported::{export, reduced, ImportedStructure};
 use rths_core::control::StructureReduced;
 use rths_files::motion::GroundMotion;
 

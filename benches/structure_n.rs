@@ -62,7 +62,7 @@ fn meta<const N: usize>(g: &mut criterion::BenchmarkGroup<'_, criterion::measure
         k = vec![30.0; N]
     );
     let s = rths_files::structure_file::Structure::from_json(&json).expect("valid building");
-    let mut m = rths::benchmark::meta::train(&s, 0.4).expect("trained");
+    let mut m = rths::studies::benchmark::meta::train(&s, 0.4).expect("trained");
     let mut k = 0u32;
     g.bench_function(format!("meta_n{N}"), |b| {
         b.iter(|| {

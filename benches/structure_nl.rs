@@ -9,8 +9,8 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rths::motion::GroundMotion;
-use rths::train::nonlinear::modal::elastic_modes;
+use rths::machinery::motion::GroundMotion;
+use rths::machinery::train::nonlinear::modal::elastic_modes;
 use rths_core::hysteresis::Law;
 use rths_core::metamodel::{DeltaArx, DeltaArxParams, DELTA_ARX_COEFFS};
 use rths_core::metamodel::{ModalHyst, ModalHystParams, ModalMode};

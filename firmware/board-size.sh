@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Builds the real-board firmware, STM32F407 (`--features board-stm32f4,model-lr`) and STM32H743
-# (`cargo build-m7 --features board-stm32h743,model-lr`), and prints their flash and static RAM use
+# Builds the real boards' one image, STM32F407 (`--features board-stm32f4`) and STM32H743
+# (`cargo build-m7 --features board-stm32h743`), with the default model (the shipped LR; any kind is
+# uploaded over the link), and prints their flash and static RAM use
 # from `size -A` (flash = vector table + text + rodata + data; RAM = data + bss + uninit), as
 # budget.sh does for every path. They cannot run here: flashing needs the board and a probe
 # (`cargo run-stm32f4`, see .cargo/config.toml; docs/hardware.md for the H743).
@@ -16,7 +17,7 @@ report() { # report NAME ELF FLASH_TOTAL RAM_TOTAL
           name, flash, 100 * flash / ft, ft / 1024, ram, 100 * ram / rt, rt / 1024 }'
 }
 
-cargo build --release --no-default-features --features board-stm32f4,model-lr
+cargo build --release --no-default-features --features board-stm32f4
 # The same binary name as the emulated board's: copy it before another build replaces it.
 f4=target/board-stm32f4.elf
 cp target/thumbv7em-none-eabihf/release/rths-firmware "$f4"
@@ -26,7 +27,7 @@ report STM32F407 "$f4" 1048576 131072
 ./panic-check.sh "$f4"
 ./panic-check.sh "$f4" USART3
 
-cargo build-m7 --no-default-features --features board-stm32h743,model-lr
+cargo build-m7 --no-default-features --features board-stm32h743
 h7=target/board-stm32h743.elf
 cp target/m7/thumbv7em-none-eabihf/release/rths-firmware "$h7"
 report STM32H743 "$h7" 2097152 131072

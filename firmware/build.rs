@@ -1,57 +1,55 @@
-//! Compiles the model and the ground motion into the firmware.
+//! Compiles the image's default model, the ground motion and the identification's tables into the
+//! firmware. The image is one per board: it runs any model kind, uploaded over the link or
+//! compiled in as its default; the default is data, laid out here with the link's own layout
+//! (`rths_files::upload`, `rths_link::layout`) and installed at boot through the path an upload
+//! takes (`rths_app::model_upload::install`).
 //!
-//! - `RTHS_MODEL=path`: the LR model file (default `../data/models/lr.json`, the model `rths reproduce`
-//!   trains). With feature `model-rnn`: `RTHS_RNN_MODEL=path` (default `../data/models/rnn-10.json`);
-//!   if that file does not exist, a deterministic dummy net of hidden size 10 is generated, good only
-//!   for the instruction-count budget (the firmware says so in its output).
-//! - With feature `model-lrx`: `RTHS_LRX_MODEL=path` (default `../data/models/lrx.json`), the LRX
-//!   frame model and its lead filter (`rths train lrx`).
+//! - `RTHS_MODEL=path`: the default model, a model file of any kind (default `../data/models/lr.json`,
+//!   the model `rths reproduce` trains; `lr-4096.json` at 4096 Hz), or `fe-ats` (the paper's finite
+//!   elements with the ATS starting from the paper's delay). An LR, RNN or LRX file is refused if
+//!   trained at another rate than the build's (its `dt_s`); an LRX's lead adaptation and specimen
+//!   dynamics, if it has them, are compiled in as its rig compensation, as an upload sends them.
+//! - `RTHS_STRUCTURE=path`: a structure file (`data/structures/`). Alone: its finite elements
+//!   (linear, or its yielding stories). With `RTHS_MODEL`: that structure's model: its structure
+//!   metamodel (`rths train meta`, refused if trained for another structure or rate), its
+//!   modal-hysteretic model (`rths train nonlinear`, any rate), or, for an imported structure
+//!   (`rths import opensees`), its reduced model (`rths train meta`; refused if trained for a
+//!   structure of another name). A rig compensation goes over the link (`rths link upload --rig`).
+//! - A default the board's tick cannot run is refused for a real board (the STM32F407: RNN-10,
+//!   FE + ATS at 4096 Hz), with the estimate of `rths_app::tick_cost` (the budget's measured
+//!   figures), as an upload is refused `TickBudget`; an emulated board builds it, to measure it.
+//! - `RTHS_BUDGET=structures`: the structure budget (docs/firmware.md): the image steps each of its
+//!   controllers through the whole record on an ideal rig at boot and exits (an emulated board).
+//!   Its structures: FE linear, FE yielding, the structure metamodel and the modal-hysteretic
+//!   metamodel for N = 1, 3, 8: `RTHS_BUDGET_LINEAR`, `RTHS_BUDGET_YIELDING` (three structure
+//!   files each, comma-separated; default `paper-frame,vrths-case1,shear8` and
+//!   `paper-frame-yielding,shear3-yielding,shear8-yielding` in `data/structures/`),
+//!   `RTHS_BUDGET_METAS` (the linear ones' metamodels at this build's rate, required: `budget.sh`
+//!   trains them), `RTHS_BUDGET_MODALS` (the yielding ones' modal models; default `nl-S.json` in
+//!   `data/models/`), `RTHS_BUDGET_REDUCED` (reduced models of imported structures,
+//!   comma-separated: `budget.sh` trains them; without it the budget has no reduced rows). The
+//!   modal and reduced models run a second time with a rig compensation (`nl-online`,
+//!   `meta-online`: the lead of `data/models/lrx.json` with its adaptation, a force correction and
+//!   the budget's scale), what it adds per tick.
 //! - The El Centro record `../data/ground_motions/IELC180.AT2` (values in g), embedded as f64 exactly
 //!   as the host parses it.
 //!
-//! - With feature `structure-fe`, `structure-nl` or `structure-meta`: `RTHS_STRUCTURE=path`, a
-//!   structure file (`data/structures/`), whose numerical part the controller integrates (linear,
-//!   or with its yielding stories) or, with `structure-meta`, `RTHS_STRUCTURE_MODEL=path`, its
-//!   structure metamodel (`rths train meta --structure path --rate R`), refused if trained for
-//!   another structure (name and checksum) or rate. An imported structure (`rths import
-//!   opensees`) with its reduced-order model (an `rths-reduced-model` file, `rths train meta` on it)
-//!   takes the same path: the build embeds the model's modes and static corrections, refused if
-//!   trained for a structure of another name (the checksum of the condensed matrices is the host's:
-//!   this script cannot condense) or if core's validation refuses it at this build's step; its
-//!   modes are continuous-time, so any training rate runs.
-//! - With feature `structure-modal`: `RTHS_STRUCTURE=path` (a yielding structure file) and
-//!   `RTHS_STRUCTURE_MODEL=path`, its learned modal-hysteretic metamodel (an `rths-nl-model` file,
-//!   `rths train nonlinear`), refused if trained for another structure (name and checksum of its
-//!   content). Its modes are continuous-time and its laws rate-independent, so a model trained at
-//!   2048 Hz runs at 4096 Hz: no rate check.
-//! - With feature `budget-structures`: the budget's structures, FE linear, FE yielding, the
-//!   structure metamodel and the modal-hysteretic metamodel for N = 1, 3, 8: `RTHS_BUDGET_LINEAR`,
-//!   `RTHS_BUDGET_YIELDING` (three structure files each, comma-separated; default
-//!   `paper-frame,vrths-case1,shear8` and `paper-frame-yielding,shear3-yielding,shear8-yielding` in
-//!   `data/structures/`), `RTHS_BUDGET_METAS` (the linear ones' metamodels at this build's rate,
-//!   required: `budget.sh` trains them) and `RTHS_BUDGET_MODALS` (the yielding ones' modal models;
-//!   default `nl-S.json` in `data/models/`), `RTHS_BUDGET_REDUCED` (three reduced-order models of
-//!   imported structures, N ≈ 10, 100, 1,000 DOFs with mass, comma-separated: `budget.sh` trains
-//!   them; without it the budget has no reduced rows).
-//!
-//! The files are read by the host's own readers (`rths-files`): a model file is checked exactly as
-//! `rths check-model` checks it (feature names included), the record parsed as `rths analyze` parses
-//! it. A bad file fails the build with a message naming the file and the problem.
+//! The files are read by the host's own readers (`rths-files`), checked as the host commands check
+//! them; a bad file fails the build with a message naming the file and the problem.
 //!
 //! The rate (`rate-4096`): the record's ticks and the fault plan's start follow it; the default model
-//! files in `data/models/` become `lr-4096.json`, `lrx-4096.json`, `rnn-10-4096.json`, and a model
-//! file trained at another rate (its `dt_s`) is refused. The board's core: a Cortex-M7 board needs `-C target-cpu=cortex-m7` (`cargo build-m7`),
-//! a Cortex-M4 board must not have it.
+//! file becomes `lr-4096.json`. The board's core: a Cortex-M7 board needs `-C target-cpu=cortex-m7`
+//! (`cargo build-m7`), a Cortex-M4 board must not have it.
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use rths_core::params::{dt_s, CONTROL_RATES_HZ};
-use rths_files::model_file::{ModelFile, ModelKind};
+use rths_app::tick_cost::TickBudget;
+use rths_core::params::{dt_s, CONTROL_RATES_HZ, FORCE_SCALE, PAPER_DELAY_STEPS};
 use rths_files::motion::parse_at2;
-use rths_files::nl_model_file::NlModelFile;
-use rths_files::reduced_model_file::{imported_structure_name, ReducedModelFile};
+use rths_files::reduced_model_file::ReducedModelFile;
 use rths_files::structure_file::Structure;
-use rths_files::structure_meta::{MetaFile, StructureArrays};
+use rths_files::upload::{lay_out_files, LaidOut};
+use rths_link::layout::{self, MODEL_MAX_VALUES};
 
 fn fail(msg: String) -> ! {
     eprintln!("error: {msg}");
@@ -68,273 +66,392 @@ fn rate_hz() -> u32 {
     }
 }
 
-/// The shipped model `stem` for this build's rate, in `data/models/`: `lr.json` at 2048 Hz,
-/// `lr-4096.json` at 4096 Hz (stem `lr`).
-fn default_model(root: &Path, stem: &str) -> PathBuf {
-    let rate = rate_hz();
-    if rate == CONTROL_RATES_HZ[0] {
-        root.join(format!("data/models/{stem}.json"))
+/// The board's tick, as an upload is checked against it (`rths_app::tick_cost`).
+fn tick_budget(m7: bool) -> TickBudget {
+    let rate = f64::from(rate_hz());
+    if m7 {
+        TickBudget::cortex_m7_480mhz(rate)
     } else {
-        root.join(format!("data/models/{stem}-{rate}.json"))
+        TickBudget::cortex_m4_168mhz(rate)
     }
 }
 
-/// A model file that must exist: else the command that trains it at this build's rate.
-fn require(path: &Path, train: &str) {
-    if !path.exists() {
-        let rate = rate_hz();
-        let features = if rate == CONTROL_RATES_HZ[0] {
-            "sim"
-        } else {
-            "sim,rate-4096"
-        };
-        fail(format!(
-            "{}: no such model file: train one at {rate} Hz with `cargo run --release --features \
-             {features} -- train {train} --out {}` (or point the build at one)",
-            path.display(),
-            path.display()
-        ));
-    }
-}
-
-/// Refuse a model trained at another rate than this build's: its coefficients are per tick.
-fn check_rate(path: &Path, m: &ModelFile) {
-    let rate = rate_hz();
-    if m.dt_s.to_bits() != dt_s(rate).to_bits() {
-        fail(format!(
-            "{}: the model was trained at {:.0} Hz (dt_s = {}), this build runs at {rate} Hz: train one \
-             at {rate} Hz (`cargo run --release --features sim{} -- train ...`) and point the build at it",
-            path.display(),
-            1.0 / m.dt_s,
-            m.dt_s,
-            if rate == CONTROL_RATES_HZ[0] { "" } else { ",rate-4096" }
-        ));
-    }
-}
-
-fn read(path: &Path) -> String {
-    println!("cargo:rerun-if-changed={}", path.display());
-    std::fs::read_to_string(path)
-        .unwrap_or_else(|e| fail(format!("cannot read {}: {e}", path.display())))
-}
-
-fn lit(x: f64) -> String {
-    // Debug formatting is the shortest round-trip form: the constant is the same f64 bit for bit.
-    let s = format!("{x:?}");
-    if s.contains('.') || s.contains('e') || s.contains("inf") || s.contains("NaN") {
-        s
-    } else {
-        format!("{s}.0")
-    }
-}
-
-fn array(xs: &[f64]) -> String {
-    let mut s = String::from("[");
-    for x in xs {
-        let _ = write!(s, "{},", lit(*x));
-    }
-    s.push(']');
-    s
-}
-
-/// A model file of `kind`, read and checked by the host's loader (format, version, feature names,
-/// shapes, finite weights).
-fn load_model(path: &Path, kind: ModelKind) -> ModelFile {
-    println!("cargo:rerun-if-changed={}", path.display());
-    ModelFile::load_kind(path, kind).unwrap_or_else(|e| fail(format!("{}: {e}", path.display())))
-}
-
-fn lr(out: &mut String, root: &Path) {
+/// The image's default model: `RTHS_MODEL` (a model file, or `fe-ats`) and `RTHS_STRUCTURE`, laid
+/// out for the link; and where it came from.
+fn default_model(root: &Path) -> (LaidOut, String) {
     println!("cargo:rerun-if-env-changed=RTHS_MODEL");
-    let path = std::env::var_os("RTHS_MODEL")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| default_model(root, "lr"));
-    require(&path, "lr");
-    let m = load_model(&path, ModelKind::Lr);
-    check_rate(&path, &m);
-    // load_kind checked the section's shape: 6 finite coefficients.
-    let theta =
-        m.lr.unwrap_or_else(|| fail(format!("{}: no lr section", path.display())))
-            .theta;
-    let _ = writeln!(out, "/// LR coefficients θ0..θ5 from `{}`.", path.display());
-    let _ = writeln!(out, "pub const LR_THETA: [f64; 6] = {};", array(&theta));
-    let _ = writeln!(out, "/// The model file compiled in.");
+    println!("cargo:rerun-if-env-changed=RTHS_STRUCTURE");
+    let model = std::env::var_os("RTHS_MODEL").map(PathBuf::from);
+    let structure = std::env::var_os("RTHS_STRUCTURE").map(PathBuf::from);
+    let dt = dt_s(rate_hz());
+    if model.as_deref() == Some(Path::new("fe-ats")) {
+        if structure.is_some() {
+            fail("RTHS_MODEL=fe-ats is the paper's frame: no RTHS_STRUCTURE".into());
+        }
+        let delay_s = PAPER_DELAY_STEPS as f64 * dt;
+        let spec = rths_core::model::ModelSpec::FeAts {
+            expected_delay_s: delay_s,
+        };
+        let mut v = vec![0.0; MODEL_MAX_VALUES];
+        let (kind, n) =
+            layout::lay_out(&spec, &mut v).unwrap_or_else(|e| fail(format!("fe-ats: {e:?}")));
+        v.truncate(n);
+        let laid = LaidOut {
+            kind,
+            values: v,
+            delay_steps: 0,
+            rig: None,
+            trained_dt_s: None,
+            specimen_k_kn_per_mm: None,
+            what: "finite elements (Chang) + ATS".into(),
+        };
+        return (laid, "finite elements (Chang) + ATS".into());
+    }
+    let model = match (model, &structure) {
+        (Some(m), _) => Some(m),
+        (None, Some(_)) => None,
+        (None, None) => Some(if rate_hz() == CONTROL_RATES_HZ[0] {
+            root.join("data/models/lr.json")
+        } else {
+            root.join(format!("data/models/lr-{}.json", rate_hz()))
+        }),
+    };
+    for p in model.iter().chain(&structure) {
+        println!("cargo:rerun-if-changed={}", p.display());
+        if !p.exists() {
+            let features = if rate_hz() == CONTROL_RATES_HZ[0] {
+                "sim"
+            } else {
+                "sim,rate-4096"
+            };
+            fail(format!(
+                "{}: no such file: a model file trained at {} Hz (`cargo run --release --features \
+                 {features} -- train ... --out FILE`), or point RTHS_MODEL at one",
+                p.display(),
+                rate_hz()
+            ));
+        }
+    }
+    let laid = lay_out_files(model.as_deref(), structure.as_deref(), dt)
+        .unwrap_or_else(|e| fail(e.to_string()));
+    // A metamodel's coefficients are per tick: it runs only at the rate it was trained at.
+    if let (Some(trained), Some(m)) = (laid.trained_dt_s, &model) {
+        let rate = rate_hz();
+        if trained.to_bits() != dt.to_bits() {
+            fail(format!(
+                "{}: the model was trained at {:.0} Hz (dt_s = {trained}), this build runs at {rate} \
+                 Hz: train one at {rate} Hz (`cargo run --release --features sim{} -- train ...`) \
+                 and point the build at it",
+                m.display(),
+                1.0 / trained,
+                if rate == CONTROL_RATES_HZ[0] { "" } else { ",rate-4096" }
+            ));
+        }
+    }
+    let source = match (&model, &structure) {
+        (Some(m), Some(s)) => format!("{} ({})", s.display(), m.display()),
+        (Some(m), None) => m.display().to_string(),
+        (None, Some(s)) => s.display().to_string(),
+        (None, None) => String::new(),
+    };
+    (laid, source)
+}
+
+/// The default, refused for a real board whose tick cannot run it (an emulated board builds it, to
+/// measure it), and written as data: its kind, values, delay and rig compensation.
+fn write_default(out: &mut String, root: &Path, m7: bool, real_board: bool) {
+    let (laid, source) = default_model(root);
+    let dims =
+        layout::dims(laid.kind, &laid.values).unwrap_or_else(|e| fail(format!("{source}: {e:?}")));
+    let budget = tick_budget(m7);
+    let instr = budget.instr_dims(laid.kind, &dims);
+    if instr > budget.instr_per_tick() {
+        let named = if source == laid.what {
+            source.clone()
+        } else {
+            format!("{source} ({})", laid.what)
+        };
+        let why = format!(
+            "the default model {named} does not fit this board's tick: about {instr:.0} \
+             instructions per tick estimated from the measured budget, {:.0} % of the {} Hz tick \
+             at {:.0} MHz (docs/firmware.md, the budget table)",
+            budget.pct_of_tick_dims(laid.kind, &dims),
+            rate_hz(),
+            budget.clock_hz / 1e6
+        );
+        if real_board {
+            fail(format!(
+                "{why}: build it for a Cortex-M7 board, at 2048 Hz, or upload a model this board \
+                 runs (an upload it cannot run is refused TickBudget)"
+            ));
+        }
+        println!("cargo:warning={why}; the emulated board builds it to measure it");
+    }
     let _ = writeln!(
         out,
-        "pub const MODEL_SOURCE: &str = {:?};",
-        path.display().to_string()
+        "/// The default model's kind (`RTHS_MODEL`, `RTHS_STRUCTURE`)."
+    );
+    let _ = writeln!(
+        out,
+        "pub const DEFAULT_KIND: rths_link::ModelKind = rths_link::ModelKind::{:?};",
+        laid.kind
+    );
+    let _ = writeln!(
+        out,
+        "/// Its values, in the link's layout (`rths_link::layout`)."
+    );
+    let _ = writeln!(
+        out,
+        "pub static DEFAULT_VALUES: [f64; {}] = {};",
+        laid.values.len(),
+        array(&laid.values)
+    );
+    let _ = writeln!(
+        out,
+        "/// Its feedback delay, ticks (its checksum covers it)."
+    );
+    let _ = writeln!(out, "pub const DEFAULT_DELAY: u16 = {};", laid.delay_steps);
+    let rig = laid.rig.unwrap_or_default();
+    let _ = writeln!(
+        out,
+        "/// The rig compensation its file carries (empty: none), `rths_link::rig_value_count`'s layout."
+    );
+    let _ = writeln!(
+        out,
+        "pub static DEFAULT_RIG: [f64; {}] = {};",
+        rig.len(),
+        array(&rig)
+    );
+    let _ = writeln!(out, "/// The model file compiled in.");
+    let _ = writeln!(out, "pub const MODEL_SOURCE: &str = {source:?};");
+}
+
+/// The structure budget's rows (`RTHS_BUDGET=structures`), or none.
+fn budget_structures(out: &mut String, root: &Path, emulated: bool) {
+    println!("cargo:rerun-if-env-changed=RTHS_BUDGET");
+    let mut rows = String::new();
+    let mut n_rows = 0usize;
+    let on = match std::env::var("RTHS_BUDGET") {
+        Ok(v) if v == "structures" => true,
+        Ok(v) => fail(format!("RTHS_BUDGET={v}: the one budget is `structures`")),
+        Err(_) => false,
+    };
+    if on && !emulated {
+        fail(
+            "RTHS_BUDGET=structures runs on an emulated board (its ideal rig and its exit)".into(),
+        );
+    }
+    if on {
+        budget_rows(out, &mut rows, &mut n_rows, root);
+    }
+    let _ = writeln!(
+        out,
+        "/// The structure budget's controllers (`RTHS_BUDGET=structures`; empty: a normal image)."
+    );
+    let _ = writeln!(
+        out,
+        "pub static BUDGET_ROWS: [crate::analytical::BudgetRow; {n_rows}] = [\n{rows}];"
     );
 }
 
-fn lrx(out: &mut String, root: &Path) {
-    println!("cargo:rerun-if-env-changed=RTHS_LRX_MODEL");
-    let path = std::env::var_os("RTHS_LRX_MODEL")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| default_model(root, "lrx"));
-    require(&path, "lrx");
-    let m = load_model(&path, ModelKind::Lrx);
-    check_rate(&path, &m);
-    let delay = u16::try_from(m.delay_steps)
-        .unwrap_or_else(|_| fail(format!("{}: delay_steps over 16 bits", path.display())));
+/// The structure budget's displacement scale (prototype over actuator): the structures' floors
+/// move tens of mm under El Centro ×1, the actuator a tenth of it (inside the supervisor's stroke,
+/// velocity and force limits, so every controller stays `Running` the whole record).
+const BUDGET_DISP_SCALE: f64 = 10.0;
+
+/// One row: its values and rig compensation as statics, the row itself into `rows`.
+#[allow(clippy::too_many_arguments)]
+fn budget_row(
+    out: &mut String,
+    rows: &mut String,
+    n: &mut usize,
+    path: &str,
+    structure: &str,
+    dofs: usize,
+    modes: usize,
+    specimen_k: f64,
+    laid: &LaidOut,
+    rig: &[f64],
+) {
+    let id = *n;
     let _ = writeln!(
         out,
-        "/// LRX feedback delay, ticks (the link checksum covers it)."
+        "static BUDGET_VALUES_{id}: [f64; {}] = {};",
+        laid.values.len(),
+        array(&laid.values)
     );
-    let _ = writeln!(out, "pub const LRX_DELAY_STEPS: u16 = {delay};");
+    let _ = writeln!(
+        out,
+        "static BUDGET_RIG_{id}: [f64; {}] = {};",
+        rig.len(),
+        array(rig)
+    );
+    let _ = writeln!(
+        rows,
+        "    crate::analytical::BudgetRow {{ path: {path:?}, structure: {structure:?}, dofs: {dofs}, \
+         modes: {modes}, specimen_kn_per_mm: {}, kind: rths_link::ModelKind::{:?}, \
+         values: &BUDGET_VALUES_{id}, rig: &BUDGET_RIG_{id} }},",
+        lit(specimen_k),
+        laid.kind
+    );
+    *n += 1;
+}
+
+/// The budget's rig compensation for a part whose ideal rig holds `specimen_k` (kN/mm, prototype):
+/// the lead of `data/models/lrx.json` with the host's adaptation (`rths train lrx --rig`'s 4096
+/// ticks), a force correction by the rig's specimen (the ideal rig's: it removes the lead's effect
+/// from the force, so the part runs as without it), the budget's scale.
+fn budget_rig(root: &Path, specimen_k: f64) -> Vec<f64> {
+    let path = root.join("data/models/lrx.json");
+    println!("cargo:rerun-if-changed={}", path.display());
+    let m = rths_files::model_file::ModelFile::load(&path)
+        .unwrap_or_else(|e| fail(format!("{}: {e}", path.display())));
     let x = m
         .lrx
         .unwrap_or_else(|| fail(format!("{}: no lrx section", path.display())));
-    let (coeffs, lead, stride) = (x.coeffs, x.lead_weights, x.lead_stride);
-    let scalars = [
-        x.k_corr_kn_per_mm,
-        x.k_adapt_ticks,
-        x.lead_adapt_ticks.unwrap_or(0.0),
-        x.specimen_mass_kn_s2_per_mm.unwrap_or(0.0),
-        x.specimen_damping_kn_s_per_mm.unwrap_or(0.0),
-    ];
-    let _ = writeln!(out, "/// LRX frame coefficients from `{}`.", path.display());
-    let _ = writeln!(out, "pub const LRX_COEFFS: [f64; 9] = {};", array(&coeffs));
-    let _ = writeln!(out, "/// LRX nominal force-correction stiffness, kN/mm.");
-    let _ = writeln!(out, "pub const LRX_K_CORR: f64 = {};", lit(scalars[0]));
-    let _ = writeln!(out, "/// LRX stiffness-estimate time constant, ticks.");
-    let _ = writeln!(out, "pub const LRX_K_ADAPT: f64 = {};", lit(scalars[1]));
-    let _ = writeln!(out, "/// LRX lead-filter weights.");
-    let _ = writeln!(out, "pub const LRX_LEAD: [f64; 8] = {};", array(&lead));
-    let _ = writeln!(out, "/// LRX lead-filter stride, ticks.");
-    let _ = writeln!(out, "pub const LRX_LEAD_STRIDE: usize = {stride};");
-    let _ = writeln!(
-        out,
-        "/// LRX lead-adaptation time constant, ticks (0: fixed lead)."
-    );
-    let _ = writeln!(out, "pub const LRX_LEAD_ADAPT: f64 = {};", lit(scalars[2]));
-    let _ = writeln!(
-        out,
-        "/// LRX specimen mass and damping removed from the force (prototype scale)."
-    );
-    let _ = writeln!(
-        out,
-        "pub const LRX_SPECIMEN_DYNAMICS: [f64; 2] = {};",
-        array(&scalars[3..5])
-    );
-    let _ = writeln!(out, "/// The model file compiled in.");
-    let _ = writeln!(
-        out,
-        "pub const MODEL_SOURCE: &str = {:?};",
-        path.display().to_string()
-    );
+    let rig_k = specimen_k * BUDGET_DISP_SCALE / FORCE_SCALE;
+    layout::structure_rig_values(
+        &x.lead_weights,
+        x.lead_stride,
+        4096.0,
+        [rig_k, 0.0, 0.0],
+        [BUDGET_DISP_SCALE, FORCE_SCALE],
+    )
+    .unwrap_or_else(|| fail(format!("{}: 8 lead weights", path.display())))
+    .to_vec()
 }
 
-/// A deterministic pseudo-random value in [-0.5, 0.5) (64-bit LCG, top bits).
-fn lcg(state: &mut u64) -> f64 {
-    *state = state
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    ((*state >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-}
-
-fn rnn(out: &mut String, root: &Path) {
-    println!("cargo:rerun-if-env-changed=RTHS_RNN_MODEL");
-    let path = std::env::var_os("RTHS_RNN_MODEL")
+fn budget_rows(out: &mut String, rows: &mut String, n: &mut usize, root: &Path) {
+    let dir = root.join("data/structures");
+    let dt = dt_s(rate_hz());
+    let linear = three(
+        "RTHS_BUDGET_LINEAR",
+        &dir,
+        ["paper-frame", "vrths-case1", "shear8"],
+    );
+    let yielding = three(
+        "RTHS_BUDGET_YIELDING",
+        &dir,
+        ["paper-frame-yielding", "shear3-yielding", "shear8-yielding"],
+    );
+    println!("cargo:rerun-if-env-changed=RTHS_BUDGET_METAS");
+    let metas: Vec<PathBuf> = std::env::var("RTHS_BUDGET_METAS")
+        .unwrap_or_else(|_| {
+            fail(format!(
+                "RTHS_BUDGET=structures needs RTHS_BUDGET_METAS=m1,m3,m8: the metamodels of {} at {} \
+                 Hz (`rths train meta --structure FILE --rate {}`; budget.sh trains them)",
+                linear
+                    .iter()
+                    .map(|p| p.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                rate_hz(),
+                rate_hz()
+            ))
+        })
+        .split(',')
         .map(PathBuf::from)
-        .unwrap_or_else(|| default_model(root, "rnn-10"));
-    println!("cargo:rerun-if-changed={}", path.display());
-    let (h, w_ih, w_hh, b_h, w_ho, b_o, in_mean, in_std, out_mean, out_std, dummy, delay);
-    if path.exists() {
-        let m = load_model(&path, ModelKind::Rnn);
-        check_rate(&path, &m);
-        delay = u16::try_from(m.delay_steps)
-            .unwrap_or_else(|_| fail(format!("{}: delay_steps over 16 bits", path.display())));
-        let r = m
-            .rnn
-            .unwrap_or_else(|| fail(format!("{}: no rnn section", path.display())));
-        h = r.hidden;
-        w_ih = r.w_ih.concat();
-        w_hh = r.w_hh.concat();
-        b_h = r.b_h;
-        w_ho = r.w_ho;
-        b_o = r.b_o;
-        in_mean = r.input_mean;
-        in_std = r.input_std;
-        out_mean = r.output_mean;
-        out_std = r.output_std;
-        dummy = false;
-    } else {
-        // Budget only: weights small enough that tanh stays in its ordinary range.
-        h = 10;
-        let mut s = 0x5eed_0010u64;
-        w_ih = (0..h * 2).map(|_| lcg(&mut s)).collect();
-        w_hh = (0..h * h).map(|_| 0.3 * lcg(&mut s)).collect();
-        b_h = (0..h).map(|_| 0.1 * lcg(&mut s)).collect();
-        w_ho = (0..h).map(|_| lcg(&mut s)).collect();
-        b_o = 0.0;
-        in_mean = vec![0.0, 0.0];
-        in_std = vec![3000.0, 10.0];
-        out_mean = 0.0;
-        out_std = 1e-3;
-        dummy = true;
-        delay = 28;
+        .collect();
+    if metas.len() != 3 {
+        fail(format!(
+            "RTHS_BUDGET_METAS: three files, got {}",
+            metas.len()
+        ));
     }
-    let _ = writeln!(
-        out,
-        "/// RNN feedback delay, ticks (the link checksum covers it)."
+    let modals = three(
+        "RTHS_BUDGET_MODALS",
+        &root.join("data/models"),
+        [
+            "nl-paper-frame-yielding",
+            "nl-shear3-yielding",
+            "nl-shear8-yielding",
+        ],
     );
-    let _ = writeln!(out, "pub const RNN_DELAY_STEPS: u16 = {delay};");
-    let _ = writeln!(out, "/// RNN hidden size.");
-    let _ = writeln!(out, "pub const RNN_HIDDEN: usize = {h};");
-    let _ = writeln!(out, "/// RNN W_ih, H×2 row-major.");
-    let _ = writeln!(
-        out,
-        "pub const RNN_W_IH: [f64; {}] = {};",
-        w_ih.len(),
-        array(&w_ih)
-    );
-    let _ = writeln!(out, "/// RNN W_hh, H×H row-major.");
-    let _ = writeln!(
-        out,
-        "pub const RNN_W_HH: [f64; {}] = {};",
-        w_hh.len(),
-        array(&w_hh)
-    );
-    let _ = writeln!(out, "/// RNN b_h.");
-    let _ = writeln!(
-        out,
-        "pub const RNN_B_H: [f64; {}] = {};",
-        b_h.len(),
-        array(&b_h)
-    );
-    let _ = writeln!(out, "/// RNN W_ho.");
-    let _ = writeln!(
-        out,
-        "pub const RNN_W_HO: [f64; {}] = {};",
-        w_ho.len(),
-        array(&w_ho)
-    );
-    let _ = writeln!(out, "/// RNN b_o.");
-    let _ = writeln!(out, "pub const RNN_B_O: f64 = {};", lit(b_o));
-    let _ = writeln!(out, "/// RNN input mean / std, output mean / std.");
-    let _ = writeln!(
-        out,
-        "pub const RNN_IN_MEAN: [f64; 2] = {};",
-        array(&in_mean)
-    );
-    let _ = writeln!(out, "/// RNN input std.");
-    let _ = writeln!(out, "pub const RNN_IN_STD: [f64; 2] = {};", array(&in_std));
-    let _ = writeln!(out, "/// RNN output mean.");
-    let _ = writeln!(out, "pub const RNN_OUT_MEAN: f64 = {};", lit(out_mean));
-    let _ = writeln!(out, "/// RNN output std.");
-    let _ = writeln!(out, "pub const RNN_OUT_STD: f64 = {};", lit(out_std));
-    let _ = writeln!(
-        out,
-        "/// The weights are a generated dummy (budget only, no accuracy)."
-    );
-    let _ = writeln!(out, "pub const RNN_DUMMY: bool = {dummy};");
-    let src = if dummy {
-        "generated dummy RNN-10 (budget only)".to_string()
-    } else {
-        path.display().to_string()
-    };
-    let _ = writeln!(out, "/// The model compiled in.");
-    let _ = writeln!(out, "pub const MODEL_SOURCE: &str = {src:?};");
+    for (path_name, files, models) in [
+        ("structure-fe", &linear, None),
+        ("structure-nl", &yielding, None),
+        ("structure-meta", &linear, Some(&metas)),
+        ("structure-modal", &yielding, Some(&modals)),
+    ] {
+        for (i, s) in files.iter().enumerate() {
+            println!("cargo:rerun-if-changed={}", s.display());
+            let structure =
+                Structure::load(s).unwrap_or_else(|e| fail(format!("{}: {e}", s.display())));
+            let model = models.and_then(|m| m.get(i)).map(PathBuf::as_path);
+            if let Some(m) = model {
+                println!("cargo:rerun-if-changed={}", m.display());
+            }
+            let laid = lay_out_files(model, Some(s), dt).unwrap_or_else(|e| fail(e.to_string()));
+            // The specimen's stiffness: the budget's ideal rig holds it (analytical.rs).
+            let (_, k_e, _) = structure.specimen();
+            let (name, dofs) = (structure.name(), structure.dofs());
+            budget_row(out, rows, n, path_name, name, dofs, 0, k_e, &laid, &[]);
+            if path_name == "structure-modal" {
+                let rig = budget_rig(root, k_e);
+                budget_row(out, rows, n, "nl-online", name, dofs, 0, k_e, &laid, &rig);
+            }
+        }
+    }
+    // The imported structures' reduced-order models (N ≈ 10, 100, 1,000 DOFs with mass); the rows
+    // name no structure file: the model carries its whole part.
+    println!("cargo:rerun-if-env-changed=RTHS_BUDGET_REDUCED");
+    let reduced: Vec<PathBuf> = std::env::var("RTHS_BUDGET_REDUCED")
+        .map(|l| l.split(',').map(PathBuf::from).collect())
+        .unwrap_or_default();
+    for m in &reduced {
+        let f = ReducedModelFile::from_json(&read(m))
+            .unwrap_or_else(|e| fail(format!("{}: {e}", m.display())));
+        let arrays = f
+            .arrays()
+            .unwrap_or_else(|e| fail(format!("{}: {e}", m.display())));
+        let spec = arrays.spec();
+        spec.params(dt)
+            .unwrap_or_else(|e| fail(format!("{}: {e}", m.display())));
+        let mut v = vec![0.0; MODEL_MAX_VALUES];
+        let (kind, len) = layout::lay_out(
+            &rths_core::model::ModelSpec::StructureReduced { model: spec },
+            &mut v,
+        )
+        .unwrap_or_else(|e| fail(format!("{}: {e:?}", m.display())));
+        v.truncate(len);
+        let laid = LaidOut {
+            kind,
+            values: v,
+            delay_steps: 0,
+            rig: None,
+            trained_dt_s: None,
+            specimen_k_kn_per_mm: Some(f.specimen_k_kn_per_mm),
+            what: format!("reduced model of {}", f.structure),
+        };
+        let k = f.specimen_k_kn_per_mm;
+        let modes = f.modes.len();
+        let name = f.structure.as_str();
+        budget_row(
+            out,
+            rows,
+            n,
+            "structure-reduced",
+            name,
+            f.mass_dofs,
+            modes,
+            k,
+            &laid,
+            &[],
+        );
+        let rig = budget_rig(root, k);
+        budget_row(
+            out,
+            rows,
+            n,
+            "meta-online",
+            name,
+            f.mass_dofs,
+            modes,
+            k,
+            &laid,
+            &rig,
+        );
+    }
 }
 
 /// The El Centro record, read by the host's AT2 reader (`rths_files::motion::parse_at2`), and its
@@ -475,259 +592,6 @@ fn fault(out: &mut String) {
     }
 }
 
-/// A structure file, read and validated by the host's reader.
-fn load_structure(path: &Path) -> Structure {
-    println!("cargo:rerun-if-changed={}", path.display());
-    Structure::load(path).unwrap_or_else(|e| fail(format!("{}: {e}", path.display())))
-}
-
-/// A structure metamodel file checked against `structure` at this build's rate.
-fn load_meta(path: &Path, structure: &Structure) -> rths_core::metamodel::DeltaArxParams {
-    println!("cargo:rerun-if-changed={}", path.display());
-    MetaFile::load(path)
-        .and_then(|m| m.check(structure, dt_s(rate_hz())))
-        .unwrap_or_else(|e| fail(format!("{}: {e}", path.display())))
-}
-
-/// The numerical part of `structure` as a `StructureSpec` expression (linear, or yielding).
-fn structure_spec(structure: &Structure, yielding: bool, path: &Path) -> String {
-    let a = if yielding {
-        StructureArrays::yielding(structure, dt_s(rate_hz()))
-    } else {
-        StructureArrays::linear(structure)
-    }
-    .unwrap_or_else(|e| fail(format!("{}: {e}", path.display())));
-    // The controller refuses what its integrator cannot step: so does the build.
-    let spec = a.spec();
-    let built = if yielding {
-        spec.yielding(dt_s(rate_hz())).map(|_| ())
-    } else {
-        spec.linear(dt_s(rate_hz())).map(|_| ())
-    };
-    if let Err(e) = built {
-        fail(format!("{}: {e}", path.display()));
-    }
-    let laws = law_specs(&a.laws);
-    format!(
-        "rths_core::control::StructureSpec {{ dofs: {}, mass: &{}, damping: &{}, stiffness: &{}, \
-         initial_stiffness: &{}, ground_mass: &{}, specimen_dof: {}, laws: {laws} }}",
-        a.dofs,
-        array(&a.mass),
-        array(&a.damping),
-        array(&a.stiffness),
-        array(&a.initial_stiffness),
-        array(&a.ground_mass),
-        a.specimen_dof
-    )
-}
-
-/// Story laws as a `&[StoryLawSpec]` expression.
-fn law_specs(laws: &[rths_core::control::StoryLawSpec]) -> String {
-    let mut out = String::from("&[");
-    for l in laws {
-        let bw = match l.bouc_wen {
-            Some(v) => format!("Some({})", array(&v)),
-            None => "None".into(),
-        };
-        let _ = write!(
-            out,
-            "rths_core::control::StoryLawSpec {{ k0_kn_per_mm: {}, yield_force_kn: {}, \
-             post_yield_ratio: {}, bouc_wen: {bw} }},",
-            lit(l.k0_kn_per_mm),
-            lit(l.yield_force_kn),
-            lit(l.post_yield_ratio)
-        );
-    }
-    out.push(']');
-    out
-}
-
-/// The modal-hysteretic metamodel at `model`, checked against the structure file at `path` (name
-/// and checksum) and validated at this build's step, as a `ModelSpec::StructureModal` expression.
-fn modal_spec(path: &Path, model: &Path) -> String {
-    println!("cargo:rerun-if-changed={}", model.display());
-    let f = NlModelFile::load_for(model, path)
-        .unwrap_or_else(|e| fail(format!("{} for {}: {e}", model.display(), path.display())));
-    // The controller's own validation at its step (the file's step is only where it was trained).
-    f.params(dt_s(rate_hz()))
-        .unwrap_or_else(|e| fail(format!("{}: {e}", model.display())));
-    let mut modes = String::from("&[");
-    for m in &f.modes {
-        let _ = write!(
-            modes,
-            "rths_core::metamodel::ModalMode {{ omega_rad_s: {}, damping_ratio: {}, \
-             ground_participation: {} }},",
-            lit(m.omega_rad_s),
-            lit(m.damping_ratio),
-            lit(m.ground_participation)
-        );
-    }
-    modes.push(']');
-    let laws: Vec<rths_core::control::StoryLawSpec> = f
-        .springs
-        .iter()
-        .map(|s| {
-            s.law()
-                .map(|l| rths_core::control::StoryLawSpec::of(&l))
-                .unwrap_or_else(|e| fail(format!("{}: {e}", model.display())))
-        })
-        .collect();
-    let shape: Vec<f64> = f.shape.iter().flatten().copied().collect();
-    let drift: Vec<f64> = f
-        .springs
-        .iter()
-        .flat_map(|s| s.drift.iter().copied())
-        .collect();
-    format!(
-        "rths_core::model::ModelSpec::StructureModal {{ model: rths_core::control::ModalSpec {{ \
-         modes: {modes}, shape: &{}, specimen_dof: {}, specimen_k_kn_per_mm: {}, laws: {}, \
-         drift: &{} }} }}",
-        array(&shape),
-        f.specimen_dof,
-        lit(f.specimen_stiffness_kn_per_mm),
-        law_specs(&laws),
-        array(&drift)
-    )
-}
-
-/// A reduced-order model file (`rths-reduced-model`), read and validated by the host's reader at
-/// this build's step, as a `ModelSpec::StructureReduced` expression; `structure`: the imported
-/// structure file whose name it must carry (the budget's rows name none).
-fn reduced_spec(model: &Path, structure: Option<&Path>) -> (String, ReducedModelFile) {
-    let text = read(model);
-    let f = ReducedModelFile::from_json(&text)
-        .unwrap_or_else(|e| fail(format!("{}: {e}", model.display())));
-    let arrays = match structure {
-        Some(p) => {
-            let name = imported_structure_name(&read(p))
-                .unwrap_or_else(|e| fail(format!("{}: {e}", p.display())));
-            f.arrays_for_name(&name)
-        }
-        None => f.arrays(),
-    }
-    .unwrap_or_else(|e| fail(format!("{}: {e}", model.display())));
-    let spec = arrays.spec();
-    spec.params(dt_s(rate_hz()))
-        .unwrap_or_else(|e| fail(format!("{}: {e}", model.display())));
-    let mut modes = String::from("&[");
-    for m in spec.modes {
-        let _ = write!(
-            modes,
-            "rths_core::metamodel::ReducedMode {{ omega_rad_s: {}, damping_ratio: {}, \
-             ground_participation: {}, interface_shape: {} }},",
-            lit(m.omega_rad_s),
-            lit(m.damping_ratio),
-            lit(m.ground_participation),
-            lit(m.interface_shape)
-        );
-    }
-    modes.push(']');
-    let correction = |c: &rths_core::metamodel::StaticCorrection| {
-        format!(
-            "rths_core::metamodel::StaticCorrection {{ ground_mm_per_mm_s2: {}, force_mm_per_kn: {} }}",
-            lit(c.ground_mm_per_mm_s2),
-            lit(c.force_mm_per_kn)
-        )
-    };
-    let mut outputs = String::from("&[");
-    for c in spec.output_static {
-        let _ = write!(outputs, "{},", correction(c));
-    }
-    outputs.push(']');
-    let expr = format!(
-        "rths_core::model::ModelSpec::StructureReduced {{ model: rths_core::control::ReducedSpec {{ \
-         modes: {modes}, output_shape: &{}, interface_static: {}, output_static: {outputs}, \
-         specimen_k_kn_per_mm: {} }} }}",
-        array(spec.output_shape),
-        correction(&spec.interface_static),
-        lit(spec.specimen_k_kn_per_mm)
-    );
-    (expr, f)
-}
-
-/// The `ModelSpec` of one structure path: `fe`, `nl`, `meta` or `modal` (`model`: the metamodel
-/// file of `meta` and `modal`).
-fn structure_model_spec(path: &Path, kind: &str, model: Option<&Path>) -> String {
-    let s = load_structure(path);
-    let meta = model;
-    match kind {
-        "fe" => format!(
-            "rths_core::model::ModelSpec::StructureFe {{ structure: {} }}",
-            structure_spec(&s, false, path)
-        ),
-        "nl" => format!(
-            "rths_core::model::ModelSpec::StructureNl {{ structure: {} }}",
-            structure_spec(&s, true, path)
-        ),
-        "modal" => {
-            let m = model.unwrap_or_else(|| fail(format!("{}: no model file", path.display())));
-            modal_spec(path, m)
-        }
-        _ => {
-            let m = meta.unwrap_or_else(|| fail(format!("{}: no metamodel file", path.display())));
-            let p = load_meta(m, &s);
-            format!(
-                "rths_core::model::ModelSpec::StructureMeta {{ theta: &{}, k_corr_kn_per_mm: {} }}",
-                array(p.theta()),
-                lit(p.k_corr_kn_per_mm())
-            )
-        }
-    }
-}
-
-/// A build that runs one structure (`structure-fe`, `structure-nl`, `structure-meta`,
-/// `structure-modal`).
-fn structure(out: &mut String, kind: &str) {
-    println!("cargo:rerun-if-env-changed=RTHS_STRUCTURE");
-    println!("cargo:rerun-if-env-changed=RTHS_STRUCTURE_MODEL");
-    let path = std::env::var_os("RTHS_STRUCTURE")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            fail(
-                "a structure build needs RTHS_STRUCTURE=path (a structure file, data/structures/)"
-                    .into(),
-            )
-        });
-    let meta = std::env::var_os("RTHS_STRUCTURE_MODEL").map(PathBuf::from);
-    if kind == "meta" && meta.is_none() {
-        fail(format!(
-            "structure-meta needs RTHS_STRUCTURE_MODEL=path: train it with `cargo run --release \
-             --features sim -- train meta --structure {} --rate {} --out M.json`",
-            path.display(),
-            rate_hz()
-        ));
-    }
-    if kind == "modal" && meta.is_none() {
-        fail(format!(
-            "structure-modal needs RTHS_STRUCTURE_MODEL=path: an rths-nl-model file trained with \
-             `cargo run --release --features sim -- train nonlinear --structure {} --out M.json`",
-            path.display()
-        ));
-    }
-    let reduced = kind == "meta"
-        && meta
-            .as_deref()
-            .is_some_and(|m| ReducedModelFile::is_reduced(&read(m)));
-    let spec = match meta.as_deref() {
-        // An imported structure's reduced-order model: the model file carries the whole part.
-        Some(m) if reduced => reduced_spec(m, Some(&path)).0,
-        _ => structure_model_spec(&path, kind, meta.as_deref()),
-    };
-    let _ = writeln!(out, "/// The structure (and model) compiled in.");
-    let _ = writeln!(
-        out,
-        "pub const STRUCTURE_SPEC: rths_core::model::ModelSpec<'static> = {spec};"
-    );
-    let source = match &meta {
-        Some(m) if kind == "meta" || kind == "modal" => {
-            format!("{} ({})", path.display(), m.display())
-        }
-        _ => path.display().to_string(),
-    };
-    let _ = writeln!(out, "/// The model file compiled in.");
-    let _ = writeln!(out, "pub const MODEL_SOURCE: &str = {source:?};");
-}
-
 /// A comma-separated list of three files from `var`, or the defaults `dir/<name>.json`.
 fn three(var: &str, dir: &Path, default: [&str; 3]) -> Vec<PathBuf> {
     println!("cargo:rerun-if-env-changed={var}");
@@ -742,128 +606,6 @@ fn three(var: &str, dir: &Path, default: [&str; 3]) -> Vec<PathBuf> {
         fail(format!("{var}: three files (N = 1, 3, 8), got {}", v.len()));
     }
     v
-}
-
-/// The budget build (`budget-structures`): the twelve controllers it steps.
-fn budget_structures(out: &mut String, root: &Path) {
-    let dir = root.join("data/structures");
-    let linear = three(
-        "RTHS_BUDGET_LINEAR",
-        &dir,
-        ["paper-frame", "vrths-case1", "shear8"],
-    );
-    let yielding = three(
-        "RTHS_BUDGET_YIELDING",
-        &dir,
-        ["paper-frame-yielding", "shear3-yielding", "shear8-yielding"],
-    );
-    println!("cargo:rerun-if-env-changed=RTHS_BUDGET_METAS");
-    let metas: Vec<PathBuf> = std::env::var("RTHS_BUDGET_METAS")
-        .unwrap_or_else(|_| {
-            fail(format!(
-                "budget-structures needs RTHS_BUDGET_METAS=m1,m3,m8: the metamodels of {} at {} Hz \
-                 (`rths train meta --structure FILE --rate {}`; budget.sh trains them)",
-                linear
-                    .iter()
-                    .map(|p| p.display().to_string())
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                rate_hz(),
-                rate_hz()
-            ))
-        })
-        .split(',')
-        .map(PathBuf::from)
-        .collect();
-    if metas.len() != 3 {
-        fail(format!(
-            "RTHS_BUDGET_METAS: three files, got {}",
-            metas.len()
-        ));
-    }
-    let modals = three(
-        "RTHS_BUDGET_MODALS",
-        &root.join("data/models"),
-        [
-            "nl-paper-frame-yielding",
-            "nl-shear3-yielding",
-            "nl-shear8-yielding",
-        ],
-    );
-    let mut rows = String::new();
-    for (kind, files, models) in [
-        ("fe", &linear, None),
-        ("nl", &yielding, None),
-        ("meta", &linear, Some(&metas)),
-        ("modal", &yielding, Some(&modals)),
-    ] {
-        for (i, path) in files.iter().enumerate() {
-            let s = load_structure(path);
-            let model = models.and_then(|m| m.get(i)).map(PathBuf::as_path);
-            let spec = structure_model_spec(path, kind, model);
-            let path_name = match kind {
-                "fe" => "structure-fe",
-                "nl" => "structure-nl",
-                "meta" => "structure-meta",
-                _ => "structure-modal",
-            };
-            // The specimen's stiffness: the budget's ideal rig holds it (analytical.rs).
-            let (_, k_e, _) = s.specimen();
-            // One constant spec per row, assembled by its own function: `assemble` is folded to
-            // that spec's arm (its generic form inlined holds every arm's parts on the stack).
-            let id = rows.matches("BudgetRow").count();
-            let _ = writeln!(
-                out,
-                "const BUDGET_SPEC_{id}: rths_core::model::ModelSpec<'static> = {spec};"
-            );
-            let _ = writeln!(
-                rows,
-                "    crate::analytical::BudgetRow {{ path: {path_name:?}, structure: {:?}, dofs: {}, \
-                 specimen_kn_per_mm: {}, modes: 0, build: || rths_core::model::assemble(\
-                 &BUDGET_SPEC_{id}, rths_core::params::Prototype::paper(), rths_core::params::DT_S) }},",
-                s.name(),
-                s.dofs(),
-                lit(k_e)
-            );
-        }
-    }
-    // The imported structures' reduced-order models (N ≈ 10, 100, 1,000 DOFs with mass).
-    println!("cargo:rerun-if-env-changed=RTHS_BUDGET_REDUCED");
-    let reduced: Vec<PathBuf> = std::env::var("RTHS_BUDGET_REDUCED")
-        .map(|l| l.split(',').map(PathBuf::from).collect())
-        .unwrap_or_default();
-    for m in &reduced {
-        let (spec, f) = reduced_spec(m, None);
-        let id = rows.matches("BudgetRow").count();
-        let _ = writeln!(
-            out,
-            "const BUDGET_SPEC_{id}: rths_core::model::ModelSpec<'static> = {spec};"
-        );
-        let _ = writeln!(
-            rows,
-            "    crate::analytical::BudgetRow {{ path: \"structure-reduced\", structure: {:?}, \
-             dofs: {}, specimen_kn_per_mm: {}, modes: {}, build: || rths_core::model::assemble(\
-             &BUDGET_SPEC_{id}, rths_core::params::Prototype::paper(), rths_core::params::DT_S) }},",
-            f.structure,
-            f.mass_dofs,
-            lit(f.specimen_k_kn_per_mm),
-            f.modes.len()
-        );
-    }
-    let n_rows = rows.matches("BudgetRow").count();
-    let _ = writeln!(
-        out,
-        "/// The budget's controllers: twelve, and the reduced models of `RTHS_BUDGET_REDUCED`."
-    );
-    let _ = writeln!(
-        out,
-        "pub const BUDGET_ROWS: [crate::analytical::BudgetRow; {n_rows}] = [\n{rows}];"
-    );
-    let _ = writeln!(out, "/// The model file compiled in.");
-    let _ = writeln!(
-        out,
-        "pub const MODEL_SOURCE: &str = \"budget: FE linear, FE yielding, metamodel, modal metamodel; N = 1, 3, 8; reduced models\";"
-    );
 }
 
 /// The identification excitation's tables (every image with the link; `rths link ... identify`): one period of
@@ -906,6 +648,31 @@ fn excitation(out: &mut String, out_dir: &Path) {
     let _ = writeln!(out, "pub const EXCITATION_PEAK_RATE: f64 = {};", lit(rate));
 }
 
+fn lit(x: f64) -> String {
+    // Debug formatting is the shortest round-trip form: the constant is the same f64 bit for bit.
+    let s = format!("{x:?}");
+    if s.contains('.') || s.contains('e') || s.contains("inf") || s.contains("NaN") {
+        s
+    } else {
+        format!("{s}.0")
+    }
+}
+
+fn array(xs: &[f64]) -> String {
+    let mut s = String::from("[");
+    for x in xs {
+        let _ = write!(s, "{},", lit(*x));
+    }
+    s.push(']');
+    s
+}
+
+fn read(path: &Path) -> String {
+    println!("cargo:rerun-if-changed={}", path.display());
+    std::fs::read_to_string(path)
+        .unwrap_or_else(|e| fail(format!("cannot read {}: {e}", path.display())))
+}
+
 fn main() {
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap_or_default());
     let root = manifest
@@ -918,6 +685,7 @@ fn main() {
     // target-cpu=cortex-m7` (hardware f64), which `cargo build-m7` passes; an M4 board must not get it.
     let mps2 = std::env::var_os("CARGO_FEATURE_BOARD_MPS2_AN500").is_some();
     let h743 = std::env::var_os("CARGO_FEATURE_BOARD_STM32H743").is_some();
+    let f407 = std::env::var_os("CARGO_FEATURE_BOARD_STM32F4").is_some();
     let m7_board = mps2 || h743;
     let flags = std::env::var("CARGO_ENCODED_RUSTFLAGS").unwrap_or_default();
     let m7_code = flags
@@ -940,47 +708,16 @@ fn main() {
     } else {
         root.join("memory.x")
     };
-    let mut mem = read(&mem_file);
-    if std::env::var_os("CARGO_FEATURE_BUDGET_STRUCTURES").is_some() {
-        // The structure budget builds its twelve controllers one after the other on the stack
-        // (each ~45 KB with its compensator's storage, twice while one is assembled): on the
-        // emulated M7 it maps 512 KiB of the MPS2's 4 MiB SSRAM2/3. The controllers themselves
-        // are unchanged; a structure build (`structure-*`) keeps the board's 128 KiB.
-        if !mps2 {
-            fail("budget-structures runs on the emulated Cortex-M7 (board-mps2-an500)".into());
-        }
-        mem = mem.replace("LENGTH = 128K", "LENGTH = 512K");
-    }
+    let mem = read(&mem_file);
     std::fs::write(out_dir.join("memory.x"), mem)
         .unwrap_or_else(|e| fail(format!("cannot write memory.x: {e}")));
     println!("cargo:rustc-link-search={}", out_dir.display());
 
-    let mut gen = String::from("// Generated by build.rs: the model and the ground motion.\n");
-    let rnn_on = std::env::var_os("CARGO_FEATURE_MODEL_RNN").is_some();
-    let fe_on = std::env::var_os("CARGO_FEATURE_FE_ATS").is_some();
-    let lrx_on = std::env::var_os("CARGO_FEATURE_MODEL_LRX").is_some();
-    let structure_kind = [
-        ("CARGO_FEATURE_STRUCTURE_FE", "fe"),
-        ("CARGO_FEATURE_STRUCTURE_NL", "nl"),
-        ("CARGO_FEATURE_STRUCTURE_META", "meta"),
-        ("CARGO_FEATURE_STRUCTURE_MODAL", "modal"),
-    ]
-    .into_iter()
-    .find(|(f, _)| std::env::var_os(f).is_some())
-    .map(|(_, k)| k);
-    if std::env::var_os("CARGO_FEATURE_BUDGET_STRUCTURES").is_some() {
-        budget_structures(&mut gen, &root);
-    } else if let Some(kind) = structure_kind {
-        structure(&mut gen, kind);
-    } else if rnn_on {
-        rnn(&mut gen, &root);
-    } else if fe_on {
-        gen.push_str("/// The model compiled in.\npub const MODEL_SOURCE: &str = \"finite elements (Chang) + ATS\";\n");
-    } else if lrx_on {
-        lrx(&mut gen, &root);
-    } else {
-        lr(&mut gen, &root);
-    }
+    let mut gen =
+        String::from("// Generated by build.rs: the default model and the ground motion.\n");
+    let real_board = f407 || h743;
+    write_default(&mut gen, &root, m7_board, real_board);
+    budget_structures(&mut gen, &root, !real_board);
     motion(&mut gen, &root);
     excitation(&mut gen, &out_dir);
     // Only a fault-inject build has a fault plan (and the simulated rig its constants name).

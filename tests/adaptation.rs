@@ -13,11 +13,12 @@ use std::path::Path;
 use std::process::Command;
 
 use rayon::prelude::*;
-use rths::identify::{identify_virtual, IdentifyConfig};
-use rths::model_file::ModelFile;
-use rths::motion::GroundMotion;
-use rths::scenario::{rig_config, ScenarioId, ScenarioReport, ScenarioSetup};
-use rths::train::lrx::prototype_dynamics;
+use rths::machinery::identify::{identify_virtual, IdentifyConfig};
+use rths::machinery::model_file::ModelFile;
+use rths::machinery::motion::GroundMotion;
+use rths::machinery::reference::rig_config;
+use rths::machinery::train::lrx::prototype_dynamics;
+use rths::studies::scenario::{ScenarioId, ScenarioReport, ScenarioSetup};
 use rths_core::compensator::{LeadAdaptParams, LeadParams};
 use rths_core::metamodel::LrxParams;
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
@@ -26,7 +27,7 @@ use rths_hal_sim::{BoucWen, Drift, FaultPlan, Preset, RigConfig, Specimen};
 /// The shipped model's frame part (the lead is replaced by each rig's identified one).
 fn shipped() -> (LrxParams, LeadParams) {
     let m = ModelFile::from_json(include_str!("../data/models/lrx.json")).unwrap();
-    rths::models::lrx_params(&m).unwrap()
+    rths::machinery::models::lrx_params(&m).unwrap()
 }
 
 /// What `rths identify` finds on `rig` (measured signals only): the lead, and the specimen's mass
@@ -44,7 +45,7 @@ fn identified(rig: &RigConfig) -> (LeadParams, [f64; 2]) {
 fn true_dynamics(rig: &RigConfig) -> [f64; 2] {
     let p = rig.build().unwrap();
     // kg and N·s/m are 1e-6 kN·s²/mm and kN·s/mm.
-    prototype_dynamics(&rths::identify::estimate::SpecimenFit {
+    prototype_dynamics(&rths::machinery::identify::estimate::SpecimenFit {
         stiffness_kn_per_mm: 1.0,
         damping_kn_s_per_mm: p.specimen_damping_n_s_per_m() * 1e-6,
         mass_kn_s2_per_mm: p.specimen_mass_kg() * 1e-6,
@@ -67,7 +68,8 @@ fn record(name: &str, delay_s: f64) -> (String, Vec<f64>) {
         .unwrap(),
         n => GroundMotion::embedded(n).unwrap(),
     };
-    let scale = rths::sweep::fitting_scale_for_delay(&m.resample_mm_s2(DT_S), delay_s).unwrap();
+    let scale =
+        rths::studies::sweep::fitting_scale_for_delay(&m.resample_mm_s2(DT_S), delay_s).unwrap();
     (
         format!("{name}×{scale}"),
         m.scaled(scale).resample_mm_s2(DT_S),
@@ -83,7 +85,7 @@ fn run(
     f: f64,
     lrx: Option<(LrxParams, LeadParams)>,
 ) -> ScenarioReport {
-    rths::scenario::run(&ScenarioSetup {
+    rths::studies::scenario::run(&ScenarioSetup {
         id,
         ground_accel_mm_s2: ag,
         reference_mm: reference,
@@ -151,7 +153,8 @@ fn table(preset: Preset, draws: u64, adapt_ticks: f64, drift: f64) -> Vec<(f64, 
                     rig.uncertainty = true;
                     // The actuator drifts during the test, after its identification.
                     rig.drift = Drift::over(drift, ag.len() as u64);
-                    let (reference, _) = rths::study::reference_for_rig(ag, &rig, f).unwrap();
+                    let (reference, _) =
+                        rths::studies::study::reference_for_rig(ag, &rig, f).unwrap();
                     let fixed = run(
                         ScenarioId::LrxOnline,
                         ag,
@@ -344,16 +347,16 @@ fn adaptation_holds_the_goal_on_another_plant_through_a_drift() {
     let w = file.lrx.as_ref().unwrap();
     assert_eq!(
         w.lead_adapt_ticks,
-        Some(rths::train::lrx::RIG_LEAD_ADAPT_TICKS)
+        Some(rths::machinery::train::lrx::RIG_LEAD_ADAPT_TICKS)
     );
     assert!(w.specimen_mass_kn_s2_per_mm.unwrap() > 0.0);
-    let (frame, lead) = rths::models::lrx_params(&file).unwrap();
+    let (frame, lead) = rths::machinery::models::lrx_params(&file).unwrap();
     assert!(lead.adaptation().is_some());
     let ag = el_centro(0.8, 30.0);
     let mut rig = rig_config(Preset::Benchmark, Specimen::Linear, 1.0, 7);
     rig.uncertainty = true;
     rig.drift = Drift::over(0.3, ag.len() as u64);
-    let (reference, _) = rths::study::reference_for_rig(&ag, &rig, 1.0).unwrap();
+    let (reference, _) = rths::studies::study::reference_for_rig(&ag, &rig, 1.0).unwrap();
     let fixed_lead = LeadParams::new(*lead.weights(), lead.stride()).unwrap();
     let fixed = run(
         ScenarioId::LrxOnline,
@@ -431,7 +434,7 @@ fn the_drift_slows_the_actuator_and_is_off_by_default() {
 fn an_old_model_file_behaves_as_before_and_bad_fields_are_refused() {
     let text = include_str!("../data/models/lrx.json");
     let m = ModelFile::from_json(text).unwrap();
-    let (frame, lead) = rths::models::lrx_params(&m).unwrap();
+    let (frame, lead) = rths::machinery::models::lrx_params(&m).unwrap();
     assert!(lead.adaptation().is_none());
     assert_eq!(frame.specimen_dynamics(), (0.0, 0.0));
     let again = m.to_json().unwrap();
@@ -477,20 +480,16 @@ fn adaptive_lrx_firmware_matches_the_host_and_fits_the_budget() {
     let file = rig_model(dir.path(), "unr-compact");
     let status = Command::new(env!("CARGO"))
         .current_dir(firmware_dir())
-        .args([
-            "build",
-            "--release",
-            "--no-default-features",
-            "--features",
-            "board-qemu,model-lrx",
-        ])
+        .args(["build", "--release"])
         .env_remove("CARGO_TARGET_DIR")
-        .env("RTHS_LRX_MODEL", dir.path().join("lrx.json"))
+        .env_remove("RTHS_STRUCTURE")
+        .env_remove("RTHS_BUDGET")
+        .env("RTHS_MODEL", dir.path().join("lrx.json"))
         .status()
         .unwrap();
     assert!(
         status.success(),
-        "firmware build (adaptive model-lrx) failed"
+        "firmware build (the adaptive LRX default) failed"
     );
     let elf = dir.path().join("rths-firmware-lrx-adaptive.elf");
     std::fs::copy(
@@ -511,14 +510,14 @@ fn adaptive_lrx_firmware_matches_the_host_and_fits_the_budget() {
     );
     assert!(share <= MAX_TICK_SHARE, "{max} instructions");
     let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
-    let reference = rths::study::reference_for(&ag, Specimen::Linear, 1.0).unwrap();
+    let reference = rths::studies::study::reference_for(&ag, Specimen::Linear, 1.0).unwrap();
     let host = run(
         ScenarioId::LrxOnline,
         &ag,
         &reference,
         rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         1.0,
-        Some(rths::models::lrx_params(&file).unwrap()),
+        Some(rths::machinery::models::lrx_params(&file).unwrap()),
     );
     let (h, f) = (host.nrmse_pct.unwrap(), r["nrmse_pct"].as_f64().unwrap());
     println!("NRMSE host {h} % vs firmware {f} %");

@@ -4,8 +4,8 @@
 use std::path::Path;
 use std::process::Command;
 
-use rths::analysis::{pure_response, Method, PureResponse, Summary, CSV_HEADER};
-use rths::motion::{parse_at2, GroundMotion};
+use rths::machinery::motion::{parse_at2, GroundMotion};
+use rths::studies::analysis::{pure_response, Method, PureResponse, Summary, ANALYSIS_CSV_HEADER};
 use rths_core::metrics::{nrmse_pct, peak_abs};
 use rths_core::params::{Prototype, DT_S};
 
@@ -122,9 +122,9 @@ fn analyze_binary_writes_csv_png_and_summary() {
 
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
-    assert_eq!(lines.next(), Some(CSV_HEADER));
+    assert_eq!(lines.next(), Some(ANALYSIS_CSV_HEADER));
     assert_eq!(
-        CSV_HEADER,
+        ANALYSIS_CSV_HEADER,
         "time_s,ground_accel_mm_s2,story_disp_mm,brace_disp_mm,brace_force_kn"
     );
     let rows: Vec<&str> = lines.collect();
@@ -209,7 +209,7 @@ fn one_reference_response_for_analysis_trainer_and_firmware() {
     }
     let p = Prototype::paper();
     let analysis = pure_response(&p, &ag, DT_S, Method::Chang).unwrap();
-    let trainer = rths::train::data::pure_response(&p, &ag, DT_S).unwrap();
+    let trainer = rths::machinery::train::data::pure_response(&p, &ag, DT_S).unwrap();
     let mut reference = Reference::new(&p, DT_S, ag[0]).unwrap();
     let per_tick: Vec<f64> = std::iter::once(reference.brace_disp_mm())
         .chain(ag[1..].iter().map(|&a| reference.advance(a)))

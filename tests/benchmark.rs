@@ -4,9 +4,10 @@
 
 use std::path::Path;
 
-use rths::benchmark::run::{check_record, run, run_on, ControllerKind, PlantDraw, RunConfig};
-use rths::benchmark::{case_structure, BenchmarkRecord};
 use rths::cmd::benchmark::history_columns;
+use rths::studies::benchmark::plant::PlantDraw;
+use rths::studies::benchmark::run::{check_record, run, run_on, ControllerKind, RunConfig};
+use rths::studies::benchmark::{case_structure, BenchmarkRecord};
 use rths_core::integrator::{Chang, ExplicitIntegrator};
 use rths_core::params::{Prototype, DT_S};
 use rths_core::structure::{LinearStructure, Vector};
@@ -74,7 +75,7 @@ fn paper_frame_file_is_the_prototype_and_integrates_as_the_fe_path() {
     assert!(close(k_n[(0, 0)], p.frame_stiffness_kn_per_mm()));
     assert!(close(c_n[(0, 0)], p.damping_kn_s_per_mm()));
     // El Centro through both: the file's N-DOF path and the compiled-in FE path.
-    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let ag = rths::machinery::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     let mut fe = Chang::new(LinearStructure::prototype_hybrid(&p).unwrap(), DT_S).unwrap();
     let mut nd = ChangN::new(s.numerical().unwrap(), DT_S).unwrap();
     fe.reset(ag[0]);
@@ -102,7 +103,7 @@ fn refusal(json: &str) -> String {
 
 fn case1_with(edit: impl Fn(&mut serde_json::Value)) -> String {
     let mut v: serde_json::Value =
-        serde_json::from_str(rths::benchmark::case_text(1).unwrap()).unwrap();
+        serde_json::from_str(rths::studies::benchmark::case_text(1).unwrap()).unwrap();
     edit(&mut v);
     v.to_string()
 }
@@ -346,7 +347,7 @@ fn whole_grid_is_stable() {
 #[test]
 #[ignore]
 fn identified_grid_is_stable() {
-    let g = rths::benchmark::grid::run_grid(ControllerKind::MetaId, 0.4, 20).unwrap();
+    let g = rths::studies::benchmark::grid::run_grid(ControllerKind::MetaId, 0.4, 20).unwrap();
     println!("{}", g.table());
     for c in &g.cells {
         assert!(c.nominal.is_some(), "case {} {}", c.case, c.record);
@@ -356,7 +357,7 @@ fn identified_grid_is_stable() {
 }
 
 fn grid_meets_the_goals(controller: ControllerKind) {
-    let g = rths::benchmark::grid::run_grid(controller, 0.4, 20).unwrap();
+    let g = rths::studies::benchmark::grid::run_grid(controller, 0.4, 20).unwrap();
     println!("{}", g.table());
     for c in &g.cells {
         let j = c

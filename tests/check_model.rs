@@ -144,7 +144,7 @@ fn a_missing_file_is_rejected() {
 /// Every shipped model carries rths-core's feature names, in order, so every loader accepts it.
 #[test]
 fn shipped_models_name_cores_features() {
-    use rths::model_file::ModelFile;
+    use rths::machinery::model_file::ModelFile;
     use rths_core::metamodel::{LRX_FEATURE_NAMES, LR_FEATURE_NAMES, RNN_INPUT_NAMES};
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models");
     for (file, names) in [
@@ -156,7 +156,11 @@ fn shipped_models_name_cores_features() {
     ] {
         let m = ModelFile::load(&dir.join(file)).unwrap();
         assert_eq!(m.features, names, "{file}");
-        assert_eq!(rths::model_file::feature_names(m.kind), names, "{file}");
+        assert_eq!(
+            rths::machinery::model_file::feature_names(m.kind),
+            names,
+            "{file}"
+        );
     }
 }
 

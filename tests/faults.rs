@@ -1,7 +1,7 @@
 //! The fault-injection matrix (`rths faults`): every row must pass, and the command runs it.
 #![cfg(feature = "sim")]
 
-use rths::faults;
+use rths::studies::faults;
 
 #[test]
 fn every_fault_case_passes() {

@@ -13,9 +13,9 @@ use std::process::{Command, Stdio};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use rths::analysis::{pure_response, Method};
-use rths::motion::GroundMotion;
-use rths::scenario::{self, ScenarioId, ScenarioSetup};
+use rths::machinery::motion::GroundMotion;
+use rths::studies::analysis::{pure_response, Method};
+use rths::studies::scenario::{self, ScenarioId, ScenarioSetup};
 use rths_core::params::{Prototype, DT_S};
 use rths_hal_sim::{Preset, Specimen};
 
@@ -102,7 +102,7 @@ fn build_on_env(
         Some(f) => cmd.env("RTHS_FAULT", f),
         None => cmd.env_remove("RTHS_FAULT"),
     };
-    for var in ["RTHS_STRUCTURE", "RTHS_STRUCTURE_MODEL"] {
+    for var in ["RTHS_MODEL", "RTHS_STRUCTURE", "RTHS_BUDGET"] {
         cmd.env_remove(var);
     }
     for (var, value) in env {
@@ -207,6 +207,13 @@ fn run_full(on: Emulated, elf: &Path) -> (serde_json::Value, serde_json::Value, 
     )
 }
 
+/// The shipped model file `name` (`data/models/`).
+fn shipped(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("data/models")
+        .join(name)
+}
+
 fn f(v: &serde_json::Value, key: &str) -> f64 {
     v[key]
         .as_f64()
@@ -221,13 +228,13 @@ fn host_lr_online_nrmse() -> f64 {
         .unwrap()
         .brace_disp_mm;
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lr.json");
-    let model = rths::model_file::ModelFile::load(&path).unwrap();
+    let model = rths::machinery::model_file::ModelFile::load(&path).unwrap();
     let theta: [f64; 6] = model.lr.as_ref().unwrap().theta.clone().try_into().unwrap();
     let setup = ScenarioSetup {
         id: ScenarioId::LrOnline,
         ground_accel_mm_s2: &ag,
         reference_mm: &reference,
-        rig: scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: Some(rths_core::metamodel::LrParams::new(theta).unwrap()),
         rnn: None,
@@ -320,7 +327,7 @@ fn lr_online_on_the_m7_matches_the_host_and_fits_the_budget() {
     if qemu_missing("firmware-in-the-loop test (Cortex-M7)") {
         return;
     }
-    let elf = build_on(Emulated::M7, "m7-lr", true, "board-qemu,model-lr", None);
+    let elf = build_on(Emulated::M7, "m7-lr", true, "board-qemu", None);
     let (r, calib, ok) = run_full(Emulated::M7, &elf);
     assert!(ok, "firmware exit status was not 0: {r}");
     // The emulated core reports a double-precision FPU (MVFR0), which the build uses (no software
@@ -366,17 +373,19 @@ fn every_analytical_part_fits_the_m7_budget() {
     if qemu_missing("firmware-in-the-loop test (Cortex-M7)") {
         return;
     }
-    for (name, features) in [
-        ("rnn", "model-rnn"),
-        ("fe-ats", "fe-ats"),
-        ("lrx", "model-lrx"),
+    for (name, model) in [
+        ("rnn", shipped("rnn-10.json")),
+        ("fe-ats", PathBuf::from("fe-ats")),
+        ("lrx", shipped("lrx.json")),
     ] {
-        let elf = build_on(
+        // The one image, with this part as its default (`RTHS_MODEL`).
+        let elf = build_on_env(
             Emulated::M7,
             &format!("m7-{name}"),
             true,
-            &format!("board-qemu,{features}"),
+            "board-qemu",
             None,
+            &[("RTHS_MODEL", &model)],
         );
         let (r, _) = run_on(Emulated::M7, &elf);
         let max = f(&r["instr_per_tick"], "max");
@@ -449,8 +458,19 @@ fn rnn_and_fe_ats_paths_build_and_run() {
     if qemu_missing("firmware-in-the-loop test") {
         return;
     }
-    for (name, features) in [("rnn", "model-rnn"), ("fe-ats", "fe-ats")] {
-        let elf = build(name, true, &format!("board-qemu,{features}"));
+    for (name, model) in [
+        ("rnn", shipped("rnn-10.json")),
+        ("fe-ats", PathBuf::from("fe-ats")),
+    ] {
+        // The one image, with this part as its default (`RTHS_MODEL`).
+        let elf = build_on_env(
+            Emulated::M4,
+            name,
+            true,
+            "board-qemu",
+            None,
+            &[("RTHS_MODEL", &model)],
+        );
         let (r, _) = run(&elf);
         let max = f(&r["instr_per_tick"], "max");
         println!(
@@ -475,8 +495,8 @@ fn fault_matrix_subset_in_qemu_matches_the_host() {
     if qemu_missing("firmware-in-the-loop test") {
         return;
     }
-    let bench = rths::faults::Bench::el_centro().unwrap();
-    let cases = rths::faults::cases().unwrap();
+    let bench = rths::studies::faults::Bench::el_centro().unwrap();
+    let cases = rths::studies::faults::cases().unwrap();
     let lim = rths_core::supervisor::Limits::paper_actuator();
     for (spec, host_name) in [
         ("dropout@10+7", "dropout 7 ticks"),
@@ -528,8 +548,8 @@ fn fault_matrix_subset_in_qemu_matches_the_host() {
 }
 
 /// An imported OpenSees frame's reduced-order model on the emulated Cortex-M7 against the emulated
-/// plant (`structure-meta` with an `rths-reduced-model` file) and the host's run of the same
-/// controller (`rths::drive`, the same `VirtualRig` and seed, the same El Centro ticks): the
+/// plant (the image's default: `RTHS_STRUCTURE` and an `rths-reduced-model` file as `RTHS_MODEL`) and the host's run of the same
+/// controller (`rths::machinery::drive`, the same `VirtualRig` and seed, the same El Centro ticks): the
 /// command of every tick of the record, bit for bit (the RESULT line's `command_fnv` against the
 /// host's, both through `rths_app::run::Run`), and the same trip, if any, at the same tick.
 #[test]
@@ -538,8 +558,8 @@ fn fault_matrix_subset_in_qemu_matches_the_host() {
     ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
 )]
 fn reduced_model_on_the_m7_matches_the_host_tick_by_tick() {
-    use rths::imported::reduced::{self, ReducedModelFile};
-    use rths::imported::ImportedStructure;
+    use rths::machinery::imported::reduced::{self, ReducedModelFile};
+    use rths::machinery::imported::ImportedStructure;
     use rths_app::run::{Run, TickFacts};
     use rths_core::control::{ControlConfig, Controller, FeedbackSource};
     use rths_core::model::{assemble, ModelSpec};
@@ -563,15 +583,15 @@ fn reduced_model_on_the_m7_matches_the_host_tick_by_tick() {
         Emulated::M7,
         "m7-reduced",
         true,
-        "board-qemu,structure-meta",
+        "board-qemu",
         None,
         &[
             ("RTHS_STRUCTURE", &structure_path),
-            ("RTHS_STRUCTURE_MODEL", &model_path),
+            ("RTHS_MODEL", &model_path),
         ],
     );
     let (r, _) = run_on(Emulated::M7, &elf);
-    // The RESULT line names the part in force: the structure-meta build runs the reduced model.
+    // The RESULT line names the part in force: the image's default is the reduced model.
     assert_eq!(r["scenario"], "structure-reduced", "{r}");
     // A model trained for another structure fails the build, naming both (only build.rs runs).
     let other =
@@ -583,12 +603,13 @@ fn reduced_model_on_the_m7_matches_the_host_tick_by_tick() {
             .env_remove("CARGO_TARGET_DIR")
             .env_remove("RTHS_FAULT")
             .env("RTHS_STRUCTURE", &other)
-            .env("RTHS_STRUCTURE_MODEL", &model_path)
+            .env("RTHS_MODEL", &model_path)
+            .env_remove("RTHS_BUDGET")
             .args([
                 Emulated::M7.build_cmd().0,
                 "--no-default-features",
                 "--features",
-                "board-mps2-an500,structure-meta",
+                "board-mps2-an500",
             ])
             .output()
             .unwrap()
@@ -619,13 +640,13 @@ fn reduced_model_on_the_m7_matches_the_host_tick_by_tick() {
     .unwrap();
     let mut ctl = Controller::new(cfg, analytical, compensator);
     let mut rig = rths_hal_sim::VirtualRig::new(
-        scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
+        rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
             .build()
             .unwrap(),
     );
     let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
     let mut run = Run::new();
-    rths::drive::run(&mut ctl, Some(&mut rig), &ag, None, DT_S, |st, _, _| {
+    rths::machinery::drive::run(&mut ctl, Some(&mut rig), &ag, None, DT_S, |st, _, _| {
         let notify = run.after_tick(&TickFacts {
             k: st.k as u32,
             counted: true,

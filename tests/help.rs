@@ -186,11 +186,11 @@ fn simulate_help_names_every_scenario_and_rnn_epochs_are_the_trainings() {
         .find(|a| a.get_long() == Some("scenario"))
         .unwrap();
     let help = arg.get_help().unwrap().to_string();
-    let names = rths::scenario::ScenarioId::ALL
+    let names = rths::studies::scenario::ScenarioId::ALL
         .iter()
         .map(|s| s.to_string())
         .chain(
-            rths::nonlinear::scenario::STRUCTURE_SCENARIOS
+            rths::studies::nonlinear::scenario::STRUCTURE_SCENARIOS
                 .iter()
                 .map(|s| s.to_string()),
         );
@@ -206,11 +206,17 @@ fn simulate_help_names_every_scenario_and_rnn_epochs_are_the_trainings() {
         .find(|a| a.get_long() == Some("epochs"))
         .unwrap();
     let help = epochs.get_help().unwrap().to_string();
-    let want = format!("Default {}", rths::train::rnn::ARX_FINE_TUNE_EPOCHS);
+    let want = format!(
+        "Default {}",
+        rths::machinery::train::rnn::ARX_FINE_TUNE_EPOCHS
+    );
     assert!(help.contains(&want), "--epochs: `{want}` not in `{help}`");
     let training =
         std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/training.md"))
             .unwrap();
-    let want = format!("`--epochs` {}", rths::train::rnn::ARX_FINE_TUNE_EPOCHS);
+    let want = format!(
+        "`--epochs` {}",
+        rths::machinery::train::rnn::ARX_FINE_TUNE_EPOCHS
+    );
     assert!(training.contains(&want), "docs/training.md lacks `{want}`");
 }

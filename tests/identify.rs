@@ -7,9 +7,9 @@ use std::path::Path;
 
 use rths::cmd::identify::{run_with_faults, Args};
 use rths::cmd::plant::{PresetArg, SpecimenArg};
-use rths::identify::rig_file::{RigFile, RigFileError};
-use rths::identify::{identify_virtual, IdentifyConfig, IdentifyError, Outcome};
-use rths::scenario::rig_config;
+use rths::machinery::identify::rig_file::{RigFile, RigFileError};
+use rths::machinery::identify::{identify_virtual, IdentifyConfig, IdentifyError, Outcome};
+use rths::machinery::reference::rig_config;
 use rths_hal_sim::{BoucWen, Channel, Fault, FaultKind, FaultPlan, Preset, Specimen};
 
 /// Truth and identified figures of one run.
@@ -339,10 +339,10 @@ fn lrx_with_the_identified_lead_on_the_unr_compact_plant() {
 }
 
 fn lrx_table(preset: Preset) {
-    use rths::model_file::ModelFile;
-    use rths::motion::GroundMotion;
-    use rths::scenario::{ScenarioId, ScenarioSetup};
-    use rths::train::lrx::{train, GivenLead, LrxConfig};
+    use rths::machinery::model_file::ModelFile;
+    use rths::machinery::motion::GroundMotion;
+    use rths::machinery::train::lrx::{train, GivenLead, LrxConfig};
+    use rths::studies::scenario::{ScenarioId, ScenarioSetup};
     use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 
     let shipped = ModelFile::from_json(include_str!("../data/models/lrx.json")).unwrap();
@@ -367,10 +367,10 @@ fn lrx_table(preset: Preset) {
     let mut all: Vec<(String, Vec<f64>)> = Vec::new();
     for name in ["el-centro", "kobe"] {
         let m = GroundMotion::embedded(name).unwrap();
-        let scale = rths::sweep::fitting_scale(&m.resample_mm_s2(DT_S)).unwrap();
+        let scale = rths::studies::sweep::fitting_scale(&m.resample_mm_s2(DT_S)).unwrap();
         let ag = m.scaled(scale).resample_mm_s2(DT_S);
-        for (spec, f) in rths::sweep::cases() {
-            let reference = rths::study::reference_for(&ag, spec, f).unwrap();
+        for (spec, f) in rths::studies::sweep::cases() {
+            let reference = rths::studies::study::reference_for(&ag, spec, f).unwrap();
             let mut row = Vec::new();
             let mut setup = ScenarioSetup {
                 id: ScenarioId::FeOnlineAts,
@@ -385,12 +385,12 @@ fn lrx_table(preset: Preset) {
             };
             for (_, file) in &models {
                 setup.id = ScenarioId::LrxOnline;
-                setup.lrx = Some(rths::models::lrx_params(file).unwrap());
-                let r = rths::scenario::run(&setup).unwrap().report;
+                setup.lrx = Some(rths::machinery::models::lrx_params(file).unwrap());
+                let r = rths::studies::scenario::run(&setup).unwrap().report;
                 row.push(r.nrmse_measured_pct.unwrap_or(f64::NAN));
             }
             setup.id = ScenarioId::FeOnlineAts;
-            let r = rths::scenario::run(&setup).unwrap().report;
+            let r = rths::studies::scenario::run(&setup).unwrap().report;
             row.push(r.nrmse_measured_pct.unwrap_or(f64::NAN));
             let label = format!("{} {name}×{scale} {} F={f}", preset.name(), spec.name());
             println!(
@@ -425,7 +425,7 @@ fn lrx_table(preset: Preset) {
 
 #[test]
 fn train_lrx_takes_the_lead_from_the_rig_file_and_records_the_rig() {
-    use rths::model_file::ModelFile;
+    use rths::machinery::model_file::ModelFile;
     let dir = tempfile::tempdir().unwrap();
     let a = args(dir.path(), PresetArg::Benchmark);
     let rig = run_with_faults(&a, FaultPlan::none()).unwrap();
@@ -448,7 +448,7 @@ fn train_lrx_takes_the_lead_from_the_rig_file_and_records_the_rig() {
         id,
         format!(
             "benchmark virtual {}",
-            rths::identify::rig_file::checksum_hex(&bytes)
+            rths::machinery::identify::rig_file::checksum_hex(&bytes)
         )
     );
     // A rig file that fails validation is refused, and no model is written.

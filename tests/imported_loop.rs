@@ -9,8 +9,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use rths::imported::reduced;
-use rths::imported::ImportedStructure;
+use rths::machinery::imported::reduced;
+use rths::machinery::imported::ImportedStructure;
 use rths_core::params::DT_S;
 use rths_files::motion::GroundMotion;
 

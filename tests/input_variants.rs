@@ -75,19 +75,25 @@ fn e(x: impl std::fmt::Display) -> String {
 }
 
 fn model(text: &str) -> Result<(), String> {
-    use rths::model_file::{ModelFile, ModelKind};
+    use rths::machinery::model_file::{ModelFile, ModelKind};
     let m = ModelFile::from_json(text).map_err(e)?;
-    rths::models::check_for_controller(&m).map_err(e)?;
+    rths::machinery::models::check_for_controller(&m).map_err(e)?;
     match m.kind {
-        ModelKind::Lr => rths::models::lr_params(&m).map(|_| ()).map_err(e),
-        ModelKind::Rnn => rths::models::rnn_params(&m).map(|_| ()).map_err(e),
-        ModelKind::Lrx => rths::models::lrx_params(&m).map(|_| ()).map_err(e),
+        ModelKind::Lr => rths::machinery::models::lr_params(&m)
+            .map(|_| ())
+            .map_err(e),
+        ModelKind::Rnn => rths::machinery::models::rnn_params(&m)
+            .map(|_| ())
+            .map_err(e),
+        ModelKind::Lrx => rths::machinery::models::lrx_params(&m)
+            .map(|_| ())
+            .map_err(e),
     }
 }
 
 fn nl_model(text: &str) -> Result<(), String> {
     let m = rths_files::nl_model_file::NlModelFile::from_json(text).map_err(e)?;
-    rths::nonlinear::model::check_rate(&m).map_err(e)?;
+    rths::machinery::structure::model::check_rate(&m).map_err(e)?;
     m.params(DT_S).map(|_| ()).map_err(e)
 }
 
@@ -98,15 +104,16 @@ fn meta_model(text: &str) -> Result<(), String> {
 }
 
 fn reduced_model(text: &str) -> Result<(), String> {
-    let s = rths::imported::ImportedStructure::from_json(REDUCED_STRUCTURE).map_err(e)?;
-    let f = rths::imported::reduced::ReducedModelFile::from_json(text).map_err(e)?;
+    let s =
+        rths::machinery::imported::ImportedStructure::from_json(REDUCED_STRUCTURE).map_err(e)?;
+    let f = rths::machinery::imported::reduced::ReducedModelFile::from_json(text).map_err(e)?;
     let a = f.arrays_for(&s).map_err(e)?;
     a.spec().params(DT_S).map(|_| ()).map_err(e)
 }
 
 fn rig(text: &str) -> Result<(), String> {
-    let r = rths::identify::RigFile::from_json(text).map_err(e)?;
-    rths::nonlinear::rig::from_rig_file_named("paper-frame", &r, "rig").map_err(e)?;
+    let r = rths::machinery::identify::RigFile::from_json(text).map_err(e)?;
+    rths::machinery::structure::rig::from_rig_file_named("paper-frame", &r, "rig").map_err(e)?;
     for kind in [rths_link::ModelKind::FeAts, rths_link::ModelKind::Lrx] {
         rths::link_host::wire::rig_values(&r, kind, 0.0).map_err(e)?;
     }
@@ -124,18 +131,18 @@ fn structure(text: &str) -> Result<(), String> {
 }
 
 fn imported(text: &str) -> Result<(), String> {
-    rths::imported::ImportedStructure::from_json(text)
+    rths::machinery::imported::ImportedStructure::from_json(text)
         .map(|_| ())
         .map_err(e)
 }
 
 fn at2(text: &str) -> Result<(), String> {
-    let m = rths::motion::parse_at2(text, "v.AT2").map_err(e)?;
+    let m = rths::machinery::motion::parse_at2(text, "v.AT2").map_err(e)?;
     m.validate().map_err(e)
 }
 
 fn motion_csv(text: &str) -> Result<(), String> {
-    let m = rths::motion::parse_csv(text, "v.csv").map_err(e)?;
+    let m = rths::machinery::motion::parse_csv(text, "v.csv").map_err(e)?;
     m.validate().map_err(e)
 }
 

@@ -14,10 +14,10 @@ use std::process::Command;
 use std::time::Duration;
 
 use rths::link_host::{upload_message, LinkHostError, Qemu};
-use rths::model_file::ModelFile;
-use rths::scenario::{self, ScenarioId, ScenarioRun, ScenarioSetup};
-use rths::study;
-use rths::train::{data, lr};
+use rths::machinery::model_file::ModelFile;
+use rths::machinery::train::{data, lr};
+use rths::studies::scenario::{self, ScenarioId, ScenarioRun, ScenarioSetup};
+use rths::studies::study;
 use rths_core::metamodel::LrParams;
 use rths_core::params::{Prototype, DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{Preset, Specimen};
@@ -31,20 +31,27 @@ fn link_elf() -> PathBuf {
         .clone()
 }
 
-/// The LRX build with the link (`--no-default-features --features board-qemu,model-lrx,link`).
+/// The link image with the shipped LRX model as its default (`--features link`,
+/// `RTHS_MODEL=data/models/lrx.json`).
 fn lrx_link_elf() -> PathBuf {
     static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     ELF.get_or_init(|| {
-        build_elf(
-            &[
-                "--no-default-features",
-                "--features",
-                "board-qemu,model-lrx,link",
-            ],
+        build_elf_default(
+            &["--features", "link"],
             "rths-firmware-lrx-link.elf",
+            &shipped_path("lrx.json"),
         )
     })
     .clone()
+}
+
+/// The shipped model file `name` (`data/models/`).
+fn shipped_path(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("data/models")
+        .join(name)
+        .display()
+        .to_string()
 }
 
 /// Build the firmware with `args` and copy its ELF to `name`; one build at a time (they share the
@@ -53,18 +60,34 @@ fn build_elf(args: &[&str], name: &str) -> PathBuf {
     build_elf_with(args, name, None)
 }
 
+/// [`build_elf`] with the default model `model` (`RTHS_MODEL`: a model file, or `fe-ats`).
+fn build_elf_default(args: &[&str], name: &str, model: &str) -> PathBuf {
+    build_elf_env(args, name, None, Some(model))
+}
+
 /// [`build_elf`] with the `fault-inject` plan `RTHS_FAULT` set to `fault` (or unset).
 fn build_elf_with(args: &[&str], name: &str, fault: Option<&str>) -> PathBuf {
+    build_elf_env(args, name, fault, None)
+}
+
+/// [`build_elf`] with the fault plan `fault` and the default model `model` (each unset if `None`).
+fn build_elf_env(args: &[&str], name: &str, fault: Option<&str>, model: Option<&str>) -> PathBuf {
     static BUILD: std::sync::Mutex<()> = std::sync::Mutex::new(());
     let _one = BUILD.lock().unwrap_or_else(|e| e.into_inner());
     let mut cmd = Command::new(env!("CARGO"));
     cmd.current_dir(firmware_dir())
         .args(["build", "--release"])
         .args(args)
-        .env_remove("CARGO_TARGET_DIR");
+        .env_remove("CARGO_TARGET_DIR")
+        .env_remove("RTHS_STRUCTURE")
+        .env_remove("RTHS_BUDGET");
     match fault {
         Some(f) => cmd.env("RTHS_FAULT", f),
         None => cmd.env_remove("RTHS_FAULT"),
+    };
+    match model {
+        Some(m) => cmd.env("RTHS_MODEL", m),
+        None => cmd.env_remove("RTHS_MODEL"),
     };
     let status = cmd.status().unwrap();
     assert!(status.success(), "firmware build {args:?} failed");
@@ -83,7 +106,7 @@ struct Trained {
 
 /// The paper's two-phase LR training, from scratch (as `rths reproduce` does it).
 fn train() -> Trained {
-    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let ag = rths::machinery::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     let proto = Prototype::paper();
     let reference = study::reference_mm(&ag, 1.0).unwrap();
     let resp = data::pure_response(&proto, &ag, DT_S).unwrap();
@@ -122,7 +145,7 @@ fn setup<'a>(
         ground_accel_mm_s2: ag,
         reference_mm: reference,
         // The qemu board's plant: unr-compact, linear specimen, seed 1.
-        rig: scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: Some(LrParams::from_slice(theta).unwrap()),
         rnn: None,
@@ -562,7 +585,7 @@ fn bad_record_uploads_are_refused_with_their_reason_and_the_record_in_force_stay
 
     // Boot: the compiled-in El Centro, the host's embedded one bit for bit.
     let s0 = link.status().unwrap();
-    let el = rths::motion::GroundMotion::el_centro();
+    let el = rths::machinery::motion::GroundMotion::el_centro();
     assert_eq!(s0.record.source, RecordSource::Compiled);
     assert_eq!(
         s0.record.checksum,
@@ -578,7 +601,7 @@ fn bad_record_uploads_are_refused_with_their_reason_and_the_record_in_force_stay
     );
 
     // A good upload first (Northridge × 0.5): in force, and reported.
-    let nr = rths::motion::GroundMotion::try_embedded("northridge")
+    let nr = rths::machinery::motion::GroundMotion::try_embedded("northridge")
         .unwrap()
         .scaled(0.5);
     let c = link.upload_record(&nr.accel_g, nr.dt_s, 0.5).unwrap();
@@ -596,7 +619,7 @@ fn bad_record_uploads_are_refused_with_their_reason_and_the_record_in_force_stay
         unreachable!()
     };
     // Too long for memory: Loma Prieta's 7998 samples.
-    let lp = rths::motion::GroundMotion::try_embedded("loma-prieta").unwrap();
+    let lp = rths::machinery::motion::GroundMotion::try_embedded("loma-prieta").unwrap();
     let lp_begin = rths::link_host::record_messages(&lp.accel_g, lp.dt_s, 1.0).unwrap()[0];
     assert_eq!(refusal(link, &lp_begin), Some(NackReason::TooLong));
     // Wrong rates: 0.5 s (a unit mistake), 0.1 ms (faster than the controller), NaN.
@@ -709,7 +732,7 @@ fn cli_link_run(elf: &Path, dir: &Path, csv_motion: &Path, run_csv: &Path) -> St
 /// The recording's commands, bit for bit, against the host simulation of the same record (as the
 /// CSV file reads back) × 0.5 with the compiled-in model (data/models/lr.json).
 fn assert_lr_commands_equal_the_host(rec: &rths::link_host::Recording, csv_motion: &Path) {
-    let motion = rths::motion::GroundMotion::from_path(csv_motion)
+    let motion = rths::machinery::motion::GroundMotion::from_path(csv_motion)
         .unwrap()
         .scaled(0.5);
     let ag = motion.resample_mm_s2(DT_S);
@@ -767,7 +790,7 @@ fn a_csv_record_uploaded_run_and_reported_equals_the_host_simulation() {
     let exe = env!("CARGO_BIN_EXE_rths");
     let dir = tempfile::tempdir().unwrap();
     let csv_motion = dir.path().join("northridge.csv");
-    let nr = rths::motion::GroundMotion::try_embedded("northridge").unwrap();
+    let nr = rths::machinery::motion::GroundMotion::try_embedded("northridge").unwrap();
     std::fs::write(&csv_motion, nr.to_csv()).unwrap();
     let run_csv = dir.path().join("run.csv");
     cli_link_run(&elf, dir.path(), &csv_motion, &run_csv);
@@ -951,11 +974,11 @@ fn an_lrx_model_uploaded_to_the_lr_image_runs_as_the_host_simulates_it() {
     assert!(summary.complete(), "lost telemetry: {summary:?}");
     let rows = read_csv(&csv);
 
-    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let ag = rths::machinery::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     let reference = study::reference_mm(&ag, 1.0).unwrap();
     let mut st = setup(ScenarioId::LrxOnline, &ag, &reference, &[0.0; 6]);
     st.lr = None;
-    st.lrx = Some(rths::models::lrx_params(&other).unwrap());
+    st.lrx = Some(rths::machinery::models::lrx_params(&other).unwrap());
     st.delay_steps = other.delay_steps;
     let host = scenario::run(&st).unwrap();
     let mut identical = 0;
@@ -1065,33 +1088,28 @@ fn a_silent_host_ramps_the_run_down_when_armed_so() {
     assert_eq!(rows.last().unwrap().command_mm, 0.0);
 }
 
-/// The RNN build with the link (`--no-default-features --features board-qemu,model-rnn,link`).
+/// The link image with the shipped RNN-10 as its default (`--features link`,
+/// `RTHS_MODEL=data/models/rnn-10.json`; the emulated M4 builds it, to measure it).
 fn rnn_link_elf() -> PathBuf {
     static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     ELF.get_or_init(|| {
-        build_elf(
-            &[
-                "--no-default-features",
-                "--features",
-                "board-qemu,model-rnn,link",
-            ],
+        build_elf_default(
+            &["--features", "link"],
             "rths-firmware-rnn-link.elf",
+            &shipped_path("rnn-10.json"),
         )
     })
     .clone()
 }
 
-/// The FE + ATS build with the link (`--no-default-features --features board-qemu,fe-ats,link`).
+/// The link image with FE + ATS as its default (`--features link`, `RTHS_MODEL=fe-ats`).
 fn fe_ats_link_elf() -> PathBuf {
     static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     ELF.get_or_init(|| {
-        build_elf(
-            &[
-                "--no-default-features",
-                "--features",
-                "board-qemu,fe-ats,link",
-            ],
+        build_elf_default(
+            &["--features", "link"],
             "rths-firmware-fe-ats-link.elf",
+            "fe-ats",
         )
     })
     .clone()
@@ -1239,11 +1257,11 @@ fn an_rnn_of_another_size_uploaded_to_the_rnn_image_runs_as_the_host_simulates_i
     assert_eq!(refusal(link, &msgs[0]), Some(NackReason::Busy));
     let rows = record_run(link, &dir.path().join("run.csv"));
 
-    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let ag = rths::machinery::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     let reference = study::reference_mm(&ag, 1.0).unwrap();
     let mut st = setup(ScenarioId::RnnOnline(5), &ag, &reference, &[0.0; 6]);
     st.lr = None;
-    st.rnn = Some(rths::models::rnn_params(&five).unwrap());
+    st.rnn = Some(rths::machinery::models::rnn_params(&five).unwrap());
     st.delay_steps = five.delay_steps;
     let host = scenario::run(&st).unwrap();
     assert_bit_identical(
@@ -1351,7 +1369,7 @@ fn a_rig_compensation_uploaded_to_the_fe_ats_build_runs_as_the_host_simulates_it
     assert_eq!(refused(link, K::FeAts, &paper), NackReason::Busy);
     let rows = record_run(link, &dir.path().join("run.csv"));
 
-    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let ag = rths::machinery::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     let reference = study::reference_mm(&ag, 1.0).unwrap();
     let st = setup(ScenarioId::FeOnlineAts, &ag, &reference, &[0.0; 6]);
     let host = scenario::run_with_ats_start(&st, Some(initial)).unwrap();
@@ -1405,7 +1423,7 @@ fn the_lr_image_made_fe_ats_at_run_time_runs_as_the_host_simulates_it() {
     link.start().unwrap();
     let rows = record_run(link, &dir.path().join("run.csv"));
 
-    let ag = rths::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
+    let ag = rths::machinery::motion::GroundMotion::el_centro().resample_mm_s2(DT_S);
     let reference = study::reference_mm(&ag, 1.0).unwrap();
     let st = setup(ScenarioId::FeOnlineAts, &ag, &reference, &[0.0; 6]);
     let host = scenario::run_with_ats_start(&st, None).unwrap();
@@ -1427,8 +1445,8 @@ fn the_lr_image_made_fe_ats_at_run_time_runs_as_the_host_simulates_it() {
 }
 
 /// The first `samples` samples of El Centro at `dt_s` (linear between its 20 ms samples).
-fn el_centro_at(dt_s: f64, samples: usize) -> rths::motion::GroundMotion {
-    let el = rths::motion::GroundMotion::el_centro();
+fn el_centro_at(dt_s: f64, samples: usize) -> rths::machinery::motion::GroundMotion {
+    let el = rths::machinery::motion::GroundMotion::el_centro();
     let accel_g = (0..samples)
         .map(|i| {
             let pos = i as f64 * dt_s / el.dt_s;
@@ -1437,7 +1455,7 @@ fn el_centro_at(dt_s: f64, samples: usize) -> rths::motion::GroundMotion {
             el.accel_g[j] + f * (el.accel_g[j + 1] - el.accel_g[j])
         })
         .collect();
-    rths::motion::GroundMotion {
+    rths::machinery::motion::GroundMotion {
         name: format!("el-centro-{samples}-at-{dt_s}"),
         dt_s,
         accel_g,
@@ -1463,7 +1481,7 @@ fn a_record_longer_than_the_boards_memory_is_streamed_and_every_command_equals_t
     // 34 s at 250 Hz: 8,501 samples, more than the board's whole record memory (64 KiB: 8,192
     // samples; an upload holds 4,096).
     std::fs::write(&csv_motion, el_centro_at(0.004, 8501).to_csv()).unwrap();
-    let motion = rths::motion::GroundMotion::from_path(&csv_motion)
+    let motion = rths::machinery::motion::GroundMotion::from_path(&csv_motion)
         .unwrap()
         .scaled(0.5);
     assert!(

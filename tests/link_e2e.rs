@@ -17,19 +17,17 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-/// The LRX build with the link and the identification (`--no-default-features --features
-/// board-qemu,model-lrx,identify`): an image that can identify (`identify` = `link` + the
-/// excitation's tables); any image takes an uploaded LRX model.
+/// The link image with the shipped LRX model as its default (`--features link`,
+/// `RTHS_MODEL=data/models/lrx.json`): every link image identifies (the excitation's tables) and
+/// takes an uploaded LRX model.
 fn lrx_link_elf() -> PathBuf {
     static ELF: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
     ELF.get_or_init(|| {
-        build_elf(
-            &[
-                "--no-default-features",
-                "--features",
-                "board-qemu,model-lrx,identify",
-            ],
+        let lrx = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lrx.json");
+        build_elf_model(
+            &["--features", "link"],
             None,
+            Some(&lrx.display().to_string()),
             "rths-firmware-e2e.elf",
         )
     })
@@ -39,16 +37,27 @@ fn lrx_link_elf() -> PathBuf {
 /// Build the firmware with `args` (and the `fault-inject` plan `fault`) and copy its ELF to `name`;
 /// one build at a time (they share the firmware's target directory and its output path).
 fn build_elf(args: &[&str], fault: Option<&str>, name: &str) -> PathBuf {
+    build_elf_model(args, fault, None, name)
+}
+
+/// [`build_elf`] with the default model `model` (`RTHS_MODEL`; unset if `None`).
+fn build_elf_model(args: &[&str], fault: Option<&str>, model: Option<&str>, name: &str) -> PathBuf {
     static BUILD: std::sync::Mutex<()> = std::sync::Mutex::new(());
     let _one = BUILD.lock().unwrap_or_else(|e| e.into_inner());
     let mut cmd = Command::new(env!("CARGO"));
     cmd.current_dir(firmware_dir())
         .args(["build", "--release"])
         .args(args)
-        .env_remove("CARGO_TARGET_DIR");
+        .env_remove("CARGO_TARGET_DIR")
+        .env_remove("RTHS_STRUCTURE")
+        .env_remove("RTHS_BUDGET");
     match fault {
         Some(f) => cmd.env("RTHS_FAULT", f),
         None => cmd.env_remove("RTHS_FAULT"),
+    };
+    match model {
+        Some(m) => cmd.env("RTHS_MODEL", m),
+        None => cmd.env_remove("RTHS_MODEL"),
     };
     assert!(
         cmd.status().unwrap().success(),
@@ -198,21 +207,21 @@ fn identify_train_upload_run_and_report_through_the_board() {
     // 4. The commands, bit for bit, against the host simulation of the same rig (the emulated
     // board's plant: unr-compact, linear, seed 1), record (as the CSV file reads back), scale and
     // model: what `rths simulate` runs (its history.csv rounds to 1e-6 mm, so compare in process).
-    use rths::scenario::{self, ScenarioId, ScenarioSetup};
+    use rths::studies::scenario::{self, ScenarioId, ScenarioSetup};
     let rec = rths::link_host::read_recording(&std::fs::read_to_string(d.join("run.csv")).unwrap())
         .unwrap();
     assert_eq!(rec.header.get("scenario"), Some("lrx-online"));
-    let model = rths::model_file::ModelFile::load(&d.join("lrx.json")).unwrap();
-    let ag = rths::motion::GroundMotion::from_path(&d.join(motion))
+    let model = rths::machinery::model_file::ModelFile::load(&d.join("lrx.json")).unwrap();
+    let ag = rths::machinery::motion::GroundMotion::from_path(&d.join(motion))
         .unwrap()
         .scaled(0.5)
         .resample_mm_s2(rths_core::params::DT_S);
-    let reference = rths::study::reference_mm(&ag, 1.0).unwrap();
+    let reference = rths::studies::study::reference_mm(&ag, 1.0).unwrap();
     let host = scenario::run(&ScenarioSetup {
         id: ScenarioId::LrxOnline,
         ground_accel_mm_s2: &ag,
         reference_mm: &reference,
-        rig: scenario::rig_config(
+        rig: rths::machinery::reference::rig_config(
             rths_hal_sim::Preset::UnrCompact,
             rths_hal_sim::Specimen::Linear,
             1.0,
@@ -221,7 +230,7 @@ fn identify_train_upload_run_and_report_through_the_board() {
         stiffness_factor: 1.0,
         lr: None,
         rnn: None,
-        lrx: Some(rths::models::lrx_params(&model).unwrap()),
+        lrx: Some(rths::machinery::models::lrx_params(&model).unwrap()),
         delay_steps: model.delay_steps,
     })
     .unwrap();
@@ -314,7 +323,7 @@ fn a_nan_during_an_identification_trips_and_nothing_is_written() {
         return;
     }
     let elf = build_elf(
-        &["--features", "identify,fault-inject"],
+        &["--features", "link,fault-inject"],
         Some("nan-disp@5"),
         "rths-firmware-e2e-nan.elf",
     );

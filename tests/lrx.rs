@@ -8,12 +8,12 @@ use common::*;
 use std::path::Path;
 use std::process::Command;
 
-use rths::model_file::ModelFile;
-use rths::models;
-use rths::motion::GroundMotion;
-use rths::scenario::{self, ScenarioId, ScenarioSetup};
-use rths::study::reference_for;
-use rths::sweep::{self, RecordSweep, SweepModels};
+use rths::machinery::model_file::ModelFile;
+use rths::machinery::models;
+use rths::machinery::motion::GroundMotion;
+use rths::studies::scenario::{self, ScenarioId, ScenarioSetup};
+use rths::studies::study::reference_for;
+use rths::studies::sweep::{self, RecordSweep, SweepModels};
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{Preset, Specimen};
 
@@ -128,7 +128,7 @@ fn specimen_sweep_kobe_first_15_s() {
 // Firmware
 // ---------------------------------------------------------------------------------------------------
 
-/// The LRX firmware (`model-lrx`, the shipped `data/models/lrx.json`) runs the whole El Centro record
+/// The LRX firmware (the image with the shipped `data/models/lrx.json` as its default) runs the whole El Centro record
 /// in QEMU: no overrun or fault, the same command NRMSE as the host's `lrx-online` (F = 1, seed 1),
 /// and its worst tick within 10% of the 488 µs tick.
 #[test]
@@ -142,18 +142,17 @@ fn lrx_firmware_matches_the_host_and_fits_the_budget() {
     }
     let status = Command::new(env!("CARGO"))
         .current_dir(firmware_dir())
-        .args([
-            "build",
-            "--release",
-            "--no-default-features",
-            "--features",
-            "board-qemu,model-lrx",
-        ])
+        .args(["build", "--release"])
         .env_remove("CARGO_TARGET_DIR")
-        .env_remove("RTHS_LRX_MODEL")
+        .env_remove("RTHS_STRUCTURE")
+        .env_remove("RTHS_BUDGET")
+        .env(
+            "RTHS_MODEL",
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("data/models/lrx.json"),
+        )
         .status()
         .unwrap();
-    assert!(status.success(), "firmware build (model-lrx) failed");
+    assert!(status.success(), "firmware build (the LRX default) failed");
     let elf = Path::new(env!("CARGO_TARGET_TMPDIR")).join("rths-firmware-lrx.elf");
     std::fs::copy(
         firmware_dir().join("target/thumbv7em-none-eabihf/release/rths-firmware"),
@@ -184,7 +183,7 @@ fn lrx_firmware_matches_the_host_and_fits_the_budget() {
         id: ScenarioId::LrxOnline,
         ground_accel_mm_s2: &ag,
         reference_mm: &reference,
-        rig: scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: None,
         rnn: None,
@@ -211,7 +210,7 @@ fn lrx_run(
         id: ScenarioId::LrxOnline,
         ground_accel_mm_s2: ag,
         reference_mm: reference,
-        rig: scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: None,
         rnn: None,
@@ -251,9 +250,10 @@ fn residual_at_f1_is_the_specimen_mass_and_damping() {
     let reference = reference_for(&ag, Specimen::Linear, 1.0).unwrap();
     let lead = models::lrx_params(&shipped("lrx.json")).unwrap().1;
     let run = lrx_run(&ag, &reference, lead);
-    let plant = scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
-        .build()
-        .unwrap();
+    let plant =
+        rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
+            .build()
+            .unwrap();
     // kg → kN·s²/mm is 1e-6, N·s/m → kN·s/mm is 1e-6; force scale 1000.
     let (m_s, c_s) = (
         plant.specimen_mass_kg() * 1e-3,

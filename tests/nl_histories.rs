@@ -7,12 +7,12 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use rths::imported::export;
-use rths::motion::GroundMotion;
-use rths::nonlinear::{drift_nrmse_pct, elastic_drifts, fe_reference};
-use rths::train::nonlinear::histories::{history_of_run, read_runs};
-use rths::train::nonlinear::runs::fe_run;
-use rths::train::nonlinear::{eval, train, NlTrainConfig, SpringLaw};
+use rths::machinery::imported::export;
+use rths::machinery::motion::GroundMotion;
+use rths::machinery::structure::{drift_nrmse_pct, elastic_drifts, fe_reference};
+use rths::machinery::train::nonlinear::histories::{history_of_run, read_runs};
+use rths::machinery::train::nonlinear::runs::fe_run;
+use rths::machinery::train::nonlinear::{eval, train, NlTrainConfig, SpringLaw};
 use rths_core::params::DT_S;
 use rths_files::history::RecorderUnits;
 use rths_files::structure_file::Structure;
@@ -203,7 +203,7 @@ fn opensees_histories_train_a_model_scored_against_opensees_s_own_held_out_run()
     let run = &read_runs(&s, &[held.as_path()], RecorderUnits::MM_KN, DT_S).unwrap()[0];
     let row = eval::evaluate_run(&t.file, &s, run, DT_S).unwrap();
     // The linear path: the elastic structure's own response to the same record.
-    let input = rths::nonlinear::NlResponse {
+    let input = rths::machinery::structure::NlResponse {
         time_s: (0..run.ground_accel_mm_s2.len())
             .map(|k| k as f64 * DT_S)
             .collect(),
@@ -234,9 +234,10 @@ fn opensees_histories_train_a_model_scored_against_opensees_s_own_held_out_run()
     ignore = "needs openseespy, not found when the tests were built (docs/ci.md)"
 )]
 fn the_fiber_frame_learned_from_opensees_runs_beats_its_elastic_floors_on_a_held_out_run() {
-    use rths::train::nonlinear::choose::{train_form, Form, TrainedForm};
-    use rths::train::nonlinear::floors::{read_runs as floor_runs, FloorModel};
-    use rths::train::nonlinear::score::{score_run, Learned};
+    use rths::machinery::train::nonlinear::choose::{train_form, Form, TrainedForm};
+    use rths::machinery::train::nonlinear::floors::{read_runs as floor_runs, FloorModel};
+    use rths::machinery::train::nonlinear::score::Learned;
+    use rths::studies::nonlinear::held_out::score_run;
     let dir = tempfile::tempdir().unwrap();
     let (train_dir, held_dir) = (dir.path().join("train"), dir.path().join("held"));
     let spawn = |out: &Path, record: &str, scales: &[&str], seconds: &str| {

@@ -5,17 +5,17 @@
 
 use std::path::Path;
 
-use rths::motion::GroundMotion;
-use rths::nonlinear::{drift_nrmse_pct, elastic_drifts, fe_reference};
-use rths::train::nonlinear::runs::{fe_run, pure_loop};
-use rths::train::nonlinear::{eval, modal, train, NlTrainConfig, SpringLaw};
+use rths::machinery::motion::GroundMotion;
+use rths::machinery::structure::{drift_nrmse_pct, elastic_drifts, fe_reference};
+use rths::machinery::train::nonlinear::runs::{fe_run, pure_loop};
+use rths::machinery::train::nonlinear::{eval, modal, train, NlTrainConfig, SpringLaw};
 use rths_core::metamodel::ModalHyst;
 use rths_core::params::DT_S;
 use rths_files::nl_model_file::{
-    structure_checksum, ModeSpec, NlModelFile, NlModelFileError, NlTraining, SpringSpec,
-    StructureId, NL_FORMAT, NL_KIND, NL_VERSION,
+    structure_checksum, ModeSpec, NlModelFile, NlModelFileError, NlStructureId, NlTraining,
+    SpringSpec, NL_FORMAT, NL_KIND, NL_VERSION,
 };
-use rths_files::structure_file::{StoryLawSpec, Structure, StructureFile};
+use rths_files::structure_file::{StoredStoryLaw, Structure, StructureFile};
 
 fn root(p: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
@@ -48,14 +48,14 @@ fn exact_model(path: &str) -> NlModelFile {
                 drift: modes.drift[k].clone(),
             };
             match l {
-                StoryLawSpec::Bilinear {
+                StoredStoryLaw::Bilinear {
                     yield_force,
                     post_yield_ratio,
                 } => {
                     sp.yield_force_kn = *yield_force;
                     sp.post_yield_ratio = *post_yield_ratio;
                 }
-                StoryLawSpec::BoucWen {
+                StoredStoryLaw::BoucWen {
                     yield_force,
                     post_yield_ratio,
                     exponent,
@@ -77,7 +77,7 @@ fn exact_model(path: &str) -> NlModelFile {
         format: NL_FORMAT.into(),
         version: NL_VERSION,
         kind: NL_KIND.into(),
-        structure: StructureId {
+        structure: NlStructureId {
             name: s.name().into(),
             checksum: structure_checksum(&t).unwrap(),
         },

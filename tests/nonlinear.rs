@@ -4,8 +4,8 @@
 
 use std::path::Path;
 
-use rths::motion::GroundMotion;
-use rths::nonlinear::fe_reference;
+use rths::machinery::motion::GroundMotion;
+use rths::machinery::structure::fe_reference;
 use rths_core::params::DT_S;
 use rths_core::structure_n::{ChangN, MAX_DOF};
 use rths_files::structure_file::Structure;

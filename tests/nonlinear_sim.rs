@@ -6,12 +6,13 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use rths::nonlinear::rig::ForceCorrection;
-use rths::nonlinear::scenario::{
-    run_pure, score, SimScenario, StructureCase, StructureFe, StructureModel,
+use rths::machinery::structure::rig::ForceCorrection;
+use rths::studies::nonlinear::scenario::{
+    numerical_fe, run_pure, score, SimScenario, StructureCase,
 };
-use rths::nonlinear::study::{self, StudyConfig};
-use rths::scenario::ScenarioId;
+use rths::studies::nonlinear::study::{self, NonlinearStudyConfig};
+use rths::studies::scenario::ScenarioId;
+use rths_core::control::Analytical;
 use rths_core::params::DT_S;
 use rths_files::structure_file::Structure;
 use rths_hal_sim::Preset;
@@ -73,7 +74,7 @@ fn the_structure_fe_in_the_pure_loop_is_its_reference() {
     ] {
         let s = Structure::load(&root(path)).unwrap();
         let case = StructureCase::new(s, &motion.scaled(scale).resample_mm_s2(DT_S)).unwrap();
-        let (series, stop) = run_pure(&case, &mut StructureFe::new(&case.structure).unwrap());
+        let (series, stop) = run_pure(&case, &numerical_fe(&case.structure).unwrap());
         assert!(stop.is_none());
         let sc = SimScenario::Study(ScenarioId::FePure);
         let r = score(&case, sc, &series, stop).report.nrmse_pct.unwrap();
@@ -276,11 +277,11 @@ fn bad_input_is_refused_with_the_reason() {
 #[test]
 fn a_small_study_scores_every_applicable_scenario() {
     let s = Structure::load(&root(YIELDING)).unwrap();
-    let no_model = |_: &Structure| -> anyhow::Result<Option<Box<dyn StructureModel>>> { Ok(None) };
+    let no_model = |_: &Structure| -> anyhow::Result<Option<Analytical>> { Ok(None) };
     let models =
         |id| rths::cmd::simulate::study_models(None, id, Preset::UnrCompact, None).unwrap();
     let lr = models(ScenarioId::LrOnline);
-    let cfg = StudyConfig {
+    let cfg = NonlinearStudyConfig {
         structures: vec![s],
         models: &no_model,
         lr: lr.lr,
@@ -308,7 +309,7 @@ fn a_small_study_scores_every_applicable_scenario() {
             "lrx-online"
         ]
     );
-    let nrmse = |id: &str, key: fn(&rths::scenario::ScenarioReport) -> Option<f64>| {
+    let nrmse = |id: &str, key: fn(&rths::studies::scenario::ScenarioReport) -> Option<f64>| {
         key(&row.runs.iter().find(|x| x.report.id == id).unwrap().report)
     };
     assert!(nrmse("fe-pure", |r| r.nrmse_pct).unwrap() < 1e-9);
@@ -340,8 +341,8 @@ fn a_small_study_scores_every_applicable_scenario() {
 
 #[test]
 fn the_structure_loop_is_the_controllers_loop() {
-    use rths::nonlinear::scenario::{paper_ats, run_hybrid, CompensatorTarget};
-    use rths::scenario::{self, ScenarioSetup};
+    use rths::studies::nonlinear::scenario::{paper_ats, run_hybrid, CompensatorTarget};
+    use rths::studies::scenario::{self, ScenarioSetup};
     // The paper's linear frame through the structure loop (ChangN of the file, the ATS, the
     // supervisor, the same rig) against `rths simulate`'s fe-online-ats (the core controller with
     // its SDOF FE): the same tick, so the same run up to the integrators' round-off.
@@ -350,10 +351,10 @@ fn the_structure_loop_is_the_controllers_loop() {
     let case = StructureCase::new(s, &ag).unwrap();
     assert!(case.paper);
     let rig = case.rig(Preset::UnrCompact, 1);
-    let mut fe = StructureFe::new(&case.structure).unwrap();
+    let fe = numerical_fe(&case.structure).unwrap();
     let (mine, stop) = run_hybrid(
         &case,
-        &mut fe,
+        &fe,
         paper_ats(None).unwrap(),
         &rig,
         CompensatorTarget::Next,
@@ -361,7 +362,8 @@ fn the_structure_loop_is_the_controllers_loop() {
     )
     .unwrap();
     assert!(stop.is_none());
-    let reference = rths::study::reference_for(&ag, rths_hal_sim::Specimen::Linear, 1.0).unwrap();
+    let reference =
+        rths::studies::study::reference_for(&ag, rths_hal_sim::Specimen::Linear, 1.0).unwrap();
     let setup = ScenarioSetup {
         id: ScenarioId::FeOnlineAts,
         ground_accel_mm_s2: &ag,
@@ -507,7 +509,7 @@ fn a_ductility_4_record_beyond_the_stroke_runs_at_length_scale_2() {
 
 #[test]
 fn the_rig_at_the_models_current_displacement_removes_the_one_tick_lead() {
-    use rths::nonlinear::scenario::{paper_ats, run_hybrid, CompensatorTarget};
+    use rths::studies::nonlinear::scenario::{paper_ats, run_hybrid, CompensatorTarget};
     // Kobe × 0.576 on the yielding paper frame (peak ductility 1.99): the compensator given d_{k+1}
     // (the core controller's tick) brings the rig there one tick before the model reads its
     // force, which damps the response; given d_k it does not.
@@ -520,10 +522,10 @@ fn the_rig_at_the_models_current_displacement_removes_the_one_tick_lead() {
     let rig = case.rig(Preset::UnrCompact, 1);
     let sc = SimScenario::Study(ScenarioId::FeOnlineAts);
     let figures = |timing, rig: &rths_hal_sim::RigConfig| {
-        let mut fe = StructureFe::new(&case.structure).unwrap();
+        let fe = numerical_fe(&case.structure).unwrap();
         let (series, stop) = run_hybrid(
             &case,
-            &mut fe,
+            &fe,
             paper_ats(None).unwrap(),
             rig,
             timing,
@@ -551,7 +553,7 @@ fn the_rig_at_the_models_current_displacement_removes_the_one_tick_lead() {
         assert!((a - b).abs() < 0.005, "{timing:?}: {a} noisy, {b} ideal");
     }
     let mu_ref = current.peak_ductility.unwrap();
-    let low = |f: &rths::nonlinear::scenario::StructureFigures| {
+    let low = |f: &rths::studies::nonlinear::scenario::StructureFigures| {
         1.0 - f.peak_ductility_model.unwrap() / mu_ref
     };
     // Measured: 3.3 % low and 74 % residual error (d_{k+1}); 0.0 % and 6.5 % (d_k).
@@ -566,7 +568,7 @@ fn the_rig_at_the_models_current_displacement_removes_the_one_tick_lead() {
 
 #[test]
 fn the_test_plan_picks_the_smallest_length_scale_that_fits() {
-    use rths::nonlinear::scenario::{rig_demand, LengthScale};
+    use rths::studies::nonlinear::scenario::{rig_demand, LengthScale};
     use rths_core::supervisor::Limits;
     let s = Structure::load(&root(YIELDING)).unwrap();
     let lim = Limits::paper_actuator();
@@ -579,7 +581,7 @@ fn the_test_plan_picks_the_smallest_length_scale_that_fits() {
         let case = StructureCase::new(s.clone(), &ag).unwrap();
         let l = study::plan_length_scale(&case).unwrap().unwrap();
         assert_eq!(l.get() == 1.0, expect_one, "{scale}: {l:?}");
-        let (pred, _) = run_pure(&case, &mut StructureFe::new(&case.structure).unwrap());
+        let (pred, _) = run_pure(&case, &numerical_fe(&case.structure).unwrap());
         let fits = |l: f64| {
             let (p, v) = rig_demand(&pred.target_mm, LengthScale::new(l).unwrap());
             p <= f * lim.stroke_mm() && v <= f * lim.velocity_mm_s()
@@ -594,9 +596,9 @@ fn the_test_plan_picks_the_smallest_length_scale_that_fits() {
 
 #[test]
 fn the_learned_model_in_the_loop_needs_the_force_at_its_own_displacement() {
-    use rths::nonlinear::model::LearnedModel;
-    use rths::nonlinear::rig;
-    use rths::nonlinear::scenario::{run_hybrid, CompensatorTarget};
+    use rths::machinery::structure::model;
+    use rths::machinery::structure::rig;
+    use rths::studies::nonlinear::scenario::{run_hybrid, CompensatorTarget};
     use rths_core::compensator::{Compensator, Lead};
     // Kobe × 0.576 on the yielding paper frame (peak ductility 1.99), the learned model behind the
     // lead identified on this rig: fed the measured force as is, the rig's tracking error enters
@@ -619,11 +621,11 @@ fn the_learned_model_in_the_loop_needs_the_force_at_its_own_displacement() {
     let sc = SimScenario::NlOnline;
     let model_file = root("data/models/nl-paper-frame-yielding.json");
     let figures = |correction: &ForceCorrection| {
-        let mut m = LearnedModel::load(&model_file, &text).unwrap();
+        let m = Analytical::StructureModal(model::load(&model_file, &text).unwrap());
         let lead = Compensator::Lead(Lead::new(comp.corrected_lead.lead));
         let (series, stop) = run_hybrid(
             &case,
-            &mut m,
+            &m,
             lead,
             &rig,
             CompensatorTarget::Current,

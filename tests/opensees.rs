@@ -10,8 +10,8 @@ use std::ffi::OsString;
 use std::path::PathBuf;
 
 use nalgebra::DVector;
-use rths::imported::export::{self, ImportRequest};
-use rths::imported::{fe, DofLabel, ImportedStructure};
+use rths::machinery::imported::export::{self, ImportRequest};
+use rths::machinery::imported::{fe, DofLabel, ImportedStructure};
 use rths_core::metrics::nrmse_pct;
 use rths_core::params::DT_S;
 use rths_files::motion::GroundMotion;

@@ -7,8 +7,8 @@
 
 use std::path::PathBuf;
 
-use rths::imported::reduced::{self, ReducedModelFile, REDUCED_TRAINING_RECORDS};
-use rths::imported::{fe, ImportedStructure};
+use rths::machinery::imported::reduced::{self, ReducedModelFile, REDUCED_TRAINING_RECORDS};
+use rths::machinery::imported::{fe, ImportedStructure};
 use rths_core::params::DT_S;
 use rths_files::motion::GroundMotion;
 

@@ -4,8 +4,8 @@
 //! value or an error, never panic, and whatever it accepts must be valid.
 
 use proptest::prelude::*;
-use rths::model_file::{ModelFile, ModelKind};
-use rths::motion::{parse_at2, parse_csv};
+use rths::machinery::model_file::{ModelFile, ModelKind};
+use rths::machinery::motion::{parse_at2, parse_csv};
 
 const LR: &str = include_str!("../data/models/lr.json");
 const RNN: &str = include_str!("../data/models/rnn-5.json");
@@ -32,9 +32,9 @@ fn check_model(text: &str) {
     if let Ok(m) = ModelFile::from_json(text) {
         assert!(m.validate().is_ok());
         let ok = match m.kind {
-            ModelKind::Lr => rths::models::lr_params(&m).is_ok(),
-            ModelKind::Rnn => rths::models::rnn_params(&m).is_ok(),
-            ModelKind::Lrx => rths::models::lrx_params(&m).is_ok(),
+            ModelKind::Lr => rths::machinery::models::lr_params(&m).is_ok(),
+            ModelKind::Rnn => rths::machinery::models::rnn_params(&m).is_ok(),
+            ModelKind::Lrx => rths::machinery::models::lrx_params(&m).is_ok(),
         };
         // A file made at another controller rate is valid but refused to run (issue 27).
         let at_rate = rths_files::rate::check_dt("m", m.dt_s, rths_core::params::DT_S, "").is_ok();
@@ -174,8 +174,10 @@ fn a_reduced_model_with_huge_counts_is_a_count_error_not_an_allocation() {
 /// aborted. The count is now checked first: a size error naming the limit.
 #[test]
 fn an_imported_structure_too_large_to_condense_is_refused_not_allocated() {
-    use rths::imported::file::{ImportedFile, ImportedSpecimen, Source, MAX_DENSE_ENTRIES};
-    use rths::imported::DofLabel;
+    use rths::machinery::imported::file::{
+        ImportedFile, ImportedSpecimen, Source, MAX_DENSE_ENTRIES,
+    };
+    use rths::machinery::imported::DofLabel;
     let n = 100_000;
     let file = ImportedFile {
         format: "rths-structure".into(),

@@ -6,9 +6,9 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
-use rths::motion::GroundMotion;
-use rths::scenario::{self, ScenarioId, ScenarioSetup};
-use rths::study::{self, DrawnPlant};
+use rths::machinery::motion::GroundMotion;
+use rths::studies::scenario::{self, ScenarioId, ScenarioSetup};
+use rths::studies::study::{self, DrawnPlant};
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{Preset, Specimen};
 
@@ -46,7 +46,7 @@ fn a_quick_study_has_every_row_and_lists_the_draws() {
     ok(&o);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let draws = v["draws"].as_u64().unwrap() as usize;
-    assert_eq!(draws, rths::robustness::QUICK_DRAWS);
+    assert_eq!(draws, rths::studies::robustness::QUICK_DRAWS);
     let records = v["records"].as_array().unwrap();
     let names: Vec<&str> = records
         .iter()
@@ -92,7 +92,7 @@ fn a_quick_study_has_every_row_and_lists_the_draws() {
         let f = j["stiffness_factor"].as_f64().unwrap();
         let seed = j["seed"].as_u64().unwrap();
         assert!((5..5 + draws as u64).contains(&seed));
-        let mut rig = scenario::rig_config(preset, Specimen::Linear, f, seed);
+        let mut rig = rths::machinery::reference::rig_config(preset, Specimen::Linear, f, seed);
         rig.uncertainty = true;
         let d = DrawnPlant::of(&rig, f).unwrap();
         assert_eq!(j["plant"]["beta1"].as_f64().unwrap(), d.beta1);
@@ -140,7 +140,7 @@ fn a_quick_study_has_every_row_and_lists_the_draws() {
     assert!(body.iter().all(|r| r.len() == header.len()));
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
     let first = &body[0];
-    let mut rig = scenario::rig_config(
+    let mut rig = rths::machinery::reference::rig_config(
         Preset::UnrCompact,
         Specimen::Linear,
         first[col("stiffness_factor")].parse().unwrap(),
@@ -233,7 +233,7 @@ fn fe_online_ats_starts_from_the_identified_values() {
     let dir = tempfile::tempdir().unwrap();
     let rig = dir.path().join("rig.json");
     identify(&rig, &["--preset", "benchmark"]);
-    let file = rths::identify::RigFile::load(&rig).unwrap();
+    let file = rths::machinery::identify::RigFile::load(&rig).unwrap();
     let identified = file.compensation.ats_initial;
     // The paper's start is the expected delay of 28 ticks; the benchmark actuator is slower.
     let tau = PAPER_DELAY_STEPS as f64 * DT_S;
@@ -279,7 +279,8 @@ fn fe_online_ats_starts_from_the_identified_values() {
         .scaled(0.4)
         .resample_mm_s2(DT_S);
     let ag = &ag[..20_000];
-    let rig_cfg = scenario::rig_config(Preset::Benchmark, Specimen::Linear, 1.0, 1);
+    let rig_cfg =
+        rths::machinery::reference::rig_config(Preset::Benchmark, Specimen::Linear, 1.0, 1);
     let reference = study::reference_for(ag, Specimen::Linear, 1.0).unwrap();
     let setup = ScenarioSetup {
         id: ScenarioId::FeOnlineAts,

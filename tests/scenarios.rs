@@ -1,11 +1,11 @@
 //! Whole virtual RTHS runs (El Centro, `unr-compact`, seed 1): every scenario against its figure.
 #![cfg(feature = "sim")]
 
-use rths::model_file::ModelFile;
-use rths::models;
-use rths::motion::GroundMotion;
-use rths::scenario::{self, ScenarioId, ScenarioReport, ScenarioSetup};
-use rths::study;
+use rths::machinery::model_file::ModelFile;
+use rths::machinery::models;
+use rths::machinery::motion::GroundMotion;
+use rths::studies::scenario::{self, ScenarioId, ScenarioReport, ScenarioSetup};
+use rths::studies::study;
 use rths_core::metamodel::{LrParams, RnnParams};
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{BoucWen, Preset, Specimen};
@@ -31,7 +31,7 @@ fn run(id: ScenarioId, specimen: Specimen, factor: f64) -> ScenarioReport {
         id,
         ground_accel_mm_s2: &ag,
         reference_mm: &reference,
-        rig: scenario::rig_config(Preset::UnrCompact, specimen, factor, 1),
+        rig: rths::machinery::reference::rig_config(Preset::UnrCompact, specimen, factor, 1),
         stiffness_factor: factor,
         lr: Some(shipped_lr()),
         rnn: id.rnn_hidden().map(shipped_rnn),
@@ -155,7 +155,7 @@ fn bouc_wen_specimen_with_ats() {
 
 #[test]
 fn two_phase_lr_training_reproduces_the_shipped_model_and_meets_the_paper() {
-    use rths::train::{data, lr};
+    use rths::machinery::train::{data, lr};
     use rths_core::params::Prototype;
     let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
     let reference = study::reference_mm(&ag, 1.0).unwrap();
@@ -176,7 +176,7 @@ fn two_phase_lr_training_reproduces_the_shipped_model_and_meets_the_paper() {
         id,
         ground_accel_mm_s2: &ag,
         reference_mm: &reference,
-        rig: scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
+        rig: rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1),
         stiffness_factor: 1.0,
         lr: Some(lr),
         rnn: None,
@@ -191,7 +191,7 @@ fn two_phase_lr_training_reproduces_the_shipped_model_and_meets_the_paper() {
     assert_eq!(sol.effective_rank, 6);
     assert!(sol.condition_number.is_finite());
     // The phase-2 model meets the paper in the loop...
-    let lr2 = rths::models::lr_params(&file).unwrap();
+    let lr2 = rths::machinery::models::lr_params(&file).unwrap();
     let online = scenario::run(&setup(ScenarioId::LrOnline, lr2))
         .unwrap()
         .report;

@@ -35,6 +35,9 @@ fn link_elf() -> PathBuf {
         .args(["build", "--release", "--features", "link"])
         .env_remove("CARGO_TARGET_DIR")
         .env_remove("RTHS_FAULT")
+        .env_remove("RTHS_MODEL")
+        .env_remove("RTHS_STRUCTURE")
+        .env_remove("RTHS_BUDGET")
         .status()
         .expect("cargo");
     assert!(status.success(), "firmware build failed");

@@ -3,7 +3,7 @@
 //! `#[ignore]`d: `cargo test --release --features sim --test soak -- --ignored --nocapture`.
 #![cfg(feature = "sim")]
 
-use rths::soak::{self, SoakReport, HOUR_TICKS};
+use rths::studies::soak::{self, SoakReport, HOUR_TICKS};
 
 fn print(r: &SoakReport) {
     println!(

@@ -1,4 +1,4 @@
-//! The firmware's structure budget (`firmware/budget.sh`, `budget-structures`) rerun on the host:
+//! The firmware's structure budget (`firmware/budget.sh`, `RTHS_BUDGET=structures`) rerun on the host:
 //! the same twelve controllers (FE linear, FE yielding, structure metamodel, modal-hysteretic
 //! metamodel of `data/models/nl-S.json`; N = 1, 3, 8), the same
 //! El Centro ticks at 4096 Hz, the same ideal rig, and the same FNV-1a checksum of each command
@@ -6,7 +6,7 @@
 //! emulated Cortex-M7's (`STRUCTURE` lines of its QEMU run, docs/firmware.md#the-structure-budget):
 //! host and firmware step these controllers bit for bit.
 
-use rths::benchmark::meta::train_at;
+use rths::studies::benchmark::meta::train_at;
 use rths_core::checksum::Fnv1a64;
 use rths_core::control::{ControlConfig, Controller, FeedbackSource};
 use rths_core::control::{ModalSpec, StoryLawSpec};
@@ -152,7 +152,7 @@ fn the_host_steps_the_structure_budget_as_the_m7_does() {
             }
             "modal" => run_modal(name, k_e, &ag),
             _ => {
-                let m = train_at(&s, rths::benchmark::DEFAULT_INTENSITY, dt).unwrap();
+                let m = train_at(&s, rths::studies::benchmark::DEFAULT_INTENSITY, dt).unwrap();
                 let p = m.params();
                 let spec = ModelSpec::StructureMeta {
                     theta: p.theta(),
@@ -171,8 +171,8 @@ fn the_host_steps_the_structure_budget_as_the_m7_does() {
 /// half a minute of CPU and is left to `budget.sh`.
 #[test]
 fn the_host_steps_the_reduced_rows_as_the_m7_does() {
-    use rths::imported::reduced;
-    use rths::imported::ImportedStructure;
+    use rths::machinery::imported::reduced;
+    use rths::machinery::imported::ImportedStructure;
     let dt = dt_s(4096);
     let ag = GroundMotion::try_el_centro().unwrap().resample_mm_s2(dt);
     let records = reduced::training_records(dt).unwrap();

@@ -4,11 +4,11 @@
 
 use std::process::Command;
 
-use rths::model_file::ModelFile;
-use rths::models;
-use rths::motion::GroundMotion;
-use rths::scenario::{self, ScenarioId, ScenarioRun, ScenarioSetup};
-use rths::study::{self, DrawnPlant};
+use rths::machinery::model_file::ModelFile;
+use rths::machinery::models;
+use rths::machinery::motion::GroundMotion;
+use rths::studies::scenario::{self, ScenarioId, ScenarioRun, ScenarioSetup};
+use rths::studies::study::{self, DrawnPlant};
 use rths_core::metrics;
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{BoucWen, Preset, RigConfig, Specimen};
@@ -20,12 +20,13 @@ const LRX: &str = include_str!("../data/models/lrx.json");
 /// specimen sweep gives it (Kobe × 0.4, El Centro × 0.85).
 fn held_out(name: &str) -> (Vec<f64>, f64) {
     let m = GroundMotion::embedded(name).unwrap();
-    let scale = rths::sweep::fitting_scale(&m.resample_mm_s2(DT_S)).unwrap();
+    let scale = rths::studies::sweep::fitting_scale(&m.resample_mm_s2(DT_S)).unwrap();
     (m.scaled(scale).resample_mm_s2(DT_S), scale)
 }
 
 fn uncertain_rig(seed: u64) -> RigConfig {
-    let mut rig = scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, seed);
+    let mut rig =
+        rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, seed);
     rig.uncertainty = true;
     rig
 }
@@ -56,7 +57,7 @@ fn a_nominal_plant_keeps_its_reference_bit_for_bit() {
         (Specimen::Linear, 0.8),
         (Specimen::BoucWen(BoucWen::default()), 1.0),
     ] {
-        let rig = scenario::rig_config(Preset::UnrCompact, specimen, f, 1);
+        let rig = rths::machinery::reference::rig_config(Preset::UnrCompact, specimen, f, 1);
         let (fair, draw) = study::reference_for_rig(&ag, &rig, f).unwrap();
         assert!(!draw.uncertainty);
         assert_eq!(draw.specimen_stiffness_factor.to_bits(), f.to_bits());
@@ -91,7 +92,8 @@ fn the_draw_is_the_plants_and_the_reference_follows_it() {
     assert!((f - plant.specimen_stiffness_n_per_m() / nominal_k).abs() < 1e-12);
     // At F = 0.8 the same seed draws the same offset (σ·z is additive), and the effective factor
     // is the drawn stiffness over the paper's brace.
-    let mut c08 = scenario::rig_config(Preset::UnrCompact, Specimen::Linear, 0.8, 3);
+    let mut c08 =
+        rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 0.8, 3);
     c08.uncertainty = true;
     let d08 = DrawnPlant::of(&c08, 0.8).unwrap();
     let k08 = c08.specimen_stiffness_kn_per_mm * 1e6;
@@ -312,7 +314,7 @@ fn a_model_or_rig_file_of_another_rig_is_refused() {
         ]),
         "another identification",
     );
-    let sum = rths::identify::rig_file::checksum_hex(&std::fs::read(&rig).unwrap());
+    let sum = rths::machinery::identify::rig_file::checksum_hex(&std::fs::read(&rig).unwrap());
     let own = lrx_of_rig(d, &format!("benchmark virtual {sum}"));
     let o = simulate(&[
         "--scenario",

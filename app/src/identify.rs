@@ -10,12 +10,16 @@
 //! cosines as the host (192 KiB of flash at 2048 Hz; 200 lines of f64 cosines per tick would not
 //! fit the Cortex-M4's tick, and the `libm` crate's cosines are not the host's to the bit), and
 //! [`Player`] applies the envelope, scale and slew limit per tick.
+//!
+//! The host's `rths identify` runs this same tick ([`identify_step`]) against its virtual rig,
+//! through its one driver (`src/machinery/drive.rs` `identify`), with the excitation's tables computed at run
+//! time (any [`Tables`]) and the schedule of its settings ([`begin_with`]).
 
 use heapless::spsc::Producer;
 use rths_core::control::Controller;
 use rths_core::hal::{Actuator, Daq, Error};
 use rths_core::identify_excitation::{ExcitationConfig, Player, Schedule, Tables, UnitStats};
-use rths_core::identify_session::{IdentifyPhase, IdentifySession};
+use rths_core::identify_session::{IdentifyOutcome, IdentifyPhase, IdentifySession};
 use rths_core::params::DT_S;
 use rths_core::supervisor::State;
 use rths_link::NackReason;
@@ -103,6 +107,10 @@ pub struct Identification {
     pub dropped: u32,
     /// The supervisor's state after the last tick.
     pub state: State,
+    /// Ticks whose DAQ read failed (no sample).
+    pub daq_errors: u32,
+    /// Ticks whose command the actuator reported an error for (e.g. clipped).
+    pub actuator_errors: u32,
 }
 
 impl Default for Identification {
@@ -128,13 +136,21 @@ impl Identification {
             ticks: 0,
             dropped: 0,
             state: State::Idle,
+            daq_errors: 0,
+            actuator_errors: 0,
         }
     }
 
     /// Begin playing `player` (the supervisor is already running: [`begin`]).
     pub fn start(&mut self, player: Player) {
+        self.start_at(player, DT_S);
+    }
+
+    /// [`Self::start`] at the tick `dt_s` (the host's identification at another rate, e.g. the
+    /// vRTHS benchmark's 4096 Hz; it bounds the ramps, `rths_core::identify_session::MAX_RAMP_S`).
+    pub fn start_at(&mut self, player: Player, dt_s: f64) {
         *self = Self {
-            session: Some(IdentifySession::new(player, DT_S)),
+            session: Some(IdentifySession::new(player, dt_s)),
             ..Self::new()
         };
     }
@@ -147,6 +163,11 @@ impl Identification {
     /// An identification is under way.
     pub fn active(&self) -> bool {
         self.phase().is_some_and(|p| p != IdentifyPhase::Ended)
+    }
+
+    /// How the last one ended (`None`: none started, or still under way).
+    pub fn outcome(&self) -> Option<IdentifyOutcome> {
+        self.session.as_ref().and_then(IdentifySession::outcome)
     }
 }
 
@@ -161,7 +182,16 @@ pub fn begin(
     may_arm: bool,
     at_measured: Option<f64>,
 ) -> Result<Player, NackReason> {
-    let schedule = tables.schedule(amplitude_mm)?;
+    begin_with(ctl, tables.schedule(amplitude_mm)?, may_arm, at_measured)
+}
+
+/// [`begin`] with the excitation's `schedule` given (the host's, from its settings at any tick).
+pub fn begin_with(
+    ctl: &mut Controller,
+    schedule: Schedule,
+    may_arm: bool,
+    at_measured: Option<f64>,
+) -> Result<Player, NackReason> {
     if !ctl.supervisor().at_rest() {
         return Err(NackReason::Busy);
     }
@@ -188,20 +218,21 @@ pub fn begin(
     Ok(Player::new(schedule))
 }
 
-/// One tick of an identification: core's [`IdentifySession::step`] (the tick `rths identify` runs
-/// on the host too) on the controller's supervisor, its record queued for the link. The record's
-/// `target_mm` is the excitation's request.
-pub fn identify_step<D, A>(
+/// One tick of an identification: core's [`IdentifySession::step`] on the controller's supervisor,
+/// its record queued for the link. The record's `target_mm` is the excitation's request. The
+/// board's control task and the host's `rths identify` both run it.
+pub fn identify_step<D, A, T>(
     id: &mut Identification,
     ctl: &mut Controller,
     daq_act: &mut D,
     producer: &mut Producer<'_, TelemetryRecord>,
-    tables: &FlashTables,
+    tables: &T,
     overrun: bool,
 ) -> IdentifyTick
 where
     D: Daq<Error = A> + Actuator<Error = A>,
     A: Error,
+    T: Tables,
 {
     let Some(session) = id.session.as_mut() else {
         return IdentifyTick {
@@ -226,6 +257,12 @@ where
     };
     if producer.enqueue(rec).is_err() {
         id.dropped = id.dropped.saturating_add(1);
+    }
+    if r.daq_error.is_some() {
+        id.daq_errors = id.daq_errors.saturating_add(1);
+    }
+    if r.actuator_error {
+        id.actuator_errors = id.actuator_errors.saturating_add(1);
     }
     id.ticks = session.ticks();
     id.state = r.state;

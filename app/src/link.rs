@@ -140,6 +140,8 @@ pub struct Session<'a> {
     pub model_kind: ModelKind,
     /// A chunked model upload in progress.
     pub model_upload: ModelStaging<'a>,
+    /// A chunked rig-compensation upload in progress.
+    pub rig_upload: crate::rig_upload::RigStaging,
     /// What the run in progress does if the host falls silent (chosen at arm time).
     pub link_loss: LinkLoss,
     /// The arming host's token (0: none, anyone may start).
@@ -178,6 +180,7 @@ impl<'a> Session<'a> {
             rearm,
             model_kind,
             model_upload: ModelStaging::new(staging),
+            rig_upload: crate::rig_upload::RigStaging::new(),
             link_loss: LinkLoss::Complete,
             owner: 0,
             excitation: None,
@@ -345,12 +348,32 @@ pub fn handle(
             count,
             values,
             checksum,
-        } => crate::rig_upload::upload_rig(ctl, s.model_kind, kind, count, &values, checksum).map(
-            |_| {
+        } => {
+            let part = in_force(ctl, s);
+            crate::rig_upload::upload_rig(ctl, &part, kind, count, &values, checksum).map(|_| {
                 s.rig_source = RecordSource::Uploaded;
                 Effect::None
-            },
-        ),
+            })
+        }
+        HostMsg::RigBegin {
+            kind,
+            values,
+            checksum,
+        } => s
+            .rig_upload
+            .begin(s.model_kind, kind, values, checksum, at_rest)
+            .map(|()| Effect::None),
+        HostMsg::RigChunk { seq, count, values } => s
+            .rig_upload
+            .chunk(seq, count, &values, at_rest)
+            .map(|()| Effect::None),
+        HostMsg::RigCommit => {
+            let part = in_force(ctl, s);
+            s.rig_upload.commit(ctl, &part).map(|_| {
+                s.rig_source = RecordSource::Uploaded;
+                Effect::None
+            })
+        }
         HostMsg::UploadLr {
             features,
             theta,
@@ -394,21 +417,53 @@ pub fn handle(
             ticks_per_step,
             lead_weights,
             lead_stride,
-        } => crate::site::begin(
-            ctl,
-            run,
-            s,
-            finished,
-            ticks_per_step,
-            &lead_weights,
-            lead_stride,
-        ),
-        HostMsg::SiteTarget { step, target_mm } => crate::site::target(ctl, s, step, target_mm),
-        HostMsg::SiteEnd { fault } => crate::site::end(ctl, fault),
+        } => {
+            let (may_arm, at_measured) = arm_mode(s, run, finished);
+            crate::site::begin(
+                ctl,
+                run,
+                may_arm,
+                at_measured,
+                ticks_per_step,
+                &lead_weights,
+                lead_stride,
+            )
+            .map(|()| {
+                // The stream restarts at `seq` 0, every tick. A real rig ramps down if the host
+                // falls silent; the emulated board waits for each target (its plant holds), so
+                // its virtual clock is no host's silence.
+                s.identifying = false;
+                s.every = 1;
+                s.seq = 0;
+                s.site_step = 0;
+                s.owner = 0;
+                s.link_loss = match s.rearm {
+                    Rearm::OncePerPowerUp => LinkLoss::Complete,
+                    Rearm::AtMeasured => LinkLoss::RampDown,
+                };
+                Effect::Started
+            })
+        }
+        HostMsg::SiteTarget { step, target_mm } => {
+            crate::site::target(ctl, s.site_step, step, target_mm).map(|()| {
+                s.site_step = s.site_step.wrapping_add(1);
+                Effect::None
+            })
+        }
+        HostMsg::SiteEnd { fault } => crate::site::end(ctl, fault).map(|()| Effect::None),
     };
     match result {
         Ok(e) => (DeviceMsg::Ack(req), e),
         Err(n) => (DeviceMsg::Nack(req, n), Effect::None),
+    }
+}
+
+/// The part in force, as a rig compensation is checked against it.
+fn in_force(ctl: &Controller, s: &Session<'_>) -> crate::rig_upload::InForce {
+    crate::rig_upload::InForce {
+        kind: s.model_kind,
+        dims: crate::rig_upload::dims_of(ctl),
+        budget: Some(s.tick_budget),
     }
 }
 
@@ -456,11 +511,7 @@ fn identify_request(
     amplitude_mm: f64,
 ) -> Result<Effect, NackReason> {
     let tables = s.excitation.ok_or(NackReason::Unsupported)?;
-    let at_measured = match s.rearm {
-        Rearm::OncePerPowerUp => None,
-        Rearm::AtMeasured => Some(run.last_disp_mm),
-    };
-    let may_arm = !(finished && s.rearm == Rearm::OncePerPowerUp);
+    let (may_arm, at_measured) = arm_mode(s, run, finished);
     let player = crate::identify::begin(ctl, &tables, amplitude_mm, may_arm, at_measured)?;
     s.identifying = true;
     s.every = 1;
@@ -469,6 +520,16 @@ fn identify_request(
     s.owner = 0;
     run.restart();
     Ok(Effect::Identify(player))
+}
+
+/// How a test that starts now is armed: (it may arm: the emulated plant plays once per
+/// power-up, `finished` says it has; the position to arm at: a real rig's measured one, `None`
+/// for the emulated plant's 0).
+fn arm_mode(s: &Session<'_>, run: &Run, finished: bool) -> (bool, Option<f64>) {
+    match s.rearm {
+        Rearm::OncePerPowerUp => (!finished, None),
+        Rearm::AtMeasured => (true, Some(run.last_disp_mm)),
+    }
 }
 
 /// The host counts as lost: the run's policy is [`LinkLoss::RampDown`] and no valid frame came

@@ -1,19 +1,20 @@
 //! Chunked model uploads of any kind into any image (LRX, an RNN of any hidden size up to the
-//! controller's capacity, FE + ATS), validated on the device as the values arrive (order, count,
-//! finiteness) and at the commit (end-to-end checksum, the board's tick budget, then the model's
-//! own checks as `rths_core::model` makes them); refused whole, the model in force kept. The values
-//! wait in one staging area of [`rths_link::MODEL_MAX_VALUES`]; the new parts are built in the
-//! controller in place (`Controller::install_rnn`, `install_ats`: no ~9 kB RNN or 33 KiB ATS on
-//! the stack).
+//! controller's capacity, FE + ATS, and the structure parts: a structure's finite elements, linear
+//! or yielding, its structure metamodel, its modal-hysteretic model, an imported structure's
+//! reduced model), validated on the device as the values arrive (order, count, finiteness) and at
+//! the commit (end-to-end checksum, the sizes the values announce, the board's tick budget, then
+//! the model's own checks as `rths_core::model` makes them); refused whole, the model in force
+//! kept. The values wait in one staging area of [`rths_link::MODEL_MAX_VALUES`]; their layout is
+//! `rths_link::layout`'s, and [`install`] builds them in the controller in place
+//! (`rths_core::model::assemble_in`: no ~9 kB RNN or 33 KiB ATS on the stack), for an upload and
+//! for the image's compiled-in default alike.
 
-use rths_core::compensator::{AtsConfig, AtsParams};
-use rths_core::compensator::{LeadParams, LEAD_TAPS};
-use rths_core::control::{Controller, FeModel, ReplaceError};
-use rths_core::metamodel::{LrxParams, RnnScaling, RnnWeights, RNN_INPUTS};
+use rths_core::control::{Controller, ReplaceError};
+use rths_core::metamodel::{RnnScaling, RnnWeights};
+use rths_core::model::{assemble_in, ModelSpec};
 use rths_core::params::{Prototype, DT_S};
-use rths_link::{
-    ModelKind, NackReason, FE_ATS_VALUES, LRX_VALUES, RECORD_CHUNK, RNN_UPLOAD_MAX_HIDDEN,
-};
+use rths_link::layout::{self, LayoutError};
+use rths_link::{ModelKind, NackReason, RECORD_CHUNK};
 
 use crate::chunks::Chunks;
 use crate::tick_cost::TickBudget;
@@ -34,24 +35,41 @@ struct Staged {
     chunks: Chunks,
 }
 
-/// A `kind` upload of `values` values has its kind's shape: LRX [`LRX_VALUES`], FE + ATS
-/// [`FE_ATS_VALUES`], an RNN [`rths_link::rnn_value_count`] of 1..=[`RNN_UPLOAD_MAX_HIDDEN`]
-/// units. `Err(Unsupported)` for a kind that is not uploaded in chunks (an LR goes in one
-/// `UploadLr`), `Err(Shape)` for another count.
+/// A `kind` upload of `values` values may have its kind's shape (`rths_link::layout::count_fits`;
+/// the sizes the values announce are checked at the commit). `Err(Unsupported)` for a kind that
+/// is not uploaded in chunks (an LR goes in one `UploadLr`), `Err(Shape)` for another count.
 pub fn shape_ok(kind: ModelKind, values: usize) -> Result<(), NackReason> {
-    let ok = match kind {
-        ModelKind::Lrx => values == LRX_VALUES,
-        ModelKind::FeAts => values == FE_ATS_VALUES,
-        ModelKind::Rnn => {
-            rths_link::rnn_hidden_of(values).is_some_and(|h| h <= RNN_UPLOAD_MAX_HIDDEN)
-        }
-        ModelKind::Lr => return Err(NackReason::Unsupported),
-    };
-    if ok {
-        Ok(())
-    } else {
-        Err(NackReason::Shape)
+    if kind == ModelKind::Lr {
+        return Err(NackReason::Unsupported);
     }
+    layout::count_fits(kind, values).map_err(layout_nack)
+}
+
+/// The link's reason for values that are no model of their kind.
+pub fn layout_nack(e: LayoutError) -> NackReason {
+    match e {
+        LayoutError::Shape => NackReason::Shape,
+        LayoutError::Value => NackReason::OutOfRange,
+        LayoutError::Kind => NackReason::Unsupported,
+    }
+}
+
+/// Build the `kind` model of `values` (`rths_link::layout`'s layout) in `ctl`, in place, as the
+/// controller's analytical part and compensator (`rths_core::model::assemble_in`, the host's
+/// assembly); only at rest. The controller starts over from its own configuration. Refused
+/// (values that are no model of the kind `Shape`, a value out of its range `OutOfRange`, under a
+/// test `Busy`): the controller's parts are unspecified only if core refused a part it had
+/// begun to build, which its checks before building prevent.
+#[inline(never)]
+pub fn install(ctl: &mut Controller, kind: ModelKind, values: &[f64]) -> Result<(), NackReason> {
+    if !ctl.supervisor().at_rest() {
+        return Err(NackReason::Busy);
+    }
+    layout::with_spec(kind, values, |spec| {
+        assemble_in(ctl, spec, Prototype::paper(), DT_S)
+    })
+    .map_err(layout_nack)?
+    .map_err(replace_nack)
 }
 
 impl<'a> ModelStaging<'a> {
@@ -144,35 +162,11 @@ impl<'a> ModelStaging<'a> {
         if rths_link::model_values_checksum(st.kind, v, st.delay_steps) != st.checksum {
             return Err(NackReason::Checksum);
         }
-        let rnn_hidden = rths_link::rnn_hidden_of(v.len()).unwrap_or(0);
-        if !budget.fits(st.kind, rnn_hidden) {
+        let dims = layout::dims(st.kind, v).map_err(layout_nack)?;
+        if !budget.fits_dims(st.kind, &dims) {
             return Err(NackReason::TickBudget);
         }
-        match st.kind {
-            ModelKind::Lrx => {
-                let (frame, lead) = lrx_parts(v)?;
-                ctl.set_lrx(frame, lead).map_err(|_| NackReason::Busy)?;
-            }
-            ModelKind::Rnn => {
-                let (weights, scaling) = rnn_parts(v)?;
-                ctl.install_rnn(weights, scaling).map_err(replace_nack)?;
-            }
-            ModelKind::FeAts => {
-                let &[expected_delay_s] = v else {
-                    return Err(NackReason::Shape);
-                };
-                // Checked before anything changes; the same parts as `assemble_in`'s FE + ATS,
-                // built here by their own installs: `assemble_in` called with a run-time spec
-                // holds every kind's temporaries in one ~47 KiB frame.
-                let ats = AtsParams::new(AtsConfig::paper(DT_S, expected_delay_s))
-                    .map_err(|_| NackReason::OutOfRange)?;
-                let fe =
-                    FeModel::new(Prototype::paper(), DT_S).map_err(|_| NackReason::OutOfRange)?;
-                ctl.install_fe(fe).map_err(replace_nack)?;
-                ctl.install_ats(ats).map_err(replace_nack)?;
-            }
-            ModelKind::Lr => return Err(NackReason::Unsupported),
-        }
+        install(ctl, st.kind, v)?;
         Ok((st.kind, st.checksum))
     }
 }
@@ -186,55 +180,15 @@ pub fn replace_nack(e: ReplaceError) -> NackReason {
     }
 }
 
-/// The RNN weights and scaling of an upload's values (`rths_link::rnn_value_count`'s order), as
-/// slices of them; the hidden size is the count's.
-fn rnn_parts(v: &[f64]) -> Result<(RnnWeights<'_>, RnnScaling), NackReason> {
-    let h = rths_link::rnn_hidden_of(v.len()).ok_or(NackReason::Shape)?;
-    let (w_ih, rest) = v
-        .split_at_checked(h * RNN_INPUTS)
-        .ok_or(NackReason::Shape)?;
-    let (w_hh, rest) = rest.split_at_checked(h * h).ok_or(NackReason::Shape)?;
-    let (b_h, rest) = rest.split_at_checked(h).ok_or(NackReason::Shape)?;
-    let (w_ho, rest) = rest.split_at_checked(h).ok_or(NackReason::Shape)?;
-    let &[b_o, m0, m1, s0, s1, out_mean, out_std] = rest else {
-        return Err(NackReason::Shape);
-    };
-    Ok((
-        RnnWeights {
-            w_ih,
-            w_hh,
-            b_h,
-            w_ho,
-            b_o,
-        },
-        RnnScaling {
-            input_mean: [m0, m1],
-            input_std: [s0, s1],
-            output_mean: out_mean,
-            output_std: out_std,
-        },
-    ))
-}
-
 /// The flat values of an RNN's weights and scaling (`rths_link::rnn_value_count`'s order), into
 /// `out`; the count written, `None` if `out` is too short. The host sends these; the compiled-in
 /// model's checksum is theirs.
 pub fn rnn_values(w: &RnnWeights<'_>, s: &RnnScaling, out: &mut [f64]) -> Option<usize> {
-    let ([m0, m1], [s0, s1]) = (s.input_mean, s.input_std);
-    let tail = [w.b_o, m0, m1, s0, s1, s.output_mean, s.output_std];
-    let mut n = 0;
-    for x in w
-        .w_ih
-        .iter()
-        .chain(w.w_hh)
-        .chain(w.b_h)
-        .chain(w.w_ho)
-        .chain(&tail)
-    {
-        *out.get_mut(n)? = *x;
-        n += 1;
-    }
-    Some(n)
+    let spec = ModelSpec::Rnn {
+        weights: *w,
+        scaling: *s,
+    };
+    layout::lay_out(&spec, out).ok().map(|(_, n)| n)
 }
 
 /// The link checksum of a compiled-in RNN (what the status reports until an upload, and what an
@@ -259,25 +213,6 @@ pub(crate) fn stride_of(x: f64) -> Result<usize, NackReason> {
     } else {
         Err(NackReason::OutOfRange)
     }
-}
-
-/// The LRX frame model and lead filter of an upload's values (`rths_link::lrx_values`' order),
-/// validated by core's own checks (shapes, finiteness, ranges); the stride must be a whole number
-/// of ticks.
-fn lrx_parts(v: &[f64]) -> Result<(LrxParams, LeadParams), NackReason> {
-    let stride = stride_of(*v.get(19).ok_or(NackReason::Shape)?)?;
-    let frame = LrxParams::from_slice(
-        v.get(..9).ok_or(NackReason::Shape)?,
-        *v.get(9).ok_or(NackReason::Shape)?,
-        *v.get(10).ok_or(NackReason::Shape)?,
-    )
-    .map_err(|_| NackReason::OutOfRange)?;
-    let weights: [f64; LEAD_TAPS] = v
-        .get(11..19)
-        .and_then(|w| w.try_into().ok())
-        .ok_or(NackReason::Shape)?;
-    let lead = LeadParams::new(weights, stride).map_err(|_| NackReason::OutOfRange)?;
-    Ok((frame, lead))
 }
 
 /// The link checksum of a compiled-in LRX model (what the status reports until an upload).

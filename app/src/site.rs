@@ -2,34 +2,36 @@
 //! integrator's targets over the link, one per integration step; the control task's controller
 //! (core's predictor-corrector as its analytical part, the rig's lead as its compensator, the
 //! supervisor) imposes them tick by tick, and each step's end goes back with the DAQ's reading.
+//!
+//! The link's request handling (`crate::link::handle`) calls these and keeps its session's
+//! bookkeeping (the stream's numbering, the expected step) itself.
 
 use rths_core::compensator::{LeadParams, LEAD_TAPS};
 use rths_core::control::{Controller, SiteError};
 use rths_core::predictor_corrector::{PcError, PcParams, SITE_ORDER};
 use rths_core::supervisor::State;
-use rths_link::{DeviceMsg, LinkLoss, NackReason};
+use rths_link::{DeviceMsg, NackReason};
 
-use crate::link::{Effect, Rearm, Session};
 use crate::{Run, TelemetryRecord};
 
 /// `SiteBegin`: at rest, the controller becomes a site of `ticks_per_step` with the lead of
-/// `lead_weights` / `lead_stride` (stride 0: none), armed (the emulated plant once per power-up; a
-/// real rig after a finished test, at its measured position) and started. The stream restarts at
-/// `seq` 0, every tick. A real rig ramps down if the host falls silent; the emulated board waits
-/// for each target (its plant holds), so its virtual clock is no host's silence.
+/// `lead_weights` / `lead_stride` (stride 0: none), armed (`at_measured`: a real rig after a
+/// finished test, at its measured position; `None`: the emulated plant, at 0) and started, the
+/// run's statistics restarted. `may_arm`: the emulated plant has not run yet (`Unsupported`
+/// otherwise: it plays once per power-up).
 pub fn begin(
     ctl: &mut Controller,
     run: &mut Run,
-    s: &mut Session<'_>,
-    finished: bool,
+    may_arm: bool,
+    at_measured: Option<f64>,
     ticks_per_step: u32,
     lead_weights: &[f64; LEAD_TAPS],
     lead_stride: u16,
-) -> Result<Effect, NackReason> {
+) -> Result<(), NackReason> {
     if !ctl.supervisor().at_rest() {
         return Err(NackReason::Busy);
     }
-    if finished && s.rearm == Rearm::OncePerPowerUp {
+    if !may_arm {
         return Err(NackReason::Unsupported);
     }
     if lead_weights.iter().any(|w| !w.is_finite()) {
@@ -43,54 +45,44 @@ pub fn begin(
         ),
     };
     ctl.install_site(pc, lead).map_err(|_| NackReason::Busy)?;
-    match s.rearm {
-        Rearm::OncePerPowerUp => ctl.supervisor_mut().arm(),
-        Rearm::AtMeasured => ctl.supervisor_mut().arm_at(run.last_disp_mm),
+    match at_measured {
+        None => ctl.supervisor_mut().arm(),
+        Some(m) => ctl.supervisor_mut().arm_at(m),
     }
     .map_err(|_| NackReason::InvalidState)?;
     ctl.supervisor_mut()
         .start()
         .map_err(|_| NackReason::InvalidState)?;
-    s.identifying = false;
-    s.every = 1;
-    s.seq = 0;
-    s.site_step = 0;
-    s.owner = 0;
-    s.link_loss = match s.rearm {
-        Rearm::OncePerPowerUp => LinkLoss::Complete,
-        Rearm::AtMeasured => LinkLoss::RampDown,
-    };
     run.restart();
-    Ok(Effect::Started)
+    Ok(())
 }
 
-/// `SiteTarget`: the next step's target, numbered from 0 without a gap (`Sequence`); refused when
-/// the controller is no site or not running (`InvalidState`), for a non-finite target
-/// (`NotFinite`), or while the previous step is under way (`Busy`).
+/// `SiteTarget`: the target of step `step`, which must be `expected_step` (steps numbered from 0
+/// without a gap: `Sequence`); refused when the controller is no site or not running
+/// (`InvalidState`), for a non-finite target (`NotFinite`), or while the previous step is under
+/// way (`Busy`).
 pub fn target(
     ctl: &mut Controller,
-    s: &mut Session<'_>,
+    expected_step: u32,
     step: u32,
     target_mm: f64,
-) -> Result<Effect, NackReason> {
+) -> Result<(), NackReason> {
     if ctl.site_progress().is_none() {
         return Err(NackReason::InvalidState);
     }
-    if step != s.site_step {
+    if step != expected_step {
         return Err(NackReason::Sequence);
     }
     ctl.site_target(target_mm).map_err(|e| match e {
         SiteError::NotASite | SiteError::NotRunning => NackReason::InvalidState,
         SiteError::Target(PcError::NonFinite) => NackReason::NotFinite,
         SiteError::Target(PcError::Pending) => NackReason::Busy,
-    })?;
-    s.site_step = s.site_step.wrapping_add(1);
-    Ok(Effect::None)
+    })
 }
 
 /// `SiteEnd`: the end of the test: the supervisor's end ramp to zero, or (`fault`) its emergency
 /// ramp to the armed position. Refused when the controller is no site (`InvalidState`).
-pub fn end(ctl: &mut Controller, fault: bool) -> Result<Effect, NackReason> {
+pub fn end(ctl: &mut Controller, fault: bool) -> Result<(), NackReason> {
     if ctl.site_progress().is_none() {
         return Err(NackReason::InvalidState);
     }
@@ -100,7 +92,7 @@ pub fn end(ctl: &mut Controller, fault: bool) -> Result<Effect, NackReason> {
     } else if sup.state() == State::Running {
         sup.finish().map_err(|_| NackReason::InvalidState)?;
     }
-    Ok(Effect::None)
+    Ok(())
 }
 
 /// The emulated plant waits for the site's next target: the controller is a running site with no

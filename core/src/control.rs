@@ -23,7 +23,7 @@
 use crate::compensator::Compensator;
 use crate::hal::{ErrorKind, Sample};
 use crate::integrator::{Chang, ExplicitIntegrator};
-use crate::metamodel::{Features, Lr, Lrx, LrxInputs, Rnn, RnnInputs};
+use crate::metamodel::{DeltaArx, Features, Lr, Lrx, LrxInputs, Rnn, RnnInputs};
 use crate::params::{ParamError, Prototype, SpecimenScale};
 use crate::predictor_corrector::{PcError, PcParams, PredictorCorrector};
 use crate::structure::{LinearStructure, Vector};
@@ -177,24 +177,18 @@ pub enum Analytical {
     // ---- structure files (issues 15, 16): the feedback is the specimen's measured displacement
     // and force at the structure's specimen DOF (a unit [`SpecimenScale`]), the target the
     // displacement there.
-    #[cfg(feature = "structures")]
     /// Finite elements (Chang) of an N-DOF linear numerical substructure.
     StructureFe(StructureFe),
-    #[cfg(feature = "structures")]
     /// Finite elements (Chang) of an N-story numerical substructure whose stories yield.
     StructureNl(StructureNl),
-    #[cfg(feature = "structures")]
     /// The structure metamodel (delta ARX) of an N-DOF numerical substructure: constant cost per
     /// tick whatever N is.
     StructureMeta(DeltaArx),
-    #[cfg(feature = "structures")]
     /// The learned modal-hysteretic metamodel of a yielding numerical substructure (issue 16).
     StructureModal(StructureModal),
-    #[cfg(feature = "structures")]
     /// The learned floor-hysteron metamodel of a yielding numerical substructure (issue 25): the
     /// elastic floors plus play operators on drifts; its cost depends on floors and hysterons only.
     StructureHysteron(StructureHysteron),
-    #[cfg(feature = "structures")]
     /// The reduced-order modal model of a large linear numerical substructure (an imported
     /// OpenSees model): constant cost per tick whatever its DOF count.
     StructureReduced(StructureReduced),
@@ -211,19 +205,26 @@ impl Analytical {
             Analytical::Rnn(m) => ("rnn-online-", Some(m.params().hidden())),
             Analytical::Lrx(_) => ("lrx-online", None),
             Analytical::Site(_) => ("site", None),
-            #[cfg(feature = "structures")]
             Analytical::StructureFe(_) => ("structure-fe", None),
-            #[cfg(feature = "structures")]
             Analytical::StructureNl(_) => ("structure-nl", None),
-            #[cfg(feature = "structures")]
             Analytical::StructureMeta(_) => ("structure-meta", None),
-            #[cfg(feature = "structures")]
             Analytical::StructureModal(_) => ("structure-modal", None),
-            #[cfg(feature = "structures")]
             Analytical::StructureHysteron(_) => ("structure-hysteron", None),
-            #[cfg(feature = "structures")]
             Analytical::StructureReduced(_) => ("structure-reduced", None),
         }
+    }
+
+    /// A structure file's part (the feedback is its specimen's at its DOF).
+    pub fn is_structure(&self) -> bool {
+        matches!(
+            self,
+            Analytical::StructureFe(_)
+                | Analytical::StructureNl(_)
+                | Analytical::StructureMeta(_)
+                | Analytical::StructureModal(_)
+                | Analytical::StructureHysteron(_)
+                | Analytical::StructureReduced(_)
+        )
     }
 
     fn next_target(&mut self, ag_mm_s2: f64, fb: &Feedback) -> Result<f64, StepError> {
@@ -250,19 +251,13 @@ impl Analytical {
                 })
                 .map_err(|_| StepError::NonFiniteOutput)?,
             Analytical::Site(pc) => pc.tick().command_mm,
-            #[cfg(feature = "structures")]
             Analytical::StructureFe(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
-            #[cfg(feature = "structures")]
             Analytical::StructureNl(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
-            #[cfg(feature = "structures")]
             Analytical::StructureMeta(m) => m
                 .predict(ag_mm_s2, fb.brace_disp_mm, fb.brace_force_kn)
                 .map_err(|_| StepError::NonFiniteOutput)?,
-            #[cfg(feature = "structures")]
             Analytical::StructureModal(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
-            #[cfg(feature = "structures")]
             Analytical::StructureHysteron(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
-            #[cfg(feature = "structures")]
             Analytical::StructureReduced(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
         };
         if y.is_finite() {
@@ -276,7 +271,6 @@ impl Analytical {
     /// analytical parts that have stories (the structure files'); `None` for the others.
     pub fn story_drift_mm(&self) -> Option<crate::structure_n::Dofs> {
         match self {
-            #[cfg(feature = "structures")]
             Analytical::StructureFe(m) => {
                 let c = m.chang();
                 let mut d = [0.0; crate::structure_n::MAX_DOF];
@@ -287,9 +281,7 @@ impl Analytical {
                 }
                 Some(d)
             }
-            #[cfg(feature = "structures")]
             Analytical::StructureNl(m) => Some(m.frame().story_drift_mm()),
-            #[cfg(feature = "structures")]
             Analytical::StructureModal(m) => {
                 let model = m.model();
                 let mut d = [0.0; crate::structure_n::MAX_DOF];
@@ -298,7 +290,6 @@ impl Analytical {
                 }
                 Some(d)
             }
-            #[cfg(feature = "structures")]
             Analytical::StructureHysteron(m) => {
                 let model = m.model();
                 let mut d = [0.0; crate::structure_n::MAX_DOF];
@@ -318,17 +309,11 @@ impl Analytical {
             Analytical::Rnn(m) => m.reset(),
             Analytical::Lrx(m) => m.reset(),
             Analytical::Site(pc) => pc.reset(),
-            #[cfg(feature = "structures")]
             Analytical::StructureFe(m) => m.reset(),
-            #[cfg(feature = "structures")]
             Analytical::StructureNl(m) => m.reset(),
-            #[cfg(feature = "structures")]
             Analytical::StructureMeta(m) => m.reset(),
-            #[cfg(feature = "structures")]
             Analytical::StructureModal(m) => m.reset(),
-            #[cfg(feature = "structures")]
             Analytical::StructureHysteron(m) => m.reset(),
-            #[cfg(feature = "structures")]
             Analytical::StructureReduced(m) => m.reset(),
         }
     }
@@ -491,6 +476,10 @@ pub struct TickOutput {
 #[derive(Debug, Clone)]
 pub struct Controller {
     config: ControlConfig,
+    /// The configuration the controller was made with: a new analytical part starts from its
+    /// specimen scale, force correction and compensator target ([`Self::set_structure_rig`]
+    /// replaces them for a structure part).
+    base: ControlConfig,
     analytical: Analytical,
     compensator: Compensator,
     supervisor: Supervisor,
@@ -506,6 +495,7 @@ impl Controller {
     pub fn new(config: ControlConfig, analytical: Analytical, compensator: Compensator) -> Self {
         let mut c = Self {
             config,
+            base: config,
             analytical,
             compensator,
             supervisor: Supervisor::new(config.limits),
@@ -528,6 +518,7 @@ impl Controller {
         // stack once every image held the structure parts).
         let c = slot.write(Self {
             config,
+            base: config,
             analytical: Analytical::Lr(Lr::PARKED),
             compensator: Compensator::None,
             supervisor: Supervisor::new(config.limits),
@@ -546,6 +537,7 @@ impl Controller {
         self.check_at_rest()?;
         self.analytical = Analytical::Lr(Lr::new(params));
         self.compensator = Compensator::None;
+        self.config = self.base;
         self.start_over()
     }
 
@@ -561,6 +553,7 @@ impl Controller {
         crate::metamodel::RnnParams::check(&weights, &scaling)?;
         self.analytical = Analytical::Rnn(Rnn::PARKED);
         self.compensator = Compensator::None;
+        self.config = self.base;
         self.load_rnn(weights, scaling)
     }
 
@@ -570,16 +563,17 @@ impl Controller {
         self.check_at_rest()?;
         self.analytical = Analytical::Fe(fe);
         self.compensator = Compensator::None;
+        self.config = self.base;
         self.start_over()
     }
 
-    #[cfg(feature = "structures")]
     /// Make the analytical part `analytical` with no compensator (the structure-file parts, a few
     /// KiB: built by value); only at rest, then start over.
     pub fn install_plain(&mut self, analytical: Analytical) -> Result<(), ReplaceError> {
         self.check_at_rest()?;
         self.analytical = analytical;
         self.compensator = Compensator::None;
+        self.config = self.base;
         self.start_over()
     }
 
@@ -607,6 +601,7 @@ impl Controller {
     ) -> Result<(), ReplaceError> {
         self.check_at_rest()?;
         self.analytical = Analytical::Site(PredictorCorrector::new(pc));
+        self.config = self.base;
         self.compensator = match lead {
             Some(l) => Compensator::Lead(crate::compensator::Lead::new(l)),
             None => Compensator::None,
@@ -673,6 +668,7 @@ impl Controller {
         self.supervisor.reset()?;
         self.analytical = Analytical::Lrx(Lrx::new(frame));
         self.compensator = Compensator::Lead(crate::compensator::Lead::new(lead));
+        self.config = self.base;
         self.clear();
         Ok(())
     }
@@ -729,6 +725,48 @@ impl Controller {
         self.start_over()
     }
 
+    /// Give a structure-file part the rig's compensation, as the host's hybrid runs of a structure
+    /// give it (`nl-online`, `meta-online`, `fe-online-lead`): the identified `lead` in front of
+    /// the rig, the measured force corrected with the identified specimen (`correction`), the
+    /// compensator given the target in force ([`CompensatorTarget::Current`]), and `scale`, how
+    /// the rig's specimen stands for the structure's (prototype over rig, displacement and force);
+    /// a reduced model as a hybrid loop runs it
+    /// ([`crate::metamodel::ReducedModalParams::for_hybrid_loop`]).
+    /// Only at rest and for a structure part; then start over. Refused: nothing changes. A new
+    /// analytical part (an `install_*`) starts from the controller's own configuration again.
+    pub fn set_structure_rig(
+        &mut self,
+        lead: crate::compensator::LeadParams,
+        correction: ForceCorrection,
+        scale: SpecimenScale,
+    ) -> Result<(), ReplaceError> {
+        self.check_at_rest()?;
+        if !self.analytical.is_structure() {
+            return Err(ReplaceError::Kind);
+        }
+        self.reduced_for_hybrid_loop()?;
+        self.config = ControlConfig {
+            scale,
+            ..self.config
+        }
+        .with_force_correction(correction)
+        .with_compensator_target(CompensatorTarget::Current);
+        self.compensator = Compensator::Lead(crate::compensator::Lead::new(lead));
+        self.start_over()
+    }
+
+    /// A reduced model on a rig low-passes its static term's force deviation (the rig's noise and
+    /// tracking error would reach the target in the same tick, through the lead); another part is
+    /// left as it is. Out of line: the rebuilt model's frame is only this call's.
+    #[inline(never)]
+    fn reduced_for_hybrid_loop(&mut self) -> Result<(), ReplaceError> {
+        if let Analytical::StructureReduced(m) = &self.analytical {
+            let p = m.model().params().for_hybrid_loop()?;
+            self.analytical = Analytical::StructureReduced(StructureReduced::new(p));
+        }
+        Ok(())
+    }
+
     fn check_at_rest(&self) -> Result<(), Busy> {
         if self.supervisor.at_rest() {
             Ok(())
@@ -769,6 +807,19 @@ impl Controller {
     pub fn scenario_name(&self) -> (&'static str, Option<usize>) {
         match (&self.analytical, &self.compensator) {
             (Analytical::Fe(_), Compensator::Ats(_)) => ("fe-online-ats", None),
+            // A structure's part with the rig's identified lead (and force correction): the host's
+            // hybrid scenarios of a structure file (`rths simulate --structure`).
+            (
+                Analytical::StructureModal(_) | Analytical::StructureHysteron(_),
+                Compensator::Lead(_),
+            ) => ("nl-online", None),
+            (
+                Analytical::StructureReduced(_) | Analytical::StructureMeta(_),
+                Compensator::Lead(_),
+            ) => ("meta-online", None),
+            (Analytical::StructureFe(_) | Analytical::StructureNl(_), Compensator::Lead(_)) => {
+                ("fe-online-lead", None)
+            }
             (a, _) => a.scenario_name(),
         }
     }
@@ -882,8 +933,6 @@ impl Controller {
 
 mod correction;
 mod structure;
-#[cfg(feature = "structures")]
-use crate::metamodel::DeltaArx;
 pub use correction::ForceCorrection;
 pub use structure::{
     ModalSpec, ReducedSpec, StoryLawSpec, StructureFe, StructureHysteron, StructureModal,

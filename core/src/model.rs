@@ -9,20 +9,16 @@ use crate::compensator::{
     Ats, AtsConfig, AtsParams, Compensator, Lead, LeadAdaptParams, LeadParams, LEAD_TAPS,
 };
 use crate::control::{Analytical, Controller, FeModel, ReplaceError};
-#[cfg(feature = "structures")]
 use crate::control::{
     ModalSpec, ReducedSpec, StructureFe, StructureModal, StructureNl, StructureReduced,
     StructureSpec,
 };
-#[cfg(feature = "structures")]
 use crate::hysteresis::Law;
-#[cfg(feature = "structures")]
 use crate::metamodel::{DeltaArx, DeltaArxParams, ModalHystParams, ReducedModalParams};
 use crate::metamodel::{
     Lr, LrParams, Lrx, LrxParams, ModelError, Rnn, RnnParams, RnnScaling, RnnWeights,
 };
 use crate::params::{Prototype, DT_S};
-#[cfg(feature = "structures")]
 use crate::structure_n::{StructureN, MAX_DOF};
 
 /// The analytical part of a run (and its compensator), with raw weights borrowed as a model file
@@ -68,19 +64,16 @@ pub enum ModelSpec<'a> {
         expected_delay_s: f64,
     },
     // ---- structure files (issues 15, 16); no compensator.
-    #[cfg(feature = "structures")]
     /// Finite elements (Chang) of a linear N-DOF structure file's numerical part.
     StructureFe {
         /// The structure (no story laws).
         structure: StructureSpec<'a>,
     },
-    #[cfg(feature = "structures")]
     /// Finite elements (Chang) of a yielding structure file's numerical part.
     StructureNl {
         /// The structure (one story law per DOF).
         structure: StructureSpec<'a>,
     },
-    #[cfg(feature = "structures")]
     /// The structure metamodel (`rths train meta`).
     StructureMeta {
         /// Coefficients, [`crate::metamodel::DELTA_ARX_COEFFS`], order of
@@ -89,7 +82,6 @@ pub enum ModelSpec<'a> {
         /// The force correction's stiffness, kN/mm.
         k_corr_kn_per_mm: f64,
     },
-    #[cfg(feature = "structures")]
     /// The learned modal-hysteretic metamodel of a yielding structure (`rths train nonlinear`):
     /// stepped at the controller's step whatever rate it was trained at (continuous-time modes,
     /// rate-independent laws).
@@ -97,7 +89,6 @@ pub enum ModelSpec<'a> {
         /// The model's arrays.
         model: ModalSpec<'a>,
     },
-    #[cfg(feature = "structures")]
     /// The reduced-order modal model of a large linear structure (`rths train meta` on an
     /// imported OpenSees model): stepped at the controller's step (continuous-time modes).
     StructureReduced {
@@ -125,19 +116,14 @@ pub enum Model {
         expected_delay_s: f64,
     },
     // ---- structure files (issues 15, 16).
-    #[cfg(feature = "structures")]
     /// A linear N-DOF numerical part and its specimen's DOF.
     StructureFe(StructureN, usize),
-    #[cfg(feature = "structures")]
     /// A yielding numerical part, its specimen's DOF and its story laws (the first N).
     StructureNl(StructureN, usize, [Law; MAX_DOF]),
-    #[cfg(feature = "structures")]
     /// The structure metamodel.
     StructureMeta(DeltaArxParams),
-    #[cfg(feature = "structures")]
     /// The modal-hysteretic metamodel (validated at [`DT_S`]; assembled at the controller's step).
     StructureModal(ModalHystParams),
-    #[cfg(feature = "structures")]
     /// The reduced-order modal model (validated at [`DT_S`]; assembled at the controller's step).
     StructureReduced(ReducedModalParams),
 }
@@ -169,13 +155,11 @@ impl ModelSpec<'_> {
             }
             ModelSpec::Fe => Model::Fe,
             ModelSpec::FeAts { expected_delay_s } => Model::FeAts { expected_delay_s },
-            #[cfg(feature = "structures")]
             ModelSpec::StructureFe { structure } => {
                 // Built once to refuse a structure the integrator cannot step (singular D).
                 structure.linear(DT_S)?;
                 Model::StructureFe(structure.numerical()?, structure.specimen_dof)
             }
-            #[cfg(feature = "structures")]
             ModelSpec::StructureNl { structure } => {
                 structure.yielding(DT_S)?;
                 Model::StructureNl(
@@ -184,14 +168,11 @@ impl ModelSpec<'_> {
                     structure.story_laws()?,
                 )
             }
-            #[cfg(feature = "structures")]
             ModelSpec::StructureMeta {
                 theta,
                 k_corr_kn_per_mm,
             } => Model::StructureMeta(DeltaArxParams::from_slice(theta, k_corr_kn_per_mm)?),
-            #[cfg(feature = "structures")]
             ModelSpec::StructureModal { model } => Model::StructureModal(model.params(DT_S)?),
-            #[cfg(feature = "structures")]
             ModelSpec::StructureReduced { model } => Model::StructureReduced(model.params(DT_S)?),
         })
     }
@@ -211,21 +192,16 @@ impl Model {
             Model::Lrx(p, lead) => Ok(lrx_parts(p, lead)),
             Model::Fe => fe_parts(proto, dt_s, None),
             Model::FeAts { expected_delay_s } => fe_parts(proto, dt_s, Some(expected_delay_s)),
-            #[cfg(feature = "structures")]
             Model::StructureFe(m, dof) => Ok((
                 Analytical::StructureFe(StructureFe::new(m, dof, dt_s)?),
                 Compensator::None,
             )),
-            #[cfg(feature = "structures")]
             Model::StructureNl(m, dof, laws) => Ok((
                 Analytical::StructureNl(StructureNl::build(m, &laws, dof, dt_s)?),
                 Compensator::None,
             )),
-            #[cfg(feature = "structures")]
             Model::StructureMeta(p) => Ok(meta_parts(p)),
-            #[cfg(feature = "structures")]
             Model::StructureModal(p) => Ok(modal_parts(p.at_dt_s(dt_s)?)),
-            #[cfg(feature = "structures")]
             Model::StructureReduced(p) => Ok(reduced_parts(p.at_dt_s(dt_s)?)),
         }
     }
@@ -321,17 +297,14 @@ pub fn assemble(
         ModelSpec::Fe => fe_parts(proto, dt_s, None),
         ModelSpec::FeAts { expected_delay_s } => fe_parts(proto, dt_s, Some(expected_delay_s)),
         // Built in place, not through `Model` (stack, as above).
-        #[cfg(feature = "structures")]
         ModelSpec::StructureFe { structure } => Ok((
             Analytical::StructureFe(structure.linear(dt_s)?),
             Compensator::None,
         )),
-        #[cfg(feature = "structures")]
         ModelSpec::StructureNl { structure } => Ok((
             Analytical::StructureNl(structure.yielding(dt_s)?),
             Compensator::None,
         )),
-        #[cfg(feature = "structures")]
         ModelSpec::StructureMeta {
             theta,
             k_corr_kn_per_mm,
@@ -339,14 +312,11 @@ pub fn assemble(
             theta,
             k_corr_kn_per_mm,
         )?)),
-        #[cfg(feature = "structures")]
         ModelSpec::StructureModal { model } => Ok(modal_parts(model.params(dt_s)?)),
-        #[cfg(feature = "structures")]
         ModelSpec::StructureReduced { model } => Ok(reduced_parts(model.params(dt_s)?)),
     }
 }
 
-#[cfg(feature = "structures")]
 fn reduced_parts(p: ReducedModalParams) -> (Analytical, Compensator) {
     (
         Analytical::StructureReduced(StructureReduced::new(p)),
@@ -354,7 +324,6 @@ fn reduced_parts(p: ReducedModalParams) -> (Analytical, Compensator) {
     )
 }
 
-#[cfg(feature = "structures")]
 fn meta_parts(p: DeltaArxParams) -> (Analytical, Compensator) {
     (
         Analytical::StructureMeta(DeltaArx::new(p)),
@@ -362,7 +331,6 @@ fn meta_parts(p: DeltaArxParams) -> (Analytical, Compensator) {
     )
 }
 
-#[cfg(feature = "structures")]
 fn modal_parts(p: ModalHystParams) -> (Analytical, Compensator) {
     (
         Analytical::StructureModal(StructureModal::new(p)),
@@ -381,10 +349,49 @@ pub fn assemble_in(
     proto: Prototype,
     dt_s: f64,
 ) -> Result<(), ReplaceError> {
+    // Each kind is built by its own out-of-line function: a caller with a run-time spec (a model
+    // upload, the firmware's compiled-in default) then reserves the frame of one kind, not of
+    // every kind's temporaries at once (~47 KiB with the ATS and the structure parts).
     match *spec {
-        ModelSpec::Lr { theta } => ctl.install_lr(LrParams::from_slice(theta)?),
-        ModelSpec::Rnn { weights, scaling } => ctl.install_rnn(weights, scaling),
-        ModelSpec::Lrx {
+        ModelSpec::Lr { theta } => in_place::lr(ctl, theta),
+        ModelSpec::Rnn { weights, scaling } => in_place::rnn(ctl, weights, scaling),
+        ModelSpec::Lrx { .. } => in_place::lrx(ctl, spec),
+        ModelSpec::Fe => in_place::fe(ctl, proto, dt_s, None),
+        ModelSpec::FeAts { expected_delay_s } => {
+            in_place::fe(ctl, proto, dt_s, Some(expected_delay_s))
+        }
+        ModelSpec::StructureFe { structure } => in_place::structure_fe(ctl, &structure, dt_s),
+        ModelSpec::StructureNl { structure } => in_place::structure_nl(ctl, &structure, dt_s),
+        ModelSpec::StructureMeta {
+            theta,
+            k_corr_kn_per_mm,
+        } => in_place::meta(ctl, theta, k_corr_kn_per_mm),
+        ModelSpec::StructureModal { model } => in_place::modal(ctl, &model, dt_s),
+        ModelSpec::StructureReduced { model } => in_place::reduced(ctl, &model, dt_s),
+    }
+}
+
+/// [`assemble_in`]'s kinds, one out-of-line function each (see there).
+mod in_place {
+    use super::*;
+
+    #[inline(never)]
+    pub(super) fn lr(ctl: &mut Controller, theta: &[f64]) -> Result<(), ReplaceError> {
+        ctl.install_lr(LrParams::from_slice(theta)?)
+    }
+
+    #[inline(never)]
+    pub(super) fn rnn(
+        ctl: &mut Controller,
+        weights: RnnWeights<'_>,
+        scaling: RnnScaling,
+    ) -> Result<(), ReplaceError> {
+        ctl.install_rnn(weights, scaling)
+    }
+
+    #[inline(never)]
+    pub(super) fn lrx(ctl: &mut Controller, spec: &ModelSpec<'_>) -> Result<(), ReplaceError> {
+        let ModelSpec::Lrx {
             coeffs,
             k_corr_kn_per_mm,
             k_adapt_ticks,
@@ -392,45 +399,84 @@ pub fn assemble_in(
             lead_stride,
             lead_adapt_ticks,
             specimen_dynamics,
-        } => {
-            let (frame, lead) = lrx_params(
-                coeffs,
-                [k_corr_kn_per_mm, k_adapt_ticks],
-                lead_weights,
-                lead_stride,
-                lead_adapt_ticks,
-                specimen_dynamics,
-            )?;
-            ctl.set_lrx(frame, lead)?;
-            Ok(())
+        } = *spec
+        else {
+            return Err(ReplaceError::Kind);
+        };
+        let (frame, lead) = lrx_params(
+            coeffs,
+            [k_corr_kn_per_mm, k_adapt_ticks],
+            lead_weights,
+            lead_stride,
+            lead_adapt_ticks,
+            specimen_dynamics,
+        )?;
+        ctl.set_lrx(frame, lead)?;
+        Ok(())
+    }
+
+    /// The FE model, with the ATS starting from `ats_delay_s` if given (built in place).
+    #[inline(never)]
+    pub(super) fn fe(
+        ctl: &mut Controller,
+        proto: Prototype,
+        dt_s: f64,
+        ats_delay_s: Option<f64>,
+    ) -> Result<(), ReplaceError> {
+        let ats = match ats_delay_s {
+            Some(d) => Some(AtsParams::new(AtsConfig::paper(dt_s, d))?),
+            None => None,
+        };
+        ctl.install_fe(FeModel::new(proto, dt_s)?)?;
+        match ats {
+            Some(a) => ctl.install_ats(a),
+            None => Ok(()),
         }
-        ModelSpec::Fe => ctl.install_fe(FeModel::new(proto, dt_s)?),
-        ModelSpec::FeAts { expected_delay_s } => {
-            let ats = AtsParams::new(AtsConfig::paper(dt_s, expected_delay_s))?;
-            ctl.install_fe(FeModel::new(proto, dt_s)?)?;
-            ctl.install_ats(ats)
-        }
-        #[cfg(feature = "structures")]
-        ModelSpec::StructureFe { structure } => {
-            ctl.install_plain(Analytical::StructureFe(structure.linear(dt_s)?))
-        }
-        #[cfg(feature = "structures")]
-        ModelSpec::StructureNl { structure } => {
-            ctl.install_plain(Analytical::StructureNl(structure.yielding(dt_s)?))
-        }
-        #[cfg(feature = "structures")]
-        ModelSpec::StructureMeta {
-            theta,
-            k_corr_kn_per_mm,
-        } => ctl.install_plain(meta_parts(DeltaArxParams::from_slice(theta, k_corr_kn_per_mm)?).0),
-        #[cfg(feature = "structures")]
-        ModelSpec::StructureModal { model } => {
-            ctl.install_plain(modal_parts(model.params(dt_s)?).0)
-        }
-        #[cfg(feature = "structures")]
-        ModelSpec::StructureReduced { model } => {
-            ctl.install_plain(reduced_parts(model.params(dt_s)?).0)
-        }
+    }
+
+    #[inline(never)]
+    pub(super) fn structure_fe(
+        ctl: &mut Controller,
+        structure: &StructureSpec<'_>,
+        dt_s: f64,
+    ) -> Result<(), ReplaceError> {
+        ctl.install_plain(Analytical::StructureFe(structure.linear(dt_s)?))
+    }
+
+    #[inline(never)]
+    pub(super) fn structure_nl(
+        ctl: &mut Controller,
+        structure: &StructureSpec<'_>,
+        dt_s: f64,
+    ) -> Result<(), ReplaceError> {
+        ctl.install_plain(Analytical::StructureNl(structure.yielding(dt_s)?))
+    }
+
+    #[inline(never)]
+    pub(super) fn meta(
+        ctl: &mut Controller,
+        theta: &[f64],
+        k_corr_kn_per_mm: f64,
+    ) -> Result<(), ReplaceError> {
+        ctl.install_plain(meta_parts(DeltaArxParams::from_slice(theta, k_corr_kn_per_mm)?).0)
+    }
+
+    #[inline(never)]
+    pub(super) fn modal(
+        ctl: &mut Controller,
+        model: &ModalSpec<'_>,
+        dt_s: f64,
+    ) -> Result<(), ReplaceError> {
+        ctl.install_plain(modal_parts(model.params(dt_s)?).0)
+    }
+
+    #[inline(never)]
+    pub(super) fn reduced(
+        ctl: &mut Controller,
+        model: &ReducedSpec<'_>,
+        dt_s: f64,
+    ) -> Result<(), ReplaceError> {
+        ctl.install_plain(reduced_parts(model.params(dt_s)?).0)
     }
 }
 

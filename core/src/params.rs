@@ -294,6 +294,14 @@ impl SpecimenScale {
     pub fn specimen_force_kn(&self, prototype_force_kn: f64) -> f64 {
         prototype_force_kn * self.inv_force
     }
+    /// The displacement scale: prototype over specimen.
+    pub fn disp_scale(&self) -> f64 {
+        self.disp
+    }
+    /// The force scale: prototype over specimen.
+    pub fn force_scale(&self) -> f64 {
+        self.force
+    }
     /// Specimen stiffness that stands for a prototype brace of axial stiffness `brace_k`, kN/mm.
     pub fn specimen_stiffness_kn_per_mm(&self, prototype_brace_k_kn_per_mm: f64) -> f64 {
         prototype_brace_k_kn_per_mm * self.disp / self.force

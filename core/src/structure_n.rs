@@ -192,12 +192,105 @@ fn block(a: &Padded, n: usize) -> Square {
 }
 
 fn invert(m: Padded, what: &'static str) -> Result<Padded, ParamError> {
-    let inv = m.try_inverse().ok_or(ParamError::Singular(what))?;
+    let inv = lu_inverse(&m).ok_or(ParamError::Singular(what))?;
     if inv.iter().all(|v| v.is_finite()) {
         Ok(inv)
     } else {
         Err(ParamError::Singular(what))
     }
+}
+
+/// The inverse of `m` by nalgebra's own algorithm for an 8×8 matrix (`try_inverse`: LU with
+/// partial pivoting, the first largest pivot, then the unit lower and the upper triangular
+/// solves), operation for operation, so the bits are the same (a test compares them); `None`
+/// where it gives none (a zero pivot). Written out because its generic code keeps index checks
+/// that reach a panic in the firmware's link task, which builds an uploaded structure's FE: here
+/// every access is checked and a failed one is a refusal.
+fn lu_inverse(m: &Padded) -> Option<Padded> {
+    const N: usize = MAX_DOF;
+    // a[r][c]; nalgebra stores column-major.
+    let mut a = [[0.0f64; N]; N];
+    for (c, col) in m.as_slice().chunks_exact(N).enumerate() {
+        for (r, v) in col.iter().enumerate() {
+            *a.get_mut(r)?.get_mut(c)? = *v;
+        }
+    }
+    let mut out = [[0.0f64; N]; N];
+    for (i, row) in out.iter_mut().enumerate() {
+        *row.get_mut(i)? = 1.0;
+    }
+    for i in 0..N {
+        // `icamax` over the column from the diagonal down: the first largest |a|.
+        let mut piv = i;
+        let mut best = a.get(i)?.get(i)?.abs();
+        for r in i + 1..N {
+            let v = a.get(r)?.get(i)?.abs();
+            if v > best {
+                best = v;
+                piv = r;
+            }
+        }
+        let diag = *a.get(piv)?.get(i)?;
+        if diag == 0.0 {
+            return None;
+        }
+        let inv_diag = 1.0 / diag;
+        if piv != i {
+            out.swap(i, piv);
+            for c in 0..=i {
+                let (x, y) = (*a.get(i)?.get(c)?, *a.get(piv)?.get(c)?);
+                *a.get_mut(i)?.get_mut(c)? = y;
+                *a.get_mut(piv)?.get_mut(c)? = x;
+            }
+        }
+        for r in i + 1..N {
+            let c = a.get_mut(r)?.get_mut(i)?;
+            *c *= inv_diag;
+        }
+        for k in i + 1..N {
+            if piv != i {
+                let (x, y) = (*a.get(i)?.get(k)?, *a.get(piv)?.get(k)?);
+                *a.get_mut(i)?.get_mut(k)? = y;
+                *a.get_mut(piv)?.get_mut(k)? = x;
+            }
+            let p = -*a.get(i)?.get(k)?;
+            for r in i + 1..N {
+                let coeff = *a.get(r)?.get(i)?;
+                let y = a.get_mut(r)?.get_mut(k)?;
+                *y = p * coeff + *y;
+            }
+        }
+    }
+    for k in 0..N {
+        // L (unit diagonal) then U, one column of the identity at a time.
+        for i in 0..N - 1 {
+            let coeff = -(*out.get(i)?.get(k)? / 1.0);
+            for r in i + 1..N {
+                let l = *a.get(r)?.get(i)?;
+                let y = out.get_mut(r)?.get_mut(k)?;
+                *y = coeff * l + *y;
+            }
+        }
+        for i in (0..N).rev() {
+            let d = *a.get(i)?.get(i)?;
+            if d == 0.0 {
+                return None;
+            }
+            let coeff = *out.get(i)?.get(k)? / d;
+            *out.get_mut(i)?.get_mut(k)? = coeff;
+            for r in 0..i {
+                let u = *a.get(r)?.get(i)?;
+                let y = out.get_mut(r)?.get_mut(k)?;
+                *y = -coeff * u + *y;
+            }
+        }
+    }
+    Some(Padded::from_fn(|r, c| {
+        out.get(r)
+            .and_then(|row| row.get(c))
+            .copied()
+            .unwrap_or(f64::NAN)
+    }))
 }
 
 /// Chang's explicit method (2002 form) on a [`StructureN`]: the formulas of

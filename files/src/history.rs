@@ -2,7 +2,7 @@
 //! for the specimen: the training data of `rths train nonlinear --histories` (docs/nonlinear.md,
 //! "Time histories as training data").
 //!
-//! Two layouts, one result ([`History`]):
+//! Two layouts, one result ([`TimeHistory`]):
 //! - **CSV**, one file per run: the header `time_s,ground_accel_mm_s2,specimen_force_kn,interface_mm`
 //!   then one `out_<NODE>_<DOF>_mm` column per output, one row per controller step.
 //! - **OpenSees recorder files**, one directory per run: `ground_accel.out`, `specimen_force.out`,
@@ -75,7 +75,7 @@ impl OutputDof {
 
 /// One run's time histories, in rths units (mm, kN, s), uniformly sampled at `dt_s`.
 #[derive(Debug, Clone, PartialEq)]
-pub struct History {
+pub struct TimeHistory {
     /// Where it was read from (the CSV file or the recorder directory).
     pub source: PathBuf,
     /// The step, s (the controller's, checked).
@@ -91,7 +91,7 @@ pub struct History {
     pub outputs: Vec<(OutputDof, Vec<f64>)>,
 }
 
-impl History {
+impl TimeHistory {
     /// Rows (steps).
     pub fn len(&self) -> usize {
         self.ground_accel_mm_s2.len()
@@ -365,7 +365,7 @@ fn uniform_step(
 }
 
 /// Parse a history CSV (`text` of `file`), sampled at the controller's step `run_dt_s`.
-pub fn parse_csv(text: &str, file: &Path, run_dt_s: f64) -> Result<History, HistoryError> {
+pub fn parse_csv(text: &str, file: &Path, run_dt_s: f64) -> Result<TimeHistory, HistoryError> {
     let mut it = lines(text);
     let header: Vec<&str> = it
         .next()
@@ -435,7 +435,7 @@ pub fn parse_csv(text: &str, file: &Path, run_dt_s: f64) -> Result<History, Hist
     let specimen_force_kn = next();
     let interface_mm = next();
     let outputs = outputs.into_iter().map(|d| (d, next())).collect();
-    Ok(History {
+    Ok(TimeHistory {
         source: file.to_path_buf(),
         dt_s,
         ground_accel_mm_s2,
@@ -446,7 +446,7 @@ pub fn parse_csv(text: &str, file: &Path, run_dt_s: f64) -> Result<History, Hist
 }
 
 /// Read a history CSV file.
-pub fn read_csv(file: &Path, run_dt_s: f64) -> Result<History, HistoryError> {
+pub fn read_csv(file: &Path, run_dt_s: f64) -> Result<TimeHistory, HistoryError> {
     parse_csv(&read_bounded(file)?, file, run_dt_s)
 }
 
@@ -498,7 +498,7 @@ pub fn read_recorder_dir(
     dir: &Path,
     units: RecorderUnits,
     run_dt_s: f64,
-) -> Result<History, HistoryError> {
+) -> Result<TimeHistory, HistoryError> {
     let io = |source| HistoryError::Io {
         file: dir.to_path_buf(),
         source,
@@ -563,7 +563,7 @@ pub fn read_recorder_dir(
         .into_iter()
         .map(|d| Ok((d, scale(same(&d.recorder_file())?, units.length_to_mm))))
         .collect::<Result<Vec<_>, HistoryError>>()?;
-    Ok(History {
+    Ok(TimeHistory {
         source: dir.to_path_buf(),
         dt_s,
         ground_accel_mm_s2: scale(ag, units.length_to_mm),
@@ -574,7 +574,7 @@ pub fn read_recorder_dir(
 }
 
 /// Read one history: a recorder directory if `path` is a directory, else a CSV file.
-pub fn read(path: &Path, units: RecorderUnits, run_dt_s: f64) -> Result<History, HistoryError> {
+pub fn read(path: &Path, units: RecorderUnits, run_dt_s: f64) -> Result<TimeHistory, HistoryError> {
     if path.is_dir() {
         read_recorder_dir(path, units, run_dt_s)
     } else {
@@ -583,7 +583,7 @@ pub fn read(path: &Path, units: RecorderUnits, run_dt_s: f64) -> Result<History,
 }
 
 /// The CSV text of `h` (the layout [`parse_csv`] reads; 17 significant digits, times `k·dt_s`).
-pub fn to_csv(h: &History) -> String {
+pub fn to_csv(h: &TimeHistory) -> String {
     let mut s = CSV_COLUMNS.join(",");
     for (d, _) in &h.outputs {
         s.push(',');
@@ -613,9 +613,9 @@ mod tests {
 
     const DT: f64 = 1.0 / 2048.0;
 
-    fn sample(rows: usize) -> History {
+    fn sample(rows: usize) -> TimeHistory {
         let w = |k: usize, a: f64| (k as f64 * a).sin();
-        History {
+        TimeHistory {
             source: PathBuf::from("h.csv"),
             dt_s: DT,
             ground_accel_mm_s2: (0..rows).map(|k| 1000.0 * w(k, 0.01)).collect(),
@@ -665,7 +665,7 @@ mod tests {
         let e = err(&gap);
         assert!(e.starts_with("h.csv: line 7:") && e.contains("gap"), "{e}");
         // Another rate: the same rows at 4096 Hz.
-        let h = History {
+        let h = TimeHistory {
             dt_s: DT / 2.0,
             ..sample(20)
         };

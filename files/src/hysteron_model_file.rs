@@ -29,7 +29,7 @@ use rths_core::metamodel::{
 use rths_core::structure_n::MAX_DOF;
 use serde::{Deserialize, Serialize};
 
-use crate::nl_model_file::{structure_checksum, NlModelFile, NlModelFileError, StructureId};
+use crate::nl_model_file::{structure_checksum, NlModelFile, NlModelFileError, NlStructureId};
 
 /// The `kind` of a floor-hysteron model file.
 pub const HYSTERON_KIND: &str = "floor-hysteron";
@@ -149,7 +149,7 @@ pub struct HysteronModelFile {
     /// [`HYSTERON_KIND`].
     pub kind: String,
     /// The structure file it was trained for.
-    pub structure: StructureId,
+    pub structure: NlStructureId,
     /// The control step it was trained at, s (the parameters are continuous-time).
     pub dt_s: f64,
     /// The floors' history columns (`out_<NODE>_<DOF>_mm`), the model's DOFs in order.
@@ -210,7 +210,7 @@ impl AnyNlModel {
     }
 
     /// The structure it was trained for.
-    pub fn structure(&self) -> &StructureId {
+    pub fn structure(&self) -> &NlStructureId {
         match self {
             Self::Modal(m) => &m.structure,
             Self::Hysteron(h) => &h.structure,
@@ -456,7 +456,7 @@ mod tests {
             format: crate::nl_model_file::NL_FORMAT.into(),
             version: crate::nl_model_file::NL_VERSION,
             kind: HYSTERON_KIND.into(),
-            structure: StructureId {
+            structure: NlStructureId {
                 name: "s".into(),
                 checksum: "fnv1a64:0".into(),
             },

@@ -14,6 +14,8 @@
 //! - [`readable`]: numbers in messages, never with hundreds of digits.
 //! - [`structure_file`]: structure files (an N-DOF linear analytical part and its specimen).
 //! - [`structure_meta`]: a structure as the controller runs it, and the structure metamodel's file.
+//! - [`upload`]: a lab's model files of any kind laid out as the link carries them (the host's
+//!   uploads and the firmware's compiled-in default).
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
@@ -27,5 +29,6 @@ pub mod readable;
 pub mod reduced_model_file;
 pub mod structure_file;
 pub mod structure_meta;
+pub mod upload;
 
 pub use readable::readable;

@@ -24,9 +24,9 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 /// The `format` tag of every model file.
-pub const FORMAT: &str = "rths-model";
+pub const MODEL_FORMAT: &str = "rths-model";
 /// The model-file version this code reads and writes.
-pub const VERSION: u64 = 1;
+pub const MODEL_VERSION: u64 = 1;
 /// Largest RNN hidden size accepted (the `no_std` inference uses fixed-capacity buffers).
 pub const MAX_HIDDEN: usize = rths_core::metamodel::RNN_MAX_HIDDEN;
 
@@ -264,9 +264,9 @@ pub struct Scores {
 /// A whole model file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ModelFile {
-    /// Always [`FORMAT`].
+    /// Always [`MODEL_FORMAT`].
     pub format: String,
-    /// Always [`VERSION`].
+    /// Always [`MODEL_VERSION`].
     pub version: u64,
     /// Which model.
     pub kind: ModelKind,
@@ -321,13 +321,13 @@ pub enum ModelFileError {
     #[error("malformed model file: {0}")]
     Json(#[from] serde_json::Error),
     /// `format` is not "rths-model".
-    #[error("unknown model format {found:?} (expected \"{FORMAT}\")")]
+    #[error("unknown model format {found:?} (expected \"{MODEL_FORMAT}\")")]
     UnknownFormat {
         /// The tag found (empty if absent).
         found: String,
     },
     /// `version` is not supported.
-    #[error("unsupported model file version {found} (this build reads version {VERSION})")]
+    #[error("unsupported model file version {found} (this build reads version {MODEL_VERSION})")]
     UnsupportedVersion {
         /// The version found.
         found: u64,
@@ -531,8 +531,8 @@ impl ModelFile {
     ) -> Self {
         let names = feature_names(kind);
         Self {
-            format: FORMAT.to_string(),
-            version: VERSION,
+            format: MODEL_FORMAT.to_string(),
+            version: MODEL_VERSION,
             kind,
             features: names.iter().map(|s| s.to_string()).collect(),
             delay_steps,
@@ -547,12 +547,12 @@ impl ModelFile {
 
     /// Check the whole file: format, version, features, time step and the weights of its kind.
     pub fn validate(&self) -> Result<(), ModelFileError> {
-        if self.format != FORMAT {
+        if self.format != MODEL_FORMAT {
             return Err(ModelFileError::UnknownFormat {
                 found: self.format.clone(),
             });
         }
-        if self.version != VERSION {
+        if self.version != MODEL_VERSION {
             return Err(ModelFileError::UnsupportedVersion {
                 found: self.version,
             });
@@ -584,11 +584,11 @@ impl ModelFile {
         // Format and version first: a newer file must say so, not fail on a renamed field.
         let header: Header = serde_json::from_str(text)?;
         let format = header.format.unwrap_or_default();
-        if format != FORMAT {
+        if format != MODEL_FORMAT {
             return Err(ModelFileError::UnknownFormat { found: format });
         }
         let version = header.version.unwrap_or(0);
-        if version != VERSION {
+        if version != MODEL_VERSION {
             return Err(ModelFileError::UnsupportedVersion { found: version });
         }
         let model: ModelFile = serde_json::from_str(text)?;

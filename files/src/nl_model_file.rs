@@ -37,7 +37,7 @@ pub const NL_KIND: &str = "modal-hysteretic";
 
 /// Which structure file a model was trained for.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct StructureId {
+pub struct NlStructureId {
     /// The structure's `name`.
     pub name: String,
     /// [`structure_checksum`] of the structure file.
@@ -134,7 +134,7 @@ pub struct NlModelFile {
     /// [`NL_KIND`].
     pub kind: String,
     /// The structure file it was trained for.
-    pub structure: StructureId,
+    pub structure: NlStructureId,
     /// The control step it was trained at, s (the parameters suit any step).
     pub dt_s: f64,
     /// The specimen's DOF, 0-based.

@@ -46,11 +46,11 @@ use rths_core::structure_nl::NonlinearFrame;
 use serde::{Deserialize, Serialize};
 
 /// The `format` tag of every structure file.
-pub const FORMAT: &str = "rths-structure";
+pub const STRUCTURE_FORMAT: &str = "rths-structure";
 /// The structure-file version this code reads and writes.
-pub const VERSION: u64 = 1;
-/// Largest number of DOFs (the `no_std` integrator's fixed capacity).
-pub const MAX_DOF: usize = rths_core::structure_n::MAX_DOF;
+pub const STRUCTURE_VERSION: u64 = 1;
+/// Largest number of DOFs: core's (the `no_std` integrator's fixed capacity), the one constant.
+pub use rths_core::structure_n::MAX_DOF;
 /// Relative symmetry tolerance: `|a_ij − a_ji| ≤ tol·max|a|`. The benchmark's matrices are symmetric
 /// to 2.6e-15 (round-off of their source); 1e-9 accepts that and refuses any real asymmetry.
 pub const SYMMETRY_TOLERANCE: f64 = 1e-9;
@@ -110,13 +110,13 @@ pub struct Stories {
     pub damping_ratio: f64,
     /// The numerical stories' hysteresis laws, from the ground up (absent: linear).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub hysteresis: Option<Vec<StoryLawSpec>>,
+    pub hysteresis: Option<Vec<StoredStoryLaw>>,
 }
 
 /// A story's hysteresis law as stored (force in the file's units).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "law", rename_all = "kebab-case", deny_unknown_fields)]
-pub enum StoryLawSpec {
+pub enum StoredStoryLaw {
     /// Bilinear kinematic hardening.
     Bilinear {
         /// Yield force.
@@ -161,9 +161,9 @@ pub struct SpecimenSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StructureFile {
-    /// Always [`FORMAT`].
+    /// Always [`STRUCTURE_FORMAT`].
     pub format: String,
-    /// Always [`VERSION`].
+    /// Always [`STRUCTURE_VERSION`].
     pub version: u64,
     /// Short name.
     pub name: String,
@@ -197,14 +197,14 @@ pub enum StructureFileError {
     #[error("malformed structure file: {0}")]
     Json(#[from] serde_json::Error),
     /// `format` is not "rths-structure".
-    #[error("unknown structure format {found:?} (expected \"{FORMAT}\")")]
+    #[error("unknown structure format {found:?} (expected \"{STRUCTURE_FORMAT}\")")]
     UnknownFormat {
         /// The tag found.
         found: String,
     },
     /// `version` is not supported.
     #[error(
-        "unsupported structure file version {found} (this build reads version {VERSION}){}",
+        "unsupported structure file version {found} (this build reads version {STRUCTURE_VERSION}){}",
         imported_hint(*.found)
     )]
     UnsupportedVersion {
@@ -337,7 +337,7 @@ pub struct Structure {
 /// stiffness, minus the specimen's in the first story.
 fn story_laws(
     s: &Stories,
-    specs: &[StoryLawSpec],
+    specs: &[StoredStoryLaw],
     units: Units,
     specimen_dof: usize,
     specimen_k: f64,
@@ -363,11 +363,11 @@ fn story_laws(
     for (i, (spec, k)) in specs.iter().zip(&s.story_stiffness).enumerate() {
         let k0 = k * units.to_mm_kn() - if i == 0 { specimen_k } else { 0.0 };
         let law = match *spec {
-            StoryLawSpec::Bilinear {
+            StoredStoryLaw::Bilinear {
                 yield_force,
                 post_yield_ratio,
             } => Law::bilinear(k0, yield_force * force, post_yield_ratio),
-            StoryLawSpec::BoucWen {
+            StoredStoryLaw::BoucWen {
                 yield_force,
                 post_yield_ratio,
                 exponent,
@@ -523,11 +523,11 @@ impl StructureFile {
         }
         let header: Header = serde_json::from_str(text)?;
         let format = header.format.unwrap_or_default();
-        if format != FORMAT {
+        if format != STRUCTURE_FORMAT {
             return Err(StructureFileError::UnknownFormat { found: format });
         }
         let version = header.version.unwrap_or(0);
-        if version != VERSION {
+        if version != STRUCTURE_VERSION {
             return Err(StructureFileError::UnsupportedVersion { found: version });
         }
         Ok(serde_json::from_str(text)?)

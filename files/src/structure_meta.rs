@@ -27,14 +27,13 @@ use rths_core::metamodel::{DeltaArxParams, DELTA_ARX_COEFFS, DELTA_ARX_ORDER};
 use rths_core::structure_n::StructureN;
 use serde::{Deserialize, Serialize};
 
+use crate::model_file::MODEL_FORMAT;
 use crate::structure_file::{Structure, StructureFileError};
 
-/// The `format` tag (the model files' own).
-pub const FORMAT: &str = crate::model_file::FORMAT;
 /// The schema version.
-pub const VERSION: u64 = 1;
+pub const META_VERSION: u64 = 1;
 /// The `kind` tag.
-pub const KIND: &str = "structure-meta";
+pub const META_KIND: &str = "structure-meta";
 
 /// The numerical part of a structure, row-major, as `StructureSpec` borrows it.
 #[derive(Debug, Clone, PartialEq)]
@@ -162,11 +161,11 @@ pub struct MetaTraining {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MetaFile {
-    /// Always [`FORMAT`].
+    /// Always [`MODEL_FORMAT`] (the model files' own tag).
     pub format: String,
-    /// Always [`VERSION`].
+    /// Always [`META_VERSION`].
     pub version: u64,
-    /// Always [`KIND`].
+    /// Always [`META_KIND`].
     pub kind: String,
     /// The structure it was trained for.
     pub structure: StructureId,
@@ -198,7 +197,7 @@ pub enum MetaFileError {
     #[error("structure metamodel file: {0}")]
     Json(#[from] serde_json::Error),
     /// Another format, version or kind.
-    #[error("not a structure metamodel: format {format:?} version {version} kind {kind:?} (expected {FORMAT:?} {VERSION} {KIND:?})")]
+    #[error("not a structure metamodel: format {format:?} version {version} kind {kind:?} (expected {MODEL_FORMAT:?} {META_VERSION} {META_KIND:?})")]
     NotMeta {
         /// Found format.
         format: String,
@@ -237,9 +236,9 @@ impl MetaFile {
         training: MetaTraining,
     ) -> Self {
         Self {
-            format: FORMAT.into(),
-            version: VERSION,
-            kind: KIND.into(),
+            format: MODEL_FORMAT.into(),
+            version: META_VERSION,
+            kind: META_KIND.into(),
             structure: StructureId {
                 name: structure.name().into(),
                 checksum: structure_checksum(structure),
@@ -254,7 +253,7 @@ impl MetaFile {
 
     /// The validated parameters (format, kind, order, shape, finiteness).
     pub fn params(&self) -> Result<DeltaArxParams, MetaFileError> {
-        if self.format != FORMAT || self.version != VERSION || self.kind != KIND {
+        if self.format != MODEL_FORMAT || self.version != META_VERSION || self.kind != META_KIND {
             return Err(MetaFileError::NotMeta {
                 format: self.format.clone(),
                 version: self.version,

@@ -1,82 +1,17 @@
-//! The controller of this build: its analytical part, chosen by feature (exactly one of
-//! `model-lr`, `model-rnn`, `fe-ats`, `model-lrx`, the structure-file parts `structure-fe`,
-//! `structure-nl`, `structure-meta`, `structure-modal` (`RTHS_STRUCTURE`, build.rs), or
-//! `budget-structures`, the
-//! structure budget run), fed from the generated `gen` constants.
+//! The controller of this image. What it runs is data, not a feature: its compiled-in default, a
+//! model of any kind laid out by `build.rs` with the link's own layout (`gen::DEFAULT_KIND`,
+//! `DEFAULT_VALUES`, and the rig compensation its file carries), installed at boot through the path
+//! an upload takes (`rths_app::model_upload::install`, `rths_app::rig_upload::install_rig`); then
+//! whatever the host uploads. The structure budget (`RTHS_BUDGET=structures`, build.rs) is data
+//! too: its rows, run at boot on an ideal rig.
 
 use core::mem::MaybeUninit;
 
+use rths_app::rig_upload::{dims_of, install_rig, InForce};
 use rths_core::control::{ControlConfig, Controller, FeedbackSource};
-use rths_core::model::{assemble_in, ModelSpec};
-use rths_core::params::{Prototype, SpecimenScale, DT_S};
+use rths_core::params::{Prototype, SpecimenScale, FORCE_SCALE};
 use rths_core::supervisor::Limits;
-
-const _: () = assert!(
-    cfg!(feature = "model-lr") as u8
-        + cfg!(feature = "model-rnn") as u8
-        + cfg!(feature = "fe-ats") as u8
-        + cfg!(feature = "model-lrx") as u8
-        + cfg!(feature = "structure-fe") as u8
-        + cfg!(feature = "structure-nl") as u8
-        + cfg!(feature = "structure-meta") as u8
-        + cfg!(feature = "structure-modal") as u8
-        + cfg!(feature = "budget-structures") as u8
-        == 1,
-    "enable exactly one analytical part: `model-lr`, `model-rnn`, `fe-ats`, `model-lrx`, \
-     `structure-fe`, `structure-nl`, `structure-meta`, `structure-modal` or `budget-structures`"
-);
-
-/// A structure-file part (or the structure budget) is built.
-const STRUCTURE: bool = cfg!(any(
-    feature = "structure-fe",
-    feature = "structure-nl",
-    feature = "structure-meta",
-    feature = "structure-modal",
-    feature = "budget-structures"
-));
-
-/// The scenario's name (the RNN's adds its hidden size, [`SCENARIO_SUFFIX`]).
-pub const SCENARIO_PREFIX: &str = if cfg!(feature = "structure-fe") {
-    "structure-fe"
-} else if cfg!(feature = "structure-nl") {
-    "structure-nl"
-} else if cfg!(feature = "structure-meta") {
-    "structure-meta"
-} else if cfg!(feature = "structure-modal") {
-    "structure-modal"
-} else if cfg!(feature = "budget-structures") {
-    "budget-structures"
-} else if cfg!(feature = "model-rnn") {
-    "rnn-online-"
-} else if cfg!(feature = "fe-ats") {
-    "fe-online-ats"
-} else if cfg!(feature = "model-lrx") {
-    "lrx-online"
-} else {
-    "lr-online"
-};
-
-/// The suffix of the scenario's name: the RNN's hidden size.
-#[cfg(feature = "model-rnn")]
-pub const SCENARIO_SUFFIX: Option<usize> = Some(crate::gen::RNN_HIDDEN);
-/// The suffix of the scenario's name: none.
-#[cfg(not(feature = "model-rnn"))]
-pub const SCENARIO_SUFFIX: Option<usize> = None;
-
-/// The kind of this build's compiled-in analytical part (the link's status reports it until an
-/// upload replaces it). The link has no structure-file kind yet: those builds report the
-/// finite-element kind.
-pub const MODEL_KIND: rths_link::ModelKind = if STRUCTURE {
-    rths_link::ModelKind::FeAts
-} else if cfg!(feature = "model-rnn") {
-    rths_link::ModelKind::Rnn
-} else if cfg!(feature = "fe-ats") {
-    rths_link::ModelKind::FeAts
-} else if cfg!(feature = "model-lrx") {
-    rths_link::ModelKind::Lrx
-} else {
-    rths_link::ModelKind::Lr
-};
+use rths_link::ModelKind;
 
 /// The board's tick, against which an uploaded model is checked (`rths_app::tick_cost`): the
 /// Cortex-M7 boards at 480 MHz with hardware f64, the Cortex-M4 boards at 168 MHz, at the
@@ -98,8 +33,11 @@ pub const STAGING: usize = if cfg!(feature = "link") {
     0
 };
 
-/// The firmware build's identity: CRC-32 of its description (package version, board, analytical
-/// part, rate, compiled-in model's source), the same for two identical builds.
+/// This image runs the structure budget at boot (`RTHS_BUDGET=structures`) instead of a test.
+pub const BUDGET: bool = !crate::gen::BUDGET_ROWS.is_empty();
+
+/// The firmware build's identity: CRC-32 of its description (package version, board, the default
+/// model's kind and source, rate, link), the same for two identical builds.
 pub fn build_id() -> u32 {
     let board = if cfg!(feature = "board-qemu") {
         "qemu-netduinoplus2"
@@ -111,173 +49,105 @@ pub fn build_id() -> u32 {
         "stm32h743"
     };
     let mut d = rths_link::MODEL_CRC.digest();
-    for part in [
-        env!("CARGO_PKG_VERSION"),
-        board,
-        SCENARIO_PREFIX,
-        crate::gen::MODEL_SOURCE,
-    ] {
+    for part in [env!("CARGO_PKG_VERSION"), board, crate::gen::MODEL_SOURCE] {
         d.update(part.as_bytes());
         d.update(&[0]);
     }
-    d.update(&(SCENARIO_SUFFIX.unwrap_or(0) as u32).to_le_bytes());
+    d.update(&[crate::gen::DEFAULT_KIND as u8]);
     d.update(&rths_core::params::CONTROL_RATE_HZ.to_le_bytes());
     d.update(&[u8::from(cfg!(feature = "link"))]);
     d.finalize()
 }
 
-/// The controller, built in place in `slot` (an `init` local, a static): RTIC's resources hold a
-/// reference to it, and its parts are built where they live (`rths_core::model::assemble_in`), so
-/// the ~44 KiB controller (the ATS's 33 KiB, the RNN's 9 kB) is never a value on the stack. Also
-/// the link checksum of its compiled-in model (0 for the FE model, and for an RNN if `scratch`
-/// cannot hold its values).
-pub fn controller(
-    slot: &'static mut MaybeUninit<Controller>,
-    scratch: &mut [f64],
-) -> Result<(&'static mut Controller, u32), &'static str> {
+/// The board's own configuration of the controller: the paper's prototype and specimen scale, the
+/// measured feedback, the paper actuator's limits.
+fn board_config() -> Result<ControlConfig, &'static str> {
     let proto = Prototype::paper()
         .with_brace_factor(1.0)
         .map_err(|_| "prototype")?;
-    let cfg = ControlConfig::new(
+    ControlConfig::new(
         proto,
         SpecimenScale::default(),
         FeedbackSource::Measured,
         Limits::paper_actuator(),
     )
-    .map_err(|_| "control config")?;
-    let ctl = Controller::init_in(slot, cfg);
-    // Assembled by core, as the host scenarios are (`assemble`: the same parts, by value).
-    assemble_in(ctl, &SPEC, Prototype::paper(), DT_S).map_err(|_| "compiled-in model")?;
-    Ok((ctl, checksum(scratch)))
+    .map_err(|_| "control config")
 }
 
-/// This build's analytical part as a model file would describe it (the compiled-in `gen` arrays).
-#[cfg(feature = "model-lr")]
-const SPEC: ModelSpec<'static> = ModelSpec::Lr {
-    theta: &crate::gen::LR_THETA,
-};
-/// This build's analytical part as a model file would describe it (the compiled-in `gen` arrays).
-#[cfg(feature = "model-rnn")]
-const SPEC: ModelSpec<'static> = ModelSpec::Rnn {
-    weights: rths_core::metamodel::RnnWeights {
-        w_ih: &crate::gen::RNN_W_IH,
-        w_hh: &crate::gen::RNN_W_HH,
-        b_h: &crate::gen::RNN_B_H,
-        w_ho: &crate::gen::RNN_W_HO,
-        b_o: crate::gen::RNN_B_O,
-    },
-    scaling: rths_core::metamodel::RnnScaling {
-        input_mean: crate::gen::RNN_IN_MEAN,
-        input_std: crate::gen::RNN_IN_STD,
-        output_mean: crate::gen::RNN_OUT_MEAN,
-        output_std: crate::gen::RNN_OUT_STD,
-    },
-};
-/// This build's analytical part: the FE model with ATS starting from the paper's delay.
-#[cfg(feature = "fe-ats")]
-const SPEC: ModelSpec<'static> = ModelSpec::FeAts {
-    expected_delay_s: rths_core::params::PAPER_DELAY_STEPS as f64 * DT_S,
-};
-/// This build's analytical part: the structure file (and metamodel) `RTHS_STRUCTURE` named.
-#[cfg(any(
-    feature = "structure-fe",
-    feature = "structure-nl",
-    feature = "structure-meta",
-    feature = "structure-modal"
-))]
-const SPEC: ModelSpec<'static> = crate::gen::STRUCTURE_SPEC;
-/// The budget build's app controller (never ticked: `init` runs [`structure_budget`] and exits).
-#[cfg(feature = "budget-structures")]
-const SPEC: ModelSpec<'static> = ModelSpec::Fe;
-/// This build's analytical part as a model file would describe it (the compiled-in `gen` arrays).
-#[cfg(feature = "model-lrx")]
-const SPEC: ModelSpec<'static> = ModelSpec::Lrx {
-    coeffs: &crate::gen::LRX_COEFFS,
-    k_corr_kn_per_mm: crate::gen::LRX_K_CORR,
-    k_adapt_ticks: crate::gen::LRX_K_ADAPT,
-    lead_weights: &crate::gen::LRX_LEAD,
-    lead_stride: crate::gen::LRX_LEAD_STRIDE,
-    lead_adapt_ticks: crate::gen::LRX_LEAD_ADAPT,
-    specimen_dynamics: crate::gen::LRX_SPECIMEN_DYNAMICS,
-};
+/// The default model in force at boot: its kind and its link checksum (what an upload of the same
+/// files reports).
+#[derive(Debug, Clone, Copy)]
+pub struct BootModel {
+    /// Its kind.
+    pub kind: ModelKind,
+    /// Its checksum.
+    pub checksum: u32,
+}
 
-/// The link checksum of the compiled-in model: an LR, LRX or RNN model's (what an upload of the
-/// same model file reports; an RNN's values are laid out in `scratch`), else 0.
-fn checksum(scratch: &mut [f64]) -> u32 {
-    let _ = &scratch;
-    #[cfg(feature = "model-rnn")]
-    if let ModelSpec::Rnn { weights, scaling } = SPEC {
-        return rths_app::model_upload::rnn_checksum(
-            &weights,
-            &scaling,
-            crate::gen::RNN_DELAY_STEPS,
-            scratch,
-        );
+/// The controller, built in place in `slot` (an `init` local, a static): RTIC's resources hold a
+/// reference to it, and its parts are built where they live, so the ~44 KiB controller (the ATS's
+/// 33 KiB, the RNN's 9 kB) is never a value on the stack. Its default is installed through the
+/// path an upload takes, then the rig compensation its file carries.
+pub fn controller(
+    slot: &'static mut MaybeUninit<Controller>,
+) -> Result<(&'static mut Controller, BootModel), &'static str> {
+    use crate::gen::{DEFAULT_DELAY, DEFAULT_KIND, DEFAULT_RIG, DEFAULT_VALUES};
+    let ctl = Controller::init_in(slot, board_config()?);
+    rths_app::model_upload::install(ctl, DEFAULT_KIND, &DEFAULT_VALUES)
+        .map_err(|_| "compiled-in model")?;
+    if !DEFAULT_RIG.is_empty() {
+        let part = InForce {
+            kind: DEFAULT_KIND,
+            dims: dims_of(ctl),
+            budget: Some(TICK_BUDGET),
+        };
+        install_rig(ctl, &part, DEFAULT_KIND, &DEFAULT_RIG)
+            .map_err(|_| "compiled-in rig compensation")?;
     }
-    #[cfg(feature = "model-lr")]
-    return rths_app::link::compiled_model_checksum(&crate::gen::LR_THETA);
-    #[cfg(feature = "model-lrx")]
-    return rths_app::model_upload::lrx_checksum(
-        &crate::gen::LRX_COEFFS,
-        crate::gen::LRX_K_CORR,
-        crate::gen::LRX_K_ADAPT,
-        &crate::gen::LRX_LEAD,
-        crate::gen::LRX_LEAD_STRIDE,
-        crate::gen::LRX_DELAY_STEPS,
-    );
-    #[cfg(not(any(feature = "model-lr", feature = "model-lrx")))]
-    0
-}
-
-/// The fault plan `RTHS_FAULT` named at build time (`fault-inject`).
-#[cfg(feature = "fault-inject")]
-pub fn faults() -> rths_hal_sim::FaultPlan {
-    use rths_hal_sim::{Fault, FaultPlan};
-    match crate::gen::FAULT_KIND {
-        Some(kind) => match Fault::new(kind, crate::gen::FAULT_START, crate::gen::FAULT_TICKS)
-            .and_then(|f| FaultPlan::none().with(f))
-        {
-            Ok(p) => p,
-            Err(_) => crate::die("RTHS_FAULT: invalid fault"),
+    let checksum = match (DEFAULT_KIND, DEFAULT_VALUES.first_chunk()) {
+        // An LR goes in one `UploadLr`, whose checksum is its own.
+        (ModelKind::Lr, Some(theta)) => rths_link::model_checksum(theta, DEFAULT_DELAY),
+        _ => rths_link::model_values_checksum(DEFAULT_KIND, &DEFAULT_VALUES, DEFAULT_DELAY),
+    };
+    Ok((
+        ctl,
+        BootModel {
+            kind: DEFAULT_KIND,
+            checksum,
         },
-        None => FaultPlan::none(),
-    }
+    ))
 }
 
-/// One controller of the structure budget (build.rs generates the rows of `gen::BUDGET_ROWS`).
-#[cfg(feature = "budget-structures")]
+/// One controller of the structure budget (build.rs writes `gen::BUDGET_ROWS`).
 pub struct BudgetRow {
-    /// The budget path: `structure-fe`, `structure-nl`, `structure-meta`, `structure-modal` or
-    /// `structure-reduced` (an imported structure's reduced-order model).
+    /// The budget path: `structure-fe`, `structure-nl`, `structure-meta`, `structure-modal`,
+    /// `structure-reduced` (an imported structure's reduced-order model), and `nl-online`,
+    /// `meta-online` (the modal and reduced models with a rig compensation).
     pub path: &'static str,
     /// The structure file's name.
     pub structure: &'static str,
     /// Its DOFs (an imported structure's: those with mass, the reduced model's N).
     pub dofs: usize,
+    /// The retained modes of a reduced-order model (0 for the other paths): its cost per tick is
+    /// set by them, not by `dofs`.
+    pub modes: usize,
     /// The specimen's stiffness, kN/mm (the ideal rig holds it).
     pub specimen_kn_per_mm: f64,
-    /// The retained modes of a reduced-order model (`structure-reduced`; 0 for the other paths):
-    /// its cost per tick is set by them, not by `dofs`.
-    pub modes: usize,
-    /// Its analytical part and compensator, assembled by core from the row's constant spec.
-    pub build: fn() -> Result<
-        (
-            rths_core::control::Analytical,
-            rths_core::compensator::Compensator,
-        ),
-        rths_core::metamodel::ModelError,
-    >,
+    /// Its kind and values (`rths_link::layout`), installed as an upload is.
+    pub kind: ModelKind,
+    /// Its values.
+    pub values: &'static [f64],
+    /// Its rig compensation (empty: none).
+    pub rig: &'static [f64],
 }
 
 /// Prototype displacement over specimen displacement in the structure budget: the structures'
 /// floors move tens of mm under El Centro ×1, the actuator a tenth of it (inside the supervisor's
 /// stroke, velocity and force limits, so every controller stays `Running` the whole record).
-#[cfg(feature = "budget-structures")]
 const BUDGET_DISP_SCALE: f64 = 10.0;
 
 /// One controller tick, out of line: the counter's two readings sit around one opaque call the
 /// compiler cannot move work across.
-#[cfg(feature = "budget-structures")]
 #[inline(never)]
 fn budget_tick(
     c: &mut Controller,
@@ -288,17 +158,18 @@ fn budget_tick(
 }
 
 /// The structure budget: each controller of `gen::BUDGET_ROWS` (FE linear, FE yielding, the
-/// structure metamodel and the modal-hysteretic metamodel for N = 1, 3, 8, then the imported
-/// structures' reduced-order models) runs the whole record (`ag_mm_s2(k)`,
-/// `ticks`) from rest, one after the other, on an ideal rig: the measured displacement is the
-/// command in force, the measured force the structure file's linear specimen at it (the plant does
-/// not change the instruction count of these controllers: no branch depends on it). Counted per
-/// tick: `Controller::tick` (feedback, the analytical part, the supervisor), less the counter's
-/// overhead. Prints one `STRUCTURE {...}` line per controller, then ends the emulation (success:
-/// every controller stayed `Running` the whole record). Declared `()` so that `init`'s code after
-/// the call stays reachable to the compiler in this build.
-#[cfg(feature = "budget-structures")]
+/// structure metamodel and the modal-hysteretic metamodel for N = 1, 3, 8, the imported
+/// structures' reduced-order models, and the modal and reduced models with a rig compensation)
+/// built in `slot` in place, as the image's own controller is, runs the whole record
+/// (`ag_mm_s2(k)`, `ticks`) from rest, one after the other, on an ideal rig: the measured
+/// displacement is the command in force, the measured force the structure file's linear
+/// specimen at it (the plant does not change the instruction count of these controllers: no
+/// branch depends on it). Counted per tick: `Controller::tick` (feedback, the analytical part, the
+/// compensator, the supervisor), less the counter's overhead. Prints one `STRUCTURE {...}` line
+/// per controller, then ends the emulation (success: every controller stayed `Running` the whole
+/// record).
 pub fn structure_budget<C: rths_app::board::InstrCounter>(
+    slot: &mut MaybeUninit<Controller>,
     counter: &C,
     overhead_instr: u32,
     ag_mm_s2: impl Fn(u32) -> f64,
@@ -307,17 +178,15 @@ pub fn structure_budget<C: rths_app::board::InstrCounter>(
     use rths_app::board::Board as _;
     let mut all_ok = true;
     for row in crate::gen::BUDGET_ROWS.iter() {
-        all_ok &= budget_row(row, counter, overhead_instr, &ag_mm_s2, ticks);
+        all_ok &= budget_row(slot, row, counter, overhead_instr, &ag_mm_s2, ticks);
     }
     crate::B::exit(all_ok)
 }
 
-/// One row of [`structure_budget`]: its controller, run and reported. Out of line: inlined into
-/// the loop over the rows, the compiler unrolled it and gave each row's ~12 KB controller
-/// its own stack slot (a 111 KB frame, past the RAM).
-#[cfg(feature = "budget-structures")]
+/// One row of [`structure_budget`]: its controller, run and reported. Out of line: one row's frame.
 #[inline(never)]
 fn budget_row<C: rths_app::board::InstrCounter>(
+    slot: &mut MaybeUninit<Controller>,
     row: &BudgetRow,
     counter: &C,
     overhead_instr: u32,
@@ -326,7 +195,6 @@ fn budget_row<C: rths_app::board::InstrCounter>(
 ) -> bool {
     use core::fmt::Write as _;
     use rths_app::board::Board as _;
-    use rths_core::params::FORCE_SCALE;
     use rths_core::supervisor::State;
     let Ok(scale) = SpecimenScale::new(BUDGET_DISP_SCALE, FORCE_SCALE) else {
         crate::die("budget scale");
@@ -339,10 +207,21 @@ fn budget_row<C: rths_app::board::InstrCounter>(
     ) else {
         crate::die("budget control config");
     };
-    let Ok((analytical, compensator)) = (row.build)() else {
-        crate::die("the budget's structure would not assemble");
-    };
-    let mut c = Controller::new(cfg, analytical, compensator);
+    let c = Controller::init_in(slot, cfg);
+    if rths_app::model_upload::install(c, row.kind, row.values).is_err() {
+        crate::die("the budget's model would not install");
+    }
+    if !row.rig.is_empty() {
+        // Not checked against the tick: the budget measures what the check estimates from.
+        let part = InForce {
+            kind: row.kind,
+            dims: dims_of(c),
+            budget: None,
+        };
+        if install_rig(c, &part, row.kind, row.rig).is_err() {
+            crate::die("the budget's rig compensation would not install");
+        }
+    }
     let started = {
         let s = c.supervisor_mut();
         s.arm().is_ok() && s.start().is_ok()
@@ -360,7 +239,7 @@ fn budget_row<C: rths_app::board::InstrCounter>(
         };
         let ag = ag_mm_s2(k);
         let t0 = counter.now();
-        let out = budget_tick(&mut c, ag, sample);
+        let out = budget_tick(c, ag, sample);
         let t1 = counter.now();
         let instr = counter.instructions(t0, t1).saturating_sub(overhead_instr);
         state = out.state;

@@ -20,9 +20,10 @@
 //! - `link_rx` (`link`; the link UART's receive interrupt, USART2, priority 1): the host's requests.
 //! - `idle`: `wfi`.
 //!
-//! The analytical part is chosen by feature: `model-lr` (`lr-online`), `model-rnn`
-//! (`rnn-online-H`), `fe-ats` (`fe-online-ats`), `model-lrx` (`lrx-online`). `fault-inject` injects
-//! the fault `RTHS_FAULT` names at build time into the emulated plant (see `build.rs`).
+//! What the image runs is data, not a feature: any model kind uploaded over the link, or its
+//! compiled-in default (`RTHS_MODEL`, `RTHS_STRUCTURE`: build.rs), installed at boot through the
+//! path an upload takes (`analytical.rs`). `fault-inject` injects the fault `RTHS_FAULT` names at
+//! build time into the emulated plant (see `build.rs`).
 #![no_std]
 #![no_main]
 
@@ -36,23 +37,8 @@ const _: () = assert!(
     "enable exactly one board feature: `board-qemu`, `board-stm32f4`, `board-mps2-an500` or \
      `board-stm32h743`"
 );
-// The paths that do not fit the Cortex-M4's tick are refused for the real F407 rather than built to
-// overrun (measured by budget.sh; the emulated M4 still builds them, to measure them, and the
-// budget table marks those rows as not fitting).
-#[cfg(all(feature = "board-stm32f4", feature = "model-rnn"))]
-compile_error!(
-    "the RNN-10 path does not fit the STM32F407: 56 768 instructions per tick measured in QEMU (f64 in \
-     software on the Cortex-M4), 104 % of the 2048 Hz tick at 168 MHz. Build it for a Cortex-M7 board \
-     (`cargo build-m7 --no-default-features --features board-stm32h743,model-rnn`: 2 445 instructions, \
-     1.6 %), or use `model-lr` / `model-lrx` on the F407 (docs/firmware.md, the budget table)"
-);
-#[cfg(all(feature = "board-stm32f4", feature = "fe-ats", feature = "rate-4096"))]
-compile_error!(
-    "the FE + ATS path does not fit the STM32F407 at 4096 Hz: 31 208 instructions per tick measured in \
-     QEMU, 114 % of the 4096 Hz tick at 168 MHz (57 % at 2048 Hz). Build it at 2048 Hz, or for a \
-     Cortex-M7 board (`cargo build-m7 --no-default-features --features board-stm32h743,fe-ats,rate-4096`: \
-     3 160 instructions, 4 %) (docs/firmware.md, the budget table)"
-);
+// A default model that does not fit the board's tick is refused by build.rs (with the measured
+// estimate), as an upload is refused `TickBudget`.
 #[cfg(feature = "board-mps2-an500")]
 use rths_board_mps2_an500 as board;
 #[cfg(feature = "board-qemu")]
@@ -159,6 +145,21 @@ fn injected_stall(k: u32) -> bool {
     {
         let _ = k;
         false
+    }
+}
+
+/// The fault plan `RTHS_FAULT` named at build time (`fault-inject`).
+#[cfg(feature = "fault-inject")]
+fn faults() -> rths_hal_sim::FaultPlan {
+    use rths_hal_sim::{Fault, FaultPlan};
+    match gen::FAULT_KIND {
+        Some(kind) => match Fault::new(kind, gen::FAULT_START, gen::FAULT_TICKS)
+            .and_then(|f| FaultPlan::none().with(f))
+        {
+            Ok(p) => p,
+            Err(_) => die("RTHS_FAULT: invalid fault"),
+        },
+        None => FaultPlan::none(),
     }
 }
 
@@ -288,22 +289,23 @@ mod app {
             }
         };
         #[cfg(feature = "fault-inject")]
-        parts.rig.inject(analytical::faults());
+        parts.rig.inject(faults());
         let store = motion::store();
-        // The structure budget runs here and ends the emulation.
-        #[cfg(feature = "budget-structures")]
-        analytical::structure_budget(
-            &parts.counter,
-            rths_app::board::CounterCalibration::counter_overhead_instr(&parts.calibration),
-            |k| store.accel_mm_s2(k),
-            store.ticks(),
-        );
+        // The structure budget's image runs it here and ends the emulation.
+        if analytical::BUDGET {
+            analytical::structure_budget(
+                &mut *cx.local.controller,
+                &parts.counter,
+                rths_app::board::CounterCalibration::counter_overhead_instr(&parts.calibration),
+                |k| store.accel_mm_s2(k),
+                store.ticks(),
+            );
+        }
         let ag0 = store.accel_mm_s2(0);
         <<B as Board>::Harness as Harness<<B as Board>::Rig>>::reset(&mut parts.harness, ag0);
-        // The staging area lays out the compiled-in model's values for its checksum, then waits
-        // for uploads.
+        // The default model, installed as an upload is; the staging area waits for uploads.
         let staging: &'static mut [f64] = cx.local.staging;
-        let (ctl, model_checksum) = match analytical::controller(cx.local.controller, staging) {
+        let (ctl, boot) = match analytical::controller(cx.local.controller) {
             Ok(c) => c,
             Err(e) => die(e),
         };
@@ -311,7 +313,7 @@ mod app {
         let (step_ends, step_ends_rx) = cx.local.step_queue.split();
         defmt::info!(
             "rths firmware: {=str}, model {=str}, {=u32} ticks, tick {=f64} Hz",
-            analytical::SCENARIO_PREFIX,
+            ctl.scenario_name().0,
             gen::MODEL_SOURCE,
             gen::RECORD_TICKS,
             B::tick_rate_hz()
@@ -334,14 +336,14 @@ mod app {
                 link: Link {
                     port: parts.link,
                     session: rths_app::link::Session::new(
-                        model_checksum,
+                        boot.checksum,
                         analytical::TICK_BUDGET,
                         if B::EMULATED_PLANT {
                             rths_app::link::Rearm::OncePerPowerUp
                         } else {
                             rths_app::link::Rearm::AtMeasured
                         },
-                        analytical::MODEL_KIND,
+                        boot.kind,
                         staging,
                     )
                     .with_excitation(EXCITATION)
@@ -629,12 +631,7 @@ mod app {
                 .link
                 .lock(|l| l.session.model_source == rths_link::RecordSource::Uploaded);
             let in_force = InForce {
-                // The budget image runs every structure path in turn under one name.
-                scenario: if cfg!(feature = "budget-structures") {
-                    (analytical::SCENARIO_PREFIX, analytical::SCENARIO_SUFFIX)
-                } else {
-                    part
-                },
+                scenario: part,
                 model: if uploaded {
                     "uploaded over the link"
                 } else {

@@ -2,9 +2,10 @@
 //! handled against a controller and a record store, as the firmware's `link_rx` does. Never a
 //! panic; the record in force changes only on an acknowledged `RecordCommit`, the model checksum
 //! only on an acknowledged `UploadLr` or `ModelCommit`, the rig compensation only on an
-//! acknowledged `UploadRig` or `ModelCommit`, and the device answers every request once. The first
-//! byte picks the build (LR, LRX, RNN-2 or FE + ATS, and how it rearms), so the chunked RNN upload
-//! and both rig layouts are reached.
+//! acknowledged `UploadRig`, `RigCommit` or `ModelCommit`, and the device answers every request
+//! once. The first byte picks the build (LR, LRX, RNN-2 or FE + ATS, and how it rearms; bit 4: a
+//! structure part, a 1-mode modal-hysteretic model), so the chunked RNN upload, every rig layout
+//! and the chunked rig upload are reached.
 //! An `Identify` (the session has the excitation's tables) is acknowledged only from rest, and
 //! then leaves the supervisor running and the stream an identification's.
 #![no_main]
@@ -15,7 +16,8 @@ use rths_app::record::RecordStore;
 use rths_app::tick_cost::TickBudget;
 use rths_app::Run;
 use rths_core::control::{ControlConfig, Controller, FeedbackSource};
-use rths_core::metamodel::{RnnScaling, RnnWeights};
+use rths_core::control::{ModalSpec, StoryLawSpec};
+use rths_core::metamodel::{ModalMode, RnnScaling, RnnWeights};
 use rths_core::model::{assemble, ModelSpec};
 use rths_core::params::{Prototype, SpecimenScale, CONTROLLER_RATE_HZ, DT_S};
 use rths_core::supervisor::Limits;
@@ -57,6 +59,25 @@ fn spec(kind: ModelKind) -> ModelSpec<'static> {
         },
         ModelKind::FeAts => ModelSpec::FeAts {
             expected_delay_s: 28.0 * DT_S,
+        },
+        _ => ModelSpec::StructureModal {
+            model: ModalSpec {
+                modes: &[ModalMode {
+                    omega_rad_s: 20.0,
+                    damping_ratio: 0.02,
+                    ground_participation: 1.0,
+                }],
+                shape: &[0.7],
+                specimen_dof: 0,
+                specimen_k_kn_per_mm: 50.0,
+                laws: &[StoryLawSpec {
+                    k0_kn_per_mm: 40.0,
+                    yield_force_kn: 20.0,
+                    post_yield_ratio: 0.05,
+                    bouc_wen: None,
+                }],
+                drift: &[0.7],
+            },
         },
     }
 }
@@ -100,6 +121,7 @@ fuzz_target!(|data: &[u8]| {
     // ATS builds.
     let first = data.first().copied().unwrap_or(0) % 8;
     let kind = match first / 2 {
+        _ if data.first().copied().unwrap_or(0) & 16 != 0 => ModelKind::StructureModal,
         0 => ModelKind::Lr,
         1 => ModelKind::Lrx,
         2 => ModelKind::Rnn,
@@ -168,7 +190,7 @@ fuzz_target!(|data: &[u8]| {
         } else {
             assert!(!matches!(effect, Effect::Identify(_)));
         }
-        if !(acked && matches!(req, Request::UploadRig | Request::ModelCommit)) {
+        if !(acked && matches!(req, Request::UploadRig | Request::RigCommit | Request::ModelCommit)) {
             assert_eq!(
                 rths_app::rig_upload::rig_checksum_of(&ctl),
                 rig0,

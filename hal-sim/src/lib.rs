@@ -23,6 +23,7 @@ pub mod fault;
 pub mod params;
 mod plant;
 pub mod rig;
+mod zoh;
 
 pub use fault::{Channel, Fault, FaultKind, FaultPlan};
 pub use params::{

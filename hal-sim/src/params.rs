@@ -7,7 +7,7 @@
 //! Source of the servo-hydraulic model and its nominal values and uncertainty: Silva, Gomez, Dyke et
 //! al., "Benchmark control problem for real-time hybrid simulation", MSSP 2020 (docs/design.md §4).
 
-use crate::plant::Zoh;
+use crate::zoh::{LinearPlant, Zoh};
 use libm::sqrt;
 use rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -411,7 +411,7 @@ impl RigConfig {
             && matches!(self.specimen, Specimen::Linear)
             && !d.is_active()
         {
-            params.zoh = Some(Zoh::new(&params, 1.0));
+            params.zoh = Some(params.zoh_at(1.0));
         }
         Ok(params)
     }
@@ -466,6 +466,22 @@ pub struct Response {
 }
 
 impl PlantParams {
+    /// The exact tick map of the linear plant with the specimen stiffness × `stiffness_factor`
+    /// (a fault's softening, or 1).
+    pub(crate) fn zoh_at(&self, stiffness_factor: f64) -> Zoh {
+        Zoh::new(&LinearPlant {
+            dt_s: self.dt_s,
+            beta1: self.beta1,
+            beta2: self.beta2,
+            a1_beta0: self.a1_beta0,
+            a2: self.a2,
+            a3: self.a3,
+            mass_kg: self.mass_kg,
+            damping_n_s_per_m: self.damping_n_s_per_m,
+            stiffness_n_per_m: self.stiffness_n_per_m * stiffness_factor,
+        })
+    }
+
     /// The drift of the run.
     pub fn drift(&self) -> Drift {
         self.drift

@@ -22,6 +22,7 @@
 use libm::{fabs, pow};
 
 use crate::params::{PlantParams, Specimen};
+use crate::zoh::Zoh;
 
 const N: usize = 6;
 
@@ -253,89 +254,6 @@ pub(crate) fn restoring_force_n(p: &PlantParams, s: &PlantState, m: Modifiers) -
     restoring_force(&c, s.y[3], s.y[5])
 }
 
-/// The exact zero-order-hold discretization of the linear plant (state `[q, q̇, f, x, ẋ]`, `z` is
-/// idle) over one controller tick: `y(t + dt) = Φ·y(t) + Γ·r` for a reference `r` held over the
-/// tick, no saturation.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Zoh {
-    phi: [[f64; 5]; 5],
-    gamma: [f64; 5],
-}
-
-type Mat6 = [[f64; 6]; 6];
-
-fn matmul(a: &Mat6, b: &Mat6) -> Mat6 {
-    let mut out = [[0.0; 6]; 6];
-    for (orow, arow) in out.iter_mut().zip(a) {
-        for (aik, brow) in arow.iter().zip(b) {
-            for (o, bkj) in orow.iter_mut().zip(brow) {
-                *o += aik * bkj;
-            }
-        }
-    }
-    out
-}
-
-/// Scaling and squaring: `e^{M·dt} = (e^{M·dt/2^s})^{2^s}`, each factor a Taylor series. The
-/// fastest mode is |λ| ≤ 783 rad/s and the other couplings are of the same order, so with
-/// `dt/64` the scaled matrix has a spectral radius ≈ 0.006 and order 12 truncates below 1e-30.
-const ZOH_SQUARINGS: u32 = 6;
-const ZOH_TAYLOR_ORDER: u32 = 12;
-
-impl Zoh {
-    /// `Φ = e^{A·dt}` and `Γ = ∫₀^dt e^{A·s}ds·B` from the exponential of the augmented matrix
-    /// `[[A, B], [0, 0]]` (its top-right column is Γ), for the specimen stiffness × `stiffness_factor`.
-    pub(crate) fn new(p: &PlantParams, stiffness_factor: f64) -> Self {
-        let k = p.stiffness_n_per_m * stiffness_factor;
-        let h = p.dt_s / f64::from(1u32 << ZOH_SQUARINGS);
-        let (m, c) = (p.mass_kg, p.damping_n_s_per_m);
-        // Rows: q̇, q̈, ḟ, ẋ, ẍ, ṙ = 0 (same equations as `deriv` without the saturations).
-        let a: Mat6 = [
-            [0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
-            [-p.beta2, -p.beta1, 0.0, -p.a1_beta0, 0.0, p.a1_beta0],
-            [1.0, 0.0, -p.a3, 0.0, -p.a2, 0.0],
-            [0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
-            [0.0, 0.0, 1.0 / m, -k / m, -c / m, 0.0],
-            [0.0; 6],
-        ];
-        let mut ah = a;
-        for v in ah.iter_mut().flatten() {
-            *v *= h;
-        }
-        let mut ident = [[0.0; 6]; 6];
-        for (i, row) in ident.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v = if i == j { 1.0 } else { 0.0 };
-            }
-        }
-        // Horner: I + M(I + M/2(I + … (I + M/n))).
-        let mut e = ident;
-        for j in (1..=ZOH_TAYLOR_ORDER).rev() {
-            let me = matmul(&ah, &e);
-            let inv = 1.0 / f64::from(j);
-            for ((er, mr), ir) in e.iter_mut().zip(&me).zip(&ident) {
-                for ((ev, mv), iv) in er.iter_mut().zip(mr).zip(ir) {
-                    *ev = iv + mv * inv;
-                }
-            }
-        }
-        for _ in 0..ZOH_SQUARINGS {
-            e = matmul(&e, &e);
-        }
-        let mut z = Zoh {
-            phi: [[0.0; 5]; 5],
-            gamma: [0.0; 5],
-        };
-        for ((prow, g), erow) in z.phi.iter_mut().zip(z.gamma.iter_mut()).zip(&e) {
-            for (pv, ev) in prow.iter_mut().zip(erow) {
-                *pv = *ev;
-            }
-            *g = erow[5];
-        }
-        z
-    }
-}
-
 #[cfg(test)]
 mod tests {
     extern crate std;
@@ -367,7 +285,7 @@ mod tests {
                 free.stroke_m = f64::INFINITY;
                 free.velocity_m_s = f64::INFINITY;
                 let stiffness = [1.0, 0.5, 2.0];
-                let maps = stiffness.map(|f| Zoh::new(&p, f));
+                let maps = stiffness.map(|f| p.zoh_at(f));
                 let limits = [
                     p.rated_flow(),
                     0.0,
@@ -433,7 +351,7 @@ mod tests {
         p.stroke_m = f64::INFINITY;
         p.velocity_m_s = f64::INFINITY;
         p.substeps = 4096;
-        let z = Zoh::new(&p, 1.0);
+        let z = p.zoh_at(1.0);
         let m = Modifiers::default();
         for j in 0..6 {
             let mut s = PlantState::default();

@@ -12,7 +12,8 @@ use rths_core::hal::{Actuator, Daq, Error, ErrorKind, Sample};
 
 use crate::fault::{FaultKind, FaultPlan};
 use crate::params::PlantParams;
-use crate::plant::{self, Modifiers, PlantState, Zoh};
+use crate::plant::{self, Modifiers, PlantState};
+use crate::zoh::Zoh;
 
 /// Full-scale voltage of the converters, ±V.
 pub const CONVERTER_FULL_SCALE_V: f64 = 10.0;
@@ -211,7 +212,7 @@ impl VirtualRig {
             Some(_) => {
                 let factor = m.stiffness_factor;
                 if self.zoh_faulted.map(|(f, _)| f) != Some(factor) {
-                    self.zoh_faulted = Some((factor, Zoh::new(&self.params, factor)));
+                    self.zoh_faulted = Some((factor, self.params.zoh_at(factor)));
                 }
                 self.zoh_faulted.as_ref().map(|(_, z)| z)
             }

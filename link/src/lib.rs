@@ -37,6 +37,12 @@
 
 use serde::{Deserialize, Serialize};
 
+pub mod layout;
+pub use layout::{
+    lrx_values, rig_value_count, rig_values, rnn_hidden_of, rnn_value_count, FE_ATS_VALUES,
+    LRX_VALUES, MODEL_MAX_VALUES, RIG_MAX_VALUES, RNN_UPLOAD_MAX_HIDDEN,
+};
+
 /// Largest frame body (encoded, without the delimiter) either side sends or accepts, bytes.
 pub const MAX_FRAME: usize = 128;
 
@@ -58,57 +64,6 @@ pub fn model_checksum(theta: &[f64; LR_COEFFS], delay_steps: u16) -> u32 {
     }
     d.update(&delay_steps.to_le_bytes());
     d.finalize()
-}
-
-/// Values of an LRX model upload ([`lrx_values`]): 9 frame coefficients, the correction stiffness,
-/// the adaptation time constant, 8 lead-filter weights, the lead stride.
-pub const LRX_VALUES: usize = 20;
-
-/// Values of an FE + ATS model upload ([`ModelKind::FeAts`]): the delay the ATS starts from, s. The
-/// finite elements are the device's own prototype (the paper's frame, compiled in).
-pub const FE_ATS_VALUES: usize = 1;
-
-/// The largest RNN hidden size an upload may have: the controller's RNN capacity
-/// (`rths_core::metamodel::RNN_MAX_HIDDEN`; a test checks they agree).
-pub const RNN_UPLOAD_MAX_HIDDEN: usize = 32;
-
-/// Most values a chunked model upload may have, of any kind: the device's staging area (an RNN of
-/// [`RNN_UPLOAD_MAX_HIDDEN`] units, 1,159 values, 9,272 bytes).
-pub const MODEL_MAX_VALUES: usize = rnn_value_count(RNN_UPLOAD_MAX_HIDDEN);
-
-/// Values of an RNN model upload of `hidden` units ([`ModelKind::Rnn`]), in this order: `w_ih`
-/// (hidden × 2, row-major), `w_hh` (hidden × hidden, row-major), `b_h` (hidden), `w_ho` (hidden),
-/// `b_o`, the input means (2) and standard deviations (2), the output mean and standard deviation.
-/// The device takes any hidden size up to [`RNN_UPLOAD_MAX_HIDDEN`] that its tick can run.
-pub const fn rnn_value_count(hidden: usize) -> usize {
-    hidden * 2 + hidden * hidden + hidden + hidden + 1 + 2 + 2 + 2
-}
-
-/// The hidden size of an RNN upload of `values` values ([`rnn_value_count`]'s inverse), if any.
-pub fn rnn_hidden_of(values: usize) -> Option<usize> {
-    // values = h² + 4h + 7: the positive root, checked exactly.
-    (1..=64).find(|h| rnn_value_count(*h) == values)
-}
-
-/// An LRX model as the flat list of values a chunked upload sends, in this order: `coeffs` (9),
-/// `k_corr_kn_per_mm`, `k_adapt_ticks`, `lead_weights` (8), `lead_stride` (as f64). `None` if a
-/// slice has the wrong length.
-pub fn lrx_values(
-    coeffs: &[f64],
-    k_corr_kn_per_mm: f64,
-    k_adapt_ticks: f64,
-    lead_weights: &[f64],
-    lead_stride: usize,
-) -> Option<[f64; LRX_VALUES]> {
-    let mut v = [0.0; LRX_VALUES];
-    v.get_mut(..9)?
-        .copy_from_slice(coeffs.get(..9).filter(|_| coeffs.len() == 9)?);
-    *v.get_mut(9)? = k_corr_kn_per_mm;
-    *v.get_mut(10)? = k_adapt_ticks;
-    v.get_mut(11..19)?
-        .copy_from_slice(lead_weights.get(..8).filter(|_| lead_weights.len() == 8)?);
-    *v.get_mut(19)? = lead_stride as f64;
-    Some(v)
 }
 
 /// The end-to-end checksum of a chunked model upload: CRC-32/ISO-HDLC of the kind's wire index (one
@@ -242,13 +197,12 @@ pub enum HostMsg {
     },
     /// All chunks sent: check and make the new record the active one.
     RecordCommit,
-    /// Begin a chunked model upload (a model of more values than a frame holds: LRX, RNN).
+    /// Begin a chunked model upload of any kind but LR (which goes in one [`HostMsg::UploadLr`]):
+    /// its values in [`layout`]'s layout.
     ModelBegin {
-        /// The kind (any image takes any kind its tick can run; one without a chunked layout is
-        /// refused `Unsupported`).
+        /// The kind (any image takes any kind its tick can run; an LR is refused `Unsupported`).
         kind: ModelKind,
-        /// Values that will follow (the kind's count: [`LRX_VALUES`], [`FE_ATS_VALUES`],
-        /// [`rnn_value_count`]).
+        /// Values that will follow (one of the kind's counts: [`layout::count_fits`]).
         values: u16,
         /// The model's feedback delay, ticks.
         delay_steps: u16,
@@ -280,8 +234,9 @@ pub enum HostMsg {
     /// Replace the rig compensation the build's controller uses (whole, or not at all; at rest
     /// only): the values of [`rig_values`]' layout for `kind`.
     UploadRig {
-        /// The build's analytical kind the values are for ([`ModelKind::Lrx`] or
-        /// [`ModelKind::FeAts`]; another is refused `Unsupported`).
+        /// The analytical kind in force the values are for ([`ModelKind::Lrx`] or
+        /// [`ModelKind::FeAts`]; a structure part's compensation has more values than a frame
+        /// holds: [`HostMsg::RigBegin`]; another kind is refused `Unsupported`).
         kind: ModelKind,
         /// Values used in `values` (the kind's [`rig_value_count`]).
         count: u8,
@@ -342,6 +297,29 @@ pub enum HostMsg {
     },
     /// Answer with [`DeviceMsg::StreamStatus`]: where the streamed record stands.
     StreamStatus,
+    // ---- a rig compensation in chunks (a structure part's; issue 23) ----
+    /// Begin a chunked rig-compensation upload (replaces one in progress): what a rig file gives
+    /// the analytical part in force, in [`rig_value_count`]'s layout, for more values than one
+    /// [`HostMsg::UploadRig`] frame holds (a structure part's, [`layout::structure_rig_values`]).
+    RigBegin {
+        /// The analytical kind in force the values are for (another is refused `Unsupported`).
+        kind: ModelKind,
+        /// Values that will follow (the kind's [`rig_value_count`]).
+        values: u8,
+        /// [`rig_checksum`] of the kind and the values.
+        checksum: u32,
+    },
+    /// The next values of the rig compensation being uploaded.
+    RigChunk {
+        /// Chunk number, from 0, no gap.
+        seq: u32,
+        /// Values used in `values`.
+        count: u8,
+        /// The values (the first `count`).
+        values: [f64; RECORD_CHUNK],
+    },
+    /// All chunks sent: check the rig compensation and swap it in whole (at rest only).
+    RigCommit,
 }
 
 /// Which request an answer is about.
@@ -392,6 +370,13 @@ pub enum Request {
     StreamChunk,
     /// [`HostMsg::StreamStatus`].
     StreamStatus,
+    // ---- a rig compensation in chunks ----
+    /// [`HostMsg::RigBegin`].
+    RigBegin,
+    /// [`HostMsg::RigChunk`].
+    RigChunk,
+    /// [`HostMsg::RigCommit`].
+    RigCommit,
 }
 
 impl HostMsg {
@@ -419,6 +404,9 @@ impl HostMsg {
             Self::StreamBegin { .. } => Request::StreamBegin,
             Self::StreamChunk { .. } => Request::StreamChunk,
             Self::StreamStatus => Request::StreamStatus,
+            Self::RigBegin { .. } => Request::RigBegin,
+            Self::RigChunk { .. } => Request::RigChunk,
+            Self::RigCommit => Request::RigCommit,
         }
     }
 }
@@ -541,6 +529,17 @@ pub enum ModelKind {
     Rnn,
     /// Finite elements with ATS.
     FeAts,
+    // ---- structure files (appended: the older kinds' wire codes stay) ----
+    /// Finite elements (Chang) of a linear N-DOF structure's numerical part.
+    StructureFe,
+    /// Finite elements (Chang) of a yielding N-story structure's numerical part.
+    StructureNl,
+    /// The structure metamodel (delta ARX) of a dense structure (`rths train meta`).
+    StructureMeta,
+    /// The learned modal-hysteretic metamodel of a yielding structure (`rths train nonlinear`).
+    StructureModal,
+    /// The reduced-order modal model of an imported structure (`rths train meta` on it).
+    StructureReduced,
 }
 
 /// The supervisor's state, as sent.
@@ -610,38 +609,6 @@ pub struct Holdings {
     /// The firmware build's identity: CRC-32 of its description (version, board, analytical part,
     /// rate, model source), the same for two identical builds.
     pub build_id: u32,
-}
-
-/// Most values a rig-compensation upload has (one frame).
-pub const RIG_MAX_VALUES: usize = RECORD_CHUNK;
-
-/// Values of the rig compensation of a build's analytical `kind` (`None`: its controller has none):
-/// [`ModelKind::FeAts`]: the ATS's initial [a0, a1 (s), a2 (s²)] (3); [`ModelKind::Lrx`]: the 8
-/// lead-filter weights, the lead stride (ticks, as f64), the lead's adaptation time constant
-/// (ticks, 0: fixed), the specimen's moving mass (kN·s²/mm) and damping (kN·s/mm) (12).
-pub fn rig_value_count(kind: ModelKind) -> Option<usize> {
-    match kind {
-        ModelKind::FeAts => Some(3),
-        ModelKind::Lrx => Some(12),
-        ModelKind::Lr | ModelKind::Rnn => None,
-    }
-}
-
-/// The LRX rig compensation as the flat values of [`rig_value_count`]'s layout; `None` if the lead
-/// has not 8 weights.
-pub fn rig_values(
-    lead_weights: &[f64],
-    lead_stride: usize,
-    lead_adapt_ticks: f64,
-    specimen_dynamics: [f64; 2],
-) -> Option<[f64; RIG_MAX_VALUES]> {
-    let mut v = [0.0; RIG_MAX_VALUES];
-    v.get_mut(..8)?
-        .copy_from_slice(lead_weights.get(..8).filter(|_| lead_weights.len() == 8)?);
-    *v.get_mut(8)? = lead_stride as f64;
-    *v.get_mut(9)? = lead_adapt_ticks;
-    v.get_mut(10..12)?.copy_from_slice(&specimen_dynamics);
-    Some(v)
 }
 
 /// The end-to-end checksum of a rig-compensation upload: CRC-32/ISO-HDLC of the kind's wire index

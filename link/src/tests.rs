@@ -141,6 +141,24 @@ fn any_host() -> impl Strategy<Value = HostMsg> {
                 values: v.try_into().unwrap(),
             }),
         Just(HostMsg::StreamStatus),
+        (any_kind(), any::<u8>(), any::<u32>()).prop_map(|(kind, values, checksum)| {
+            HostMsg::RigBegin {
+                kind,
+                values,
+                checksum,
+            }
+        }),
+        (
+            any::<u32>(),
+            any::<u8>(),
+            prop::collection::vec(any_f64(), RECORD_CHUNK)
+        )
+            .prop_map(|(seq, count, v)| HostMsg::RigChunk {
+                seq,
+                count,
+                values: v.try_into().unwrap(),
+            }),
+        Just(HostMsg::RigCommit),
     ]
 }
 
@@ -150,6 +168,11 @@ fn any_kind() -> impl Strategy<Value = ModelKind> {
         Just(ModelKind::Lrx),
         Just(ModelKind::Rnn),
         Just(ModelKind::FeAts),
+        Just(ModelKind::StructureFe),
+        Just(ModelKind::StructureNl),
+        Just(ModelKind::StructureMeta),
+        Just(ModelKind::StructureModal),
+        Just(ModelKind::StructureReduced),
     ]
 }
 
@@ -196,6 +219,9 @@ fn any_device() -> impl Strategy<Value = DeviceMsg> {
         Just(Request::StreamBegin),
         Just(Request::StreamChunk),
         Just(Request::StreamStatus),
+        Just(Request::RigBegin),
+        Just(Request::RigChunk),
+        Just(Request::RigCommit),
     ];
     let reason = prop_oneof![
         Just(NackReason::Shape),

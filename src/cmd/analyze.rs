@@ -9,9 +9,9 @@ use rths_core::params::{
     G_MM_S2,
 };
 
-use crate::analysis::{pure_response, write_csv, Method, Summary};
-use crate::motion::{GroundMotion, MotionError};
-use crate::plot::{self, Panel};
+use crate::machinery::motion::{GroundMotion, MotionError};
+use crate::machinery::plot::{self, Panel};
+use crate::studies::analysis::{pure_response, write_csv, Method, Summary};
 
 /// Arguments of `rths analyze`.
 #[derive(Debug, clap::Args)]
@@ -163,13 +163,13 @@ fn nonlinear(args: &Args, path: &Path, motion: &GroundMotion) -> anyhow::Result<
     }
     let structure = rths_files::structure_file::Structure::load(path)?;
     let ag = motion.resample_mm_s2(DT_S);
-    let r = crate::nonlinear::fe_reference(&structure, &ag, DT_S)?;
+    let r = crate::machinery::structure::fe_reference(&structure, &ag, DT_S)?;
     crate::outln!(
         "ground motion          {}: PGA {:.4} g, {:.3} s (+{} s free vibration)",
         motion.name,
         motion.pga_g(),
         motion.duration_s(),
-        crate::nonlinear::FREE_VIBRATION_S
+        crate::machinery::structure::FREE_VIBRATION_S
     );
     crate::outln!(
         "structure              {} ({} DOFs, Chang explicit at {} Hz)",
@@ -195,9 +195,9 @@ fn nonlinear(args: &Args, path: &Path, motion: &GroundMotion) -> anyhow::Result<
             residual[j]
         );
     }
-    let elastic = crate::nonlinear::elastic_drifts(&structure, &r, DT_S)?;
-    let err = crate::nonlinear::drift_nrmse_pct(&elastic, &r)?;
-    let residual_lin = crate::nonlinear::NlResponse {
+    let elastic = crate::machinery::structure::elastic_drifts(&structure, &r, DT_S)?;
+    let err = crate::machinery::structure::drift_nrmse_pct(&elastic, &r)?;
+    let residual_lin = crate::machinery::structure::NlResponse {
         story_drift_mm: elastic,
         ..Default::default()
     }
@@ -230,7 +230,9 @@ fn nonlinear(args: &Args, path: &Path, motion: &GroundMotion) -> anyhow::Result<
         crate::outln!("wrote {} ({} rows)", out.display(), r.time_s.len());
     }
     if let Some(out) = &args.history {
-        let h = crate::train::nonlinear::histories::history_of_response(&structure, &r, DT_S, out);
+        let h = crate::machinery::train::nonlinear::histories::history_of_response(
+            &structure, &r, DT_S, out,
+        );
         std::fs::write(out, rths_files::history::to_csv(&h))
             .with_context(|| format!("writing {}", out.display()))?;
         crate::outln!(
@@ -246,7 +248,7 @@ fn nonlinear(args: &Args, path: &Path, motion: &GroundMotion) -> anyhow::Result<
             motion.name,
             r.peak_ductility()
         );
-        crate::nonlinear::plot::hysteresis(png, &title, &r)?;
+        crate::machinery::structure::plot::hysteresis(png, &title, &r)?;
         crate::outln!("wrote {}", png.display());
     }
     Ok(())

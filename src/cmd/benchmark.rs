@@ -7,12 +7,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::benchmark::grid::run_grid;
-use crate::benchmark::run::{
-    run as run_one, run_on, ControllerKind, PlantDraw, RunConfig, RunResult,
+use crate::machinery::plot::{self, Panel};
+use crate::studies::benchmark::grid::run_grid;
+use crate::studies::benchmark::plant::PlantDraw;
+use crate::studies::benchmark::run::{
+    run as run_one, run_on, BenchmarkRun, ControllerKind, RunConfig,
 };
-use crate::benchmark::{BenchmarkRecord, DEFAULT_INTENSITY, PERTURBED_PLANTS};
-use crate::plot::{self, Panel};
+use crate::studies::benchmark::{BenchmarkRecord, DEFAULT_INTENSITY, PERTURBED_PLANTS};
 
 /// Arguments of `rths benchmark`.
 #[derive(Debug, clap::Args)]
@@ -60,7 +61,7 @@ pub struct Args {
 /// Run `rths benchmark`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(dir) = &args.out {
-        crate::output::writable_dir(dir)?;
+        crate::machinery::output::writable_dir(dir)?;
     }
     if let Some(path) = &args.structure {
         return structure_run(&args, path);
@@ -89,7 +90,7 @@ fn structure_run(args: &Args, path: &Path) -> anyhow::Result<()> {
     let (record, motion) = match (&args.record_file, args.record) {
         (Some(csv), None) => (
             BenchmarkRecord::ElCentro,
-            crate::motion::GroundMotion::from_path(csv)
+            crate::machinery::motion::GroundMotion::from_path(csv)
                 .with_context(|| format!("record {}", csv.display()))?,
         ),
         (None, Some(r)) => (r, r.motion()?),
@@ -117,7 +118,7 @@ fn single(args: &Args, case: u8, record: BenchmarkRecord) -> anyhow::Result<()> 
     finish_single(args, &run_one(&cfg)?)
 }
 
-fn finish_single(args: &Args, r: &RunResult) -> anyhow::Result<()> {
+fn finish_single(args: &Args, r: &BenchmarkRun) -> anyhow::Result<()> {
     if args.json {
         crate::outln!("{}", serde_json::to_string_pretty(&single_json(r))?);
     } else {
@@ -139,7 +140,7 @@ fn finish_single(args: &Args, r: &RunResult) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn single_json(r: &RunResult) -> serde_json::Value {
+fn single_json(r: &BenchmarkRun) -> serde_json::Value {
     serde_json::json!({
         "case": r.config.case,
         "structure": r.structure_name,
@@ -170,7 +171,7 @@ fn single_json(r: &RunResult) -> serde_json::Value {
     })
 }
 
-fn print_single(r: &RunResult) {
+fn print_single(r: &BenchmarkRun) {
     let c = &r.config;
     crate::outln!(
         "vRTHS benchmark: {}, {} ×{}, {:?} plant (k_e {:.0} N/m), controller {}, {} ticks at 4096 Hz",
@@ -281,7 +282,7 @@ pub fn history_columns(dofs: usize, dof: usize) -> Vec<String> {
 }
 
 /// Write [`history_columns`] of a run.
-fn write_history(r: &RunResult, path: &Path) -> anyhow::Result<()> {
+fn write_history(r: &BenchmarkRun, path: &Path) -> anyhow::Result<()> {
     let h = &r.history;
     let (dofs, dof) = (h.floors_mm.len(), r.specimen_dof);
     let others: Vec<usize> = (0..dofs).filter(|&j| j != dof).collect();
@@ -317,7 +318,7 @@ struct BenchmarkFigure {
 }
 
 impl BenchmarkFigure {
-    fn of(r: &RunResult) -> Self {
+    fn of(r: &BenchmarkRun) -> Self {
         let h = &r.history;
         let samples = h.time_s.len().min(h.measured_mm.len());
         let cut = |v: &[f64]| v[..samples.min(v.len())].to_vec();
@@ -343,7 +344,7 @@ impl BenchmarkFigure {
 
     /// Every floor against its reference, the floors' errors, and the specimen floor zoomed on
     /// its strongest motion.
-    fn panels<'a>(&'a self, r: &'a RunResult) -> Vec<Panel<'a>> {
+    fn panels<'a>(&'a self, r: &'a BenchmarkRun) -> Vec<Panel<'a>> {
         let h = &r.history;
         let n = self.samples;
         let cut = |v: &'a [f64]| &v[..n.min(v.len())];
@@ -361,7 +362,7 @@ impl BenchmarkFigure {
             .enumerate()
             .map(|(j, reference)| {
                 Panel::new(format!("Floor {} (mm)", j + 1))
-                    .with_line("reference", t, cut(reference), plot::Line::Reference)
+                    .with_line("reference", t, cut(reference), plot::LineStyle::Reference)
                     .with(label(j), t, cut(floor_values(r, j)))
             })
             .collect();
@@ -381,7 +382,7 @@ impl BenchmarkFigure {
 }
 
 /// Floor `j`'s displacement of the run: the specimen's measured, the others numerical.
-fn floor_values(r: &RunResult, j: usize) -> &[f64] {
+fn floor_values(r: &BenchmarkRun, j: usize) -> &[f64] {
     if j == r.specimen_dof {
         &r.history.measured_mm
     } else {
@@ -390,7 +391,7 @@ fn floor_values(r: &RunResult, j: usize) -> &[f64] {
 }
 
 /// Every floor against the reference, the errors and a zoom ([`BenchmarkFigure`]).
-fn draw(r: &RunResult, path: &Path) -> anyhow::Result<()> {
+fn draw(r: &BenchmarkRun, path: &Path) -> anyhow::Result<()> {
     let c = &r.config;
     let title = match &r.criteria {
         Some(j) => format!(
@@ -448,11 +449,11 @@ fn grid(args: &Args) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::benchmark::run::History;
+    use crate::studies::benchmark::run::BenchmarkHistory;
 
     /// A 3-floor run of 200 ticks at 0.01 s, the specimen on floor 1: each floor's reference a
     /// sine, the run `j + 1` × 0.01 mm above it; stopped after `ticks` if fewer than 200.
-    fn result(ticks: usize) -> RunResult {
+    fn result(ticks: usize) -> BenchmarkRun {
         let time_s: Vec<f64> = (0..200).map(|k| k as f64 * 0.01).collect();
         let reference_mm: Vec<Vec<f64>> = (0..3)
             .map(|j| time_s.iter().map(|t| (j as f64 + 1.0) * t.sin()).collect())
@@ -463,7 +464,7 @@ mod tests {
                 .map(|r| r + (j as f64 + 1.0) * 0.01)
                 .collect()
         };
-        let history = History {
+        let history = BenchmarkHistory {
             time_s: time_s[..ticks].to_vec(),
             measured_mm: off(0),
             target_mm: off(0),
@@ -471,7 +472,7 @@ mod tests {
             reference_mm: reference_mm.clone(),
             true_disp_mm: off(0),
         };
-        RunResult {
+        BenchmarkRun {
             config: RunConfig {
                 case: 1,
                 record: BenchmarkRecord::ElCentro,
@@ -513,7 +514,7 @@ mod tests {
             ]
         );
         assert_eq!(panels[0].series[0].label, "reference");
-        assert_eq!(panels[0].series[0].line, plot::Line::Reference);
+        assert_eq!(panels[0].series[0].line, plot::LineStyle::Reference);
         assert_eq!(panels[0].series[1].label, "measured");
         assert_eq!(panels[1].series[1].label, "numerical");
         let error = &panels[3];

@@ -5,8 +5,8 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-use crate::model_file::{ModelFile, ModelKind};
-use crate::models;
+use crate::machinery::model_file::{ModelFile, ModelKind};
+use crate::machinery::models;
 
 /// A model kind on the command line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -32,7 +32,7 @@ impl ModelKindArg {
             ModelKindArg::Lr => "lr",
             ModelKindArg::Rnn => "rnn",
             ModelKindArg::Lrx => "lrx",
-            ModelKindArg::Meta => rths_files::structure_meta::KIND,
+            ModelKindArg::Meta => rths_files::structure_meta::META_KIND,
             ModelKindArg::Nonlinear => rths_files::nl_model_file::NL_KIND,
             ModelKindArg::FloorHysteron => rths_files::hysteron_model_file::HYSTERON_KIND,
         }
@@ -68,7 +68,7 @@ pub struct Rejected {
 
 /// Validate `path` as a model file of any kind (its `format` and `kind` tags pick the reader; the
 /// same checks as the commands that run it: [`models::check_for_controller`] for LR, RNN and LRX,
-/// [`crate::nonlinear::model::check_rate`] for the nonlinear model); a summary if it is accepted.
+/// [`crate::machinery::structure::model::check_rate`] for the nonlinear model); a summary if it is accepted.
 pub fn check(path: &std::path::Path, kind: Option<ModelKindArg>) -> Result<String, Rejected> {
     let reject = |reason: String| Rejected {
         path: path.display().to_string(),
@@ -129,7 +129,8 @@ pub fn check(path: &std::path::Path, kind: Option<ModelKindArg>) -> Result<Strin
         (Some(rths_files::nl_model_file::NL_FORMAT), _) => {
             let m = rths_files::nl_model_file::NlModelFile::from_json(&text)
                 .map_err(|e| reject(e.to_string()))?;
-            crate::nonlinear::model::check_rate(&m).map_err(|e| reject(e.to_string()))?;
+            crate::machinery::structure::model::check_rate(&m)
+                .map_err(|e| reject(e.to_string()))?;
             let _ = writeln!(s, "format / version  {} / {}", m.format, m.version);
             let _ = writeln!(s, "kind              {}", m.kind);
             let _ = writeln!(
@@ -146,7 +147,10 @@ pub fn check(path: &std::path::Path, kind: Option<ModelKindArg>) -> Result<Strin
             );
             return Ok(s);
         }
-        (Some(crate::model_file::FORMAT), rths_files::structure_meta::KIND) => {
+        (
+            Some(crate::machinery::model_file::MODEL_FORMAT),
+            rths_files::structure_meta::META_KIND,
+        ) => {
             let m = rths_files::structure_meta::MetaFile::from_json(&text)
                 .map_err(|e| reject(e.to_string()))?;
             m.params().map_err(|e| reject(e.to_string()))?;

@@ -22,7 +22,7 @@ pub enum Command {
     /// Properties of the virtual servo-hydraulic plant: delay, gain and phase, Bode plot.
     Plant(cmd::plant::Args),
     /// Run one hybrid-simulation scenario in closed loop against the virtual plant.
-    Simulate(cmd::simulate::Args),
+    Simulate(cmd::simulate_args::Args),
     /// The whole study end to end: train, run every scenario, write figures and report.md.
     Reproduce(cmd::reproduce::Args),
     /// Train a metamodel (LR, RNN, LRX, the structure meta or the nonlinear one) and write its model file.

@@ -1,10 +1,10 @@
-//! `rths faults`: the fault-injection matrix (see [`crate::faults`]).
+//! `rths faults`: the fault-injection matrix (see [`crate::studies::faults`]).
 
 use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::faults;
+use crate::studies::faults;
 
 /// Arguments of `rths faults`.
 #[derive(Debug, clap::Args)]

@@ -7,13 +7,13 @@ use anyhow::Context;
 use rths_hal_sim::{BoucWen, FaultPlan, Preset, Specimen};
 
 use crate::cmd::plant::{PresetArg, SpecimenArg};
-use crate::identify::estimate::compensated;
-use crate::identify::excitation::MAX_AMPLITUDE_MM;
-use crate::identify::rig_file::{
+use crate::machinery::identify::estimate::compensated;
+use crate::machinery::identify::excitation::MAX_AMPLITUDE_MM;
+use crate::machinery::identify::rig_file::{
     iso8601_utc, ActuatorInfo, CompensationInfo, ExcitationInfo, Provenance, QualityInfo, RigFile,
-    FORMAT, SCHEMA_VERSION,
+    RIG_FORMAT, SCHEMA_VERSION,
 };
-use crate::identify::{self, IdentifyConfig, Outcome};
+use crate::machinery::identify::{self, IdentifyConfig, Outcome};
 
 /// Arguments of `rths identify`.
 #[derive(Debug, Clone, clap::Args)]
@@ -78,8 +78,8 @@ pub fn config(args: &Args) -> anyhow::Result<IdentifyConfig> {
             rths_files::readable(args.amplitude_mm)
         );
     }
-    crate::output::writable_file(&args.out)?;
-    crate::output::writable_file(&plot_path(args))?;
+    crate::machinery::output::writable_file(&args.out)?;
+    crate::machinery::output::writable_file(&plot_path(args))?;
     cfg.excitation.amplitude_mm = args.amplitude_mm;
     cfg.lead_stride = args.lead_stride;
     Ok(cfg)
@@ -91,10 +91,10 @@ pub fn rig_file(args: &Args, cfg: &IdentifyConfig, o: &Outcome) -> RigFile {
     let e = &o.excitation;
     let x = &e.config;
     RigFile {
-        format: FORMAT.into(),
+        format: RIG_FORMAT.into(),
         schema_version: SCHEMA_VERSION,
         preset: preset(args.preset).name().into(),
-        board: "virtual".into(),
+        board: crate::machinery::identify::rig_file::VIRTUAL_BOARD.into(),
         specimen: specimen(args.specimen).name().into(),
         specimen_stiffness_factor: args.specimen_stiffness_factor,
         seed: args.seed,
@@ -159,8 +159,12 @@ pub fn run_with_faults(args: &Args, faults: FaultPlan) -> anyhow::Result<RigFile
         );
     }
     let cfg = config(args)?;
-    let mut rig =
-        crate::scenario::rig_config(preset(args.preset), specimen(args.specimen), f, args.seed);
+    let mut rig = crate::machinery::reference::rig_config(
+        preset(args.preset),
+        specimen(args.specimen),
+        f,
+        args.seed,
+    );
     rig.uncertainty = args.uncertainty;
     let o = identify::identify_virtual(&rig, faults, &cfg)
         .context("identification refused, nothing written")?;

@@ -7,20 +7,20 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use rths_files::structure_file::Units;
 
-use crate::imported::export::{self, ImportRequest};
-use crate::imported::DofLabel;
+use crate::machinery::imported::export::{self, ImportRequest};
+use crate::machinery::imported::DofLabel;
 
 /// Arguments of `rths import`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// What to import from.
     #[command(subcommand)]
-    pub source: Source,
+    pub source: ImportSource,
 }
 
 /// The programs `rths import` reads.
 #[derive(Debug, clap::Subcommand)]
-pub enum Source {
+pub enum ImportSource {
     /// An openseespy model script (run with python3 and openseespy: `RTHS_PYTHON` overrides).
     Opensees(OpenseesArgs),
 }
@@ -74,7 +74,7 @@ fn spinner() -> indicatif::ProgressBar {
 /// Run `rths import`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     match args.source {
-        Source::Opensees(a) => opensees(a),
+        ImportSource::Opensees(a) => opensees(a),
     }
 }
 

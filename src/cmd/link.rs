@@ -10,7 +10,7 @@ use clap::{Args as ClapArgs, Subcommand};
 
 use crate::cmd::analyze::load_motion;
 use crate::link_host::{self, Link, Qemu, RecordSummary, RunHeader};
-use crate::model_file::ModelFile;
+use crate::machinery::model_file::ModelFile;
 
 /// `rths link` arguments.
 #[derive(Debug, ClapArgs)]
@@ -50,13 +50,25 @@ pub enum LinkCommand {
     },
     /// Upload a model file, a ground-motion record and/or a rig file's compensation (each validated
     /// on the device; refused whole, the old one kept).
-    #[command(group(clap::ArgGroup::new("what").required(true).multiple(true).args(["model", "fe_ats", "motion", "rig"])))]
+    #[command(group(clap::ArgGroup::new("what").required(true).multiple(true).args(["model", "structure", "fe_ats", "motion", "rig"])))]
     Upload {
-        /// A model file of any kind (`rths train lr|lrx|rnn`: LR, LRX, an RNN of up to 32 units),
-        /// whatever the firmware's compiled-in part; refused `TickBudget` if the board's tick
-        /// cannot run it (RNN-10 on a Cortex-M4 at 2048 Hz).
+        /// A model file of any kind (`rths train lr|lrx|rnn`: LR, LRX, an RNN of up to 32 units;
+        /// with --structure that structure's model: `rths train meta|nonlinear`), whatever the
+        /// firmware's compiled-in part; refused `TickBudget` if the board's tick cannot run it
+        /// (RNN-10 on a Cortex-M4 at 2048 Hz).
         #[arg(long, conflicts_with = "fe_ats")]
         model: Option<PathBuf>,
+        /// A structure file: alone, its finite elements (linear, or its yielding stories); with
+        /// --model, that structure's metamodel, modal-hysteretic model or (an imported structure)
+        /// reduced model. With --rig, the structure part gets the rig's compensation (`nl-online`,
+        /// `meta-online`, `fe-online-lead`).
+        #[arg(long, value_name = "S.json", conflicts_with = "fe_ats")]
+        structure: Option<PathBuf>,
+        /// With --structure and --rig: the displacement scale (prototype over rig) of the
+        /// structure's specimen on the rig; the force scale follows from the rig file's
+        /// identified specimen stiffness.
+        #[arg(long, default_value_t = 1.0, value_name = "L")]
+        length_scale: f64,
         /// Make the analytical part the device's finite elements with the ATS, starting from the
         /// paper's delay (`rths simulate --scenario fe-online-ats`), whatever its compiled-in part.
         #[arg(long)]
@@ -70,12 +82,13 @@ pub enum LinkCommand {
         scale: f64,
         /// A rig file (`rths identify`): the compensation the firmware's controller takes from it
         /// (FE + ATS: the ATS's initial values; LRX: the lead filter and the specimen's mass and
-        /// damping). Sent after --model.
+        /// damping; a structure part: the lead filter with its adaptation, the identified specimen
+        /// that corrects the measured force, the specimen scale). Sent after --model.
         #[arg(long, value_name = "RIG.json")]
         rig: Option<PathBuf>,
-        /// LRX with --rig: the lead's adaptation time constant, ticks (0: fixed), as `rths train
-        /// lrx --rig` defaults it.
-        #[arg(long, default_value_t = crate::train::lrx::RIG_LEAD_ADAPT_TICKS)]
+        /// LRX or a structure part with --rig: the lead's adaptation time constant, ticks (0:
+        /// fixed), as `rths train lrx --rig` and `rths simulate --scenario nl-online` default it.
+        #[arg(long, default_value_t = crate::machinery::train::lrx::RIG_LEAD_ADAPT_TICKS)]
         lead_adapt_ticks: f64,
     },
     /// Set the stroke, velocity and force limits (at rest, command at 0 mm).
@@ -119,11 +132,19 @@ pub enum LinkCommand {
         /// Upload this model first (any kind, as `upload --model`).
         #[arg(long, conflicts_with = "fe_ats")]
         model: Option<PathBuf>,
+        /// Upload this structure's part first (as `upload --structure`: its finite elements, or
+        /// with --model its model).
+        #[arg(long, value_name = "S.json", conflicts_with = "fe_ats")]
+        structure: Option<PathBuf>,
+        /// With --structure and --rig: the displacement scale of the structure's specimen on the
+        /// rig (as `upload --length-scale`).
+        #[arg(long, default_value_t = 1.0, value_name = "L")]
+        length_scale: f64,
         /// Make the analytical part the device's FE + ATS first (as `upload --fe-ats`).
         #[arg(long)]
         fe_ats: bool,
         /// Upload this rig file's compensation first (after --model; as `upload --rig`, with the
-        /// LRX lead's adaptation of `rths train lrx --rig`).
+        /// lead's adaptation of `rths train lrx --rig`).
         #[arg(long, value_name = "RIG.json")]
         rig: Option<PathBuf>,
         /// Upload this ground motion first (an AT2/CSV file or an embedded record name; one longer
@@ -313,20 +334,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         LinkCommand::Upload {
             model,
+            structure,
+            length_scale,
             fe_ats,
             motion,
             scale,
             rig,
             lead_adapt_ticks,
         } => {
-            if let Some(p) = model {
-                upload_model(&mut link, &p)?;
-            }
+            let part = upload_part(&mut link, model.as_deref(), structure.as_deref())?;
             if fe_ats {
                 upload_fe_ats(&mut link)?;
             }
             if let Some(p) = rig {
-                upload_rig(&mut link, &p, lead_adapt_ticks)?;
+                upload_rig(&mut link, &p, lead_adapt_ticks, part.as_ref(), length_scale)?;
             }
             if let Some(spec) = motion {
                 upload_motion(&mut link, &spec, scale, MotionTo::Whole)?;
@@ -368,6 +389,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         LinkCommand::Run {
             model,
+            structure,
+            length_scale,
             fe_ats,
             rig,
             motion,
@@ -378,8 +401,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             idle_timeout_s,
         } => {
             let mut h = RunHeader::default();
+            let part = upload_part(&mut link, model.as_deref(), structure.as_deref())?;
             if let Some(p) = &model {
-                upload_model(&mut link, p)?;
                 h.set("model", p.display());
             }
             if fe_ats {
@@ -387,7 +410,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 h.set("model", "fe-ats");
             }
             if let Some(p) = &rig {
-                let c = upload_rig(&mut link, p, crate::train::lrx::RIG_LEAD_ADAPT_TICKS)?;
+                let c = upload_rig(
+                    &mut link,
+                    p,
+                    crate::machinery::train::lrx::RIG_LEAD_ADAPT_TICKS,
+                    part.as_ref(),
+                    length_scale,
+                )?;
                 h.set("rig", p.display());
                 h.set("rig_checksum", format!("{c:08x}"));
             }
@@ -434,10 +463,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             h.set("record_ticks", st.record.ticks);
             h.set("model_kind", link_host::model_kind_name(st.model_kind));
             h.set("model_checksum", format!("{:08x}", st.model_checksum));
-            h.set("scenario", scenario_of(st.model_kind));
-            // The structure the firmware's controller is built for (`analytical::controller`): the
-            // paper's frame with its nominal brace; the reference is that structure's response.
-            h.set("structure", "paper");
+            h.set("scenario", scenario_of(st.model_kind, rig.is_some()));
+            match &structure {
+                // A structure part: the structure file it stands for, and the rig's mapping.
+                Some(s) => {
+                    h.set("structure", s.display());
+                    h.set("length_scale", format!("{length_scale:?}"));
+                }
+                // The structure the firmware's controller is built for (`analytical.rs`): the
+                // paper's frame with its nominal brace; the reference is that structure's response.
+                None => h.set("structure", "paper"),
+            }
             h.set("specimen", "linear");
             h.set("specimen_stiffness_factor", "1.0");
             h.set("telemetry_every", telemetry_every);
@@ -522,14 +558,24 @@ impl From<LinkLossArg> for rths_link::LinkLoss {
     }
 }
 
-/// The scenario a device's analytical part runs (its figures' id in `rths report`).
-fn scenario_of(kind: rths_link::ModelKind) -> &'static str {
-    match kind {
-        rths_link::ModelKind::Lr => "lr-online",
-        rths_link::ModelKind::Lrx => "lrx-online",
-        // The shipped firmware's RNN is the 10-unit one (`firmware/build.rs`).
-        rths_link::ModelKind::Rnn => "rnn-online-10",
-        rths_link::ModelKind::FeAts => "fe-online-ats",
+/// The scenario a device's analytical part runs (its figures' id in `rths report`); a structure
+/// part is named by its rig compensation (`compensated`), as core's controller names it.
+fn scenario_of(kind: rths_link::ModelKind, compensated: bool) -> &'static str {
+    use rths_link::ModelKind as K;
+    match (kind, compensated) {
+        (K::Lr, _) => "lr-online",
+        (K::Lrx, _) => "lrx-online",
+        // The shipped RNN is the 10-unit one.
+        (K::Rnn, _) => "rnn-online-10",
+        (K::FeAts, _) => "fe-online-ats",
+        (K::StructureModal, true) => "nl-online",
+        (K::StructureReduced | K::StructureMeta, true) => "meta-online",
+        (K::StructureFe | K::StructureNl, true) => "fe-online-lead",
+        (K::StructureFe, false) => "structure-fe",
+        (K::StructureNl, false) => "structure-nl",
+        (K::StructureMeta, false) => "structure-meta",
+        (K::StructureModal, false) => "structure-modal",
+        (K::StructureReduced, false) => "structure-reduced",
     }
 }
 
@@ -628,19 +674,98 @@ fn status_json(s: &rths_link::Status, h: &rths_link::Holdings) -> serde_json::Va
     })
 }
 
-/// Upload the compensation rig file `p` gives the device's analytical part; its checksum.
-fn upload_rig(link: &mut Link, p: &std::path::Path, lead_adapt_ticks: f64) -> anyhow::Result<u32> {
-    let rig =
-        crate::identify::RigFile::load(p).with_context(|| format!("rig file {}", p.display()))?;
+/// Upload the compensation rig file `p` gives the device's analytical part; its checksum. A
+/// structure part (`part`, uploaded in the same command) maps the rig's specimen to the
+/// structure's at `length_scale`.
+fn upload_rig(
+    link: &mut Link,
+    p: &std::path::Path,
+    lead_adapt_ticks: f64,
+    part: Option<&rths_files::upload::LaidOut>,
+    length_scale: f64,
+) -> anyhow::Result<u32> {
+    let rig = crate::machinery::identify::RigFile::load(p)
+        .with_context(|| format!("rig file {}", p.display()))?;
     let kind = link.status()?.model_kind;
-    let v = link_host::rig_values(&rig, kind, lead_adapt_ticks)?;
-    let c = link.upload_rig(kind, &v)?;
+    let v = match part.and_then(|l| l.specimen_k_kn_per_mm.filter(|_| l.kind == kind)) {
+        Some(k) => link_host::structure_rig_values(&rig, k, length_scale, lead_adapt_ticks)?,
+        None => link_host::rig_values(&rig, kind, lead_adapt_ticks)?,
+    };
+    let c = link.upload_rig(kind, &v).map_err(|e| {
+        with_budget_reason(e, || match part {
+            Some(l) => budget_figures_laid(l, true),
+            None => String::from("the board's tick cannot run it"),
+        })
+    })?;
     crate::outln!(
         "uploaded the rig compensation of {} for {} (checksum {c:08x})",
         p.display(),
         link_host::model_kind_name(kind)
     );
     Ok(c)
+}
+
+/// Upload the analytical part the files name: a model file alone (`upload_model`), or a
+/// structure's part (its finite elements, or with `model` its model); the structure's part laid
+/// out, for its rig compensation.
+fn upload_part(
+    link: &mut Link,
+    model: Option<&std::path::Path>,
+    structure: Option<&std::path::Path>,
+) -> anyhow::Result<Option<rths_files::upload::LaidOut>> {
+    let Some(s) = structure else {
+        if let Some(p) = model {
+            upload_model(link, p)?;
+        }
+        return Ok(None);
+    };
+    let laid = rths_files::upload::lay_out_files(model, Some(s), rths_core::params::DT_S)?;
+    let c = link
+        .upload_laid_out(&laid)
+        .map_err(|e| with_budget_reason(e, || budget_figures_laid(&laid, false)))?;
+    crate::outln!(
+        "uploaded the {} ({} values, checksum {c:08x})",
+        laid.what,
+        laid.values.len()
+    );
+    Ok(Some(laid))
+}
+
+/// The board cannot run the structure part `laid` (with its rig compensation if `with_rig`): the
+/// estimate on each core at the controller's rate.
+fn budget_figures_laid(laid: &rths_files::upload::LaidOut, with_rig: bool) -> String {
+    use rths_app::tick_cost::TickBudget;
+    let Ok(dims) = rths_link::layout::dims(laid.kind, &laid.values) else {
+        return format!("the board's tick cannot run the {}", laid.what);
+    };
+    let rate = f64::from(rths_core::params::CONTROL_RATE_HZ);
+    let est = |b: &TickBudget| {
+        if with_rig {
+            b.instr_with_rig(laid.kind, &dims)
+        } else {
+            b.instr_dims(laid.kind, &dims)
+        }
+    };
+    let (m4, m7) = (
+        TickBudget::cortex_m4_168mhz(rate),
+        TickBudget::cortex_m7_480mhz(rate),
+    );
+    let pct = |b: &TickBudget| 100.0 * est(b) / b.instr_per_tick();
+    format!(
+        "the board's tick cannot run the {}{}: estimated {:.0} instructions per tick on a \
+         Cortex-M4, {:.0} % of its tick at 168 MHz and {rate} Hz ({:.0} on a Cortex-M7: {:.1} % \
+         at 480 MHz; not measured on a core: infinite) (docs/link.md)",
+        laid.what,
+        if with_rig {
+            " with its rig compensation"
+        } else {
+            ""
+        },
+        est(&m4),
+        pct(&m4),
+        est(&m7),
+        pct(&m7),
+    )
 }
 
 fn upload_model(link: &mut Link, p: &std::path::Path) -> anyhow::Result<()> {
@@ -684,7 +809,7 @@ fn with_budget_reason(e: link_host::LinkHostError, why: impl FnOnce() -> String)
 /// Why the board's tick cannot run `m`, in the budget's figures for both cores (the host does not
 /// know which core the board has).
 fn tick_budget_reason(m: &ModelFile) -> String {
-    use crate::model_file::ModelKind as FileKind;
+    use crate::machinery::model_file::ModelKind as FileKind;
     match (m.kind, m.rnn.as_ref()) {
         (FileKind::Rnn, Some(r)) => budget_figures(
             rths_link::ModelKind::Rnn,
@@ -821,7 +946,9 @@ fn identify(
     idle: Duration,
 ) -> anyhow::Result<()> {
     use crate::cmd::identify as host;
-    use crate::identify::{estimate, excitation, runner::IdentificationRecord, Outcome, Signals};
+    use crate::machinery::identify::{
+        estimate, excitation, runner::IdentificationRecord, Outcome, Signals,
+    };
     let args = host::Args {
         preset: crate::cmd::plant::PresetArg::UnrCompact,
         seed: 1,

@@ -3,14 +3,14 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use rths_core::control::Analytical;
 use rths_files::structure_file::Structure;
 use rths_hal_sim::Preset;
 
 use crate::cmd::plant::PresetArg;
-use crate::nonlinear::model::{self, LearnedModel};
-use crate::nonlinear::scenario::StructureModel;
-use crate::nonlinear::study::{self, StudyConfig, RECORDS, TARGET_DUCTILITIES};
-use crate::scenario::ScenarioId;
+use crate::machinery::structure::model;
+use crate::studies::nonlinear::study::{self, NonlinearStudyConfig, RECORDS, TARGET_DUCTILITIES};
+use crate::studies::scenario::ScenarioId;
 use rths_files::nl_model_file::NlModelFile;
 
 /// The shipped yielding structures, scored by default.
@@ -66,7 +66,7 @@ pub struct Args {
 /// Run `rths nonlinear-study`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(dir) = &args.out {
-        crate::output::writable_dir(dir)?;
+        crate::machinery::output::writable_dir(dir)?;
     }
     // Each structure with its file's text (a learned model is checked against its checksum).
     let texts: Vec<(String, String)> = if args.structure.is_empty() {
@@ -146,23 +146,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     // A given model for the structure, else the shipped one, else none (its rows are skipped
     // with the reason); a model for another version of the structure is refused.
-    let models = |s: &Structure| -> anyhow::Result<Option<Box<dyn StructureModel>>> {
+    let models = |s: &Structure| -> anyhow::Result<Option<Analytical>> {
         let text = text_of
             .iter()
             .find(|(n, _)| n == s.name())
             .map(|(_, t)| *t)
             .unwrap_or_default();
         if let Some((p, f)) = files.iter().find(|(_, f)| f.structure.name == s.name()) {
-            let m = LearnedModel::new(f, text)
+            let m = model::learned_model(f, text)
                 .with_context(|| format!("model {} refused", p.display()))?;
-            return Ok(Some(Box::new(m)));
+            return Ok(Some(Analytical::StructureModal(m)));
         }
         if model::SHIPPED.iter().any(|(n, _)| *n == s.name()) {
-            return Ok(Some(Box::new(model::for_structure(None, s.name(), text)?)));
+            return Ok(Some(model::for_structure(None, s.name(), text)?));
         }
         Ok(None)
     };
-    let cfg = StudyConfig {
+    let cfg = NonlinearStudyConfig {
         structures,
         models: &models,
         lr: lr.lr,

@@ -9,8 +9,8 @@ use rths_core::metrics::{self, Tracking};
 use rths_core::params::Prototype;
 use rths_hal_sim::{BoucWen, PlantParams, Preset, RigConfig, Specimen, VirtualRig};
 
-use crate::analysis::{pure_response, Method};
-use crate::motion::GroundMotion;
+use crate::machinery::motion::GroundMotion;
+use crate::studies::analysis::{pure_response, Method};
 
 /// Largest lag searched for J1, steps (0.1 s).
 pub const MAX_LAG_STEPS: usize = 205;
@@ -104,7 +104,7 @@ const DELAY_FREQ_HZ: f64 = 0.5;
 pub fn run(args: Args) -> anyhow::Result<()> {
     let p = params(&args)?;
     if let Some(path) = &args.bode {
-        crate::output::writable_file(path)?;
+        crate::machinery::output::writable_file(path)?;
     }
     crate::outln!(
         "plant: preset {}, specimen {}, {}",
@@ -124,7 +124,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     crate::outln!("  a3                {:.4} 1/s", p.a3());
     crate::outln!("  specimen mass     {:.3} kg", p.specimen_mass_kg());
     // What a run's fair reference would use: the structure with this brace.
-    let draw = crate::study::DrawnPlant::of(&config(&args), 1.0)?;
+    let draw = crate::studies::study::DrawnPlant::of(&config(&args), 1.0)?;
     crate::outln!(
         "  specimen k        {:.4} kN/mm ({:.1} N/m, F = {:.4} of the paper's brace)",
         p.specimen_stiffness_kn_per_mm(),
@@ -179,7 +179,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 /// Draw magnitude (dB) and phase (deg) against log frequency, 0.1–50 Hz.
 fn bode(p: &PlantParams, path: &std::path::Path) -> anyhow::Result<()> {
-    crate::plot::init_fonts()?;
+    crate::machinery::plot::init_fonts()?;
     let n = 400;
     let pts: Vec<(f64, f64, f64)> = (0..=n)
         .map(|i| {
@@ -188,7 +188,7 @@ fn bode(p: &PlantParams, path: &std::path::Path) -> anyhow::Result<()> {
             (f, 20.0 * r.gain.log10(), r.phase_deg)
         })
         .collect();
-    let root = crate::plot::bitmap(path, (900, 700))?;
+    let root = crate::machinery::plot::bitmap(path, (900, 700))?;
     root.fill(&WHITE)?;
     let title = format!(
         "Plant x/u: {} preset, {} specimen",

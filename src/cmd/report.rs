@@ -12,8 +12,8 @@ use rths_hal_sim::{BoucWen, Specimen};
 
 use crate::cmd::analyze::load_motion;
 use crate::link_host::{self, Recording, RecordingRow};
-use crate::scenario::{self, History, ScenarioId, ScenarioReport, ScenarioRun};
-use crate::study::{self, StudyJson};
+use crate::studies::scenario::{self, RunHistory, ScenarioId, ScenarioReport, ScenarioRun};
+use crate::studies::study::{self, StudyJson};
 
 /// Arguments of `rths report`.
 #[derive(Debug, clap::Args)]
@@ -52,7 +52,7 @@ pub fn history_of(
     rows: &[RecordingRow],
     ag_mm_s2: &[f64],
     reference_mm: &[f64],
-) -> anyhow::Result<(History, Option<(String, f64)>)> {
+) -> anyhow::Result<(RunHistory, Option<(String, f64)>)> {
     let n = ag_mm_s2.len();
     if let Some(u) = link_host::first_unclean_sample(&rows[..rows.len().min(n)]) {
         anyhow::bail!(
@@ -66,7 +66,7 @@ pub fn history_of(
             u.state
         );
     }
-    let mut h = History::default();
+    let mut h = RunHistory::default();
     let mut stop = None;
     let (mut command, mut target) = (0.0, 0.0);
     for k in 0..n {

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use rths_hal_sim::Preset;
 
 use crate::cmd::analyze::load_motion;
-use crate::study::{self, StudyConfig};
+use crate::studies::study::{self, StudyConfig};
 
 /// Arguments of `rths reproduce`.
 #[derive(Debug, clap::Args)]

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use rths_hal_sim::Preset;
 
 use crate::cmd::plant::PresetArg;
-use crate::robustness::{self, report, RobustnessConfig, QUICK_DRAWS};
+use crate::studies::robustness::{self, report, RobustnessConfig, QUICK_DRAWS};
 
 /// Arguments of `rths robustness`.
 #[derive(Debug, clap::Args)]
@@ -37,7 +37,7 @@ pub struct Args {
 
 /// Run `rths robustness`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    crate::output::writable_dir(&args.out)?;
+    crate::machinery::output::writable_dir(&args.out)?;
     let cfg = RobustnessConfig {
         draws: if args.quick { QUICK_DRAWS } else { args.draws },
         presets: args

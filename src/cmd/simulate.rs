@@ -1,25 +1,22 @@
 //! `rths simulate`: one hybrid-simulation scenario in closed loop against the virtual plant.
 
-use std::path::PathBuf;
-
 use anyhow::Context;
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
-use rths_hal_sim::{BoucWen, Preset, RigConfig, Specimen};
+use rths_hal_sim::{BoucWen, Preset, Specimen};
 
 use crate::cmd::analyze::load_motion;
 use crate::cmd::plant::{PresetArg, SpecimenArg};
-use crate::identify::RigFile;
-use crate::model_file::{ModelFile, ModelKind};
-use crate::models;
-use crate::nonlinear::scenario::{
+use crate::cmd::simulate_args::Args;
+use crate::machinery::identify::rig_file::VIRTUAL_BOARD;
+use crate::machinery::identify::RigFile;
+use crate::machinery::model_file::{ModelFile, ModelKind};
+use crate::machinery::models;
+use crate::studies::nonlinear::scenario::{
     self as nl, is_paper_frame, LengthScale, SimScenario, StructureCase, StructureReport,
 };
-use crate::scenario::{self, ScenarioId, ScenarioSetup};
-use crate::study::{self, DrawnPlant, StudyJson};
+use crate::studies::scenario::{self, ScenarioId, ScenarioSetup};
+use crate::studies::study::{self, DrawnPlant, StudyJson};
 use rths_files::structure_file::Structure;
-
-/// The board of every `rths simulate` run: the plant is simulated on the host.
-pub const BOARD: &str = "virtual";
 
 /// The LR model `rths reproduce` trained on El Centro (phase 2), shipped as the default.
 const DEFAULT_LR: &str = include_str!("../../data/models/lr.json");
@@ -31,86 +28,6 @@ const DEFAULT_RNN: [(usize, &str); 3] = [
     (10, include_str!("../../data/models/rnn-10.json")),
     (20, include_str!("../../data/models/rnn-20.json")),
 ];
-
-/// Arguments of `rths simulate`.
-#[derive(Debug, clap::Args)]
-pub struct Args {
-    /// Scenario (the help lists them: [`scenario_help`]).
-    #[arg(long, help = scenario_help())]
-    pub scenario: SimScenario,
-    /// Structure file (`data/structures/`): run the scenario on this structure and judge it
-    /// against the structure's FE reference (the whole yielding structure for a file with a
-    /// `hysteresis` section, with 10 s of free vibration; docs/nonlinear.md). A file that is the
-    /// paper's linear frame runs exactly as without --structure.
-    #[arg(long, value_name = "FILE.json")]
-    pub structure: Option<PathBuf>,
-    /// Length (displacement) scale L ≥ 1 of a hybrid run with --structure (similitude): the
-    /// actuator imposes the structure's specimen displacement / L on a rig specimen L times
-    /// stiffer, so the measured force × the force scale is still the structure's specimen force.
-    /// The DAQ's noise stays at the rig's scale. Default 1 (the structure's own specimen).
-    #[arg(long, default_value_t = 1.0, value_name = "L")]
-    pub length_scale: f64,
-    /// Ground motion: an AT2/CSV file or an embedded record name (default El Centro).
-    #[arg(long, value_name = "PATH|NAME")]
-    pub motion: Option<String>,
-    /// Multiplies the ground acceleration (e.g. El Centro × 0.85 keeps the faithful response of every
-    /// specimen of the sweep within the actuator's velocity interlock).
-    #[arg(long, default_value_t = 1.0, value_name = "F")]
-    pub scale: f64,
-    /// Model file (LR, RNN or LRX) for metamodel scenarios. Default: the shipped
-    /// `data/models/lr.json`, `data/models/rnn-H.json` (H = 5, 10, 20) or `data/models/lrx.json`,
-    /// compiled into the binary.
-    #[arg(long, value_name = "MODEL.json")]
-    pub model: Option<PathBuf>,
-    /// Plant preset.
-    #[arg(long, value_enum, default_value = "unr-compact")]
-    pub preset: PresetArg,
-    /// Specimen model.
-    #[arg(long, value_enum, default_value = "linear")]
-    pub specimen: SpecimenArg,
-    /// Scales the physical specimen's stiffness only; the reference is then the pure FE response of
-    /// the structure with that specimen (with --uncertainty, the specimen as drawn).
-    #[arg(long, default_value_t = 1.0, value_name = "F")]
-    pub specimen_stiffness_factor: f64,
-    /// Seed of the sensor noise.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// Also draw the plant parameters (β1, β2, a3, specimen stiffness) from the benchmark's
-    /// uncertainty with the seed. The reference is the structure with the specimen drawn; the
-    /// controller still knows only the nominal one.
-    #[arg(long)]
-    pub uncertainty: bool,
-    /// Slow the actuator's dynamics down by this fraction (0..0.9), linearly over the record: a
-    /// drifting actuator (`rths_hal_sim::Drift`; its delay grows by about 1/(1 − F)). Default 0.
-    #[arg(long, default_value_t = 0.0, value_name = "F")]
-    pub drift: f64,
-    /// Rig file (`rths identify`) of this run's rig: refused if it was identified on another preset,
-    /// board, specimen or uncertainty draw, or if the model names another rig file. With
-    /// fe-online-ats, the ATS starts from the rig file's identified initial values.
-    #[arg(long, value_name = "RIG.json")]
-    pub rig: Option<PathBuf>,
-    /// Output directory for `history.csv` and the figure.
-    #[arg(long, value_name = "DIR")]
-    pub out: Option<PathBuf>,
-    /// Print one JSON object on stdout and nothing else.
-    #[arg(long)]
-    pub json: bool,
-}
-
-/// `--scenario`'s help, from the scenario lists themselves (a new scenario is named at once).
-fn scenario_help() -> String {
-    let study: Vec<String> = ScenarioId::ALL.iter().map(|s| s.to_string()).collect();
-    let structure: Vec<String> = crate::nonlinear::scenario::STRUCTURE_SCENARIOS
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
-    format!(
-        "Scenario: {} (rnn-pure-H / rnn-online-H for another hidden size H); with --structure: {}; \
-         with an imported structure: fe-pure, meta-pure, meta-online",
-        study.join(", "),
-        structure.join(", ")
-    )
-}
 
 /// The JSON of `rths simulate`: the study's object and the plant the run really had.
 #[derive(Debug, serde::Serialize)]
@@ -124,44 +41,8 @@ struct SimulateJson {
     ats_initial: Option<[f64; 3]>,
 }
 
-/// Refuse a rig file identified on another plant than the run's `rig` (configured with specimen
-/// stiffness factor `factor`): another specimen model or factor, or another draw of the uncertain
-/// parameters (`--uncertainty`, and its seed). Without a draw the seed sets the sensor noise alone:
-/// the plant is the same one and its rig file fits. Preset and board: [`RigFile::check`].
-pub fn check_rig_plant(file: &RigFile, rig: &RigConfig, factor: f64) -> anyhow::Result<()> {
-    let run_specimen = rig.specimen.name();
-    if file.specimen != run_specimen {
-        anyhow::bail!(
-            "the rig was identified with the {} specimen, this run has the {run_specimen} one",
-            file.specimen
-        );
-    }
-    let f_file = file.specimen_stiffness_factor;
-    // Both come from the same kind of argument; a relative 1e-9 only absorbs printing round-off.
-    if (f_file - factor).abs() > 1e-9 * factor.abs().max(1.0) {
-        anyhow::bail!(
-            "the rig was identified with specimen stiffness factor {f_file}, this run has {factor}"
-        );
-    }
-    let draw = |u: bool, seed: u64| {
-        if u {
-            format!("the uncertainty draw of seed {seed}")
-        } else {
-            "the nominal plant (no --uncertainty)".to_string()
-        }
-    };
-    if file.uncertainty != rig.uncertainty || (rig.uncertainty && file.seed != rig.seed) {
-        anyhow::bail!(
-            "the rig was identified on {}, this run is on {}: another plant",
-            draw(file.uncertainty, file.seed),
-            draw(rig.uncertainty, rig.seed)
-        );
-    }
-    Ok(())
-}
-
 /// Refuse a model trained on another rig than the run's: its compensation (the LRX lead filter
-/// taken from a rig file) was fitted to that rig's actuator. `training.rig` is `"PRESET BOARD
+/// taken from a rig file) was fitted to that rig's actuator. `training.rig` is `"PRESET VIRTUAL_BOARD
 /// CHECKSUM"` (`rths train lrx --rig`); `rig_checksum` is that of the `--rig` file, if given.
 fn check_model_rig(
     file: &ModelFile,
@@ -173,10 +54,10 @@ fn check_model_rig(
     };
     let mut it = named.split_whitespace();
     let (m_preset, m_board, m_sum) = (it.next(), it.next(), it.next());
-    if m_preset != Some(preset.name()) || m_board != Some(BOARD) {
+    if m_preset != Some(preset.name()) || m_board != Some(VIRTUAL_BOARD) {
         anyhow::bail!(
             "the model was trained for the rig `{named}` (preset, board, checksum), this run is \
-             preset {} on board {BOARD}: its compensation does not fit this plant; train one for \
+             preset {} on board {VIRTUAL_BOARD}: its compensation does not fit this plant; train one for \
              it (`rths train lrx --preset {}`)",
             preset.name(),
             preset.name()
@@ -225,7 +106,7 @@ fn load_model(
 
 /// Print a run's figures (stability, NRMSE, J1-J5, peak command): `rths simulate`'s lines, which
 /// `rths report` prints for a recording too.
-pub fn print_figures(r: &crate::scenario::ScenarioReport) {
+pub fn print_figures(r: &crate::studies::scenario::ScenarioReport) {
     let o = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
     match (&r.stop_reason, r.stop_time_s) {
         (Some(why), Some(t)) => {
@@ -322,7 +203,7 @@ struct StructureJson {
     /// The hybrid run's compensation (fe-online-ats: its ATS start; nl-online: its lead and
     /// force correction): `--rig`'s, else identified on the virtual plant before the run.
     #[serde(skip_serializing_if = "Option::is_none")]
-    compensation: Option<crate::nonlinear::rig::RigCompensation>,
+    compensation: Option<crate::machinery::structure::rig::RigCompensation>,
 }
 
 /// `rths simulate --structure FILE` for a structure that is not the paper's linear frame.
@@ -381,14 +262,14 @@ fn run_structure(
         Some(path) => {
             let file =
                 RigFile::load(path).with_context(|| format!("rig file {}", path.display()))?;
-            file.check(preset.name(), BOARD)
+            file.check(preset.name(), VIRTUAL_BOARD)
                 .with_context(|| format!("rig file {} refused", path.display()))?;
-            check_rig_plant(&file, &rig, case.rig_specimen_factor())
+            file.check_plant(&rig, case.rig_specimen_factor())
                 .with_context(|| format!("rig file {} refused", path.display()))?;
             let bytes =
                 std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-            rig_checksum = Some(crate::identify::rig_file::checksum_hex(&bytes));
-            Some(crate::nonlinear::rig::from_rig_file(
+            rig_checksum = Some(crate::machinery::identify::rig_file::checksum_hex(&bytes));
+            Some(crate::machinery::structure::rig::from_rig_file(
                 &case.structure,
                 &file,
                 &path.display().to_string(),
@@ -401,7 +282,7 @@ fn run_structure(
                 | SimScenario::Study(ScenarioId::FeOnlineAts)
         ) =>
         {
-            Some(crate::nonlinear::rig::identify(
+            Some(crate::machinery::structure::rig::identify(
                 &case.structure,
                 preset,
                 args.seed,
@@ -425,9 +306,13 @@ fn run_structure(
         }
         _ => None,
     };
-    let mut learned = match sc {
+    let learned = match sc {
         SimScenario::NlPure | SimScenario::NlOnline => Some(
-            crate::nonlinear::model::for_structure(args.model.as_deref(), &name, structure_json)?,
+            crate::machinery::structure::model::for_structure(
+                args.model.as_deref(),
+                &name,
+                structure_json,
+            )?,
         ),
         _ => None,
     };
@@ -442,7 +327,7 @@ fn run_structure(
             lr: models.as_ref().and_then(|m| m.lr),
             lrx: models.as_ref().and_then(|m| m.lrx),
             delay_steps: models.as_ref().map_or(PAPER_DELAY_STEPS, |m| m.delay),
-            nl_model: learned.as_mut().map(|m| m as &mut dyn nl::StructureModel),
+            nl_model: learned.as_ref(),
         },
     )?;
     if let Some(dir) = &args.out {
@@ -553,7 +438,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("reading structure file {}", p.display()))?;
             // An imported (OpenSees) structure: its own host FE (`simulate_imported`).
-            if crate::imported::file::is_imported(&text) {
+            if crate::machinery::imported::file::is_imported(&text) {
                 return crate::cmd::simulate_imported::run(&args, p, &text, &ag, &motion_label);
             }
             let s = Structure::from_json(&text)
@@ -588,19 +473,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             m.display()
         );
     }
-    let mut rig = scenario::rig_config(preset, specimen, f, args.seed);
+    let mut rig = crate::machinery::reference::rig_config(preset, specimen, f, args.seed);
     rig.uncertainty = args.uncertainty;
     rig.drift = rths_hal_sim::Drift::over(args.drift, ag.len() as u64);
     let mut rig_checksum = None;
     let mut ats_initial = None;
     if let Some(path) = &args.rig {
         let file = RigFile::load(path).with_context(|| format!("rig file {}", path.display()))?;
-        file.check(preset.name(), BOARD)
+        file.check(preset.name(), VIRTUAL_BOARD)
             .with_context(|| format!("rig file {} refused", path.display()))?;
-        check_rig_plant(&file, &rig, f)
+        file.check_plant(&rig, f)
             .with_context(|| format!("rig file {} refused", path.display()))?;
         let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-        rig_checksum = Some(crate::identify::rig_file::checksum_hex(&bytes));
+        rig_checksum = Some(crate::machinery::identify::rig_file::checksum_hex(&bytes));
         if id == ScenarioId::FeOnlineAts {
             ats_initial = Some(file.compensation.ats_initial);
         }

@@ -8,12 +8,12 @@ use std::time::Instant;
 use anyhow::Context;
 use rths_core::params::DT_S;
 
-use crate::cmd::simulate::Args;
-use crate::imported::fe;
-use crate::imported::reduced::{self, ReducedModelFile};
-use crate::imported::ImportedStructure;
-use crate::nonlinear::scenario::SimScenario;
-use crate::scenario::ScenarioId;
+use crate::cmd::simulate_args::Args;
+use crate::machinery::imported::fe;
+use crate::machinery::imported::reduced::{self, ReducedModelFile};
+use crate::machinery::imported::ImportedStructure;
+use crate::studies::nonlinear::scenario::SimScenario;
+use crate::studies::scenario::ScenarioId;
 
 /// The JSON of an imported structure's run.
 #[derive(Debug, serde::Serialize)]

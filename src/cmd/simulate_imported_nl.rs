@@ -21,12 +21,13 @@ use rths_files::hysteron_model_file::AnyNlModel;
 use rths_hal_sim::{Preset, VirtualRig};
 
 use crate::cmd::plant::PresetArg;
-use crate::cmd::simulate::Args;
-use crate::drive;
-use crate::imported::fe::FeHistory;
-use crate::nonlinear::scenario::SimScenario;
-use crate::train::nonlinear::floors::FloorModel;
-use crate::train::nonlinear::score::{run_hybrid, HybridRig, Learned};
+use crate::cmd::simulate_args::Args;
+use crate::machinery::drive;
+use crate::machinery::imported::fe::FeHistory;
+use crate::studies::nonlinear::scenario::SimScenario;
+use crate::machinery::train::nonlinear::floors::FloorModel;
+use crate::machinery::train::nonlinear::score::Learned;
+use crate::studies::nonlinear::held_out::{run_hybrid, HybridRig};
 
 /// Run `nl-pure` or `nl-online` of the imported structure `text` (at `path`) under `ag`.
 pub fn run(

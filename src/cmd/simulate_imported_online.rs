@@ -1,5 +1,5 @@
 //! `rths simulate --structure S.json --scenario meta-online` for an imported structure: its
-//! analytical part in the hybrid loop on the virtual rig ([`crate::imported::hybrid`]), scored
+//! analytical part in the hybrid loop on the virtual rig ([`crate::studies::imported_hybrid`]), scored
 //! against the whole model with the rig's true specimen.
 
 use std::path::Path;
@@ -12,14 +12,15 @@ use rths_hal_sim::Preset;
 use serde::Serialize;
 
 use crate::cmd::plant::{PresetArg, SpecimenArg};
-use crate::cmd::simulate::{check_rig_plant, Args, BOARD};
-use crate::identify::RigFile;
-use crate::imported::hybrid::{self, Compensation, OnlineScore, ReducedReadOut};
-use crate::imported::reduced::ReducedModelFile;
-use crate::imported::ImportedStructure;
-use crate::nonlinear::rig::{self, RigCompensation};
-use crate::nonlinear::scenario::SimScenario;
-use crate::reference::DrawnPlant;
+use crate::cmd::simulate_args::Args;
+use crate::machinery::identify::rig_file::VIRTUAL_BOARD;
+use crate::machinery::identify::RigFile;
+use crate::machinery::imported::reduced::ReducedModelFile;
+use crate::machinery::imported::ImportedStructure;
+use crate::machinery::reference::DrawnPlant;
+use crate::machinery::structure::rig::{self, RigCompensation};
+use crate::studies::imported_hybrid::{self as hybrid, Compensation, OnlineScore, ReducedReadOut};
+use crate::studies::nonlinear::scenario::SimScenario;
 
 /// The JSON of an imported structure's hybrid run.
 #[derive(Debug, Serialize)]
@@ -102,7 +103,7 @@ pub fn run(
             };
             let file = ReducedModelFile::load(m)
                 .with_context(|| format!("reduced model file {}", m.display()))?;
-            let params = crate::imported::reduced::hybrid_params(&file, s, DT_S)
+            let params = crate::machinery::imported::reduced::hybrid_params(&file, s, DT_S)
                 .with_context(|| format!("reduced model file {}", m.display()))?;
             (
                 Analytical::StructureReduced(StructureReduced::new(params)),
@@ -117,9 +118,9 @@ pub fn run(
     let comp = match &args.rig {
         Some(p) => {
             let file = RigFile::load(p).with_context(|| format!("rig file {}", p.display()))?;
-            file.check(preset.name(), BOARD)
+            file.check(preset.name(), VIRTUAL_BOARD)
                 .with_context(|| format!("rig file {} refused", p.display()))?;
-            check_rig_plant(&file, &rig_config, factor)
+            file.check_plant(&rig_config, factor)
                 .with_context(|| format!("rig file {} refused", p.display()))?;
             rig::from_rig_file_named(s.name(), &file, &p.display().to_string())?
         }

@@ -9,16 +9,14 @@ use rths_core::compensator::LeadParams;
 use rths_hal_sim::{FaultPlan, Specimen};
 
 use crate::cmd::plant::PresetArg;
-use crate::identify::{identify_virtual, IdentifyConfig, RigFile};
 use crate::link_host::{Link, Qemu};
-use crate::site::board::{BoardExperiment, BoardLink};
-use crate::site::element::{median_max, ElementSetup};
-use crate::site::experiment::Experiment;
-use crate::site::virtual_rig::VirtualExperiment;
-use crate::site::{self, SiteConfig};
-
-/// The board of a virtual-rig site.
-const BOARD: &str = "virtual";
+use crate::machinery::identify::rig_file::VIRTUAL_BOARD;
+use crate::machinery::identify::{identify_virtual, IdentifyConfig, RigFile};
+use crate::machinery::site::board::{BoardExperiment, BoardLink};
+use crate::machinery::site::element::{median_max, ElementSetup};
+use crate::machinery::site::experiment::Experiment;
+use crate::machinery::site::virtual_rig::VirtualExperiment;
+use crate::machinery::site::{self, SiteConfig};
 
 /// Arguments of `rths site`.
 #[derive(Debug, clap::Args)]
@@ -183,7 +181,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     "unr-compact" => rths_hal_sim::Preset::UnrCompact,
                     other => anyhow::bail!("rig file {}: unknown preset `{other}`", path.display()),
                 };
-                file.check(preset.name(), BOARD)
+                file.check(preset.name(), VIRTUAL_BOARD)
                     .with_context(|| format!("rig file {} refused", path.display()))?;
                 if file.specimen != "linear" {
                     anyhow::bail!(
@@ -192,7 +190,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         file.specimen
                     );
                 }
-                let mut rig = crate::scenario::rig_config(
+                let mut rig = crate::machinery::reference::rig_config(
                     preset,
                     Specimen::Linear,
                     file.specimen_stiffness_factor,
@@ -211,7 +209,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     PresetArg::Benchmark => rths_hal_sim::Preset::Benchmark,
                     PresetArg::UnrCompact => rths_hal_sim::Preset::UnrCompact,
                 };
-                let rig = crate::scenario::rig_config(preset, Specimen::Linear, 1.0, seed);
+                let rig =
+                    crate::machinery::reference::rig_config(preset, Specimen::Linear, 1.0, seed);
                 eprintln!(
                     "site: element {}: identifying the {} rig",
                     i + 1,

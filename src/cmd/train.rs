@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use anyhow::Context;
 use rths_core::params::{Prototype, DT_S};
 
-use crate::model_file::{ModelFile, Scores, Training};
-use crate::train::{data, lr, rnn};
+use crate::machinery::model_file::{ModelFile, Scores, Training};
+use crate::machinery::train::{data, lr, rnn};
 
 /// Which metamodel to train.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -185,7 +185,7 @@ pub struct Args {
     /// Nonlinear, floor-hysteron form: Levenberg–Marquardt steps of the refinement on the
     /// simulation error after the least-squares fit, at most (0: the least-squares fit alone); it
     /// stops earlier on the validation histories (every third held out of the fit).
-    #[arg(long, default_value_t = crate::train::nonlinear::refine::RefineConfig::default().max_iterations)]
+    #[arg(long, default_value_t = crate::machinery::train::nonlinear::refine::RefineConfig::default().max_iterations)]
     pub refine_steps: usize,
     /// Nonlinear `--evaluate --histories`: score the hybrid loop too (the virtual rig, identified
     /// compensation, force correction: `nl-online`) against each held-out history.
@@ -208,8 +208,8 @@ fn epochs_help() -> String {
     format!(
         "RNN maximum epochs of fine-tuning/training (early stopping may end sooner; 0: ARX \
          initialization only). Default {} (`--init arx`) or {} (`--init random`)",
-        crate::train::rnn::ARX_FINE_TUNE_EPOCHS,
-        crate::train::rnn::RnnConfig::random_init(1).max_epochs
+        crate::machinery::train::rnn::ARX_FINE_TUNE_EPOCHS,
+        crate::machinery::train::rnn::RnnConfig::random_init(1).max_epochs
     )
 }
 
@@ -232,7 +232,7 @@ fn check_flags(args: &Args) -> anyhow::Result<()> {
         }
     }
     if matches!(args.kind, Kind::Lr | Kind::Rnn) {
-        crate::model_file::check_delay_steps(args.delay_steps)
+        crate::machinery::model_file::check_delay_steps(args.delay_steps)
             .map_err(|e| anyhow::anyhow!("--delay-steps: {e}"))?;
     }
     if args.modes.is_some() && args.kind != Kind::Nonlinear {
@@ -256,7 +256,7 @@ fn fmt_opt(v: f64) -> Option<f64> {
 }
 
 fn train_lrx(args: &Args) -> anyhow::Result<()> {
-    let mut cfg = crate::train::lrx::LrxConfig::new()?;
+    let mut cfg = crate::machinery::train::lrx::LrxConfig::new()?;
     if !args.lrx_motions.is_empty() {
         cfg.motions = args
             .lrx_motions
@@ -281,7 +281,7 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
     cfg.lead_stride = args.lead_stride;
     cfg.k_adapt_ticks = args.k_adapt_ticks;
     cfg.lead_adapt_ticks = args.lead_adapt_ticks.unwrap_or(if args.rig.is_some() {
-        crate::train::lrx::RIG_LEAD_ADAPT_TICKS
+        crate::machinery::train::lrx::RIG_LEAD_ADAPT_TICKS
     } else {
         0.0
     });
@@ -306,25 +306,27 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
     }
     let mut rig_identity = None;
     if let Some(path) = &args.rig {
-        let rig = crate::identify::RigFile::load(path)
+        let rig = crate::machinery::identify::RigFile::load(path)
             .with_context(|| format!("rig file {}", path.display()))?;
         if args.preset.is_some() {
             rig.check(cfg.preset.name(), &rig.board)
                 .with_context(|| format!("rig file {}", path.display()))?;
         }
         let lead = rig.lead_params()?;
-        cfg.given_lead = Some(crate::train::lrx::GivenLead {
+        cfg.given_lead = Some(crate::machinery::train::lrx::GivenLead {
             weights: *lead.weights(),
             stride: lead.stride(),
             fit_nrmse_pct: rig.quality.lead_fit_nrmse_pct,
         });
-        cfg.specimen_dynamics = Some(crate::train::lrx::prototype_dynamics(&rig.specimen_fit));
+        cfg.specimen_dynamics = Some(crate::machinery::train::lrx::prototype_dynamics(
+            &rig.specimen_fit,
+        ));
         let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
         rig_identity = Some(format!(
             "{} {} {}",
             rig.preset,
             rig.board,
-            crate::identify::rig_file::checksum_hex(&bytes)
+            crate::machinery::identify::rig_file::checksum_hex(&bytes)
         ));
         crate::outln!(
             "lead filter from rig file {} ({} on {}, stride {})",
@@ -334,10 +336,13 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
             lead.stride()
         );
     }
-    let mut t = crate::train::lrx::train(&cfg)?;
+    let mut t = crate::machinery::train::lrx::train(&cfg)?;
     t.file.training.rig = rig_identity;
     crate::outln!("LRX fit on {} (seed {})", t.file.training.motion, cfg.seed);
-    for (name, c) in crate::model_file::LRX_FEATURES.iter().zip(&t.coeffs) {
+    for (name, c) in crate::machinery::model_file::LRX_FEATURES
+        .iter()
+        .zip(&t.coeffs)
+    {
         crate::outln!("  {name:<24} {c:+.10e}");
     }
     crate::outln!(
@@ -359,11 +364,11 @@ fn train_lrx(args: &Args) -> anyhow::Result<()> {
         crate::outln!("  lrx-pure NRMSE on {m}: {e:.3e}%");
     }
     // Generalization of the frame model: lrx-pure on every shipped record.
-    let (frame, _) = crate::models::lrx_params(&t.file)?;
+    let (frame, _) = crate::machinery::models::lrx_params(&t.file)?;
     crate::outln!("  lrx-pure NRMSE on the shipped records:");
-    for name in crate::motion::GroundMotion::embedded_names() {
-        let m = crate::motion::GroundMotion::try_embedded(name)?;
-        let e = crate::train::lrx::pure_nrmse_pct(frame, &m.resample_mm_s2(DT_S))?;
+    for name in crate::machinery::motion::GroundMotion::embedded_names() {
+        let m = crate::machinery::motion::GroundMotion::try_embedded(name)?;
+        let e = crate::machinery::train::lrx::pure_nrmse_pct(frame, &m.resample_mm_s2(DT_S))?;
         crate::outln!("    {name:<16} {e:.3e}%");
     }
     t.file
@@ -385,9 +390,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let prototype = Prototype::paper();
     let k_b = prototype.brace_axial_stiffness_kn_per_mm();
     let motion = match &args.motion {
-        Some(p) => crate::motion::GroundMotion::from_path(p)
+        Some(p) => crate::machinery::motion::GroundMotion::from_path(p)
             .with_context(|| format!("reading ground motion {}", p.display()))?,
-        None => crate::motion::GroundMotion::try_el_centro()?,
+        None => crate::machinery::motion::GroundMotion::try_el_centro()?,
     };
     let motion_name = motion.name.clone();
     let ag = motion.resample_mm_s2(DT_S);
@@ -402,7 +407,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 response.len(),
                 args.delay_steps
             );
-            for (name, t) in crate::model_file::LR_FEATURES.iter().zip(&s.theta) {
+            for (name, t) in crate::machinery::model_file::LR_FEATURES
+                .iter()
+                .zip(&s.theta)
+            {
                 crate::outln!("  {name:<20} {t:+.10e}");
             }
             crate::outln!(
@@ -483,8 +491,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             crate::outln!("  wall time: {:.1} s", t.wall_time_s);
             // Generalization: the same closed loop on every shipped record (ms each).
             crate::outln!("  rnn-pure NRMSE on the shipped records (generalization):");
-            for name in crate::motion::GroundMotion::embedded_names() {
-                let m = crate::motion::GroundMotion::try_embedded(name)?;
+            for name in crate::machinery::motion::GroundMotion::embedded_names() {
+                let m = crate::machinery::motion::GroundMotion::try_embedded(name)?;
                 let r = data::pure_response(&prototype, &m.resample_mm_s2(DT_S), DT_S)?;
                 let e = rnn::rnn_pure_nrmse_pct(&t.model, &r, args.delay_steps, k_b)?;
                 crate::outln!("    {name:<16} {e:.4}%");
@@ -502,7 +510,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `rths train meta`: the benchmark's metamodel training ([`crate::benchmark::meta`]) on any
+/// `rths train meta`: the benchmark's metamodel training ([`crate::studies::benchmark::meta`]) on any
 /// structure file, at the rate asked, into a structure-metamodel file
 /// ([`rths_files::structure_meta`]: the structure's name and checksum, so a model trained for
 /// another structure is refused).
@@ -514,7 +522,7 @@ fn train_meta(args: &Args) -> anyhow::Result<()> {
         .context("`rths train meta` needs --structure FILE")?;
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("reading structure file {}", path.display()))?;
-    if crate::imported::file::is_imported(&text) {
+    if crate::machinery::imported::file::is_imported(&text) {
         return train_reduced(args, path, &text);
     }
     let structure = rths_files::structure_file::Structure::load(path)?;
@@ -525,20 +533,20 @@ fn train_meta(args: &Args) -> anyhow::Result<()> {
         rths_core::params::CONTROL_RATES_HZ
     );
     let dt_s = rths_core::params::dt_s(rate);
-    let intensity = crate::benchmark::DEFAULT_INTENSITY;
-    let meta = crate::benchmark::meta::train_at(&structure, intensity, dt_s)?;
+    let intensity = crate::studies::benchmark::DEFAULT_INTENSITY;
+    let meta = crate::studies::benchmark::meta::train_at(&structure, intensity, dt_s)?;
     let file = MetaFile::new(
         &structure,
         meta.params(),
         dt_s,
         MetaTraining {
-            records: crate::benchmark::meta::TRAINING_RECORDS
+            records: crate::studies::benchmark::meta::TRAINING_RECORDS
                 .iter()
                 .map(|r| r.to_string())
                 .collect(),
             intensity,
             method: "svd-least-squares (column-scaled), delta-form ARX".into(),
-            force_correction_ratio: crate::benchmark::run::META_FORCE_CORRECTION,
+            force_correction_ratio: crate::studies::benchmark::meta::META_FORCE_CORRECTION,
         },
     );
     std::fs::write(&args.out, file.to_json()?)
@@ -556,8 +564,8 @@ fn train_meta(args: &Args) -> anyhow::Result<()> {
 // ---- `rths train nonlinear` (issue 16) ----
 
 fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
-    use crate::train::nonlinear::choose::{train_form, Form, TrainedForm};
-    use crate::train::nonlinear::{NlTrainConfig, SpringLaw};
+    use crate::machinery::train::nonlinear::choose::{train_form, Form, TrainedForm};
+    use crate::machinery::train::nonlinear::{NlTrainConfig, SpringLaw};
     let t0 = std::time::Instant::now();
     let path = args
         .structure
@@ -772,11 +780,11 @@ fn report_hysteron(
 }
 
 /// `rths train meta` on an imported structure: its reduced-order modal model
-/// ([`crate::imported::reduced`]), the mode count chosen on the training records, the error bound
+/// ([`crate::machinery::imported::reduced`]), the mode count chosen on the training records, the error bound
 /// printed.
 fn train_reduced(args: &Args, path: &std::path::Path, text: &str) -> anyhow::Result<()> {
-    use crate::imported::reduced;
-    let structure = crate::imported::ImportedStructure::from_json(text)
+    use crate::machinery::imported::reduced;
+    let structure = crate::machinery::imported::ImportedStructure::from_json(text)
         .with_context(|| format!("structure file {}", path.display()))?;
     let rate = args.rate.unwrap_or(rths_core::params::CONTROL_RATE_HZ);
     anyhow::ensure!(
@@ -857,7 +865,7 @@ fn evaluate_nonlinear(args: &Args, path: &std::path::Path, text: &str) -> anyhow
     let any = AnyNlModel::load(&args.out)?;
     any.check_structure(text)
         .with_context(|| format!("model {} for {}", args.out.display(), path.display()))?;
-    let imported = crate::imported::file::is_imported(text);
+    let imported = crate::machinery::imported::file::is_imported(text);
     let modal_story = matches!(any, AnyNlModel::Modal(_)) && !imported && !args.hybrid;
     if !modal_story {
         return evaluate_floors(args, path, text, &any);
@@ -871,31 +879,32 @@ fn evaluate_nonlinear(args: &Args, path: &std::path::Path, text: &str) -> anyhow
         // read here, by the scoring, and never by the training.
         let paths: Vec<&std::path::Path> = args.histories.iter().map(|p| p.as_path()).collect();
         let units = rths_files::structure_file::StructureFile::parse(text)?.units;
-        let runs = crate::train::nonlinear::histories::read_runs(
+        let runs = crate::machinery::train::nonlinear::histories::read_runs(
             &s,
             &paths,
-            crate::train::nonlinear::histories::recorder_units(units),
+            crate::machinery::train::nonlinear::histories::recorder_units(units),
             DT_S,
         )?;
         let rows = runs
             .par_iter()
-            .map(|r| crate::train::nonlinear::eval::evaluate_run(&file, &s, r, DT_S))
+            .map(|r| crate::machinery::train::nonlinear::eval::evaluate_run(&file, &s, r, DT_S))
             .collect::<Result<Vec<_>, _>>()?;
         return print_nl_rows(args, &s, "held-out histories", &rows);
     }
     let motions = NL_SCORING
         .iter()
-        .map(|n| crate::nonlinear::study::record(n))
+        .map(|n| crate::studies::nonlinear::study::record(n))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let jobs: Vec<(&crate::motion::GroundMotion, f64)> = motions
+    let jobs: Vec<(&crate::machinery::motion::GroundMotion, f64)> = motions
         .iter()
         .flat_map(|m| NL_SCORING_DUCTILITIES.iter().map(move |d| (m, *d)))
         .collect();
     let rows = jobs
         .par_iter()
         .map(|(m, d)| {
-            let scale = crate::train::nonlinear::runs::scale_for_ductility(&s, m, *d, DT_S)?;
-            crate::train::nonlinear::eval::evaluate(&file, &s, m, scale, DT_S)
+            let scale =
+                crate::machinery::train::nonlinear::runs::scale_for_ductility(&s, m, *d, DT_S)?;
+            crate::machinery::train::nonlinear::eval::evaluate(&file, &s, m, scale, DT_S)
         })
         .collect::<Result<Vec<_>, _>>()?;
     print_nl_rows(args, &s, "FE reference", &rows)
@@ -911,8 +920,9 @@ fn evaluate_floors(
     text: &str,
     any: &rths_files::hysteron_model_file::AnyNlModel,
 ) -> anyhow::Result<()> {
-    use crate::train::nonlinear::floors::{read_runs, FloorModel, FloorRun};
-    use crate::train::nonlinear::score::{score_run, HybridRig, Learned};
+    use crate::machinery::train::nonlinear::floors::{read_runs, FloorModel, FloorRun};
+    use crate::machinery::train::nonlinear::score::Learned;
+    use crate::studies::nonlinear::held_out::{score_run, HybridRig};
     use rayon::prelude::*;
     let fm = FloorModel::from_json(text)?;
     let runs: Vec<FloorRun> = if args.histories.is_empty() {
@@ -930,16 +940,16 @@ fn evaluate_floors(
         );
         let motions = NL_SCORING
             .iter()
-            .map(|n| crate::nonlinear::study::record(n))
+            .map(|n| crate::studies::nonlinear::study::record(n))
             .collect::<anyhow::Result<Vec<_>>>()?;
-        let jobs: Vec<(&crate::motion::GroundMotion, f64)> = motions
+        let jobs: Vec<(&crate::machinery::motion::GroundMotion, f64)> = motions
             .iter()
             .flat_map(|m| NL_SCORING_DUCTILITIES.iter().map(move |d| (m, *d)))
             .collect();
         jobs.par_iter()
             .map(|(m, d)| -> anyhow::Result<FloorRun> {
-                let scale = crate::train::nonlinear::runs::scale_for_ductility(&s, m, *d, DT_S)?;
-                let r = crate::train::nonlinear::runs::fe_run(&s, m, scale, DT_S)?;
+                let scale = crate::machinery::train::nonlinear::runs::scale_for_ductility(&s, m, *d, DT_S)?;
+                let r = crate::machinery::train::nonlinear::runs::fe_run(&s, m, scale, DT_S)?;
                 Ok(FloorRun {
                     label: r.label,
                     specimen_force_kn: Vec::new(),
@@ -1054,7 +1064,7 @@ fn print_nl_rows(
     args: &Args,
     s: &rths_files::structure_file::Structure,
     against: &str,
-    rows: &[crate::train::nonlinear::eval::EvalRow],
+    rows: &[crate::machinery::train::nonlinear::eval::EvalRow],
 ) -> anyhow::Result<()> {
     crate::outln!(
         "pure loop of {} on {} ({against}, {} Hz):",

@@ -30,6 +30,7 @@ pub use recording::{
 pub use session::{IdentifyStream, Link, RecordSummary};
 pub use transport::Port;
 pub use wire::{
-    fault_name, lrx_rig_extras, model_kind_name, model_messages, model_values, record_messages,
-    record_source_name, rig_message, rig_values, state_name, stream_messages, upload_message,
+    fault_name, laid_out_messages, lrx_rig_extras, model_kind_name, model_messages, model_values,
+    record_messages, record_source_name, rig_message, rig_messages, rig_values, state_name,
+    stream_messages, structure_rig_values, upload_message,
 };

@@ -14,10 +14,11 @@ use super::error::LinkHostError;
 use super::stream::StreamFeed;
 use super::transport::{self, Port};
 use super::wire::{
-    fe_ats_messages, lrx_rig_extras, model_messages, record_messages, rig_message, stream_messages,
-    upload_message,
+    fe_ats_messages, laid_out_messages, lrx_rig_extras, model_messages, record_messages,
+    rig_messages, stream_messages, upload_message,
 };
-use crate::model_file::{ModelFile, ModelKind};
+use crate::machinery::model_file::{ModelFile, ModelKind};
+use rths_files::upload::LaidOut;
 
 /// How a run's telemetry ended.
 #[derive(Debug, Clone, PartialEq)]
@@ -273,9 +274,27 @@ impl Link {
         kind: WireModelKind,
         values: &[f64],
     ) -> Result<u32, LinkHostError> {
-        let msg = rig_message(kind, values)?;
-        self.expect_ack(&msg)?;
+        for m in rig_messages(kind, values)? {
+            self.expect_ack(&m)?;
+        }
         Ok(rths_link::rig_checksum(kind, values))
+    }
+
+    /// Upload a model laid out from a lab's files (`rths_files::upload::lay_out_files`: a
+    /// structure's finite elements or one of its models, or a model file), in chunks, then the
+    /// rig compensation its file carries, if any. Its checksum on success.
+    pub fn upload_laid_out(&mut self, laid: &LaidOut) -> Result<u32, LinkHostError> {
+        let msgs = laid_out_messages(laid)?;
+        for m in &msgs {
+            self.expect_ack(m)?;
+        }
+        if let Some(v) = &laid.rig {
+            self.upload_rig(laid.kind, v)?;
+        }
+        match msgs.first() {
+            Some(HostMsg::ModelBegin { checksum, .. }) => Ok(*checksum),
+            _ => Err(LinkHostError::Model("no model begin".into())),
+        }
     }
 
     /// Make the device's analytical part its own finite elements with the ATS starting from

@@ -1,14 +1,17 @@
-//! The wire layout of what the host uploads (an LR model in one frame, other models and ground-motion
-//! records in chunks, a rig compensation in one frame), and the names of what the device reports
-//! (model kinds, record sources, run states, fault codes).
+//! The wire layout of what the host uploads (an LR model in one frame, other models of any kind and
+//! ground-motion records in chunks, a rig compensation in one frame or, a structure part's, in
+//! chunks), and the names of what the device reports (model kinds, record sources, run states,
+//! fault codes). The models' values are `rths_link::layout`'s, read from a lab's files by
+//! `rths_files::upload`, the reader the firmware's build script uses for its default.
 
 use rths_link::{
     HostMsg, ModelKind as WireModelKind, RecordSource, RunState, LR_COEFFS, RECORD_CHUNK,
 };
 
 use super::error::LinkHostError;
-use crate::model_file::{ModelFile, ModelKind};
+use crate::machinery::model_file::{ModelFile, ModelKind};
 use rths_core::supervisor::FaultReason;
+use rths_files::upload::LaidOut;
 
 /// The upload message of an LR model file (validated here too: kind, 6 coefficients, finite).
 pub fn upload_message(model: &ModelFile) -> Result<HostMsg, LinkHostError> {
@@ -104,43 +107,25 @@ fn chunks(values: &[f64]) -> impl Iterator<Item = (u32, u8, [f64; RECORD_CHUNK])
     })
 }
 
-/// The flat values of a model file for a chunked upload, and its wire kind: LRX in
-/// `rths_link::lrx_values`' order; an RNN as `w_ih` (row-major), `w_hh` (row-major), `b_h`, `w_ho`,
-/// `b_o`, `input_mean`, `input_std`, `output_mean`, `output_std` (`rths_link::rnn_value_count`'s
-/// order; any image takes an RNN of up to `rths_link::RNN_UPLOAD_MAX_HIDDEN` units that its tick
-/// can run).
+/// The flat values of a model file for a chunked upload, and its wire kind
+/// (`rths_link::layout`: LRX in `rths_link::lrx_values`' order, an RNN in
+/// `rths_link::rnn_value_count`'s; any image takes an RNN of up to
+/// `rths_link::RNN_UPLOAD_MAX_HIDDEN` units that its tick can run).
 pub fn model_values(model: &ModelFile) -> Result<(WireModelKind, Vec<f64>), LinkHostError> {
-    let missing = |what: &str| LinkHostError::Model(format!("no {what} section"));
-    match model.kind {
-        ModelKind::Lrx => {
-            let x = model.lrx.as_ref().ok_or_else(|| missing("lrx"))?;
-            let v = rths_link::lrx_values(
-                &x.coeffs,
-                x.k_corr_kn_per_mm,
-                x.k_adapt_ticks,
-                &x.lead_weights,
-                x.lead_stride,
-            )
-            .ok_or_else(|| LinkHostError::Model("lrx: 9 coefficients and 8 lead weights".into()))?;
-            Ok((WireModelKind::Lrx, v.to_vec()))
-        }
-        ModelKind::Rnn => {
-            let r = model.rnn.as_ref().ok_or_else(|| missing("rnn"))?;
-            let mut v: Vec<f64> = r.w_ih.concat();
-            v.extend(r.w_hh.concat());
-            v.extend(&r.b_h);
-            v.extend(&r.w_ho);
-            v.push(r.b_o);
-            v.extend(&r.input_mean);
-            v.extend(&r.input_std);
-            v.push(r.output_mean);
-            v.push(r.output_std);
-            Ok((WireModelKind::Rnn, v))
-        }
-        ModelKind::Lr => Err(LinkHostError::Model(
+    if model.kind == ModelKind::Lr {
+        return Err(LinkHostError::Model(
             "an LR model goes in one UploadLr".into(),
-        )),
+        ));
     }
+    let laid = rths_files::upload::lay_out_model_file(model, std::path::Path::new("model"))
+        .map_err(|e| LinkHostError::Model(e.to_string()))?;
+    Ok((laid.kind, laid.values))
+}
+
+/// The messages of a chunked upload of a model laid out from a lab's files
+/// (`rths_files::upload::lay_out_files`: a structure's finite elements or one of its models).
+pub fn laid_out_messages(laid: &LaidOut) -> Result<Vec<HostMsg>, LinkHostError> {
+    chunked_messages(laid.kind, &laid.values, laid.delay_steps)
 }
 
 /// The rig-compensation values that carry an LRX model's optional lead adaptation and specimen
@@ -208,7 +193,7 @@ fn chunked_messages(
 /// adaptation time constant `lead_adapt_ticks`, and the specimen's moving mass and damping at the
 /// prototype's scale (as `rths train lrx --rig` writes them into a model). Another kind has none.
 pub fn rig_values(
-    rig: &crate::identify::RigFile,
+    rig: &crate::machinery::identify::RigFile,
     kind: WireModelKind,
     lead_adapt_ticks: f64,
 ) -> Result<Vec<f64>, LinkHostError> {
@@ -218,7 +203,7 @@ pub fn rig_values(
             let lead = rig
                 .lead_params()
                 .map_err(|e| LinkHostError::Model(format!("rig file: {e}")))?;
-            let dynamics = crate::train::lrx::prototype_dynamics(&rig.specimen_fit);
+            let dynamics = crate::machinery::train::lrx::prototype_dynamics(&rig.specimen_fit);
             let v =
                 rths_link::rig_values(lead.weights(), lead.stride(), lead_adapt_ticks, dynamics)
                     .ok_or_else(|| LinkHostError::Model("rig file: 8 lead weights".into()))?;
@@ -228,7 +213,82 @@ pub fn rig_values(
             "the device runs {}, which has no rig compensation to upload",
             model_kind_name(kind)
         ))),
+        _ => Err(LinkHostError::Model(format!(
+            "the device runs {}, a structure part: its rig compensation needs the structure's \
+             files (--structure, and --model for its model) to map the rig's specimen to the \
+             structure's",
+            model_kind_name(kind)
+        ))),
     }
+}
+
+/// The rig compensation a rig file gives a structure part (`rths_link::layout::
+/// structure_rig_values`), as the host's hybrid runs of a structure give it (`nl-online`,
+/// `meta-online`, `fe-online-lead`): the identified lead with its adaptation `lead_adapt_ticks`,
+/// the identified specimen (stiffness, damping, mass at the rig) that corrects the measured force,
+/// and the specimen scale by which the rig's specimen stands for the structure's of
+/// `specimen_k_kn_per_mm` (prototype, along its DOF): displacement `length_scale`, force
+/// `k_structure × length_scale / k_rig` with the rig file's identified stiffness `k_rig`.
+pub fn structure_rig_values(
+    rig: &crate::machinery::identify::RigFile,
+    specimen_k_kn_per_mm: f64,
+    length_scale: f64,
+    lead_adapt_ticks: f64,
+) -> Result<Vec<f64>, LinkHostError> {
+    let lead = rig
+        .lead_params()
+        .map_err(|e| LinkHostError::Model(format!("rig file: {e}")))?;
+    let fit = &rig.specimen_fit;
+    let k_rig = fit.stiffness_kn_per_mm;
+    let force_scale = specimen_k_kn_per_mm * length_scale / k_rig;
+    if !(force_scale.is_finite()
+        && force_scale > 0.0
+        && length_scale.is_finite()
+        && length_scale > 0.0)
+    {
+        return Err(LinkHostError::Model(format!(
+            "no specimen scale maps the rig's specimen ({} kN/mm identified) to the structure's \
+             ({} kN/mm) at length scale {}",
+            rths_files::readable(k_rig),
+            rths_files::readable(specimen_k_kn_per_mm),
+            rths_files::readable(length_scale)
+        )));
+    }
+    rths_link::layout::structure_rig_values(
+        lead.weights(),
+        lead.stride(),
+        lead_adapt_ticks,
+        [
+            fit.stiffness_kn_per_mm,
+            fit.damping_kn_s_per_mm,
+            fit.mass_kn_s2_per_mm,
+        ],
+        [length_scale, force_scale],
+    )
+    .map(|v| v.to_vec())
+    .ok_or_else(|| LinkHostError::Model("rig file: 8 lead weights".into()))
+}
+
+/// The messages of a rig compensation for `kind`: one `UploadRig` frame for up to
+/// `rths_link::RIG_MAX_VALUES` values, else `RigBegin`, its chunks and `RigCommit` (a structure
+/// part's).
+pub fn rig_messages(kind: WireModelKind, values: &[f64]) -> Result<Vec<HostMsg>, LinkHostError> {
+    if values.len() <= rths_link::RIG_MAX_VALUES {
+        return Ok(vec![rig_message(kind, values)?]);
+    }
+    if let Some(i) = values.iter().position(|x| !x.is_finite()) {
+        return Err(LinkHostError::Model(format!("rig value {i} is not finite")));
+    }
+    let n = u8::try_from(values.len())
+        .map_err(|_| LinkHostError::Model("more than 255 rig values".into()))?;
+    let mut out = vec![HostMsg::RigBegin {
+        kind,
+        values: n,
+        checksum: rths_link::rig_checksum(kind, values),
+    }];
+    out.extend(chunks(values).map(|(seq, count, values)| HostMsg::RigChunk { seq, count, values }));
+    out.push(HostMsg::RigCommit);
+    Ok(out)
 }
 
 /// The `UploadRig` message of a rig compensation for `kind` (its values, one frame).
@@ -259,6 +319,11 @@ pub fn model_kind_name(k: WireModelKind) -> &'static str {
         WireModelKind::Lrx => "lrx",
         WireModelKind::Rnn => "rnn",
         WireModelKind::FeAts => "fe-ats",
+        WireModelKind::StructureFe => "structure-fe",
+        WireModelKind::StructureNl => "structure-nl",
+        WireModelKind::StructureMeta => "structure-meta",
+        WireModelKind::StructureModal => "structure-modal",
+        WireModelKind::StructureReduced => "structure-reduced",
     }
 }
 

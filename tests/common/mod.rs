@@ -6,8 +6,9 @@ use std::process::{Command, Stdio};
 
 /// Core clock of the STM32F405/407, Hz.
 pub const CPU_HZ: f64 = 168e6;
-/// Cycles per instruction assumed by the timing budget.
-pub const CYCLES_PER_INSTR: f64 = 1.5;
+/// Cycles per instruction assumed by the timing budget: the board's (`rths_app::tick_cost`).
+#[allow(unused_imports)] // each test binary uses its own subset
+pub use rths_app::tick_cost::CYCLES_PER_INSTR;
 /// The timing budget: the controller's share of the 488 µs tick.
 pub const MAX_TICK_SHARE: f64 = 0.10;
 

@@ -583,3 +583,136 @@ fn holdings_report_the_model_and_rig_origin_and_uploads_change_them() {
         (RecordSource::Uploaded, checksum)
     );
 }
+
+/// A structure part uploaded over `handle` (the modal model of a 1-story structure, in chunks),
+/// then its rig compensation in chunks: the holdings report the kind, the uploads' checksums, and
+/// an `UploadRig` frame cannot carry a structure part's 15 values.
+#[test]
+fn a_structure_part_and_its_rig_compensation_go_in_chunks_over_handle() {
+    use rths_core::control::{ModalSpec, StoryLawSpec};
+    use rths_core::metamodel::ModalMode;
+    use rths_core::model::ModelSpec;
+    use rths_link::RECORD_CHUNK;
+    let spec = ModelSpec::StructureModal {
+        model: ModalSpec {
+            modes: &[ModalMode {
+                omega_rad_s: 20.0,
+                damping_ratio: 0.02,
+                ground_participation: 1.0,
+            }],
+            shape: &[0.7],
+            specimen_dof: 0,
+            specimen_k_kn_per_mm: 50.0,
+            laws: &[StoryLawSpec {
+                k0_kn_per_mm: 40.0,
+                yield_force_kn: 20.0,
+                post_yield_ratio: 0.05,
+                bouc_wen: None,
+            }],
+            drift: &[0.7],
+        },
+    };
+    let mut v = std::vec![0.0; rths_link::MODEL_MAX_VALUES];
+    let (kind, n) = rths_link::layout::lay_out(&spec, &mut v).unwrap();
+    v.truncate(n);
+    let mut ctl = controller();
+    let mut run = Run::new();
+    let mut area = std::vec![0.0; rths_link::MODEL_MAX_VALUES];
+    let mut s = Session::new(
+        compiled_model_checksum(&THETA),
+        TickBudget::cortex_m7_480mhz(2048.0),
+        Rearm::OncePerPowerUp,
+        ModelKind::Lr,
+        &mut area,
+    );
+    let frame = |xs: &[f64]| {
+        let mut f = [0.0; RECORD_CHUNK];
+        f[..xs.len()].copy_from_slice(xs);
+        f
+    };
+    let mut send = |m: HostMsg, ctl: &mut Controller, s: &mut Session<'_>| {
+        handle(m, ctl, &mut run, &mut store(), s, false).0
+    };
+    let c = rths_link::model_values_checksum(kind, &v, 0);
+    let r = send(
+        HostMsg::ModelBegin {
+            kind,
+            values: n as u16,
+            delay_steps: 0,
+            checksum: c,
+        },
+        &mut ctl,
+        &mut s,
+    );
+    assert_eq!(r, DeviceMsg::Ack(Request::ModelBegin));
+    for (i, ch) in v.chunks(RECORD_CHUNK).enumerate() {
+        let m = HostMsg::ModelChunk {
+            seq: i as u32,
+            count: ch.len() as u8,
+            values: frame(ch),
+        };
+        assert_eq!(
+            send(m, &mut ctl, &mut s),
+            DeviceMsg::Ack(Request::ModelChunk)
+        );
+    }
+    assert_eq!(
+        send(HostMsg::ModelCommit, &mut ctl, &mut s),
+        DeviceMsg::Ack(Request::ModelCommit)
+    );
+    let h = holdings(&ctl, &s);
+    assert_eq!((h.model_kind, h.model_checksum), (kind, c));
+    assert_eq!(h.rig_checksum, 0, "no compensation yet");
+    let lead = [1.2, -0.2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    let rig = rths_link::layout::structure_rig_values(
+        &lead,
+        2,
+        4096.0,
+        [0.05, 1e-4, 1e-6],
+        [2.0, 1500.0],
+    )
+    .unwrap();
+    let rc = rths_link::rig_checksum(kind, &rig);
+    // One frame holds 12: refused for its shape, nothing changes.
+    let r = send(
+        HostMsg::UploadRig {
+            kind,
+            count: 12,
+            values: frame(&rig[..12]),
+            checksum: rc,
+        },
+        &mut ctl,
+        &mut s,
+    );
+    assert_eq!(r, DeviceMsg::Nack(Request::UploadRig, NackReason::Shape));
+    let r = send(
+        HostMsg::RigBegin {
+            kind,
+            values: rig.len() as u8,
+            checksum: rc,
+        },
+        &mut ctl,
+        &mut s,
+    );
+    assert_eq!(r, DeviceMsg::Ack(Request::RigBegin));
+    for (i, ch) in rig.chunks(RECORD_CHUNK).enumerate() {
+        let m = HostMsg::RigChunk {
+            seq: i as u32,
+            count: ch.len() as u8,
+            values: frame(ch),
+        };
+        assert_eq!(send(m, &mut ctl, &mut s), DeviceMsg::Ack(Request::RigChunk));
+    }
+    assert_eq!(
+        send(HostMsg::RigCommit, &mut ctl, &mut s),
+        DeviceMsg::Ack(Request::RigCommit)
+    );
+    let h = holdings(&ctl, &s);
+    assert_eq!((h.rig_source, h.rig_checksum), (RecordSource::Uploaded, rc));
+    assert_eq!(ctl.scenario_name(), ("nl-online", None));
+    // A commit with nothing staged: out of sequence.
+    assert_eq!(
+        send(HostMsg::RigCommit, &mut ctl, &mut s),
+        DeviceMsg::Nack(Request::RigCommit, NackReason::Sequence)
+    );
+}

@@ -9,7 +9,7 @@ use rths_core::control::{Analytical, ControlConfig, FeedbackSource};
 use rths_core::metamodel::{Lr, LrParams};
 use rths_core::params::{Prototype, SpecimenScale};
 use rths_core::supervisor::Limits;
-use rths_link::{lrx_values, MODEL_MAX_VALUES};
+use rths_link::{lrx_values, LRX_VALUES, MODEL_MAX_VALUES};
 
 /// A board whose tick runs every model of these tests.
 const M7: TickBudget = TickBudget::cortex_m7_480mhz(2048.0);
@@ -321,4 +321,100 @@ fn an_fe_ats_upload_makes_the_controller_the_host_s_fe_online_ats_and_bad_delays
 
 fn c_of(delay_s: f64) -> u32 {
     rths_link::model_values_checksum(ModelKind::FeAts, &[delay_s], 28)
+}
+
+/// A structure's finite elements (N = 2, linear) and its modal-hysteretic model, uploaded to an LR
+/// image: built as core's assembly builds them; a part the tick cannot run refused `TickBudget`,
+/// values that announce other sizes than they have `Shape`.
+#[test]
+fn any_image_takes_a_structure_part_built_as_core_assembles_it() {
+    use rths_core::control::{ModalSpec, StoryLawSpec, StructureSpec};
+    use rths_core::metamodel::ModalMode;
+    use rths_core::model::{assemble, ModelSpec};
+    let (m, c, k, gm) = (
+        [1.0, 0.0, 0.0, 1.0],
+        [0.1, 0.0, 0.0, 0.1],
+        [300.0, -150.0, -150.0, 150.0],
+        [1.0, 1.0],
+    );
+    let fe = ModelSpec::StructureFe {
+        structure: StructureSpec {
+            dofs: 2,
+            mass: &m,
+            damping: &c,
+            stiffness: &k,
+            initial_stiffness: &k,
+            ground_mass: &gm,
+            specimen_dof: 0,
+            laws: &[],
+        },
+    };
+    let modes = [ModalMode {
+        omega_rad_s: 20.0,
+        damping_ratio: 0.02,
+        ground_participation: 1.0,
+    }];
+    let law = StoryLawSpec {
+        k0_kn_per_mm: 40.0,
+        yield_force_kn: 20.0,
+        post_yield_ratio: 0.05,
+        bouc_wen: Some([2.0, 0.5, 0.5]),
+    };
+    let modal = ModelSpec::StructureModal {
+        model: ModalSpec {
+            modes: &modes,
+            shape: &[0.7],
+            specimen_dof: 0,
+            specimen_k_kn_per_mm: 50.0,
+            laws: &[law],
+            drift: &[0.7],
+        },
+    };
+    for spec in [fe, modal] {
+        let mut v = vec![0.0; MODEL_MAX_VALUES];
+        let (kind, n) = rths_link::layout::lay_out(&spec, &mut v).unwrap();
+        v.truncate(n);
+        let c = rths_link::model_values_checksum(kind, &v, 0);
+        let mut ctl = Box::new(controller());
+        let mut st = ModelStaging::new(area(MODEL_MAX_VALUES));
+        st.begin(kind, n as u16, 0, c, true).unwrap();
+        send(&mut st, &v, true).unwrap();
+        assert_eq!(st.commit(&mut ctl, true, &M7), Ok((kind, c)), "{kind:?}");
+        let (a, comp) = assemble(&spec, Prototype::paper(), DT_S).unwrap();
+        assert_eq!(*ctl.analytical(), a, "{kind:?}");
+        assert_eq!(*ctl.compensator(), comp);
+        // A tick too short for it: refused, the model in force stays.
+        let slow = TickBudget {
+            clock_hz: 1e6,
+            ..M7
+        };
+        let mut lr = controller();
+        let before = lr.analytical().clone();
+        st.begin(kind, n as u16, 0, c, true).unwrap();
+        send(&mut st, &v, true).unwrap();
+        assert_eq!(
+            st.commit(&mut lr, true, &slow),
+            Err(NackReason::TickBudget),
+            "{kind:?}"
+        );
+        assert_eq!(*lr.analytical(), before);
+    }
+    // Two DOFs announced, the values of one: refused at the commit.
+    let n = rths_link::layout::structure_value_count(2, 0);
+    let mut v = vec![0.5; n];
+    v[..3].copy_from_slice(&[1.0, 0.0, 0.0]);
+    let c = rths_link::model_values_checksum(ModelKind::StructureFe, &v, 0);
+    let mut st = ModelStaging::new(area(MODEL_MAX_VALUES));
+    st.begin(ModelKind::StructureFe, n as u16, 0, c, true)
+        .unwrap();
+    send(&mut st, &v, true).unwrap();
+    assert_eq!(
+        st.commit(&mut controller(), true, &M7),
+        Err(NackReason::Shape)
+    );
+    // A count no structure's FE has: refused at the begin.
+    assert_eq!(
+        st.begin(ModelKind::StructureFe, n as u16 + 1, 0, c, true),
+        Err(NackReason::Shape)
+    );
 }

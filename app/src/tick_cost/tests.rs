@@ -1,4 +1,5 @@
 use super::*;
+use rths_link::layout::Dims;
 
 const M4_2048: TickBudget = TickBudget::cortex_m4_168mhz(2048.0);
 const M7_4096: TickBudget = TickBudget::cortex_m7_480mhz(4096.0);
@@ -50,4 +51,68 @@ fn the_link_s_rnn_limit_is_the_controller_s_capacity() {
         rths_link::RNN_UPLOAD_MAX_HIDDEN,
         rths_core::metamodel::RNN_MAX_HIDDEN
     );
+}
+
+/// The structure budget's measured rows (`budget.sh`: the M7 at 4096 Hz, the M4 at 2048 Hz): kind,
+/// N (DOFs or floors), modes, springs (yielding stories or latent springs), Bouc–Wen laws, and the
+/// measured max instructions per tick on the M7 and the M4.
+const STRUCTURE_ROWS: [(ModelKind, usize, usize, usize, usize, f64, f64); 15] = [
+    (ModelKind::StructureFe, 1, 0, 0, 0, 830.0, 3_226.0),
+    (ModelKind::StructureFe, 3, 0, 0, 0, 1_145.0, 13_000.0),
+    (ModelKind::StructureFe, 8, 0, 0, 0, 2_590.0, 65_726.0),
+    (ModelKind::StructureNl, 1, 0, 1, 0, 935.0, 4_458.0),
+    (ModelKind::StructureNl, 3, 0, 3, 3, 1_750.0, 24_393.0),
+    (ModelKind::StructureNl, 8, 0, 8, 0, 3_160.0, 75_220.0),
+    (ModelKind::StructureMeta, 1, 0, 0, 0, 730.0, 10_583.0),
+    (ModelKind::StructureMeta, 3, 0, 0, 0, 730.0, 10_482.0),
+    (ModelKind::StructureMeta, 8, 0, 0, 0, 735.0, 10_482.0),
+    (ModelKind::StructureModal, 1, 1, 1, 0, 870.0, 4_982.0),
+    (ModelKind::StructureModal, 3, 3, 3, 3, 1_585.0, 22_869.0),
+    (ModelKind::StructureModal, 8, 8, 8, 0, 2_485.0, 52_565.0),
+    (ModelKind::StructureReduced, 0, 2, 0, 0, 2_055.0, 6_845.0),
+    (ModelKind::StructureReduced, 0, 9, 0, 0, 2_400.0, 19_982.0),
+    (ModelKind::StructureReduced, 0, 32, 0, 0, 3_455.0, 63_060.0),
+];
+
+#[test]
+fn the_structure_estimates_are_never_below_a_measured_row_and_close_to_it() {
+    let m4 = TickBudget::cortex_m4_168mhz(2048.0);
+    let m7 = TickBudget::cortex_m7_480mhz(4096.0);
+    for (kind, n, modes, springs, bouc_wen, on_m7, on_m4) in STRUCTURE_ROWS {
+        let d = Dims {
+            dofs: n,
+            modes,
+            springs,
+            bouc_wen,
+            ..Dims::default()
+        };
+        for (b, measured) in [(&m7, on_m7), (&m4, on_m4)] {
+            let est = b.instr_dims(kind, &d);
+            assert!(
+                est >= measured && est <= 1.1 * measured,
+                "{kind:?} {d:?}: estimated {est}, measured {measured}"
+            );
+        }
+    }
+    // Every structure part fits the M7's 4096 Hz tick with its rig compensation (the largest, the
+    // reduced model of 32 modes, ~5 %); on the M4 at 2048 Hz the 8-DOF FE (120 %) does not.
+    let reduced = Dims {
+        modes: 32,
+        ..Dims::default()
+    };
+    let pct =
+        100.0 * m7.instr_with_rig(ModelKind::StructureReduced, &reduced) / m7.instr_per_tick();
+    assert!(pct < 10.0, "{pct}");
+    let fe8 = Dims {
+        dofs: 8,
+        ..Dims::default()
+    };
+    assert!(!m4.fits_dims(ModelKind::StructureFe, &fe8));
+    assert!(m4.fits_dims(
+        ModelKind::StructureFe,
+        &Dims {
+            dofs: 3,
+            ..Dims::default()
+        }
+    ));
 }

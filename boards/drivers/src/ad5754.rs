@@ -21,7 +21,7 @@ use embedded_hal::spi::SpiDevice;
 use crate::calibration::FULL_SCALE_V;
 
 /// Volts per code in the ±10 V range.
-pub const VOLTS_PER_CODE: f64 = FULL_SCALE_V / 32768.0;
+pub const DAC_VOLTS_PER_CODE: f64 = FULL_SCALE_V / 32768.0;
 
 /// Register select (REG2..0).
 const REG_DAC: u8 = 0b000;
@@ -57,7 +57,7 @@ pub fn volts_to_code(volts: f64) -> (i16, bool) {
     if volts.is_nan() {
         return (0, true);
     }
-    let x = volts / VOLTS_PER_CODE;
+    let x = volts / DAC_VOLTS_PER_CODE;
     // Round half away from zero without std (no libm needed: the range check comes first).
     if x >= 32767.0 {
         return (i16::MAX, x > 32767.5);
@@ -71,7 +71,7 @@ pub fn volts_to_code(volts: f64) -> (i16, bool) {
 
 /// Volts a code produces.
 pub fn code_to_volts(code: i16) -> f64 {
-    code as f64 * VOLTS_PER_CODE
+    code as f64 * DAC_VOLTS_PER_CODE
 }
 
 /// What can go wrong with the AD5754R.

@@ -17,11 +17,11 @@ use embedded_hal::spi::SpiDevice;
 use crate::calibration::{ADC_CHANNELS, FULL_SCALE_V};
 
 /// Volts of one code (LSB) in the ±10 V range: 20 V / 65 536.
-pub const VOLTS_PER_CODE: f64 = FULL_SCALE_V / 32768.0;
+pub const ADC_VOLTS_PER_CODE: f64 = FULL_SCALE_V / 32768.0;
 
 /// Convert a 16-bit two's-complement result to volts.
 pub fn code_to_volts(code: i16) -> f64 {
-    code as f64 * VOLTS_PER_CODE
+    code as f64 * ADC_VOLTS_PER_CODE
 }
 
 /// Timing of the BUSY wait.

@@ -47,12 +47,12 @@ impl Scale {
         }
     }
 
-    fn check(&self, what: &'static str) -> Result<(), CalibrationError> {
+    fn check(&self, what: &'static str) -> Result<(), ConverterCalibrationError> {
         if !self.volts_per_unit.is_finite() || self.volts_per_unit == 0.0 {
-            return Err(CalibrationError::Scale(what));
+            return Err(ConverterCalibrationError::Scale(what));
         }
         if !self.offset_v.is_finite() || libm_abs(self.offset_v) >= FULL_SCALE_V {
-            return Err(CalibrationError::Offset(what));
+            return Err(ConverterCalibrationError::Offset(what));
         }
         Ok(())
     }
@@ -68,7 +68,7 @@ fn libm_abs(x: f64) -> f64 {
 
 /// What a calibration may get wrong.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CalibrationError {
+pub enum ConverterCalibrationError {
     /// A volts-per-unit that is zero or not finite (which signal).
     Scale(&'static str),
     /// An offset that is not finite or not within ±full scale (which signal).
@@ -79,7 +79,7 @@ pub enum CalibrationError {
     SameChannel,
 }
 
-impl core::fmt::Display for CalibrationError {
+impl core::fmt::Display for ConverterCalibrationError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
             Self::Scale(w) => write!(f, "{w}: volts per unit must be finite and non-zero"),
@@ -92,7 +92,7 @@ impl core::fmt::Display for CalibrationError {
 
 /// The fields of a calibration, before validation.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CalibrationConfig {
+pub struct ConverterCalibrationConfig {
     /// AD7606 channel of the displacement (LVDT) signal, 0..8 (0 = V1).
     pub disp_channel: u8,
     /// AD7606 channel of the force (load-cell) signal, 0..8.
@@ -105,7 +105,7 @@ pub struct CalibrationConfig {
     pub command: Scale,
 }
 
-impl CalibrationConfig {
+impl ConverterCalibrationConfig {
     /// The paper's actuator as its servo-controller conditions it, **a default to be replaced by the
     /// lab's own measurement** (see `docs/hardware.md`): displacement ±25.4 mm ↔ ±10 V (0.3937 V/mm)
     /// on V1, force ±31.14 kN ↔ ±10 V (0.3211 V/kN) on V2, command ±25.4 mm ↔ ±10 V, no offsets.
@@ -132,20 +132,20 @@ impl CalibrationConfig {
 /// A validated calibration (immutable).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ConverterCalibration {
-    cfg: CalibrationConfig,
+    cfg: ConverterCalibrationConfig,
 }
 
 impl ConverterCalibration {
     /// Validate: finite non-zero scales, finite offsets within full scale, channels in 0..8 and
     /// distinct.
-    pub fn new(cfg: CalibrationConfig) -> Result<Self, CalibrationError> {
+    pub fn new(cfg: ConverterCalibrationConfig) -> Result<Self, ConverterCalibrationError> {
         for c in [cfg.disp_channel, cfg.force_channel] {
             if c >= ADC_CHANNELS {
-                return Err(CalibrationError::Channel(c));
+                return Err(ConverterCalibrationError::Channel(c));
             }
         }
         if cfg.disp_channel == cfg.force_channel {
-            return Err(CalibrationError::SameChannel);
+            return Err(ConverterCalibrationError::SameChannel);
         }
         cfg.disp.check("displacement")?;
         cfg.force.check("force")?;
@@ -154,7 +154,7 @@ impl ConverterCalibration {
     }
 
     /// The fields.
-    pub fn config(&self) -> &CalibrationConfig {
+    pub fn config(&self) -> &ConverterCalibrationConfig {
         &self.cfg
     }
 

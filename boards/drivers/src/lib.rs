@@ -17,5 +17,7 @@ pub mod ad7606;
 pub mod calibration;
 pub mod rig;
 
-pub use calibration::{CalibrationConfig, CalibrationError, ConverterCalibration, Scale};
+pub use calibration::{
+    ConverterCalibration, ConverterCalibrationConfig, ConverterCalibrationError, Scale,
+};
 pub use rig::{check_estop, ActiveLevel, EStop, Rig, RigError};

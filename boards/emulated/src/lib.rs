@@ -96,7 +96,7 @@ pub trait CountingTimer: TickTimer {
 
 /// A calibration of the instruction counter against a loop of known length.
 #[derive(Debug, Clone, Copy)]
-pub struct SysTickCalibration {
+pub struct SysTickCounterCalibration {
     /// Instructions the loop executes (2 per iteration: `subs`, `bne`).
     pub loop_instructions: u32,
     /// Instructions measured by SysTick.
@@ -114,7 +114,7 @@ pub struct SysTickCalibration {
     pub fpu_mvfr0: u32,
 }
 
-impl SysTickCalibration {
+impl SysTickCounterCalibration {
     /// The FPU executes double precision (MVFR0 bits 11:8 = 2).
     pub fn fpu_f64(&self) -> bool {
         (self.fpu_mvfr0 >> 8) & 0xF == 2
@@ -132,7 +132,7 @@ pub fn calibrate<T: CountingTimer, const SYSCLK_HZ: u32, const NS_PER_INSTR: u32
     timer: &mut T,
     iterations: u32,
     fpu_mvfr0: u32,
-) -> SysTickCalibration {
+) -> SysTickCounterCalibration {
     let to_instr = |a: u32, b: u32| {
         InstrCounter::<SYSCLK_HZ, NS_PER_INSTR>::ticks_to_instructions(InstrCounter::<
             SYSCLK_HZ,
@@ -151,7 +151,7 @@ pub fn calibrate<T: CountingTimer, const SYSCLK_HZ: u32, const NS_PER_INSTR: u32
     let s1 = counter.now();
     let c1 = timer.count();
     timer.stop();
-    SysTickCalibration {
+    SysTickCounterCalibration {
         loop_instructions: iterations.saturating_mul(2),
         measured_instructions: to_instr(s0, s1),
         timer_counts: c1.wrapping_sub(c0),
@@ -180,7 +180,7 @@ fn spin(n: u32) {
     }
 }
 
-impl rths_app::board::CounterCalibration for SysTickCalibration {
+impl rths_app::board::CounterCalibration for SysTickCounterCalibration {
     fn write_line<W: core::fmt::Write>(&self, w: &mut W) -> core::fmt::Result {
         w.write_fmt(format_args!(
             "CALIB {{\"loop_instr\":{},\"systick_instr\":{},\"tim2_counts\":{},\"read_overhead_instr\":{},\"tick_hz\":{:?},\"fpu_mvfr0\":\"{:#010x}\",\"fpu_f64\":{}}}",

@@ -19,7 +19,9 @@ pub mod pac;
 
 pub use rths_board_emulated::logger;
 use rths_board_emulated::CountingTimer;
-pub use rths_board_emulated::{calibrate, exit, BoardError, Harness, Plant, SysTickCalibration};
+pub use rths_board_emulated::{
+    calibrate, exit, BoardError, Harness, Plant, SysTickCounterCalibration,
+};
 use rths_hal_sim::SimError;
 
 /// The MPS2's core and peripheral clock in QEMU (`SYSCLK_FRQ`), Hz.
@@ -158,7 +160,7 @@ impl rths_app::board::Board for Mps2An500 {
     type Counter = Counter;
     type EStop = rths_app::board::NoEStop;
     type Harness = Harness;
-    type CounterCalibration = SysTickCalibration;
+    type CounterCalibration = SysTickCounterCalibration;
     type Watchdog = TimerWatchdog;
     const EMULATED_PLANT: bool = true;
 

@@ -17,7 +17,9 @@
 pub use rths_board_emulated::logger;
 
 use rths_board_emulated::CountingTimer;
-pub use rths_board_emulated::{calibrate, exit, BoardError, Harness, Plant, SysTickCalibration};
+pub use rths_board_emulated::{
+    calibrate, exit, BoardError, Harness, Plant, SysTickCounterCalibration,
+};
 use rths_hal_sim::SimError;
 /// The device crate (STM32F405) the firmware's RTIC app is built on.
 pub use stm32f4::stm32f405 as pac;
@@ -170,7 +172,7 @@ impl rths_app::board::Board for Qemu {
     type Counter = Counter;
     type EStop = rths_app::board::NoEStop;
     type Harness = Harness;
-    type CounterCalibration = SysTickCalibration;
+    type CounterCalibration = SysTickCounterCalibration;
     type Watchdog = TimerWatchdog;
     const EMULATED_PLANT: bool = true;
 

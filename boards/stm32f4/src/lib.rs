@@ -20,7 +20,9 @@ use embedded_hal::delay::DelayNs;
 use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
 use rths_board_drivers::ad5754::{Ad5754, Ad5754Error};
 use rths_board_drivers::ad7606::{Ad7606, Ad7606Config, Ad7606Error};
-use rths_board_drivers::{ActiveLevel, CalibrationConfig, ConverterCalibration, EStop, Rig};
+use rths_board_drivers::{
+    ActiveLevel, ConverterCalibration, ConverterCalibrationConfig, EStop, Rig,
+};
 use stm32f4xx_hal::gpio::{Input, Output, PushPull, PB0, PB1, PB12, PC4, PC5, PD0, PD1};
 pub use stm32f4xx_hal::pac;
 use stm32f4xx_hal::prelude::*;
@@ -340,7 +342,7 @@ pub fn init(
     dp: pac::Peripherals,
     mut core: cortex_m::Peripherals,
 ) -> Result<rths_app::board::Parts<Stm32f4>, BoardError> {
-    let cal = ConverterCalibration::new(CalibrationConfig::paper_actuator())
+    let cal = ConverterCalibration::new(ConverterCalibrationConfig::paper_actuator())
         .map_err(|_| BoardError::Calibration)?;
     let b = Board::init(dp, cal)?;
     core.DCB.enable_trace();

@@ -31,7 +31,9 @@ use embedded_hal::delay::DelayNs;
 use embedded_hal_bus::spi::{ExclusiveDevice, NoDelay};
 use rths_board_drivers::ad5754::{Ad5754, Ad5754Error};
 use rths_board_drivers::ad7606::{Ad7606, Ad7606Config, Ad7606Error};
-use rths_board_drivers::{ActiveLevel, CalibrationConfig, ConverterCalibration, EStop, Rig};
+use rths_board_drivers::{
+    ActiveLevel, ConverterCalibration, ConverterCalibrationConfig, EStop, Rig,
+};
 use stm32h7xx_hal::gpio::{Input, Output, Pin, PushPull};
 use stm32h7xx_hal::independent_watchdog::IndependentWatchdog;
 pub use stm32h7xx_hal::pac;
@@ -380,7 +382,7 @@ pub fn init(
     dp: pac::Peripherals,
     mut core: cortex_m::Peripherals,
 ) -> Result<rths_app::board::Parts<Stm32h743>, BoardError> {
-    let cal = ConverterCalibration::new(CalibrationConfig::paper_actuator())
+    let cal = ConverterCalibration::new(ConverterCalibrationConfig::paper_actuator())
         .map_err(|_| BoardError::Calibration)?;
     // The M7's caches: the instruction cache speeds flash execution; the data cache stays off (the
     // statics and the stack are in DTCM, which it does not serve, and the SPI buffers need no

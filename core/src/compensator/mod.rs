@@ -21,10 +21,6 @@ pub use horiuchi::*;
 pub use lead::*;
 pub use lead_adapt::*;
 
-// The tests check the ATS's internal sums against an exact re-sum.
-#[cfg(test)]
-use ats::{regressor, Normal, U_RING, X_RING};
-
 /// Largest admissible |target| or |measured| displacement, mm. Far beyond any stroke (±25.4 mm); it only
 /// keeps every intermediate (ẍ ≈ x·4/Δt², its square times the window) well inside f64 range, so a
 /// finite accepted input always yields finite sums and a finite command.

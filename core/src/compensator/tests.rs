@@ -1,6 +1,8 @@
 extern crate std;
 
 use super::*;
+// The tests check the ATS's internal sums against an exact re-sum.
+use super::ats::{regressor, Normal, U_RING, X_RING};
 use proptest::prelude::*;
 use std::{println, vec::Vec};
 

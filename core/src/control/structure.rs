@@ -4,7 +4,7 @@
 //! The structure metamodel of the same substructure is [`crate::metamodel::DeltaArx`]; the learned
 //! nonlinear metamodel of a yielding one is [`StructureModal`] ([`crate::metamodel::ModalHyst`]).
 //!
-//! Each step is the vRTHS benchmark loop's (`src/benchmark/run.rs`): at tick 0 the structure is at
+//! Each step is the vRTHS benchmark loop's (`src/studies/benchmark/run.rs`): at tick 0 the structure is at
 //! rest under `ü_g(0)` (the initial condition); at tick k > 0 the step completes with `ü_g(k)` and
 //! the measured force as the specimen's restoring force at its DOF; the target is the next
 //! displacement at that DOF. A non-finite input is refused before it touches the state.

@@ -25,11 +25,11 @@ pub const DELTA_ARX_ORDER: usize = 6;
 pub const DELTA_ARX_COEFFS: usize = 3 * DELTA_ARX_ORDER;
 
 /// A history, newest first: `h[i] = s(k − i)`.
-pub type History = [f64; DELTA_ARX_ORDER];
+pub type DeltaArxHistory = [f64; DELTA_ARX_ORDER];
 
 /// `Δʲs(k)`, j < [`DELTA_ARX_ORDER`], from `h[i] = s(k − i)`.
 #[inline]
-fn deltas(h: &History) -> History {
+fn deltas(h: &DeltaArxHistory) -> DeltaArxHistory {
     let mut out = [0.0; DELTA_ARX_ORDER];
     let mut row = *h;
     for o in out.iter_mut() {
@@ -46,7 +46,7 @@ fn deltas(h: &History) -> History {
 
 /// Shift `v` into a history (newest first).
 #[inline]
-pub fn push_history(h: &mut History, v: f64) {
+pub fn push_history(h: &mut DeltaArxHistory, v: f64) {
     h.copy_within(0..DELTA_ARX_ORDER - 1, 1);
     h[0] = v;
 }
@@ -55,7 +55,11 @@ pub fn push_history(h: &mut History, v: f64) {
 /// acceleration and the force histories, in the coefficients' order (training builds its rows
 /// with it, so fit and inference share one definition).
 #[inline]
-pub fn delta_features(disp: &History, ag: &History, force: &History) -> [f64; DELTA_ARX_COEFFS] {
+pub fn delta_features(
+    disp: &DeltaArxHistory,
+    ag: &DeltaArxHistory,
+    force: &DeltaArxHistory,
+) -> [f64; DELTA_ARX_COEFFS] {
     let mut phi = [0.0; DELTA_ARX_COEFFS];
     for (chunk, h) in phi.chunks_mut(DELTA_ARX_ORDER).zip([disp, ag, force]) {
         chunk.copy_from_slice(&deltas(h));
@@ -105,9 +109,9 @@ impl DeltaArxParams {
 #[derive(Debug, Clone, PartialEq)]
 pub struct DeltaArx {
     params: DeltaArxParams,
-    disp: History,
-    ag: History,
-    force: History,
+    disp: DeltaArxHistory,
+    ag: DeltaArxHistory,
+    force: DeltaArxHistory,
 }
 
 impl DeltaArx {

@@ -187,6 +187,17 @@ impl ReducedModalParams {
         })
     }
 
+    /// The same model as a hybrid loop on a rig runs it: the static term's force deviation
+    /// low-passed at the lowest retained mode's frequency ([`Self::with_static_force_cutoff_hz`];
+    /// the host's `meta-online` and a board's part given a rig compensation alike).
+    pub fn for_hybrid_loop(self) -> Result<Self, ModelError> {
+        let lowest = self
+            .mode_list()
+            .first()
+            .map_or(0.0, |m| m.omega_rad_s / (2.0 * core::f64::consts::PI));
+        self.with_static_force_cutoff_hz(lowest)
+    }
+
     /// The static force term's low-pass cutoff, Hz (`None`: none).
     pub fn static_force_cutoff_hz(&self) -> Option<f64> {
         self.static_force_cutoff_hz

@@ -55,15 +55,15 @@ fn volts_to_code_rounds_and_clips() {
     assert_eq!(volts_to_code(-10.0), (i16::MIN, false));
     // +10 V is one LSB beyond the top code (+10 V − 1 LSB): clipped, and said so.
     assert_eq!(volts_to_code(10.0), (i16::MAX, true));
-    assert_eq!(volts_to_code(10.0 - VOLTS_PER_CODE), (i16::MAX, false));
+    assert_eq!(volts_to_code(10.0 - DAC_VOLTS_PER_CODE), (i16::MAX, false));
     assert_eq!(volts_to_code(10.01), (i16::MAX, true));
     assert_eq!(volts_to_code(-10.01), (i16::MIN, true));
     assert_eq!(volts_to_code(f64::NAN), (0, true));
     assert_eq!(volts_to_code(f64::INFINITY), (i16::MAX, true));
     // Rounding to nearest: 0.6 LSB → 1, 0.4 LSB → 0, −0.6 LSB → −1.
-    assert_eq!(volts_to_code(0.6 * VOLTS_PER_CODE).0, 1);
-    assert_eq!(volts_to_code(0.4 * VOLTS_PER_CODE).0, 0);
-    assert_eq!(volts_to_code(-0.6 * VOLTS_PER_CODE).0, -1);
+    assert_eq!(volts_to_code(0.6 * DAC_VOLTS_PER_CODE).0, 1);
+    assert_eq!(volts_to_code(0.4 * DAC_VOLTS_PER_CODE).0, 0);
+    assert_eq!(volts_to_code(-0.6 * DAC_VOLTS_PER_CODE).0, -1);
 }
 
 #[test]
@@ -73,7 +73,7 @@ fn code_volts_round_trip_within_half_an_lsb() {
         let (c, clip) = volts_to_code(v);
         assert!(!clip);
         assert!(
-            (code_to_volts(c) - v).abs() <= 0.5 * VOLTS_PER_CODE + 1e-12,
+            (code_to_volts(c) - v).abs() <= 0.5 * DAC_VOLTS_PER_CODE + 1e-12,
             "{v}"
         );
     }

@@ -52,7 +52,7 @@ fn code_to_volts_is_the_data_sheet_transfer_function() {
     assert_eq!(code_to_volts(16384), 5.0);
     assert_eq!(code_to_volts(-16384), -5.0);
     assert!((code_to_volts(i16::MAX) - (10.0 - 20.0 / 65536.0)).abs() < 1e-15);
-    assert!((VOLTS_PER_CODE - 305.175_781_25e-6).abs() < 1e-15);
+    assert!((ADC_VOLTS_PER_CODE - 305.175_781_25e-6).abs() < 1e-15);
 }
 
 #[test]

@@ -2,7 +2,7 @@ use super::*;
 
 #[test]
 fn the_paper_default_maps_full_strokes_to_full_scale() {
-    let c = ConverterCalibration::new(CalibrationConfig::paper_actuator()).unwrap();
+    let c = ConverterCalibration::new(ConverterCalibrationConfig::paper_actuator()).unwrap();
     let k = c.config();
     assert_eq!((k.disp_channel, k.force_channel), (0, 1));
     assert!((k.disp.to_volts(25.4) - 10.0).abs() < 1e-12);
@@ -28,62 +28,62 @@ fn offsets_and_inverted_signs_apply() {
 
 #[test]
 fn bad_calibrations_are_refused() {
-    let ok = CalibrationConfig::paper_actuator();
+    let ok = ConverterCalibrationConfig::paper_actuator();
     let bad_scale = Scale {
         volts_per_unit: 0.0,
         offset_v: 0.0,
     };
     let cases = [
         (
-            CalibrationConfig {
+            ConverterCalibrationConfig {
                 disp_channel: 8,
                 ..ok
             },
-            CalibrationError::Channel(8),
+            ConverterCalibrationError::Channel(8),
         ),
         (
-            CalibrationConfig {
+            ConverterCalibrationConfig {
                 force_channel: 0,
                 ..ok
             },
-            CalibrationError::SameChannel,
+            ConverterCalibrationError::SameChannel,
         ),
         (
-            CalibrationConfig {
+            ConverterCalibrationConfig {
                 disp: bad_scale,
                 ..ok
             },
-            CalibrationError::Scale("displacement"),
+            ConverterCalibrationError::Scale("displacement"),
         ),
         (
-            CalibrationConfig {
+            ConverterCalibrationConfig {
                 force: Scale {
                     volts_per_unit: f64::NAN,
                     offset_v: 0.0,
                 },
                 ..ok
             },
-            CalibrationError::Scale("force"),
+            ConverterCalibrationError::Scale("force"),
         ),
         (
-            CalibrationConfig {
+            ConverterCalibrationConfig {
                 command: Scale {
                     volts_per_unit: 0.4,
                     offset_v: 10.0,
                 },
                 ..ok
             },
-            CalibrationError::Offset("command"),
+            ConverterCalibrationError::Offset("command"),
         ),
         (
-            CalibrationConfig {
+            ConverterCalibrationConfig {
                 command: Scale {
                     volts_per_unit: 0.4,
                     offset_v: f64::INFINITY,
                 },
                 ..ok
             },
-            CalibrationError::Offset("command"),
+            ConverterCalibrationError::Offset("command"),
         ),
     ];
     for (cfg, want) in cases {
@@ -94,10 +94,10 @@ fn bad_calibrations_are_refused() {
 
 #[test]
 fn channels_to_read_reaches_the_higher_channel() {
-    let c = ConverterCalibration::new(CalibrationConfig {
+    let c = ConverterCalibration::new(ConverterCalibrationConfig {
         disp_channel: 5,
         force_channel: 2,
-        ..CalibrationConfig::paper_actuator()
+        ..ConverterCalibrationConfig::paper_actuator()
     })
     .unwrap();
     assert_eq!(c.channels_to_read(), 6);

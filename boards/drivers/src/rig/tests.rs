@@ -1,7 +1,7 @@
 use super::*;
 use crate::ad5754::Ad5754;
 use crate::ad7606::{Ad7606, Ad7606Config};
-use crate::calibration::{CalibrationConfig, Scale};
+use crate::calibration::{ConverterCalibrationConfig, Scale};
 use embedded_hal_mock::eh1::delay::NoopDelay;
 use embedded_hal_mock::eh1::digital::{Mock as Pin, State, Transaction as PinT};
 use embedded_hal_mock::eh1::spi::{Mock as Spi, Transaction as SpiT};
@@ -32,7 +32,7 @@ impl Mocks {
 }
 
 fn rig(
-    cal: CalibrationConfig,
+    cal: ConverterCalibrationConfig,
     adc_spi: &[SpiT<u8>],
     conversions: usize,
     dac_spi: &[SpiT<u8>],
@@ -95,7 +95,7 @@ fn dac_write(code: i16) -> Vec<SpiT<u8>> {
 fn read_converts_codes_to_mm_and_kn_through_the_calibration() {
     // V1 = +5 V → 12.7 mm; V2 = −2.5 V → −7.785 kN (paper default).
     let (mut r, m) = rig(
-        CalibrationConfig::paper_actuator(),
+        ConverterCalibrationConfig::paper_actuator(),
         &read(vec![0x40, 0x00, 0xE0, 0x00]),
         1,
         &[],
@@ -111,14 +111,14 @@ fn read_converts_codes_to_mm_and_kn_through_the_calibration() {
 #[test]
 fn channel_assignment_and_offsets_come_from_the_calibration() {
     // Force on V1, displacement on V3 with 1 V/mm and a +0.5 V offset.
-    let cal = CalibrationConfig {
+    let cal = ConverterCalibrationConfig {
         disp_channel: 2,
         force_channel: 0,
         disp: Scale {
             volts_per_unit: 1.0,
             offset_v: 0.5,
         },
-        ..CalibrationConfig::paper_actuator()
+        ..ConverterCalibrationConfig::paper_actuator()
     };
     // V1 = 0 V, V2 = anything, V3 = +2.5 V → (2.5 − 0.5)/1 = 2 mm.
     let (mut r, m) = rig(
@@ -140,7 +140,7 @@ fn command_writes_the_calibrated_code_and_latches_it() {
     // 12.7 mm → +5 V → 16384; −25.4 mm → −10 V → −32768.
     let mut t = dac_write(16384);
     t.extend(dac_write(i16::MIN));
-    let (mut r, m) = rig(CalibrationConfig::paper_actuator(), &[], 0, &t, 2);
+    let (mut r, m) = rig(ConverterCalibrationConfig::paper_actuator(), &[], 0, &t, 2);
     r.command(12.7).unwrap();
     assert_eq!(r.last_code(), 16384);
     r.command(-25.4).unwrap();
@@ -152,7 +152,7 @@ fn command_writes_the_calibrated_code_and_latches_it() {
 #[test]
 fn a_command_beyond_full_scale_is_clipped_written_and_reported() {
     let (mut r, m) = rig(
-        CalibrationConfig::paper_actuator(),
+        ConverterCalibrationConfig::paper_actuator(),
         &[],
         0,
         &dac_write(i16::MAX),
@@ -168,7 +168,7 @@ fn a_command_beyond_full_scale_is_clipped_written_and_reported() {
 
 #[test]
 fn a_non_finite_command_is_refused_and_nothing_is_written() {
-    let (mut r, m) = rig(CalibrationConfig::paper_actuator(), &[], 0, &[], 0);
+    let (mut r, m) = rig(ConverterCalibrationConfig::paper_actuator(), &[], 0, &[], 0);
     for x in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
         let e = r.command(x).unwrap_err();
         assert_eq!(e.kind(), ErrorKind::NotFinite);
@@ -180,7 +180,7 @@ fn a_non_finite_command_is_refused_and_nothing_is_written() {
 #[test]
 fn adc_and_dac_failures_keep_their_kind() {
     // BUSY stuck high before the conversion.
-    let cal = ConverterCalibration::new(CalibrationConfig::paper_actuator()).unwrap();
+    let cal = ConverterCalibration::new(ConverterCalibrationConfig::paper_actuator()).unwrap();
     let mut busy = Pin::new(&[PinT::get(State::High)]);
     let mut others = [Spi::new(&[])];
     let mut pins = [Pin::new(&[]), Pin::new(&[])];

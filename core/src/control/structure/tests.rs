@@ -4,7 +4,10 @@
 use proptest::prelude::*;
 
 use super::*;
-use crate::control::{Analytical, ControlConfig, Controller, FeedbackSource};
+use crate::control::{
+    Analytical, CompensatorTarget, ControlConfig, Controller, FeedbackSource, ForceCorrection,
+    ReplaceError,
+};
 use crate::hal::{ErrorKind, Sample};
 use crate::metamodel::{DeltaArx, DeltaArxParams, ModalHyst, ModalMode, DELTA_ARX_COEFFS};
 use crate::model::{assemble, ModelSpec};
@@ -424,4 +427,92 @@ fn validated_models_assemble_the_same_parts() {
         structure: yielding_spec(),
     };
     assert!(bad.validate().is_err());
+}
+
+#[test]
+fn a_structure_part_takes_the_rig_s_compensation_and_is_named_by_it() {
+    use crate::compensator::LeadParams;
+    let lead = LeadParams::new([1.2, -0.2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], 2).unwrap();
+    let correction = ForceCorrection::new(0.05, 1e-4, 1e-6, DT_S).unwrap();
+    let rig_scale = SpecimenScale::new(2.0, 1500.0).unwrap();
+    // Not a structure part: refused, nothing changes.
+    let cfg = ControlConfig::new(
+        Prototype::paper(),
+        scale(),
+        FeedbackSource::Measured,
+        Limits::paper_actuator(),
+    )
+    .unwrap();
+    let (a, comp) = assemble(
+        &ModelSpec::FeAts {
+            expected_delay_s: 0.0137,
+        },
+        Prototype::paper(),
+        DT_S,
+    )
+    .unwrap();
+    let mut fe = Controller::new(cfg, a, comp);
+    assert_eq!(
+        fe.set_structure_rig(lead, correction, rig_scale),
+        Err(ReplaceError::Kind)
+    );
+    assert_eq!(fe.scenario_name(), ("fe-online-ats", None));
+    for (spec, uncompensated, compensated) in [
+        (
+            ModelSpec::StructureModal {
+                model: modal_spec(),
+            },
+            "structure-modal",
+            "nl-online",
+        ),
+        (
+            ModelSpec::StructureMeta {
+                theta: &theta(),
+                k_corr_kn_per_mm: K_SPECIMEN,
+            },
+            "structure-meta",
+            "meta-online",
+        ),
+        (
+            ModelSpec::StructureFe {
+                structure: linear_spec(),
+            },
+            "structure-fe",
+            "fe-online-lead",
+        ),
+    ] {
+        let mut c = controller(&spec);
+        assert_eq!(c.scenario_name(), (uncompensated, None));
+        // Under a test: refused.
+        assert!(matches!(
+            c.set_structure_rig(lead, correction, rig_scale),
+            Err(ReplaceError::Busy(_))
+        ));
+        c.supervisor_mut().abort();
+        for k in 0..200 {
+            let x = c.supervisor().output_mm();
+            c.tick(
+                ground(k),
+                Ok(Sample {
+                    disp_mm: x,
+                    force_kn: 0.0,
+                }),
+                false,
+            );
+        }
+        assert!(c.supervisor().at_rest());
+        c.set_structure_rig(lead, correction, rig_scale).unwrap();
+        assert_eq!(c.scenario_name(), (compensated, None));
+        assert_eq!(c.config().force_correction(), Some(&correction));
+        assert_eq!(c.config().compensator_target(), CompensatorTarget::Current);
+        assert_eq!(c.config().scale(), &rig_scale);
+        assert_eq!(c.supervisor().state(), State::Idle);
+        // A new part starts from the controller's own configuration: no correction, the next
+        // target, its scale.
+        crate::model::assemble_in(&mut c, &spec, Prototype::paper(), DT_S).unwrap();
+        assert_eq!(c.scenario_name(), (uncompensated, None));
+        assert_eq!(c.config().force_correction(), None);
+        assert_eq!(c.config().compensator_target(), CompensatorTarget::Next);
+        assert_eq!(c.config().scale(), &scale());
+    }
 }
