@@ -9,13 +9,13 @@
 
 mod common;
 use common::*;
+mod site_common;
+use site_common::*;
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-
-const RTHS: &str = env!("CARGO_BIN_EXE_rths");
+use std::process::Command;
 
 /// Ticks per integration step of the client.
 const TICKS: f64 = 4.0;
@@ -45,35 +45,6 @@ fn link_elf() -> PathBuf {
     let dest = Path::new(env!("CARGO_TARGET_TMPDIR")).join("rths-firmware-site.elf");
     std::fs::copy(&elf, &dest).expect("copy the ELF");
     dest
-}
-
-/// `rths site ARGS` started; its address once it prints it.
-fn start_site(args: &[&str]) -> (Child, SocketAddr) {
-    let mut child = Command::new(RTHS)
-        .arg("site")
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("rths site starts");
-    let mut out = BufReader::new(child.stdout.take().expect("stdout"));
-    let addr = loop {
-        let mut l = String::new();
-        if out.read_line(&mut l).expect("reading rths site") == 0 {
-            let mut e = String::new();
-            let _ = child.stderr.take().map(|mut s| s.read_to_string(&mut e));
-            panic!("rths site ended before listening: {e}");
-        }
-        if let Some(a) = l.trim().strip_prefix("listening on ") {
-            break a.parse().expect("an address");
-        }
-    };
-    std::thread::spawn(move || {
-        let mut rest = String::new();
-        let _ = out.read_to_string(&mut rest);
-        print!("{rest}");
-    });
-    (child, addr)
 }
 
 fn message(action: f64, d: f64, t: f64) -> Vec<u8> {
@@ -117,20 +88,32 @@ fn run_site(args: &[&str], out: &Path) -> (bool, String, Vec<f64>, Vec<String>) 
     let out_s = out.display().to_string();
     let mut a: Vec<&str> = vec!["--listen", "127.0.0.1:0", "--out", &out_s];
     a.extend_from_slice(args);
-    let (mut child, addr) = start_site(&a);
-    let forces = client(addr);
-    let mut err = String::new();
-    if let Some(mut s) = child.stderr.take() {
-        let _ = s.read_to_string(&mut err);
-    }
-    let ok = child.wait().expect("rths site ends").success();
-    let text = std::fs::read_to_string(out).unwrap_or_default();
-    let rows = text
+    let (child, addrs) = start_site(&a, 1);
+    let forces = client(addrs[0]);
+    let (ok, err) = finish(child);
+    (ok, err, forces, rows_of(out))
+}
+
+/// A recording's rows (every tick), as text.
+fn rows_of(path: &Path) -> Vec<String> {
+    std::fs::read_to_string(path)
+        .unwrap_or_default()
         .lines()
         .filter(|l| !l.starts_with('#') && !l.starts_with("seq"))
         .map(str::to_string)
-        .collect();
-    (ok, err, forces, rows)
+        .collect()
+}
+
+/// `rths identify --preset unr-compact`'s rig file (the emulated board's plant), as `name`.
+fn identified_rig(name: &str) -> PathBuf {
+    let rig = tmp(name);
+    let st = Command::new(RTHS)
+        .args(["identify", "--preset", "unr-compact", "--out"])
+        .arg(&rig)
+        .status()
+        .expect("rths identify");
+    assert!(st.success());
+    rig
 }
 
 #[test]
@@ -143,13 +126,7 @@ fn the_board_in_qemu_is_the_site_and_matches_the_virtual_rig_bit_for_bit() {
         return;
     }
     let elf = link_elf();
-    let rig = tmp("rig.json");
-    let st = Command::new(RTHS)
-        .args(["identify", "--preset", "unr-compact", "--out"])
-        .arg(&rig)
-        .status()
-        .expect("rths identify");
-    assert!(st.success());
+    let rig = identified_rig("rig.json");
     let rig_s = rig.display().to_string();
     let elf_s = elf.display().to_string();
 
@@ -187,8 +164,106 @@ fn the_board_in_qemu_is_the_site_and_matches_the_virtual_rig_bit_for_bit() {
     assert!(header.contains("# link: qemu"), "{header}");
 }
 
+/// The shipped 3-story frame (`scripts/opensees/site_3story.py`, openseespy), its two
+/// genericClient elements each on its own emulated board (`rths site --elements 2 --link --qemu
+/// ELF`: two QEMUs, two actuators), and the same analysis on two virtual rigs of the same rig file
+/// (`--elements 2 --rig`): per element every recorded tick (the end ramp included), and OpenSees's
+/// floor displacements, bit for bit.
 #[test]
-fn a_board_site_needs_its_rig_file_and_one_element() {
+#[cfg_attr(
+    any(rths_no_qemu, rths_no_opensees),
+    ignore = "needs qemu-system-arm and openseespy, not found when the tests were built (docs/ci.md)"
+)]
+fn two_boards_in_qemu_are_the_3_story_frames_two_elements_bit_for_bit() {
+    if qemu_missing("rths site --elements 2 --link") {
+        return;
+    }
+    let Some(py) = opensees("two_boards_in_qemu_are_the_3_story_frames_two_elements_bit_for_bit")
+    else {
+        return;
+    };
+    let elf = link_elf();
+    let rig = identified_rig("rig-3story.json");
+    let rig_s = rig.display().to_string();
+    let elf_s = elf.display().to_string();
+    let run = |name: &str, side: &[&str]| {
+        let port = free_ports();
+        let listen = format!("127.0.0.1:{port}");
+        let out = tmp(&format!("{name}.csv"));
+        let out_s = out.display().to_string();
+        let mut args = vec![
+            "--listen",
+            &listen,
+            "--elements",
+            "2",
+            "--rig",
+            &rig_s,
+            "--out",
+            &out_s,
+        ];
+        args.extend_from_slice(side);
+        let (child, addrs) = start_site(&args, 2);
+        assert_eq!(addrs[1].port(), port + 1);
+        let client = [
+            "--port",
+            &port.to_string(),
+            "--scale",
+            "0.3",
+            "--duration",
+            "3",
+        ]
+        .map(str::to_string);
+        let script = run_script(
+            &py,
+            "site_3story.py",
+            &client,
+            &tmp(&format!("{name}.json")),
+        );
+        let (ok, err) = finish(child);
+        assert!(ok, "{name}: rths site failed: {err}");
+        let rows: Vec<Vec<String>> = (1..=2)
+            .map(|i| rows_of(&tmp(&format!("{name}-{i}.csv"))))
+            .collect();
+        (script, rows, err)
+    };
+    let (board, board_rows, board_err) = run("boards3", &["--link", "--qemu", &elf_s]);
+    let (host, host_rows, _) = run("rigs3", &[]);
+    println!("{board_err}");
+    let header = std::fs::read_to_string(tmp("boards3-2.csv")).expect("recording");
+    assert!(
+        header.contains("# link: qemu") && header.contains("# element: 2"),
+        "{header}"
+    );
+    assert_eq!(board.disp.len(), 1536, "3 s of 4-tick steps");
+    for (k, (b, h)) in board.disp.iter().zip(&host.disp).enumerate() {
+        for (j, (x, y)) in b.iter().zip(h).enumerate() {
+            assert_eq!(
+                x.to_bits(),
+                y.to_bits(),
+                "step {k}, floor {}: {x} vs {y} mm",
+                j + 1
+            );
+        }
+    }
+    let peak = board.disp.iter().fold(0.0f64, |m, d| m.max(d[2].abs()));
+    assert!(peak > 1.0, "the roof moves: {peak} mm");
+    for (i, (b, h)) in board_rows.iter().zip(&host_rows).enumerate() {
+        // Every tick of the 1536 steps of 4 ticks, and the end ramp.
+        assert!(b.len() > 1536 * 4, "element {}: {} rows", i + 1, b.len());
+        assert_eq!(b.len(), h.len(), "element {}", i + 1);
+        for (rb, rh) in b.iter().zip(h) {
+            assert_eq!(rb, rh, "element {}", i + 1);
+        }
+        assert!(
+            b.last().is_some_and(|l| l.contains(",done,")),
+            "element {}'s test ends done",
+            i + 1
+        );
+    }
+}
+
+#[test]
+fn a_board_site_needs_its_rig_file_and_a_board_per_element() {
     let dir = tmp("no-rig");
     std::fs::create_dir_all(&dir).expect("dir");
     let o = Command::new(RTHS)
@@ -199,10 +274,48 @@ fn a_board_site_needs_its_rig_file_and_one_element() {
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("rig.json") && e.contains("identify"), "{e}");
+    // Two elements need two boards: a serial port each.
     let o = Command::new(RTHS)
-        .args(["site", "--link", "--qemu", "x.elf", "--elements", "2"])
+        .args(["site", "--link", "--port", "/dev/null", "--elements", "2"])
         .output()
         .expect("rths");
     assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("one actuator"));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains("--port given 1× for 2 elements") && e.contains("own board"),
+        "{e}"
+    );
+    let o = Command::new(RTHS)
+        .args([
+            "site",
+            "--link",
+            "--port",
+            "/dev/null",
+            "--port",
+            "/dev/null",
+            "--elements",
+            "2",
+        ])
+        .output()
+        .expect("rths");
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("given twice"));
+    // --rig once for all, or once per element.
+    let o = Command::new(RTHS)
+        .args([
+            "site",
+            "--link",
+            "--qemu",
+            "x.elf",
+            "--elements",
+            "3",
+            "--rig",
+            "a.json",
+            "--rig",
+            "b.json",
+        ])
+        .output()
+        .expect("rths");
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--rig given 2× for 3 elements"));
 }

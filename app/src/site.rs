@@ -4,7 +4,9 @@
 //! supervisor) imposes them tick by tick, and each step's end goes back with the DAQ's reading.
 //!
 //! The link's request handling (`crate::link::handle`) calls these and keeps its session's
-//! bookkeeping (the stream's numbering, the expected step) itself.
+//! bookkeeping (the stream's numbering, the expected step) itself. The telemetry task sends a
+//! step's end before the step's telemetry ([`Outbox`]): the force is what the host and its
+//! integrator wait for; the records of every tick follow while the integrator computes.
 
 use rths_core::compensator::{LeadParams, LEAD_TAPS};
 use rths_core::control::{Controller, SiteError};
@@ -135,6 +137,132 @@ pub fn step_message(end: StepEnd, r: &TelemetryRecord) -> DeviceMsg {
         tick: end.tick,
         measured_mm: r.measured_mm,
         force_kn: r.force_kn,
+    }
+}
+
+/// The `SiteStep` of a step whose record the telemetry queue dropped: no reading (the host stops
+/// on it).
+fn unread_step(end: StepEnd) -> DeviceMsg {
+    DeviceMsg::SiteStep {
+        step: end.step,
+        tick: end.tick,
+        measured_mm: f64::NAN,
+        force_kn: f64::NAN,
+    }
+}
+
+/// The records the outbox holds at most: the control task's telemetry queue's depth.
+pub const OUTBOX_RECORDS: usize = 64;
+
+/// While a site's step runs, its records wait in the outbox up to this many; beyond, the oldest go
+/// out during the step (a step longer than this many ticks), so the telemetry queue never fills.
+pub const HOLD_RECORDS: usize = 48;
+
+/// What the telemetry task sends next.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Outgoing {
+    /// A tick's record (the session numbers it and makes it a `Telemetry`).
+    Record(TelemetryRecord),
+    /// A site's step end: the `SiteStep` to send, then take the step end off its queue.
+    StepEnd(DeviceMsg),
+}
+
+/// The telemetry task's outbox: the records taken from the control task's queue, sent in the
+/// order a site's host needs. A step's records wait while the step runs (in QEMU a record sent
+/// costs the emulated UART's time, during which no tick runs; on a board, its UART's); at its
+/// end the `SiteStep` with the step's last reading goes first, then the records. A fault or any
+/// state but running sends the records first, as they come, so the host sees a fault before a
+/// step's end. Outside a site's step (a test, an identification, a board's ticks between two
+/// steps) records go out as they come.
+#[derive(Debug)]
+pub struct Outbox {
+    held: heapless::Deque<TelemetryRecord, OUTBOX_RECORDS>,
+    /// The last record handed out (a step end may come after its record went).
+    last: Option<TelemetryRecord>,
+}
+
+impl Default for Outbox {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Outbox {
+    /// Empty.
+    pub const fn new() -> Self {
+        Self {
+            held: heapless::Deque::new(),
+            last: None,
+        }
+    }
+
+    /// Take record `r` from the telemetry queue; `Err(r)` when the outbox is full (leave it there).
+    pub fn push(&mut self, r: TelemetryRecord) -> Result<(), TelemetryRecord> {
+        self.held.push_back(r)
+    }
+
+    /// No room for another record.
+    pub fn is_full(&self) -> bool {
+        self.held.is_full()
+    }
+
+    /// Records held.
+    pub fn len(&self) -> usize {
+        self.held.len()
+    }
+
+    /// No record held.
+    pub fn is_empty(&self) -> bool {
+        self.held.is_empty()
+    }
+
+    fn pop(&mut self) -> Option<Outgoing> {
+        let r = self.held.pop_front()?;
+        self.last = Some(r);
+        Some(Outgoing::Record(r))
+    }
+
+    /// What to send next, if anything: `end`, the first step end queued; `open`, a site's step is
+    /// under way with its supervisor running (the control task's word after its last tick);
+    /// `flush`, the run is over (send everything: a step end whose record never came goes with no
+    /// reading). `None`: nothing now (held for the step's end, or a step end's record is still in
+    /// the telemetry queue: the task runs again after the next tick).
+    pub fn next(&mut self, end: Option<StepEnd>, open: bool, flush: bool) -> Option<Outgoing> {
+        if let Some(e) = end {
+            if let Some(i) = self.held.iter().position(|r| r.tick == e.tick) {
+                // The step's end first, unless a record up to it is not running (a fault): the
+                // host must see that first.
+                let running = self
+                    .held
+                    .iter()
+                    .take(i + 1)
+                    .all(|r| r.state == State::Running);
+                if running {
+                    return self
+                        .held
+                        .iter()
+                        .nth(i)
+                        .map(|r| Outgoing::StepEnd(step_message(e, r)));
+                }
+                return self.pop();
+            }
+            if let Some(r) = self.last.filter(|r| r.tick == e.tick) {
+                return Some(Outgoing::StepEnd(step_message(e, &r)));
+            }
+            let newest = self.held.back().or(self.last.as_ref()).map(|r| r.tick);
+            if flush || newest.is_some_and(|t| t > e.tick) {
+                // Its record was dropped (the telemetry queue was full).
+                return Some(Outgoing::StepEnd(unread_step(e)));
+            }
+            if !self.is_full() {
+                // Its record is still in the telemetry queue.
+                return None;
+            }
+        }
+        if open && !flush && self.held.len() < HOLD_RECORDS {
+            return None;
+        }
+        self.pop()
     }
 }
 

@@ -257,7 +257,7 @@ fn lu_inverse(m: &Padded) -> Option<Padded> {
             for r in i + 1..N {
                 let coeff = *a.get(r)?.get(i)?;
                 let y = a.get_mut(r)?.get_mut(k)?;
-                *y = p * coeff + *y;
+                *y += p * coeff;
             }
         }
     }
@@ -268,7 +268,7 @@ fn lu_inverse(m: &Padded) -> Option<Padded> {
             for r in i + 1..N {
                 let l = *a.get(r)?.get(i)?;
                 let y = out.get_mut(r)?.get_mut(k)?;
-                *y = coeff * l + *y;
+                *y += coeff * l;
             }
         }
         for i in (0..N).rev() {
@@ -281,7 +281,7 @@ fn lu_inverse(m: &Padded) -> Option<Padded> {
             for r in 0..i {
                 let u = *a.get(r)?.get(i)?;
                 let y = out.get_mut(r)?.get_mut(k)?;
-                *y = -coeff * u + *y;
+                *y += -coeff * u;
             }
         }
     }

@@ -82,6 +82,9 @@ static FINISHED: AtomicBool = AtomicBool::new(false);
 static RECORD_END: AtomicBool = AtomicBool::new(false);
 /// `link`: the run ended; `telemetry` sends `RunEnded` after its last record.
 static RUN_ENDED: AtomicBool = AtomicBool::new(false);
+/// A site's step is under way, its supervisor running (set by `control` after each tick): its
+/// records wait in the telemetry task's outbox for its end (`rths_app::site::Outbox`).
+static SITE_STEP_OPEN: AtomicBool = AtomicBool::new(false);
 /// `link`: an identification is under way (`rths link ... identify`): the control task plays the
 /// excitation instead of the record (set by `link_rx`, cleared by `control` at its end).
 static IDENTIFYING: AtomicBool = AtomicBool::new(false);
@@ -107,8 +110,8 @@ const SUPERVISOR_IRQ: board::pac::Interrupt = board::pac::Interrupt::UART4;
 /// The telemetry task's interrupt (pended every tick).
 const TELEMETRY_IRQ: board::pac::Interrupt = board::pac::Interrupt::USART3;
 
-/// Telemetry queue depth (records).
-const QUEUE: usize = 64;
+/// Telemetry queue depth (records): the telemetry task's outbox holds as many.
+const QUEUE: usize = rths_app::site::OUTBOX_RECORDS;
 /// A site's step-end queue depth (one per step; drained with the telemetry).
 const STEP_QUEUE: usize = 16;
 
@@ -229,6 +232,7 @@ mod app {
     use rths_app::board::{EStop, Harness, InstrCounter, TickTimer, Watchdog};
     use rths_app::record::RecordStore;
     use rths_app::run::TickFacts;
+    use rths_app::site::Outbox;
     use rths_app::{control_step, TelemetryRecord};
     use rths_core::control::Controller;
 
@@ -483,12 +487,15 @@ mod app {
         // only the DAQ read, the control step, the command write and the log record).
         let state = step.out.state;
         let site_steps = cx.local.site_steps;
-        let (site, step_end) = cx.shared.ctl.lock(|c| {
+        let (site, step_end, step_open) = cx.shared.ctl.lock(|c| {
+            let progress = c.site_progress();
             (
-                c.site_progress().is_some(),
+                progress.is_some(),
                 rths_app::site::step_ended(c, k, site_steps),
+                matches!(progress, Some((true, _))) && state == State::Running,
             )
         });
+        SITE_STEP_OPEN.store(step_open, Ordering::Release);
         // A run that plays the record moves through it (a streamed one's ring releases what the
         // run has passed, and a tick whose samples have not arrived is an underrun); at rest, and
         // in a site's run (its client integrates the ground motion), the record is only read.
@@ -660,11 +667,13 @@ mod app {
     /// Drains the telemetry queue at the lowest priority. With `link` it streams every `every`-th
     /// record to the host, numbered, and after the run's last record `RunEnded`; without, it logs
     /// one record per second of test time.
-    #[task(binds = USART3, priority = 1, shared = [link, run, ident], local = [consumer, step_ends_rx])]
+    #[task(binds = USART3, priority = 1, shared = [link, run, ident],
+           local = [consumer, step_ends_rx, outbox: Outbox = Outbox::new()])]
     fn telemetry(mut cx: telemetry::Context) {
         use rths_app::link::send;
         let consumer = cx.local.consumer;
         let steps = cx.local.step_ends_rx;
+        let outbox = cx.local.outbox;
         if !cfg!(feature = "link") {
             while let Some(r) = consumer.dequeue() {
                 if r.tick % rths_app::ONE_SECOND_TICKS == 0 {
@@ -681,19 +690,15 @@ mod app {
             }
             return;
         }
-        cx.shared.link.lock(|l| {
-            while let Some(r) = consumer.dequeue() {
-                send_record(l, &r, steps);
-            }
-        });
+        cx.shared
+            .link
+            .lock(|l| send_outbox(l, consumer, steps, outbox, false));
         if RUN_ENDED.swap(false, Ordering::AcqRel) {
             let run = cx.shared.run.lock(|r| *r);
             let id = cx.shared.ident.lock(|i| *i);
             cx.shared.link.lock(|l| {
                 // Records queued after the drain above (before the end was seen) go first.
-                while let Some(r) = consumer.dequeue() {
-                    send_record(l, &r, steps);
-                }
+                send_outbox(l, consumer, steps, outbox, true);
                 let end = if l.session.identifying {
                     l.session.identify_ended(&id)
                 } else {
@@ -704,33 +709,39 @@ mod app {
         }
     }
 
-    /// Send record `r`'s telemetry, then the `SiteStep` of a site's step that ended at its tick
-    /// (one whose record the queue dropped goes with no reading: the host stops on it).
-    fn send_record(
+    /// Send what the outbox gives, records taken from the telemetry queue as room allows: each
+    /// record's telemetry, and a site's step ends (`SiteStep`, its reading) before the step's
+    /// records (`rths_app::site::Outbox`); `flush` at the run's end.
+    fn send_outbox(
         l: &mut Link,
-        r: &TelemetryRecord,
+        queue: &mut Consumer<'static, TelemetryRecord>,
         steps: &mut Consumer<'static, rths_app::site::StepEnd>,
+        outbox: &mut Outbox,
+        flush: bool,
     ) {
         use rths_app::link::send;
-        if let Some(m) = l.session.telemetry(r) {
-            send(&mut l.port, &m);
-        }
-        while let Some(e) = steps.peek().copied() {
-            if e.tick > r.tick {
-                break;
-            }
-            let _ = steps.dequeue();
-            let m = if e.tick == r.tick {
-                rths_app::site::step_message(e, r)
-            } else {
-                rths_link::DeviceMsg::SiteStep {
-                    step: e.step,
-                    tick: e.tick,
-                    measured_mm: f64::NAN,
-                    force_kn: f64::NAN,
+        use rths_app::site::Outgoing;
+        loop {
+            while !outbox.is_full() {
+                match queue.dequeue().map(|r| outbox.push(r)) {
+                    Some(Ok(())) => {}
+                    // Not full: a push cannot fail; and a record is never dropped here.
+                    Some(Err(_)) | None => break,
                 }
-            };
-            send(&mut l.port, &m);
+            }
+            let open = SITE_STEP_OPEN.load(Ordering::Acquire);
+            match outbox.next(steps.peek().copied(), open, flush) {
+                Some(Outgoing::Record(r)) => {
+                    if let Some(m) = l.session.telemetry(&r) {
+                        send(&mut l.port, &m);
+                    }
+                }
+                Some(Outgoing::StepEnd(m)) => {
+                    let _ = steps.dequeue();
+                    send(&mut l.port, &m);
+                }
+                None => break,
+            }
         }
     }
 

@@ -249,7 +249,7 @@ pub enum HostMsg {
     /// Become an experimental site: at rest, make the controller's analytical part the
     /// predictor-corrector of `ticks_per_step` and its compensator the rig's lead filter, arm at
     /// rest and start; targets then come as [`HostMsg::SiteTarget`], each step's measurement goes
-    /// back as [`DeviceMsg::SiteStep`] after the step's telemetry.
+    /// back as [`DeviceMsg::SiteStep`] before the step's telemetry (after it on a fault).
     SiteBegin {
         /// Controller ticks per integration step (≥ 1).
         ticks_per_step: u32,
@@ -681,8 +681,9 @@ pub enum DeviceMsg {
     /// The answer to [`HostMsg::Holdings`].
     Holdings(Holdings),
     // ---- the board as an experimental site ----
-    /// A site's integration step ended (sent after the telemetry of its last tick): the DAQ's
-    /// reading at that tick.
+    /// A site's integration step ended (sent before the step's telemetry, which follows while the
+    /// host's integrator computes; after it when a tick of the step is not running): the DAQ's
+    /// reading at its last tick.
     SiteStep {
         /// Step number, from 0 (as its [`HostMsg::SiteTarget`]).
         step: u32,

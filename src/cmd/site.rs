@@ -14,9 +14,8 @@ use crate::machinery::identify::rig_file::VIRTUAL_BOARD;
 use crate::machinery::identify::{identify_virtual, IdentifyConfig, RigFile};
 use crate::machinery::site::board::{BoardExperiment, BoardLink};
 use crate::machinery::site::element::{median_max, ElementSetup};
-use crate::machinery::site::experiment::Experiment;
 use crate::machinery::site::virtual_rig::VirtualExperiment;
-use crate::machinery::site::{self, SiteConfig};
+use crate::machinery::site::{self, SiteConfig, SiteElement};
 
 /// Arguments of `rths site`.
 #[derive(Debug, clap::Args)]
@@ -35,20 +34,22 @@ pub struct Args {
     #[arg(long, value_enum, conflicts_with = "rig")]
     pub preset: Option<PresetArg>,
     /// Rig file (`rths identify`, or `rths link ... identify` for the board): its identified lead
-    /// and specimen stiffness.
+    /// and specimen stiffness. Several elements: once for all of them, or once per element
+    /// (element i: the i-th, each its own rig or board).
     #[arg(long, value_name = "RIG.json")]
-    pub rig: Option<PathBuf>,
-    /// The board through the command link (`--qemu ELF` or `--port TTY`; its rig file is
-    /// `--rig`, by default `rig.json`).
+    pub rig: Vec<PathBuf>,
+    /// The boards through the command link, one per element (`--qemu ELF`, or `--port TTY` once
+    /// per element; the rig files are `--rig`, by default `rig.json`).
     #[arg(long, conflicts_with = "preset")]
     pub link: bool,
-    /// With --link: the emulated board's ELF (a `--features link` build).
+    /// With --link: the emulated board's ELF (a `--features link` build); each element gets its
+    /// own emulated board (one QEMU each).
     #[arg(long, value_name = "ELF", requires = "link", conflicts_with = "port")]
     pub qemu: Option<PathBuf>,
-    /// With --link: the board's serial port.
+    /// With --link: a board's serial port, once per element (element i: the i-th).
     #[arg(long, value_name = "TTY", requires = "link")]
-    pub port: Option<PathBuf>,
-    /// With --port: the serial port's baud rate.
+    pub port: Vec<PathBuf>,
+    /// With --port: the serial ports' baud rate.
     #[arg(long, default_value_t = 2_000_000, requires = "port")]
     pub baud: u32,
     /// Hold the virtual rig's ticks to the wall clock (2048 per second), as a lab's rig runs: the
@@ -73,20 +74,48 @@ pub struct Args {
 /// The rig file a board site uses when `--rig` is not given.
 const DEFAULT_BOARD_RIG: &str = "rig.json";
 
-/// The board's element: its link and its rig file's compensation.
-fn board_element(
-    args: &Args,
-    header: &mut Vec<(String, String)>,
-) -> anyhow::Result<(ElementSetup, Box<dyn Experiment>)> {
-    if args.elements != 1 {
+/// Element `i`'s rig file of `--rig` given once (every element's) or once per element; `None`
+/// when not given.
+fn rig_of(args: &Args, i: usize) -> anyhow::Result<Option<&PathBuf>> {
+    match args.rig.len() {
+        0 => Ok(None),
+        1 => Ok(args.rig.first()),
+        n if n == args.elements => Ok(args.rig.get(i)),
+        n => anyhow::bail!(
+            "--rig given {n}× for {} elements: once for all of them, or once per element",
+            args.elements
+        ),
+    }
+}
+
+/// Each element's board: its link and its rig file's compensation.
+fn board_elements(args: &Args) -> anyhow::Result<Vec<SiteElement>> {
+    if args.qemu.is_none() && args.port.is_empty() {
+        anyhow::bail!("--link needs the boards: --qemu ELF, or --port TTY once per element");
+    }
+    if !args.port.is_empty() && args.port.len() != args.elements {
         anyhow::bail!(
-            "--link --elements {}: the board drives one actuator (--elements 1)",
+            "--port given {}× for {} elements: each element drives its own actuator, on its \
+             own board (--port TTY once per element)",
+            args.port.len(),
             args.elements
         );
     }
-    let path = args
-        .rig
-        .clone()
+    for (i, p) in args.port.iter().enumerate() {
+        if args.port.get(..i).is_some_and(|before| before.contains(p)) {
+            anyhow::bail!(
+                "--port {} given twice: each element drives its own board",
+                p.display()
+            );
+        }
+    }
+    (0..args.elements).map(|i| board_element(args, i)).collect()
+}
+
+/// Element `i`'s board: its link and its rig file's compensation.
+fn board_element(args: &Args, i: usize) -> anyhow::Result<SiteElement> {
+    let path = rig_of(args, i)?
+        .cloned()
         .unwrap_or_else(|| PathBuf::from(DEFAULT_BOARD_RIG));
     let file = RigFile::load(&path).with_context(|| {
         format!(
@@ -108,39 +137,123 @@ fn board_element(
         .lead_params()
         .with_context(|| format!("rig file {}: its lead", path.display()))?;
     let k = file.specimen_fit.stiffness_kn_per_mm;
-    let conn = match (&args.qemu, &args.port) {
+    let mut header = Vec::new();
+    let conn = match (&args.qemu, args.port.get(i)) {
         (Some(elf), None) => {
-            let dir = std::env::temp_dir().join(format!("rths-site-qemu-{}", std::process::id()));
+            let dir = std::env::temp_dir().join(format!(
+                "rths-site-qemu-{}-{}",
+                std::process::id(),
+                i + 1
+            ));
             std::fs::create_dir_all(&dir)?;
             header.push(("link".into(), "qemu".into()));
-            BoardLink::Qemu(Box::new(
-                Qemu::start(elf, &dir).with_context(|| format!("the board {}", elf.display()))?,
-            ))
+            BoardLink::Qemu(Box::new(Qemu::start(elf, &dir).with_context(|| {
+                format!("element {}'s board {}", i + 1, elf.display())
+            })?))
         }
         (None, Some(port)) => {
             let p = port.display().to_string();
             let mut l = Link::serial(&p, args.baud)?;
             l.wait_ready(std::time::Duration::from_secs(10))
-                .with_context(|| format!("the board on {p}"))?;
+                .with_context(|| format!("element {}'s board on {p}", i + 1))?;
             header.push(("link".into(), format!("serial {p}")));
             BoardLink::Port(Box::new(l))
         }
-        _ => anyhow::bail!("--link needs the board: --qemu ELF or --port TTY"),
+        _ => anyhow::bail!("--link needs the boards: --qemu ELF, or --port TTY once per element"),
     };
     header.push(("rig".into(), path.display().to_string()));
     header.push(("preset".into(), file.preset.clone()));
-    Ok((
-        ElementSetup {
+    Ok(SiteElement {
+        setup: ElementSetup {
             specimen_k_kn_per_mm: k,
             rate_factor: args.rate_factor,
         },
-        Box::new(BoardExperiment::new(conn, lead)),
-    ))
+        experiment: Box::new(BoardExperiment::new(conn, lead)),
+        header,
+    })
+}
+
+/// Element `i`'s virtual rig: its rig file's (`--rig`), or the preset's identified at start.
+fn virtual_element(args: &Args, i: usize) -> anyhow::Result<SiteElement> {
+    let seed = args.seed + i as u64;
+    let (rig, lead, k, source) = match rig_of(args, i)? {
+        Some(path) => {
+            let file =
+                RigFile::load(path).with_context(|| format!("rig file {}", path.display()))?;
+            let preset = match file.preset.as_str() {
+                "benchmark" => rths_hal_sim::Preset::Benchmark,
+                "unr-compact" => rths_hal_sim::Preset::UnrCompact,
+                other => anyhow::bail!("rig file {}: unknown preset `{other}`", path.display()),
+            };
+            file.check(preset.name(), VIRTUAL_BOARD)
+                .with_context(|| format!("rig file {} refused", path.display()))?;
+            if file.specimen != "linear" {
+                anyhow::bail!(
+                    "rig file {}: the {} specimen (rths site's virtual rig has the linear one)",
+                    path.display(),
+                    file.specimen
+                );
+            }
+            let mut rig = crate::machinery::reference::rig_config(
+                preset,
+                Specimen::Linear,
+                file.specimen_stiffness_factor,
+                file.seed,
+            );
+            rig.uncertainty = file.uncertainty;
+            (
+                rig,
+                file.lead_params()?,
+                file.specimen_fit.stiffness_kn_per_mm,
+                path.display().to_string(),
+            )
+        }
+        None => {
+            let preset = match args.preset.unwrap_or(PresetArg::UnrCompact) {
+                PresetArg::Benchmark => rths_hal_sim::Preset::Benchmark,
+                PresetArg::UnrCompact => rths_hal_sim::Preset::UnrCompact,
+            };
+            let rig = crate::machinery::reference::rig_config(preset, Specimen::Linear, 1.0, seed);
+            eprintln!(
+                "site: element {}: identifying the {} rig",
+                i + 1,
+                preset.name()
+            );
+            let o = identify_virtual(&rig, FaultPlan::none(), &IdentifyConfig::default())
+                .with_context(|| format!("identifying element {}'s rig", i + 1))?;
+            let id = &o.identification;
+            let lead = LeadParams::new(id.lead_weights, id.lead_stride)
+                .map_err(|e| anyhow::anyhow!("the identified lead: {e:?}"))?;
+            eprintln!(
+                "site: element {}: delay {:.2} ms, specimen k {:.4} kN/mm",
+                i + 1,
+                id.delay_s * 1e3,
+                id.specimen.stiffness_kn_per_mm
+            );
+            (
+                rig,
+                lead,
+                id.specimen.stiffness_kn_per_mm,
+                "identified".to_string(),
+            )
+        }
+    };
+    Ok(SiteElement {
+        setup: ElementSetup {
+            specimen_k_kn_per_mm: k,
+            rate_factor: args.rate_factor,
+        },
+        header: vec![
+            ("preset".into(), rig.preset.name().into()),
+            ("rig".into(), source),
+        ],
+        experiment: Box::new(VirtualExperiment::new(&rig, lead, args.real_time)?),
+    })
 }
 
 /// Run `rths site`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if !args.link && (args.qemu.is_some() || args.port.is_some()) {
+    if !args.link && (args.qemu.is_some() || !args.port.is_empty()) {
         anyhow::bail!("--qemu and --port are the board's: add --link");
     }
     if !(args.rate_factor.is_finite() && args.rate_factor >= 1.0) {
@@ -149,7 +262,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.elements == 0 || args.elements > 64 {
         anyhow::bail!("--elements {} must be in 1..=64", args.elements);
     }
-    let mut header = vec![
+    let header = vec![
         ("rate_factor".to_string(), args.rate_factor.to_string()),
         (
             "pacing".to_string(),
@@ -163,90 +276,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .to_string(),
         ),
     ];
-    let mut elements: Vec<(ElementSetup, Box<dyn Experiment>)> = Vec::with_capacity(args.elements);
-    if args.link {
-        elements.push(board_element(&args, &mut header)?);
-    }
-    for i in 0..args.elements {
-        if args.link {
-            break;
-        }
-        let seed = args.seed + i as u64;
-        let (rig, lead, k, source) = match &args.rig {
-            Some(path) => {
-                let file =
-                    RigFile::load(path).with_context(|| format!("rig file {}", path.display()))?;
-                let preset = match file.preset.as_str() {
-                    "benchmark" => rths_hal_sim::Preset::Benchmark,
-                    "unr-compact" => rths_hal_sim::Preset::UnrCompact,
-                    other => anyhow::bail!("rig file {}: unknown preset `{other}`", path.display()),
-                };
-                file.check(preset.name(), VIRTUAL_BOARD)
-                    .with_context(|| format!("rig file {} refused", path.display()))?;
-                if file.specimen != "linear" {
-                    anyhow::bail!(
-                        "rig file {}: the {} specimen (rths site's virtual rig has the linear one)",
-                        path.display(),
-                        file.specimen
-                    );
-                }
-                let mut rig = crate::machinery::reference::rig_config(
-                    preset,
-                    Specimen::Linear,
-                    file.specimen_stiffness_factor,
-                    file.seed,
-                );
-                rig.uncertainty = file.uncertainty;
-                (
-                    rig,
-                    file.lead_params()?,
-                    file.specimen_fit.stiffness_kn_per_mm,
-                    path.display().to_string(),
-                )
-            }
-            None => {
-                let preset = match args.preset.unwrap_or(PresetArg::UnrCompact) {
-                    PresetArg::Benchmark => rths_hal_sim::Preset::Benchmark,
-                    PresetArg::UnrCompact => rths_hal_sim::Preset::UnrCompact,
-                };
-                let rig =
-                    crate::machinery::reference::rig_config(preset, Specimen::Linear, 1.0, seed);
-                eprintln!(
-                    "site: element {}: identifying the {} rig",
-                    i + 1,
-                    preset.name()
-                );
-                let o = identify_virtual(&rig, FaultPlan::none(), &IdentifyConfig::default())
-                    .with_context(|| format!("identifying element {}'s rig", i + 1))?;
-                let id = &o.identification;
-                let lead = LeadParams::new(id.lead_weights, id.lead_stride)
-                    .map_err(|e| anyhow::anyhow!("the identified lead: {e:?}"))?;
-                eprintln!(
-                    "site: element {}: delay {:.2} ms, specimen k {:.4} kN/mm",
-                    i + 1,
-                    id.delay_s * 1e3,
-                    id.specimen.stiffness_kn_per_mm
-                );
-                (
-                    rig,
-                    lead,
-                    id.specimen.stiffness_kn_per_mm,
-                    "identified".to_string(),
-                )
-            }
-        };
-        if i == 0 {
-            header.push(("preset".into(), rig.preset.name().into()));
-            header.push(("rig".into(), source));
-        }
-        elements.push((
-            ElementSetup {
-                specimen_k_kn_per_mm: k,
-                rate_factor: args.rate_factor,
-            },
-            Box::new(VirtualExperiment::new(&rig, lead, args.real_time)?),
-        ));
-    }
+    let elements = if args.link {
+        board_elements(&args)?
+    } else {
+        (0..args.elements)
+            .map(|i| virtual_element(&args, i))
+            .collect::<anyhow::Result<Vec<_>>>()?
+    };
     let cfg = SiteConfig {
         listen: args.listen,
         udp: args.udp,

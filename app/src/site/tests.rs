@@ -1,9 +1,12 @@
 //! Tests of [`crate::site`]: the site's requests through `link::handle`, the lock-step wait and
 //! the step ends.
 
+extern crate std;
+use std::vec::Vec;
+
 use crate::link::{handle, Effect, Rearm, Session};
 use crate::record::RecordStore;
-use crate::site::{step_ended, step_message, waits, StepEnd};
+use crate::site::{step_ended, step_message, waits, Outbox, Outgoing, StepEnd, HOLD_RECORDS};
 use crate::tick_cost::TickBudget;
 use crate::{Run, TelemetryRecord};
 use rths_core::compensator::Compensator;
@@ -189,4 +192,124 @@ fn a_faulted_end_trips_the_supervisor() {
         false,
     );
     assert!(matches!(ctl.supervisor().state(), State::Fault(_)));
+}
+
+fn record(tick: u32, state: State) -> TelemetryRecord {
+    TelemetryRecord {
+        tick,
+        command_mm: f64::from(tick),
+        target_mm: 0.0,
+        measured_mm: 0.5 * f64::from(tick),
+        force_kn: -f64::from(tick),
+        state,
+    }
+}
+
+/// Everything the outbox hands out now, the step ends of `ends` taken off as they go.
+fn drain(o: &mut Outbox, ends: &mut Vec<StepEnd>, open: bool, flush: bool) -> Vec<Outgoing> {
+    let mut out = Vec::new();
+    while let Some(x) = o.next(ends.first().copied(), open, flush) {
+        if let Outgoing::StepEnd(_) = x {
+            ends.remove(0);
+        }
+        out.push(x);
+    }
+    out
+}
+
+#[test]
+fn a_steps_end_goes_out_before_its_records_and_a_fault_after_them() {
+    let mut o = Outbox::new();
+    let mut ends = Vec::new();
+    // A step of 4 ticks under way: its records wait.
+    for k in 0..3 {
+        o.push(record(k, State::Running)).unwrap();
+        assert!(drain(&mut o, &mut ends, true, false).is_empty());
+    }
+    o.push(record(3, State::Running)).unwrap();
+    ends.push(StepEnd { step: 0, tick: 3 });
+    let out = drain(&mut o, &mut ends, false, false);
+    assert_eq!(
+        out[0],
+        Outgoing::StepEnd(DeviceMsg::SiteStep {
+            step: 0,
+            tick: 3,
+            measured_mm: 1.5,
+            force_kn: -3.0
+        }),
+        "the step's end first, with its last tick's reading"
+    );
+    let ticks: Vec<u32> = out[1..]
+        .iter()
+        .map(|x| match x {
+            Outgoing::Record(r) => r.tick,
+            Outgoing::StepEnd(_) => u32::MAX,
+        })
+        .collect();
+    assert_eq!(ticks, [0, 1, 2, 3], "then every record, in order");
+    assert!(o.is_empty() && ends.is_empty());
+
+    // A fault within the next step: its records go out as they come, the step's end after them.
+    o.push(record(4, State::Running)).unwrap();
+    assert!(drain(&mut o, &mut ends, true, false).is_empty());
+    o.push(record(
+        5,
+        State::Fault(rths_core::supervisor::FaultReason::CommandVelocity),
+    ))
+    .unwrap();
+    ends.push(StepEnd { step: 1, tick: 5 });
+    let out = drain(&mut o, &mut ends, false, false);
+    assert!(matches!(out[0], Outgoing::Record(r) if r.tick == 4));
+    assert!(matches!(out[1], Outgoing::Record(r) if r.tick == 5));
+    assert!(matches!(
+        out[2],
+        Outgoing::StepEnd(DeviceMsg::SiteStep {
+            step: 1,
+            tick: 5,
+            ..
+        })
+    ));
+    assert_eq!(out.len(), 3);
+}
+
+#[test]
+fn a_long_step_sends_beyond_the_hold_and_a_lost_record_ends_its_step_unread() {
+    let mut o = Outbox::new();
+    let mut ends = Vec::new();
+    let mut sent = Vec::new();
+    // A step of 100 ticks: never more than HOLD_RECORDS wait.
+    for k in 0..100 {
+        o.push(record(k, State::Running)).unwrap();
+        sent.extend(drain(&mut o, &mut ends, true, false));
+        assert!(o.len() <= HOLD_RECORDS);
+    }
+    assert_eq!(sent.len(), 100 - HOLD_RECORDS + 1);
+    // Its end: first, with the reading of tick 99, still held.
+    ends.push(StepEnd { step: 0, tick: 99 });
+    let out = drain(&mut o, &mut ends, false, false);
+    assert!(matches!(
+        out[0],
+        Outgoing::StepEnd(DeviceMsg::SiteStep { tick: 99, force_kn, .. }) if force_kn == -99.0
+    ));
+    // A step end whose record the telemetry queue dropped (a later record came): no reading.
+    o.push(record(101, State::Running)).unwrap();
+    ends.push(StepEnd { step: 1, tick: 100 });
+    let out = drain(&mut o, &mut ends, false, false);
+    assert!(matches!(
+        out[0],
+        Outgoing::StepEnd(DeviceMsg::SiteStep { tick: 100, measured_mm, .. }) if measured_mm.is_nan()
+    ));
+    // A step end whose record is still in the queue: wait for it (or, at the run's end, go
+    // unread).
+    ends.push(StepEnd { step: 2, tick: 102 });
+    assert!(drain(&mut o, &mut ends, false, false).is_empty());
+    assert_eq!(ends.len(), 1);
+    let out = drain(&mut o, &mut ends, false, true);
+    assert!(matches!(
+        out[0],
+        Outgoing::StepEnd(DeviceMsg::SiteStep { tick: 102, .. })
+    ));
+    // Outside a site's step, records go out as they come.
+    o.push(record(103, State::Running)).unwrap();
+    assert_eq!(drain(&mut o, &mut ends, false, false).len(), 1);
 }

@@ -17,17 +17,28 @@ use anyhow::Context;
 use element::{ElementOutcome, ElementSetup};
 use experiment::Experiment;
 
+/// One element of `rths site`: what it knows of its rig, its actuator, and what its recording's
+/// header says of them.
+pub struct SiteElement {
+    /// The identified stiffness and the pace.
+    pub setup: ElementSetup,
+    /// Its actuator: a virtual rig, or a board of its own.
+    pub experiment: Box<dyn Experiment>,
+    /// Header fields of this element's recording (its rig file, preset, link).
+    pub header: Vec<(String, String)>,
+}
+
 /// What `rths site` serves.
 pub struct SiteConfig {
     /// The first element's address (element i: port + i).
     pub listen: SocketAddr,
     /// UDP instead of TCP.
     pub udp: bool,
-    /// One setup and experimental side per element.
-    pub elements: Vec<(ElementSetup, Box<dyn Experiment>)>,
+    /// One element per connection.
+    pub elements: Vec<SiteElement>,
     /// Where the recording goes (element i > 0 of several: `STEM-i.EXT`, the first `STEM-1.EXT`).
     pub out: Option<PathBuf>,
-    /// Header fields every recording gets (the rig's provenance).
+    /// Header fields every recording gets (the pace).
     pub header: Vec<(String, String)>,
 }
 
@@ -73,11 +84,14 @@ pub fn run(cfg: SiteConfig) -> anyhow::Result<Vec<ElementOutcome>> {
         bound.push((b, local));
     }
     std::io::stdout().flush()?;
+    let mut element_headers = Vec::with_capacity(k);
     let handles: Vec<_> = bound
         .into_iter()
         .zip(cfg.elements)
         .enumerate()
-        .map(|(i, ((b, local), (setup, mut exp)))| {
+        .map(|(i, ((b, local), e))| {
+            element_headers.push(e.header);
+            let (setup, mut exp) = (e.setup, e.experiment);
             std::thread::spawn(move || serve_element(i, b, local, &setup, exp.as_mut()))
         })
         .collect();
@@ -102,7 +116,11 @@ pub fn run(cfg: SiteConfig) -> anyhow::Result<Vec<ElementOutcome>> {
             hd.set("source", "site");
             hd.set("link", format!("opensees-{proto} {local}"));
             hd.set("element", i + 1);
-            for (key, v) in &cfg.header {
+            for (key, v) in cfg
+                .header
+                .iter()
+                .chain(element_headers.get(i).into_iter().flatten())
+            {
                 hd.set(key, v);
             }
             hd.set("dofs", o.dofs);
