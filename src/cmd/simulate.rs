@@ -307,13 +307,13 @@ fn run_structure(
         _ => None,
     };
     let learned = match sc {
-        SimScenario::NlPure | SimScenario::NlOnline => Some(
-            crate::machinery::structure::model::for_structure(
+        SimScenario::NlPure | SimScenario::NlOnline => {
+            Some(crate::machinery::structure::model::for_structure(
                 args.model.as_deref(),
                 &name,
                 structure_json,
-            )?,
-        ),
+            )?)
+        }
         _ => None,
     };
     let (report, series) = nl::run_scenario(

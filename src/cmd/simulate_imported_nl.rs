@@ -24,10 +24,10 @@ use crate::cmd::plant::PresetArg;
 use crate::cmd::simulate_args::Args;
 use crate::machinery::drive;
 use crate::machinery::imported::fe::FeHistory;
-use crate::studies::nonlinear::scenario::SimScenario;
 use crate::machinery::train::nonlinear::floors::FloorModel;
 use crate::machinery::train::nonlinear::score::Learned;
 use crate::studies::nonlinear::held_out::{run_hybrid, HybridRig};
+use crate::studies::nonlinear::scenario::SimScenario;
 
 /// Run `nl-pure` or `nl-online` of the imported structure `text` (at `path`) under `ag`.
 pub fn run(

@@ -948,7 +948,8 @@ fn evaluate_floors(
             .collect();
         jobs.par_iter()
             .map(|(m, d)| -> anyhow::Result<FloorRun> {
-                let scale = crate::machinery::train::nonlinear::runs::scale_for_ductility(&s, m, *d, DT_S)?;
+                let scale =
+                    crate::machinery::train::nonlinear::runs::scale_for_ductility(&s, m, *d, DT_S)?;
                 let r = crate::machinery::train::nonlinear::runs::fe_run(&s, m, scale, DT_S)?;
                 Ok(FloorRun {
                     label: r.label,

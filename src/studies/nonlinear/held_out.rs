@@ -161,12 +161,7 @@ pub fn run_hybrid_measured(
     k_e: f64,
     ag: &[f64],
     rig: &HybridRig,
-) -> anyhow::Result<(
-    FeHistory,
-    Vec<f64>,
-    Option<String>,
-    f64,
-)> {
+) -> anyhow::Result<(FeHistory, Vec<f64>, Option<String>, f64)> {
     let (sf, _) = model.specimen();
     let pure = model
         .pure_loop(k_e, ag)
@@ -199,4 +194,3 @@ pub fn run_hybrid_measured(
         length,
     ))
 }
-
