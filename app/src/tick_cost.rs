@@ -87,6 +87,18 @@ impl StructureCost {
                 let more = (dims.modes as f64 - self.reduced_modes).max(0.0);
                 self.reduced[0] + self.reduced[1] * more
             }
+            // Not measured yet: bounded by what it shares with the yielding FE. The floors are
+            // the linear FE's Chang step; each play and each direction is costed as a bilinear
+            // story (a play is one compare and a clamp, a direction n multiply-adds each way,
+            // both cheaper than a story's law), each Menegotto–Pinto play as a Bouc–Wen story
+            // (both call `pow`).
+            ModelKind::StructureHysteron => {
+                let mp = dims.bouc_wen.min(dims.hysterons) as f64;
+                let plays = dims.hysterons as f64 - mp;
+                self.fe_instr(n)
+                    + self.per_story[0] * (plays + dims.directions as f64)
+                    + self.per_story[1] * mp
+            }
             ModelKind::Lr | ModelKind::Lrx | ModelKind::Rnn | ModelKind::FeAts => 0.0,
         }
     }

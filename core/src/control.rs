@@ -935,8 +935,8 @@ mod correction;
 mod structure;
 pub use correction::ForceCorrection;
 pub use structure::{
-    ModalSpec, ReducedSpec, StoryLawSpec, StructureFe, StructureHysteron, StructureModal,
-    StructureNl, StructureReduced, StructureSpec,
+    FloorHysteronSpec, ModalSpec, ReducedSpec, StoryLawSpec, StructureFe, StructureHysteron,
+    StructureModal, StructureNl, StructureReduced, StructureSpec, HYSTERON_VALUES,
 };
 
 #[cfg(test)]

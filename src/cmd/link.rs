@@ -568,7 +568,7 @@ fn scenario_of(kind: rths_link::ModelKind, compensated: bool) -> &'static str {
         // The shipped RNN is the 10-unit one.
         (K::Rnn, _) => "rnn-online-10",
         (K::FeAts, _) => "fe-online-ats",
-        (K::StructureModal, true) => "nl-online",
+        (K::StructureModal | K::StructureHysteron, true) => "nl-online",
         (K::StructureReduced | K::StructureMeta, true) => "meta-online",
         (K::StructureFe | K::StructureNl, true) => "fe-online-lead",
         (K::StructureFe, false) => "structure-fe",
@@ -576,6 +576,7 @@ fn scenario_of(kind: rths_link::ModelKind, compensated: bool) -> &'static str {
         (K::StructureMeta, false) => "structure-meta",
         (K::StructureModal, false) => "structure-modal",
         (K::StructureReduced, false) => "structure-reduced",
+        (K::StructureHysteron, false) => "structure-hysteron",
     }
 }
 
