@@ -6,7 +6,8 @@
 //!
 //! The files, and the kind they make:
 //! - a model file alone (`rths train lr|rnn|lrx`): `Lr`, `Rnn`, `Lrx` (an LRX's lead adaptation
-//!   and specimen dynamics, if it has them, are its rig compensation's values);
+//!   and specimen dynamics, if it has them, are its rig compensation's values); a floor-hysteron
+//!   model alone (its floors' matrices are in it): `StructureHysteron`;
 //! - a dense structure file alone (`data/structures/`): its finite elements, `StructureFe`
 //!   (linear) or `StructureNl` (yielding stories);
 //! - a structure file and its model, by the model's `format` and `kind`: the structure metamodel
@@ -78,7 +79,7 @@ pub fn lay_out_files(
     dt_s: f64,
 ) -> Result<LaidOut, UploadFileError> {
     match (model, structure) {
-        (Some(m), None) => model_file(m),
+        (Some(m), None) => model_file(m, dt_s),
         (None, Some(s)) => structure_fe(s, dt_s),
         (Some(m), Some(s)) => structure_model(m, s, dt_s),
         (None, None) => Err(UploadFileError(
@@ -87,9 +88,34 @@ pub fn lay_out_files(
     }
 }
 
-/// An LR, LRX or RNN model file.
-fn model_file(path: &Path) -> Result<LaidOut, UploadFileError> {
-    let m = ModelFile::load(path).map_err(|e| err(path, e))?;
+/// The `format` and `kind` of a model file's JSON (`None`: absent, or not JSON).
+#[derive(serde::Deserialize)]
+struct Tags {
+    format: Option<String>,
+    kind: Option<String>,
+}
+
+/// A floor-hysteron model file (`rths train nonlinear`): its floors' matrices are in it, so it is
+/// laid out without its structure file too.
+fn is_hysteron(text: &str) -> bool {
+    serde_json::from_str::<Tags>(text).is_ok_and(|t| {
+        t.format.as_deref() == Some(NL_FORMAT) && t.kind.as_deref() == Some(HYSTERON_KIND)
+    })
+}
+
+/// Whether the model file at `path` carries its whole part without a structure file (a
+/// floor-hysteron model): `rths link upload --model M.json` lays it out alone.
+pub fn is_self_contained(path: &Path) -> bool {
+    std::fs::read_to_string(path).is_ok_and(|t| is_hysteron(&t))
+}
+
+/// An LR, LRX or RNN model file, or a floor-hysteron model alone.
+fn model_file(path: &Path, dt_s: f64) -> Result<LaidOut, UploadFileError> {
+    let text = std::fs::read_to_string(path).map_err(|e| err(path, e))?;
+    if is_hysteron(&text) {
+        return hysteron(path, &text, None, dt_s);
+    }
+    let m = ModelFile::from_json(&text).map_err(|e| err(path, e))?;
     lay_out_model_file(&m, path)
 }
 
@@ -227,15 +253,10 @@ fn structure_model(model: &Path, structure: &Path, dt_s: f64) -> Result<LaidOut,
     if ReducedModelFile::is_reduced(&text) {
         return reduced(model, &text, structure, dt_s);
     }
-    #[derive(serde::Deserialize)]
-    struct Tags {
-        format: Option<String>,
-        kind: Option<String>,
-    }
     let tags: Tags = serde_json::from_str(&text).map_err(|e| err(model, e))?;
     if tags.format.as_deref() == Some(NL_FORMAT) {
         if tags.kind.as_deref() == Some(HYSTERON_KIND) {
-            return hysteron(model, &text, structure, dt_s);
+            return hysteron(model, &text, Some(structure), dt_s);
         }
         return modal(model, structure, dt_s);
     }
@@ -302,18 +323,20 @@ fn modal(model: &Path, structure: &Path, dt_s: f64) -> Result<LaidOut, UploadFil
 }
 
 /// The floor-hysteron model of a yielding structure (a dense structure file or an imported one),
-/// checked against it (name and checksum) and validated at `dt_s` (continuous-time floors and
-/// rate-independent operators: any rate runs).
+/// checked against it if given (name and checksum) and validated at `dt_s` (continuous-time floors
+/// and rate-independent operators: any rate runs).
 fn hysteron(
     model: &Path,
     text: &str,
-    structure: &Path,
+    structure: Option<&Path>,
     dt_s: f64,
 ) -> Result<LaidOut, UploadFileError> {
     let f = HysteronModelFile::from_json(text).map_err(|e| err(model, e))?;
-    let stext = std::fs::read_to_string(structure).map_err(|e| err(structure, e))?;
-    f.check_structure(&stext)
-        .map_err(|e| err(model, format!("for {}: {e}", structure.display())))?;
+    if let Some(structure) = structure {
+        let stext = std::fs::read_to_string(structure).map_err(|e| err(structure, e))?;
+        f.check_structure(&stext)
+            .map_err(|e| err(model, format!("for {}: {e}", structure.display())))?;
+    }
     // Every field checked, with its name, before the values are laid out.
     f.params(dt_s).map_err(|e| err(model, e))?;
     let flat = |m: &[Vec<f64>]| m.iter().flatten().copied().collect::<Vec<f64>>();
@@ -513,6 +536,10 @@ mod tests {
             })
             .unwrap();
             assert_eq!(back, f.params(dt).unwrap(), "{tag}");
+            // The file alone (`rths link upload --model M.json`): the same values.
+            assert!(is_self_contained(&path));
+            let alone = lay_out_files(Some(&path), None, dt).unwrap();
+            assert_eq!((alone.kind, &alone.values), (laid.kind, &laid.values));
             // Another structure: refused, naming both.
             let e = lay_out_files(
                 Some(&path),
