@@ -401,7 +401,7 @@ impl FloorHysteronSpec<'_> {
         let h = len / HYSTERON_VALUES;
         if h == 0 || h > HYST_MAX_HYSTERONS || h * HYSTERON_VALUES != len {
             return Err(ModelError::Shape {
-                what: "hysterons (1..=128, 3 values each)",
+                what: "hysterons (1..=64, 3 values each)",
                 expected: HYSTERON_VALUES * h.clamp(1, HYST_MAX_HYSTERONS),
                 got: len,
             });

@@ -35,8 +35,10 @@ use crate::structure_n::{ChangN, Dofs, StructureN, MAX_DOF};
 
 /// Largest number of directions (linear combinations of the floors) the hysterons act along.
 pub const HYST_MAX_DIRECTIONS: usize = 16;
-/// Largest number of hysterons.
-pub const HYST_MAX_HYSTERONS: usize = 128;
+/// Largest number of hysterons (64: with 128 the model was the controller's largest part, 2.1 KiB
+/// over the RNN's, and the emulated boards closed the link as its run started; at 64 it runs. A
+/// 3-floor structure's basis, 6 directions of 10 plays, is within it).
+pub const HYST_MAX_HYSTERONS: usize = 64;
 /// Largest number of Menegotto–Pinto hysterons (each carries a branch state and costs two `pow`
 /// per step).
 pub const HYST_MAX_MP: usize = 32;
@@ -174,7 +176,7 @@ impl FloorHysteronParams {
             }
         }
         if hysterons.is_empty() || hysterons.len() > HYST_MAX_HYSTERONS {
-            return Err(ParamError::OutOfRange("number of hysterons (1..=128)").into());
+            return Err(ParamError::OutOfRange("number of hysterons (1..=64)").into());
         }
         let mut hyst = [Hysteron {
             direction: 0,

@@ -323,7 +323,7 @@ fn the_staging_area_holds_the_largest_model_of_every_kind() {
             reduced_value_count(REDUCED_MAX_MODES, REDUCED_MAX_OUTPUTS),
         ),
         (
-            "floor-hysteron, 8 floors, 16 directions, 128 hysterons",
+            "floor-hysteron, 8 floors, 16 directions, 64 hysterons",
             hysteron_value_count(MAX_DOF, HYST_MAX_DIRECTIONS, HYST_MAX_HYSTERONS),
         ),
     ];
@@ -363,7 +363,7 @@ fn values_that_are_no_model_of_their_kind_are_refused() {
         ),
         (
             ModelKind::StructureHysteron,
-            hysteron_value_count(8, 16, 129),
+            hysteron_value_count(8, 16, 65),
         ),
     ] {
         assert_eq!(count_fits(kind, n), Err(LayoutError::Shape), "{kind:?} {n}");
