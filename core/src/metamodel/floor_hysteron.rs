@@ -273,20 +273,28 @@ impl FloorHysteronParams {
 /// Whether the leading `n×n` block of `a` is positive definite (Cholesky without square roots of
 /// non-positive pivots).
 fn positive_definite(a: &[[f64; MAX_DOF]; MAX_DOF], n: usize) -> bool {
+    // Every access checked (an upload's commit builds this on the board: no panic path).
     let mut l = [[0.0; MAX_DOF]; MAX_DOF];
     for i in 0..n.min(MAX_DOF) {
         for j in 0..=i {
-            let mut s = a[i][j];
-            for k in 0..j {
-                s -= l[i][k] * l[j][k];
+            let (Some(li), Some(lj)) = (l.get(i).copied(), l.get(j).copied()) else {
+                return false;
+            };
+            let mut s = a.get(i).and_then(|r| r.get(j)).copied().unwrap_or(f64::NAN);
+            for (x, y) in li.iter().zip(lj.iter()).take(j) {
+                s -= x * y;
             }
-            if i == j {
+            let v = if i == j {
                 if !s.is_finite() || s <= 0.0 || s.is_nan() {
                     return false;
                 }
-                l[i][j] = libm::sqrt(s);
+                libm::sqrt(s)
             } else {
-                l[i][j] = s / l[j][j];
+                s / lj.get(j).copied().unwrap_or(f64::NAN)
+            };
+            match l.get_mut(i).and_then(|r| r.get_mut(j)) {
+                Some(x) => *x = v,
+                None => return false,
             }
         }
     }
