@@ -184,7 +184,8 @@ pub struct Args {
     pub form: NlFormArg,
     /// Nonlinear, floor-hysteron form: Levenberg–Marquardt steps of the refinement on the
     /// simulation error after the least-squares fit, at most (0: the least-squares fit alone); it
-    /// stops earlier on the validation histories (every third held out of the fit).
+    /// stops earlier on the validation histories (every third held out of the fit), and does not
+    /// run with fewer than 3 histories (none held out to stop on).
     #[arg(long, default_value_t = crate::machinery::train::nonlinear::refine::RefineConfig::default().max_iterations)]
     pub refine_steps: usize,
     /// Nonlinear `--evaluate --histories`: score the hybrid loop too (the virtual rig, identified
@@ -759,6 +760,10 @@ fn report_hysteron(
             r.stopped,
             r.stiffness_scale,
             r.damping_scale
+        ),
+        None if t.validation_loss_pct.is_none() => crate::outln!(
+            "  not refined: no validation histories to stop on (fewer than 3 given, or \
+             --refine-steps 0)"
         ),
         None => crate::outln!("  not refined (--refine-steps 0)"),
     }
