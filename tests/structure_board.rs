@@ -7,7 +7,10 @@
 //!   specimen and the compensator given the target in force;
 //! - `meta-online`: the reduced model of the imported `opensees-frame-1x1` (trained here), with the
 //!   same compensation;
-//! - `fe-online-lead`: the yielding finite elements of `shear3-yielding`, the same compensation.
+//! - `fe-online-lead`: the yielding finite elements of `shear3-yielding`, the same compensation;
+//! - `nl-online` of a floor-hysteron model (issue 25) of `shear3-yielding`: its elastic floors and
+//!   plays on its spring network's directions, uploaded with `--model` alone and with
+//!   `--structure`, the same compensation.
 //!
 //! Each runs against the plant in the MCU (the `unr-compact` virtual rig, seed 1) through the whole
 //! El Centro record, and the host's run of the same controller (core's, installed by the device's
@@ -396,6 +399,131 @@ fn the_nonlinear_hybrid_runs_on_the_m7_bit_for_bit_with_the_host() {
             "upload",
             "--model",
             &data("models/nl-shear3-yielding.json").display().to_string(),
+            "--structure",
+            &data("structures/shear8-yielding.json")
+                .display()
+                .to_string(),
+        ],
+    );
+    assert!(!ok);
+    assert!(
+        err.contains("shear3-yielding") && err.contains("shear8-yielding"),
+        "{err}"
+    );
+}
+
+/// A floor-hysteron model of `shear3-yielding` (issue 25): the elastic floors training reduces it
+/// to, the basis's directions, two plays on each with part of its stiffness (what a training's
+/// least squares gives, without the training's minutes).
+fn shear3_hysteron(structure: &Path, out: &Path) {
+    use rths::machinery::train::nonlinear::floors::FloorModel;
+    use rths::machinery::train::nonlinear::hysteron::directions;
+    use rths_files::hysteron_model_file::{
+        HysteronModelFile, HysteronSpec, HysteronTraining, OperatorSpec, HYSTERON_KIND,
+    };
+    use rths_files::nl_model_file::{structure_checksum, NlStructureId, NL_FORMAT, NL_VERSION};
+    let text = std::fs::read_to_string(structure).unwrap();
+    let fm = FloorModel::from_json(&text).unwrap();
+    let (dirs, kappa) = directions(&fm.stiffness);
+    let rows = |m: &nalgebra::DMatrix<f64>| -> Vec<Vec<f64>> {
+        (0..m.nrows())
+            .map(|i| (0..m.ncols()).map(|j| m[(i, j)]).collect())
+            .collect()
+    };
+    let hysterons = kappa
+        .iter()
+        .enumerate()
+        .filter(|(_, k)| **k > 0.0)
+        .flat_map(|(d, k)| {
+            [(2.0, 0.3), (8.0, 0.4)].map(|(r, share)| HysteronSpec {
+                direction: d,
+                threshold_mm: r,
+                weight_kn_per_mm: share * k,
+            })
+        })
+        .collect();
+    let f = HysteronModelFile {
+        format: NL_FORMAT.into(),
+        version: NL_VERSION,
+        kind: HYSTERON_KIND.into(),
+        structure: NlStructureId {
+            name: fm.name.clone(),
+            checksum: structure_checksum(&text).unwrap(),
+        },
+        dt_s: DT_S,
+        floors: fm.columns.clone(),
+        specimen_floor: fm.specimen_floor,
+        specimen_stiffness_kn_per_mm: fm.specimen_k_kn_per_mm,
+        mass: rows(&fm.mass),
+        damping: rows(&fm.damping),
+        stiffness: rows(&fm.stiffness),
+        ground_mass: fm.ground_mass.iter().copied().collect(),
+        directions: dirs,
+        operator: OperatorSpec::Play,
+        hysterons,
+        training: HysteronTraining::default(),
+    };
+    f.save(out).unwrap();
+}
+
+#[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
+fn a_floor_hysteron_model_runs_on_the_m7_bit_for_bit_with_the_host() {
+    if qemu_missing("the floor-hysteron model on the emulated Cortex-M7") {
+        return;
+    }
+    let elf = m7_link_elf();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (ok, _, err) = rths(
+        d,
+        &["identify", "--preset", "unr-compact", "--out", "rig.json"],
+    );
+    assert!(ok, "{err}");
+    let shear3 = data("structures/shear3-yielding.json");
+    let model = d.join("hysteron.json");
+    shear3_hysteron(&shear3, &model);
+    // The model file alone: its floors are in it.
+    let (ok, out, err) = rths(
+        d,
+        &[
+            "link",
+            "--qemu",
+            &elf.display().to_string(),
+            "upload",
+            "--model",
+            &model.display().to_string(),
+        ],
+    );
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("floor-hysteron model of shear3-yielding"),
+        "{out}"
+    );
+    let r = on_the_board_and_the_host(
+        &elf,
+        d,
+        "floor-hysteron nl-online",
+        "nl-online",
+        Some(&model),
+        &shear3,
+        &d.join("rig.json"),
+        2.0,
+    );
+    assert_eq!(r["end_state"], "done", "the whole record: {r}");
+    // Another structure's: refused by the host, naming both.
+    let (ok, _, err) = rths(
+        d,
+        &[
+            "link",
+            "--qemu",
+            &elf.display().to_string(),
+            "upload",
+            "--model",
+            &model.display().to_string(),
             "--structure",
             &data("structures/shear8-yielding.json")
                 .display()

@@ -16,6 +16,7 @@
 
 use rths_core::compensator::Compensator;
 use rths_core::control::{Analytical, Controller, ForceCorrection};
+use rths_core::metamodel::HysteronOperator;
 use rths_core::params::{SpecimenScale, DT_S};
 use rths_link::layout::{Dims, RIG_UPLOAD_MAX_VALUES};
 use rths_link::{ModelKind, NackReason, RECORD_CHUNK};
@@ -33,6 +34,7 @@ pub fn is_structure(kind: ModelKind) -> bool {
             | ModelKind::StructureMeta
             | ModelKind::StructureModal
             | ModelKind::StructureReduced
+            | ModelKind::StructureHysteron
     )
 }
 
@@ -242,6 +244,7 @@ pub fn kind_of(ctl: &Controller) -> Option<ModelKind> {
         (Analytical::StructureMeta(_), _) => ModelKind::StructureMeta,
         (Analytical::StructureModal(_), _) => ModelKind::StructureModal,
         (Analytical::StructureReduced(_), _) => ModelKind::StructureReduced,
+        (Analytical::StructureHysteron(_), _) => ModelKind::StructureHysteron,
         _ => return None,
     })
 }
@@ -291,6 +294,21 @@ pub fn dims_of(ctl: &Controller) -> Dims {
             Dims {
                 modes: p.modes(),
                 outputs: p.outputs(),
+                ..d
+            }
+        }
+        Analytical::StructureHysteron(m) => {
+            let p = m.model().params();
+            let h = p.hysterons().len();
+            Dims {
+                dofs: p.floors(),
+                directions: p.directions(),
+                hysterons: h,
+                bouc_wen: if p.operator() == HysteronOperator::Play {
+                    0
+                } else {
+                    h
+                },
                 ..d
             }
         }

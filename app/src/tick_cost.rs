@@ -55,6 +55,11 @@ pub struct StructureCost {
     pub reduced: [f64; 2],
     /// The modes of the reduced model's base row.
     pub reduced_modes: f64,
+    /// The floor-hysteron model's cost beyond the linear FE of its floors and its plays and
+    /// directions costed as bilinear stories (the step copies the integrator and the operators'
+    /// state to refuse an overflowing step): the M7's from its one measured row (3 floors, 6
+    /// directions, 6 plays, `nl-online`: 8,010 max); infinite where not measured (refused).
+    pub hysteron_base: f64,
     /// What the rig compensation of a structure part adds (the lead with its adaptation and the
     /// force correction): the largest measured (compensated − uncompensated) row.
     pub rig: f64,
@@ -87,6 +92,18 @@ impl StructureCost {
                 let more = (dims.modes as f64 - self.reduced_modes).max(0.0);
                 self.reduced[0] + self.reduced[1] * more
             }
+            // One measured row (the M7): the floors are the linear FE's Chang step; each play and
+            // each direction is costed as a bilinear story (a play is one compare and a clamp, a
+            // direction n multiply-adds each way, both cheaper than a story's law), each
+            // Menegotto–Pinto play as a Bouc–Wen story (both call `pow`), plus the measured rest.
+            ModelKind::StructureHysteron => {
+                let mp = dims.bouc_wen.min(dims.hysterons) as f64;
+                let plays = dims.hysterons as f64 - mp;
+                self.fe_instr(n)
+                    + self.per_story[0] * (plays + dims.directions as f64)
+                    + self.per_story[1] * mp
+                    + self.hysteron_base
+            }
             ModelKind::Lr | ModelKind::Lrx | ModelKind::Rnn | ModelKind::FeAts => 0.0,
         }
     }
@@ -111,6 +128,7 @@ impl PathCost {
             modal: [4_982.0, 3_399.0, 1_431.0],
             reduced: [6_845.0, 1_877.0],
             reduced_modes: 2.0,
+            hysteron_base: f64::INFINITY,
             rig: 2_780.0,
         }),
     };
@@ -132,6 +150,8 @@ impl PathCost {
             modal: [870.0, 116.0, 84.0],
             reduced: [2_055.0, 50.0],
             reduced_modes: 2.0,
+            // 8,010 (measured, nl-online) − 395 (rig) − 1,145 (FE, N = 3) − 12 × 105.
+            hysteron_base: 5_210.0,
             rig: 395.0,
         }),
     };

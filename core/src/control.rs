@@ -186,6 +186,9 @@ pub enum Analytical {
     StructureMeta(DeltaArx),
     /// The learned modal-hysteretic metamodel of a yielding numerical substructure (issue 16).
     StructureModal(StructureModal),
+    /// The learned floor-hysteron metamodel of a yielding numerical substructure (issue 25): the
+    /// elastic floors plus play operators on drifts; its cost depends on floors and hysterons only.
+    StructureHysteron(StructureHysteron),
     /// The reduced-order modal model of a large linear numerical substructure (an imported
     /// OpenSees model): constant cost per tick whatever its DOF count.
     StructureReduced(StructureReduced),
@@ -206,6 +209,7 @@ impl Analytical {
             Analytical::StructureNl(_) => ("structure-nl", None),
             Analytical::StructureMeta(_) => ("structure-meta", None),
             Analytical::StructureModal(_) => ("structure-modal", None),
+            Analytical::StructureHysteron(_) => ("structure-hysteron", None),
             Analytical::StructureReduced(_) => ("structure-reduced", None),
         }
     }
@@ -218,6 +222,7 @@ impl Analytical {
                 | Analytical::StructureNl(_)
                 | Analytical::StructureMeta(_)
                 | Analytical::StructureModal(_)
+                | Analytical::StructureHysteron(_)
                 | Analytical::StructureReduced(_)
         )
     }
@@ -252,6 +257,7 @@ impl Analytical {
                 .predict(ag_mm_s2, fb.brace_disp_mm, fb.brace_force_kn)
                 .map_err(|_| StepError::NonFiniteOutput)?,
             Analytical::StructureModal(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
+            Analytical::StructureHysteron(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
             Analytical::StructureReduced(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
         };
         if y.is_finite() {
@@ -277,6 +283,14 @@ impl Analytical {
             }
             Analytical::StructureNl(m) => Some(m.frame().story_drift_mm()),
             Analytical::StructureModal(m) => {
+                let model = m.model();
+                let mut d = [0.0; crate::structure_n::MAX_DOF];
+                for (i, di) in d.iter_mut().enumerate().take(model.params().floors()) {
+                    *di = model.story_drift_mm(i);
+                }
+                Some(d)
+            }
+            Analytical::StructureHysteron(m) => {
                 let model = m.model();
                 let mut d = [0.0; crate::structure_n::MAX_DOF];
                 for (i, di) in d.iter_mut().enumerate().take(model.params().floors()) {
@@ -345,6 +359,7 @@ impl Analytical {
             Analytical::StructureNl(m) => m.reset(),
             Analytical::StructureMeta(m) => m.reset(),
             Analytical::StructureModal(m) => m.reset(),
+            Analytical::StructureHysteron(m) => m.reset(),
             Analytical::StructureReduced(m) => m.reset(),
         }
     }
@@ -840,7 +855,10 @@ impl Controller {
             (Analytical::Fe(_), Compensator::Ats(_)) => ("fe-online-ats", None),
             // A structure's part with the rig's identified lead (and force correction): the host's
             // hybrid scenarios of a structure file (`rths simulate --structure`).
-            (Analytical::StructureModal(_), Compensator::Lead(_)) => ("nl-online", None),
+            (
+                Analytical::StructureModal(_) | Analytical::StructureHysteron(_),
+                Compensator::Lead(_),
+            ) => ("nl-online", None),
             (
                 Analytical::StructureReduced(_) | Analytical::StructureMeta(_),
                 Compensator::Lead(_),
@@ -963,8 +981,8 @@ mod correction;
 mod structure;
 pub use correction::ForceCorrection;
 pub use structure::{
-    ModalSpec, ReducedSpec, StoryLawSpec, StructureFe, StructureModal, StructureNl,
-    StructureReduced, StructureSpec,
+    FloorHysteronSpec, ModalSpec, ReducedSpec, StoryLawSpec, StructureFe, StructureHysteron,
+    StructureModal, StructureNl, StructureReduced, StructureSpec, HYSTERON_VALUES,
 };
 
 #[cfg(test)]

@@ -10,11 +10,13 @@ use crate::compensator::{
 };
 use crate::control::{Analytical, Controller, FeModel, ReplaceError};
 use crate::control::{
-    ModalSpec, ReducedSpec, StructureFe, StructureModal, StructureNl, StructureReduced,
-    StructureSpec,
+    FloorHysteronSpec, ModalSpec, ReducedSpec, StructureFe, StructureHysteron, StructureModal,
+    StructureNl, StructureReduced, StructureSpec,
 };
 use crate::hysteresis::Law;
-use crate::metamodel::{DeltaArx, DeltaArxParams, ModalHystParams, ReducedModalParams};
+use crate::metamodel::{
+    DeltaArx, DeltaArxParams, FloorHysteronParams, ModalHystParams, ReducedModalParams,
+};
 use crate::metamodel::{
     Lr, LrParams, Lrx, LrxParams, ModelError, Rnn, RnnParams, RnnScaling, RnnWeights,
 };
@@ -95,6 +97,13 @@ pub enum ModelSpec<'a> {
         /// The model's arrays.
         model: ReducedSpec<'a>,
     },
+    /// The learned floor-hysteron metamodel of a yielding structure (`rths train nonlinear`, issue
+    /// 25): stepped at the controller's step (continuous-time floors, rate-independent
+    /// operators).
+    StructureHysteron {
+        /// The model's arrays.
+        model: FloorHysteronSpec<'a>,
+    },
 }
 
 /// A [`ModelSpec`] whose weights passed validation.
@@ -126,6 +135,8 @@ pub enum Model {
     StructureModal(ModalHystParams),
     /// The reduced-order modal model (validated at [`DT_S`]; assembled at the controller's step).
     StructureReduced(ReducedModalParams),
+    /// The floor-hysteron metamodel (validated at [`DT_S`]; rebuilt at the controller's step).
+    StructureHysteron(FloorHysteronParams),
 }
 
 impl ModelSpec<'_> {
@@ -174,6 +185,7 @@ impl ModelSpec<'_> {
             } => Model::StructureMeta(DeltaArxParams::from_slice(theta, k_corr_kn_per_mm)?),
             ModelSpec::StructureModal { model } => Model::StructureModal(model.params(DT_S)?),
             ModelSpec::StructureReduced { model } => Model::StructureReduced(model.params(DT_S)?),
+            ModelSpec::StructureHysteron { model } => Model::StructureHysteron(model.params(DT_S)?),
         })
     }
 }
@@ -203,6 +215,17 @@ impl Model {
             Model::StructureMeta(p) => Ok(meta_parts(p)),
             Model::StructureModal(p) => Ok(modal_parts(p.at_dt_s(dt_s)?)),
             Model::StructureReduced(p) => Ok(reduced_parts(p.at_dt_s(dt_s)?)),
+            Model::StructureHysteron(p) => {
+                // Chang's coefficients depend on the step: validated parameters at another step
+                // cannot be rebuilt from themselves (assemble the spec instead).
+                if p.dt_s() != dt_s {
+                    return Err(crate::params::ParamError::OutOfRange(
+                        "floor-hysteron step (validated at another step: assemble its spec)",
+                    )
+                    .into());
+                }
+                Ok(hysteron_parts(p))
+            }
         }
     }
 }
@@ -314,7 +337,15 @@ pub fn assemble(
         )?)),
         ModelSpec::StructureModal { model } => Ok(modal_parts(model.params(dt_s)?)),
         ModelSpec::StructureReduced { model } => Ok(reduced_parts(model.params(dt_s)?)),
+        ModelSpec::StructureHysteron { model } => Ok(hysteron_parts(model.params(dt_s)?)),
     }
+}
+
+fn hysteron_parts(p: FloorHysteronParams) -> (Analytical, Compensator) {
+    (
+        Analytical::StructureHysteron(StructureHysteron::new(p)),
+        Compensator::None,
+    )
 }
 
 fn reduced_parts(p: ReducedModalParams) -> (Analytical, Compensator) {
@@ -368,6 +399,7 @@ pub fn assemble_in(
         } => in_place::meta(ctl, theta, k_corr_kn_per_mm),
         ModelSpec::StructureModal { model } => in_place::modal(ctl, &model, dt_s),
         ModelSpec::StructureReduced { model } => in_place::reduced(ctl, &model, dt_s),
+        ModelSpec::StructureHysteron { model } => in_place::hysteron(ctl, &model, dt_s),
     }
 }
 
@@ -477,6 +509,15 @@ mod in_place {
         dt_s: f64,
     ) -> Result<(), ReplaceError> {
         ctl.install_plain(reduced_parts(model.params(dt_s)?).0)
+    }
+
+    #[inline(never)]
+    pub(super) fn hysteron(
+        ctl: &mut Controller,
+        model: &FloorHysteronSpec<'_>,
+        dt_s: f64,
+    ) -> Result<(), ReplaceError> {
+        ctl.install_plain(hysteron_parts(model.params(dt_s)?).0)
     }
 }
 

@@ -7,6 +7,8 @@
 //! - [`history`]: time histories of a lab's FE runs (CSV, OpenSees recorder files), training data.
 //! - [`nl_model_file`]: model files of the nonlinear (modal-hysteretic) metamodel, tied to their
 //!   structure file by a checksum.
+//! - [`hysteron_model_file`]: the floor-hysteron kind of the same format, and either kind read by
+//!   its `kind`.
 //! - [`reduced_model_file`]: the reduced-order model's file of an imported structure.
 //! - [`rate`]: the rule that a file made at a controller rate runs only at that rate.
 //! - [`readable`]: numbers in messages, never with hundreds of digits.
@@ -18,6 +20,7 @@
 #![deny(missing_docs)]
 
 pub mod history;
+pub mod hysteron_model_file;
 pub mod model_file;
 pub mod motion;
 pub mod nl_model_file;

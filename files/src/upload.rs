@@ -6,22 +6,25 @@
 //!
 //! The files, and the kind they make:
 //! - a model file alone (`rths train lr|rnn|lrx`): `Lr`, `Rnn`, `Lrx` (an LRX's lead adaptation
-//!   and specimen dynamics, if it has them, are its rig compensation's values);
+//!   and specimen dynamics, if it has them, are its rig compensation's values); a floor-hysteron
+//!   model alone (its floors' matrices are in it): `StructureHysteron`;
 //! - a dense structure file alone (`data/structures/`): its finite elements, `StructureFe`
 //!   (linear) or `StructureNl` (yielding stories);
 //! - a structure file and its model, by the model's `format` and `kind`: the structure metamodel
 //!   (`rths train meta`, `StructureMeta`), the modal-hysteretic model (`rths train nonlinear`,
-//!   `StructureModal`), or an imported structure's reduced model (`rths train meta` on an `rths
-//!   import opensees` file, `StructureReduced`). A model trained for another structure is refused.
+//!   `StructureModal`; its floor-hysteron form, `StructureHysteron`), or an imported structure's
+//!   reduced model (`rths train meta` on an `rths import opensees` file, `StructureReduced`). A
+//!   model trained for another structure is refused.
 
 use std::path::Path;
 
-use rths_core::control::StoryLawSpec;
-use rths_core::metamodel::ModalMode;
+use rths_core::control::{FloorHysteronSpec, StoryLawSpec};
+use rths_core::metamodel::{FloorStructure, ModalMode};
 use rths_core::model::ModelSpec;
 use rths_link::layout::{lay_out, lrx_rig_values, MODEL_MAX_VALUES};
 use rths_link::ModelKind;
 
+use crate::hysteron_model_file::{HysteronModelFile, HYSTERON_KIND};
 use crate::model_file::{ModelFile, ModelKind as FileKind};
 use crate::nl_model_file::{NlModelFile, NL_FORMAT};
 use crate::reduced_model_file::{imported_structure_name, ReducedModelFile};
@@ -76,7 +79,7 @@ pub fn lay_out_files(
     dt_s: f64,
 ) -> Result<LaidOut, UploadFileError> {
     match (model, structure) {
-        (Some(m), None) => model_file(m),
+        (Some(m), None) => model_file(m, dt_s),
         (None, Some(s)) => structure_fe(s, dt_s),
         (Some(m), Some(s)) => structure_model(m, s, dt_s),
         (None, None) => Err(UploadFileError(
@@ -85,9 +88,34 @@ pub fn lay_out_files(
     }
 }
 
-/// An LR, LRX or RNN model file.
-fn model_file(path: &Path) -> Result<LaidOut, UploadFileError> {
-    let m = ModelFile::load(path).map_err(|e| err(path, e))?;
+/// The `format` and `kind` of a model file's JSON (`None`: absent, or not JSON).
+#[derive(serde::Deserialize)]
+struct Tags {
+    format: Option<String>,
+    kind: Option<String>,
+}
+
+/// A floor-hysteron model file (`rths train nonlinear`): its floors' matrices are in it, so it is
+/// laid out without its structure file too.
+fn is_hysteron(text: &str) -> bool {
+    serde_json::from_str::<Tags>(text).is_ok_and(|t| {
+        t.format.as_deref() == Some(NL_FORMAT) && t.kind.as_deref() == Some(HYSTERON_KIND)
+    })
+}
+
+/// Whether the model file at `path` carries its whole part without a structure file (a
+/// floor-hysteron model): `rths link upload --model M.json` lays it out alone.
+pub fn is_self_contained(path: &Path) -> bool {
+    std::fs::read_to_string(path).is_ok_and(|t| is_hysteron(&t))
+}
+
+/// An LR, LRX or RNN model file, or a floor-hysteron model alone.
+fn model_file(path: &Path, dt_s: f64) -> Result<LaidOut, UploadFileError> {
+    let text = std::fs::read_to_string(path).map_err(|e| err(path, e))?;
+    if is_hysteron(&text) {
+        return hysteron(path, &text, None, dt_s);
+    }
+    let m = ModelFile::from_json(&text).map_err(|e| err(path, e))?;
     lay_out_model_file(&m, path)
 }
 
@@ -225,12 +253,11 @@ fn structure_model(model: &Path, structure: &Path, dt_s: f64) -> Result<LaidOut,
     if ReducedModelFile::is_reduced(&text) {
         return reduced(model, &text, structure, dt_s);
     }
-    #[derive(serde::Deserialize)]
-    struct Tags {
-        format: Option<String>,
-    }
     let tags: Tags = serde_json::from_str(&text).map_err(|e| err(model, e))?;
     if tags.format.as_deref() == Some(NL_FORMAT) {
+        if tags.kind.as_deref() == Some(HYSTERON_KIND) {
+            return hysteron(model, &text, Some(structure), dt_s);
+        }
         return modal(model, structure, dt_s);
     }
     let s = load_structure(structure)?;
@@ -291,6 +318,57 @@ fn modal(model: &Path, structure: &Path, dt_s: f64) -> Result<LaidOut, UploadFil
         model,
         f.specimen_stiffness_kn_per_mm,
         format!("modal-hysteretic model of {}", f.structure.name),
+        None,
+    )
+}
+
+/// The floor-hysteron model of a yielding structure (a dense structure file or an imported one),
+/// checked against it if given (name and checksum) and validated at `dt_s` (continuous-time floors
+/// and rate-independent operators: any rate runs).
+fn hysteron(
+    model: &Path,
+    text: &str,
+    structure: Option<&Path>,
+    dt_s: f64,
+) -> Result<LaidOut, UploadFileError> {
+    let f = HysteronModelFile::from_json(text).map_err(|e| err(model, e))?;
+    if let Some(structure) = structure {
+        let stext = std::fs::read_to_string(structure).map_err(|e| err(structure, e))?;
+        f.check_structure(&stext)
+            .map_err(|e| err(model, format!("for {}: {e}", structure.display())))?;
+    }
+    // Every field checked, with its name, before the values are laid out.
+    f.params(dt_s).map_err(|e| err(model, e))?;
+    let flat = |m: &[Vec<f64>]| m.iter().flatten().copied().collect::<Vec<f64>>();
+    let (mass, damping, stiffness) = (flat(&f.mass), flat(&f.damping), flat(&f.stiffness));
+    let directions = flat(&f.directions);
+    let hysterons: Vec<f64> = f
+        .hysterons
+        .iter()
+        .flat_map(|h| [h.direction as f64, h.threshold_mm, h.weight_kn_per_mm])
+        .collect();
+    let operator = f.operator.operator().map_err(|e| err(model, e))?;
+    let spec = ModelSpec::StructureHysteron {
+        model: FloorHysteronSpec {
+            floors: FloorStructure {
+                floors: f.floors.len(),
+                mass: &mass,
+                damping: &damping,
+                stiffness: &stiffness,
+                ground_mass: &f.ground_mass,
+                specimen_floor: f.specimen_floor,
+                specimen_k_kn_per_mm: f.specimen_stiffness_kn_per_mm,
+            },
+            directions: &directions,
+            hysterons: &hysterons,
+            operator,
+        },
+    };
+    structure_laid(
+        &spec,
+        model,
+        f.specimen_stiffness_kn_per_mm,
+        format!("floor-hysteron model of {}", f.structure.name),
         None,
     )
 }
@@ -365,5 +443,114 @@ mod tests {
             "{e}"
         );
         assert!(lay_out_files(None, None, dt).is_err());
+    }
+
+    /// A floor-hysteron model of `shear3-yielding` (3 floors, its story drifts and one
+    /// two-story direction) with the operator `operator`, written to a file of its own.
+    fn hysteron_file(
+        operator: crate::hysteron_model_file::OperatorSpec,
+        dir: &Path,
+    ) -> (std::path::PathBuf, HysteronModelFile) {
+        use crate::hysteron_model_file::{HysteronSpec, HysteronTraining};
+        let text = std::fs::read_to_string(data("structures/shear3-yielding.json")).unwrap();
+        let eye = |x: f64| {
+            (0..3)
+                .map(|i| (0..3).map(|j| if i == j { x } else { 0.0 }).collect())
+                .collect::<Vec<Vec<f64>>>()
+        };
+        let f = HysteronModelFile {
+            format: NL_FORMAT.into(),
+            version: crate::nl_model_file::NL_VERSION,
+            kind: HYSTERON_KIND.into(),
+            structure: crate::nl_model_file::NlStructureId {
+                name: "shear3-yielding".into(),
+                checksum: crate::nl_model_file::structure_checksum(&text).unwrap(),
+            },
+            dt_s: rths_core::params::DT_S,
+            floors: vec![
+                "out_1_1_mm".into(),
+                "out_2_1_mm".into(),
+                "out_3_1_mm".into(),
+            ],
+            specimen_floor: 0,
+            specimen_stiffness_kn_per_mm: 100.0,
+            mass: eye(0.25),
+            damping: eye(0.05),
+            stiffness: vec![
+                vec![400.0, -200.0, 0.0],
+                vec![-200.0, 400.0, -200.0],
+                vec![0.0, -200.0, 200.0],
+            ],
+            ground_mass: vec![0.25; 3],
+            directions: vec![
+                vec![1.0, 0.0, 0.0],
+                vec![-1.0, 1.0, 0.0],
+                vec![0.0, -1.0, 1.0],
+                vec![-1.0, 0.0, 1.0],
+            ],
+            operator,
+            hysterons: (0..8)
+                .map(|i| HysteronSpec {
+                    direction: i % 4,
+                    threshold_mm: 1.0 + i as f64,
+                    weight_kn_per_mm: 10.0 + i as f64,
+                })
+                .collect(),
+            training: HysteronTraining::default(),
+        };
+        let path = dir.join("hysteron.json");
+        f.save(&path).unwrap();
+        (path, f)
+    }
+
+    #[test]
+    fn a_floor_hysteron_model_lays_out_as_the_parameters_the_host_runs() {
+        use crate::hysteron_model_file::OperatorSpec;
+        let dt = rths_core::params::DT_S;
+        let mp = OperatorSpec::MenegottoPinto {
+            r0: 20.0,
+            cr1: 0.925,
+            cr2: 0.15,
+        };
+        for (op, tag) in [(OperatorSpec::Play, "play"), (mp, "mp")] {
+            let dir = tempfile::tempdir().unwrap();
+            let (path, f) = hysteron_file(op, dir.path());
+            let laid = lay_out_files(
+                Some(&path),
+                Some(&data("structures/shear3-yielding.json")),
+                dt,
+            )
+            .unwrap();
+            assert_eq!(laid.kind, ModelKind::StructureHysteron);
+            assert_eq!(laid.specimen_k_kn_per_mm, Some(100.0));
+            assert_eq!(
+                laid.values.len(),
+                rths_link::layout::hysteron_value_count(3, 4, 8)
+            );
+            // What the device reads back is the host's model, to the bit (the same parameters).
+            let back = rths_link::layout::with_spec(laid.kind, &laid.values, |spec| {
+                let ModelSpec::StructureHysteron { model } = spec else {
+                    panic!("{spec:?}");
+                };
+                model.params(dt).unwrap()
+            })
+            .unwrap();
+            assert_eq!(back, f.params(dt).unwrap(), "{tag}");
+            // The file alone (`rths link upload --model M.json`): the same values.
+            assert!(is_self_contained(&path));
+            let alone = lay_out_files(Some(&path), None, dt).unwrap();
+            assert_eq!((alone.kind, &alone.values), (laid.kind, &laid.values));
+            // Another structure: refused, naming both.
+            let e = lay_out_files(
+                Some(&path),
+                Some(&data("structures/paper-frame-yielding.json")),
+                dt,
+            )
+            .unwrap_err();
+            assert!(
+                e.0.contains("shear3-yielding") && e.0.contains("paper-frame-yielding"),
+                "{e}"
+            );
+        }
     }
 }

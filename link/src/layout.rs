@@ -17,11 +17,15 @@
 //! | `StructureMeta` | θ ([`DELTA_ARX_COEFFS`]), k_corr (19) |
 //! | `StructureModal` | M modes, F floors, S springs, the specimen's DOF, its stiffness; M modes of 3 (ω, ζ, Γ); the shapes (F×M); S laws of 7; the springs' drifts (S×M) |
 //! | `StructureReduced` | M modes, O outputs, the specimen's stiffness, the interface's static correction (h, g); M modes of 4 (ω, ζ, Γ, interface shape); the outputs' shapes (O×M); O static corrections (h, g) |
+//! | `StructureHysteron` | F floors, D directions, H hysterons, the specimen's floor, its stiffness, the operator (0 play, 1 Menegotto–Pinto) and its R₀, c_R1, c_R2 (0 for the play); mass, damping, stiffness (F×F each), `M·ι` (F); the directions (D×F); H hysterons of 3 (direction, threshold, weight) |
 
 use rths_core::compensator::LEAD_TAPS;
-use rths_core::control::{ModalSpec, ReducedSpec, StoryLawSpec, StructureSpec};
+use rths_core::control::{
+    FloorHysteronSpec, ModalSpec, ReducedSpec, StoryLawSpec, StructureSpec, HYSTERON_VALUES,
+};
 use rths_core::metamodel::{
-    ModalMode, ReducedMode, RnnScaling, RnnWeights, StaticCorrection, DELTA_ARX_COEFFS,
+    FloorStructure, HysteronOperator, ModalMode, MpShape, ReducedMode, RnnScaling, RnnWeights,
+    StaticCorrection, DELTA_ARX_COEFFS, HYST_MAX_DIRECTIONS, HYST_MAX_HYSTERONS, HYST_MAX_MP,
     MODAL_MAX_FLOORS, MODAL_MAX_MODES, MODAL_MAX_SPRINGS, REDUCED_MAX_MODES, REDUCED_MAX_OUTPUTS,
     RNN_INPUTS, RNN_MAX_HIDDEN,
 };
@@ -62,6 +66,20 @@ pub const fn reduced_value_count(modes: usize, outputs: usize) -> usize {
     5 + 4 * modes + outputs * modes + 2 * outputs
 }
 
+/// Header values of a floor-hysteron model: F, D, H, the specimen's floor, its stiffness, the
+/// operator flag and its three shape values.
+const HYSTERON_HEADER: usize = 9;
+
+/// Values of a floor-hysteron model of `floors` floors, `directions` directions and `hysterons`
+/// hysterons.
+pub const fn hysteron_value_count(floors: usize, directions: usize, hysterons: usize) -> usize {
+    HYSTERON_HEADER
+        + 3 * floors * floors
+        + floors
+        + directions * floors
+        + HYSTERON_VALUES * hysterons
+}
+
 /// Values of an RNN model of `hidden` units ([`ModelKind::Rnn`]), in this order: `w_ih` (hidden ×
 /// 2, row-major), `w_hh` (hidden × hidden, row-major), `b_h` (hidden), `w_ho` (hidden), `b_o`, the
 /// input means (2) and standard deviations (2), the output mean and standard deviation.
@@ -91,7 +109,10 @@ const _: () = assert!(
         ),
         max(
             reduced_value_count(REDUCED_MAX_MODES, REDUCED_MAX_OUTPUTS),
-            max(LRX_VALUES, STRUCTURE_META_VALUES),
+            max(
+                max(LRX_VALUES, STRUCTURE_META_VALUES),
+                hysteron_value_count(MAX_DOF, HYST_MAX_DIRECTIONS, HYST_MAX_HYSTERONS),
+            ),
         ),
     ) <= MODEL_MAX_VALUES
 );
@@ -120,8 +141,13 @@ pub struct Dims {
     pub springs: usize,
     /// Read-outs (the reduced model).
     pub outputs: usize,
-    /// Of the laws (yielding stories or latent springs), those of Bouc–Wen's (the costlier law).
+    /// Of the laws (yielding stories or latent springs), those of Bouc–Wen's (the costlier law);
+    /// of a floor-hysteron model's hysterons, the Menegotto–Pinto ones (the costlier operator).
     pub bouc_wen: usize,
+    /// The directions a floor-hysteron model's hysterons act along.
+    pub directions: usize,
+    /// A floor-hysteron model's hysterons.
+    pub hysterons: usize,
 }
 
 /// The hidden size of an RNN model of `values` values ([`rnn_value_count`]'s inverse), if any.
@@ -148,6 +174,10 @@ pub fn count_fits(kind: ModelKind, values: usize) -> Result<(), LayoutError> {
         ModelKind::StructureReduced => {
             values >= reduced_value_count(1, 0)
                 && values <= reduced_value_count(REDUCED_MAX_MODES, REDUCED_MAX_OUTPUTS)
+        }
+        ModelKind::StructureHysteron => {
+            values >= hysteron_value_count(1, 1, 1)
+                && values <= hysteron_value_count(MAX_DOF, HYST_MAX_DIRECTIONS, HYST_MAX_HYSTERONS)
         }
     };
     if ok {
@@ -233,6 +263,50 @@ fn structure_dims(
     Ok((n, dof, laws))
 }
 
+/// A floor-hysteron model's header, read.
+struct HysteronHeader {
+    floors: usize,
+    directions: usize,
+    hysterons: usize,
+    specimen_floor: usize,
+    specimen_k: f64,
+    operator: HysteronOperator,
+}
+
+/// The header of a `StructureHysteron` model (its sizes in the controller's capacities; its
+/// operator flag whole, its shape checked by core: `Value` for a shape out of range).
+fn hysteron_header(r: &mut Reader<'_>) -> Result<HysteronHeader, LayoutError> {
+    let floors = r.count(1, MAX_DOF)?;
+    let directions = r.count(1, HYST_MAX_DIRECTIONS)?;
+    let hysterons = r.count(1, HYST_MAX_HYSTERONS)?;
+    let specimen_floor = r.count(0, floors - 1)?;
+    let specimen_k = r.one()?;
+    let flag = whole(r.one()?, 0, 1).map_err(|_| LayoutError::Value)?;
+    let (r0, cr1, cr2) = (r.one()?, r.one()?, r.one()?);
+    let operator = if flag == 0 {
+        // The play has no shape: its three values are 0, never read.
+        if [r0, cr1, cr2] != [0.0; 3] {
+            return Err(LayoutError::Value);
+        }
+        HysteronOperator::Play
+    } else {
+        if hysterons > HYST_MAX_MP {
+            return Err(LayoutError::Shape);
+        }
+        HysteronOperator::MenegottoPinto(
+            MpShape::new(r0, cr1, cr2).map_err(|_| LayoutError::Value)?,
+        )
+    };
+    Ok(HysteronHeader {
+        floors,
+        directions,
+        hysterons,
+        specimen_floor,
+        specimen_k,
+        operator,
+    })
+}
+
 /// The sizes of a `kind` model of `values` (every size it announces checked against its count and
 /// the controller's capacities): `Err(Shape)` for values that are no model of the kind.
 pub fn dims(kind: ModelKind, values: &[f64]) -> Result<Dims, LayoutError> {
@@ -282,6 +356,22 @@ pub fn dims(kind: ModelKind, values: &[f64]) -> Result<Dims, LayoutError> {
             Dims {
                 modes: m,
                 outputs: o,
+                ..Dims::default()
+            }
+        }
+        ModelKind::StructureHysteron => {
+            let h = hysteron_header(&mut r)?;
+            r.take(hysteron_value_count(h.floors, h.directions, h.hysterons) - HYSTERON_HEADER)?;
+            r.end()?;
+            Dims {
+                dofs: h.floors,
+                directions: h.directions,
+                hysterons: h.hysterons,
+                bouc_wen: if h.operator == HysteronOperator::Play {
+                    0
+                } else {
+                    h.hysterons
+                },
                 ..Dims::default()
             }
         }
@@ -474,6 +564,30 @@ pub fn with_spec<R>(
                 },
             }))
         }
+        ModelKind::StructureHysteron => {
+            let h = hysteron_header(&mut r)?;
+            let n = h.floors;
+            let (mass, damping, stiffness) = (r.take(n * n)?, r.take(n * n)?, r.take(n * n)?);
+            let ground_mass = r.take(n)?;
+            let directions = r.take(h.directions * n)?;
+            let hysterons = r.take(HYSTERON_VALUES * h.hysterons)?;
+            Ok(f(&ModelSpec::StructureHysteron {
+                model: FloorHysteronSpec {
+                    floors: FloorStructure {
+                        floors: n,
+                        mass,
+                        damping,
+                        stiffness,
+                        ground_mass,
+                        specimen_floor: h.specimen_floor,
+                        specimen_k_kn_per_mm: h.specimen_k,
+                    },
+                    directions,
+                    hysterons,
+                    operator: h.operator,
+                },
+            }))
+        }
     }
 }
 
@@ -490,6 +604,7 @@ pub fn kind_of(spec: &ModelSpec<'_>) -> Result<ModelKind, LayoutError> {
         ModelSpec::StructureMeta { .. } => ModelKind::StructureMeta,
         ModelSpec::StructureModal { .. } => ModelKind::StructureModal,
         ModelSpec::StructureReduced { .. } => ModelKind::StructureReduced,
+        ModelSpec::StructureHysteron { .. } => ModelKind::StructureHysteron,
     })
 }
 
@@ -667,6 +782,40 @@ pub fn lay_out(spec: &ModelSpec<'_>, out: &mut [f64]) -> Result<(ModelKind, usiz
                 w.all(&[c.ground_mm_per_mm_s2, c.force_mm_per_kn])?;
             }
         }
+        ModelSpec::StructureHysteron { model } => {
+            let fl = &model.floors;
+            let n = fl.floors;
+            let sq = n * n;
+            if [fl.mass.len(), fl.damping.len(), fl.stiffness.len()] != [sq; 3]
+                || fl.ground_mass.len() != n
+                || n == 0
+                || model.directions.len() % n != 0
+                || model.hysterons.len() % HYSTERON_VALUES != 0
+            {
+                return Err(LayoutError::Shape);
+            }
+            let (flag, [r0, cr1, cr2]) = match model.operator {
+                HysteronOperator::Play => (0.0, [0.0; 3]),
+                HysteronOperator::MenegottoPinto(m) => (1.0, [m.r0(), m.cr1(), m.cr2()]),
+            };
+            w.all(&[
+                n as f64,
+                (model.directions.len() / n) as f64,
+                (model.hysterons.len() / HYSTERON_VALUES) as f64,
+                fl.specimen_floor as f64,
+                fl.specimen_k_kn_per_mm,
+                flag,
+                r0,
+                cr1,
+                cr2,
+            ])?;
+            w.all(fl.mass)?;
+            w.all(fl.damping)?;
+            w.all(fl.stiffness)?;
+            w.all(fl.ground_mass)?;
+            w.all(model.directions)?;
+            w.all(model.hysterons)?;
+        }
     }
     let n = w.n;
     // What the device will read back: the same sizes, or the spec does not fit its kind.
@@ -722,7 +871,8 @@ pub fn rig_value_count(kind: ModelKind) -> Option<usize> {
         | ModelKind::StructureNl
         | ModelKind::StructureMeta
         | ModelKind::StructureModal
-        | ModelKind::StructureReduced => Some(STRUCTURE_RIG_VALUES),
+        | ModelKind::StructureReduced
+        | ModelKind::StructureHysteron => Some(STRUCTURE_RIG_VALUES),
     }
 }
 

@@ -540,6 +540,9 @@ pub enum ModelKind {
     StructureModal,
     /// The reduced-order modal model of an imported structure (`rths train meta` on it).
     StructureReduced,
+    /// The learned floor-hysteron metamodel of a yielding structure (`rths train nonlinear`,
+    /// issue 25; appended).
+    StructureHysteron,
 }
 
 /// The supervisor's state, as sent.

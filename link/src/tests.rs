@@ -173,6 +173,7 @@ fn any_kind() -> impl Strategy<Value = ModelKind> {
         Just(ModelKind::StructureMeta),
         Just(ModelKind::StructureModal),
         Just(ModelKind::StructureReduced),
+        Just(ModelKind::StructureHysteron),
     ]
 }
 

@@ -21,6 +21,8 @@ pub enum ModelKindArg {
     Meta,
     /// Nonlinear modal-hysteretic metamodel (`rths train nonlinear`).
     Nonlinear,
+    /// Nonlinear floor-hysteron metamodel (`rths train nonlinear`, `--form floor-hysteron`).
+    FloorHysteron,
 }
 
 impl ModelKindArg {
@@ -32,6 +34,7 @@ impl ModelKindArg {
             ModelKindArg::Lrx => "lrx",
             ModelKindArg::Meta => rths_files::structure_meta::META_KIND,
             ModelKindArg::Nonlinear => rths_files::nl_model_file::NL_KIND,
+            ModelKindArg::FloorHysteron => rths_files::hysteron_model_file::HYSTERON_KIND,
         }
     }
 }
@@ -90,6 +93,39 @@ pub fn check(path: &std::path::Path, kind: Option<ModelKindArg>) -> Result<Strin
     let mut s = String::new();
     let _ = writeln!(s, "{}: valid rths model file", path.display());
     match (tags.format.as_deref(), file_kind.as_str()) {
+        (
+            Some(rths_files::nl_model_file::NL_FORMAT),
+            rths_files::hysteron_model_file::HYSTERON_KIND,
+        ) => {
+            let m = rths_files::hysteron_model_file::HysteronModelFile::from_json(&text)
+                .map_err(|e| reject(e.to_string()))?;
+            rths_files::rate::check_dt(
+                "the nonlinear model",
+                m.dt_s,
+                rths_core::params::DT_S,
+                &format!(
+                    "rths train nonlinear --structure {}.json --histories ... --out FILE",
+                    m.structure.name
+                ),
+            )
+            .map_err(|e| reject(e.to_string()))?;
+            let _ = writeln!(s, "format / version  {} / {}", m.format, m.version);
+            let _ = writeln!(s, "kind              {}", m.kind);
+            let _ = writeln!(
+                s,
+                "structure         {} ({})",
+                m.structure.name, m.structure.checksum
+            );
+            let _ = writeln!(s, "dt_s              {:e}", m.dt_s);
+            let _ = writeln!(
+                s,
+                "floors / directions / hysterons   {} / {} / {}",
+                m.floors.len(),
+                m.directions.len(),
+                m.hysterons.len()
+            );
+            return Ok(s);
+        }
         (Some(rths_files::nl_model_file::NL_FORMAT), _) => {
             let m = rths_files::nl_model_file::NlModelFile::from_json(&text)
                 .map_err(|e| reject(e.to_string()))?;

@@ -576,7 +576,7 @@ fn scenario_of(kind: rths_link::ModelKind, compensated: bool) -> &'static str {
         // The shipped RNN is the 10-unit one.
         (K::Rnn, _) => "rnn-online-10",
         (K::FeAts, _) => "fe-online-ats",
-        (K::StructureModal, true) => "nl-online",
+        (K::StructureModal | K::StructureHysteron, true) => "nl-online",
         (K::StructureReduced | K::StructureMeta, true) => "meta-online",
         (K::StructureFe | K::StructureNl, true) => "fe-online-lead",
         (K::StructureFe, false) => "structure-fe",
@@ -584,6 +584,7 @@ fn scenario_of(kind: rths_link::ModelKind, compensated: bool) -> &'static str {
         (K::StructureMeta, false) => "structure-meta",
         (K::StructureModal, false) => "structure-modal",
         (K::StructureReduced, false) => "structure-reduced",
+        (K::StructureHysteron, false) => "structure-hysteron",
     }
 }
 
@@ -713,21 +714,23 @@ fn upload_rig(
     Ok(c)
 }
 
-/// Upload the analytical part the files name: a model file alone (`upload_model`), or a
-/// structure's part (its finite elements, or with `model` its model); the structure's part laid
-/// out, for its rig compensation.
+/// Upload the analytical part the files name: a model file alone (`upload_model`; a floor-hysteron
+/// model alone is a structure's part), or a structure's part (its finite elements, or with `model`
+/// its model); the structure's part laid out, for its rig compensation.
 fn upload_part(
     link: &mut Link,
     model: Option<&std::path::Path>,
     structure: Option<&std::path::Path>,
 ) -> anyhow::Result<Option<rths_files::upload::LaidOut>> {
-    let Some(s) = structure else {
+    // A floor-hysteron model carries its floors: it goes alone as a structure's part.
+    let alone = structure.is_none() && model.is_some_and(rths_files::upload::is_self_contained);
+    if structure.is_none() && !alone {
         if let Some(p) = model {
             upload_model(link, p)?;
         }
         return Ok(None);
-    };
-    let laid = rths_files::upload::lay_out_files(model, Some(s), rths_core::params::DT_S)?;
+    }
+    let laid = rths_files::upload::lay_out_files(model, structure, rths_core::params::DT_S)?;
     let c = link
         .upload_laid_out(&laid)
         .map_err(|e| with_budget_reason(e, || budget_figures_laid(&laid, false)))?;

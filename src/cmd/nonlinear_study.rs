@@ -158,8 +158,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             return Ok(Some(Analytical::StructureModal(m)));
         }
         if model::SHIPPED.iter().any(|(n, _)| *n == s.name()) {
-            let m = model::for_structure(None, s.name(), text)?;
-            return Ok(Some(Analytical::StructureModal(m)));
+            return Ok(Some(model::for_structure(None, s.name(), text)?));
         }
         Ok(None)
     };

@@ -1,7 +1,6 @@
 //! `rths simulate`: one hybrid-simulation scenario in closed loop against the virtual plant.
 
 use anyhow::Context;
-use rths_core::control::Analytical;
 use rths_core::params::{DT_S, PAPER_DELAY_STEPS};
 use rths_hal_sim::{BoucWen, Preset, Specimen};
 
@@ -308,13 +307,13 @@ fn run_structure(
         _ => None,
     };
     let learned = match sc {
-        SimScenario::NlPure | SimScenario::NlOnline => Some(Analytical::StructureModal(
-            crate::machinery::structure::model::for_structure(
+        SimScenario::NlPure | SimScenario::NlOnline => {
+            Some(crate::machinery::structure::model::for_structure(
                 args.model.as_deref(),
                 &name,
                 structure_json,
-            )?,
-        )),
+            )?)
+        }
         _ => None,
     };
     let (report, series) = nl::run_scenario(

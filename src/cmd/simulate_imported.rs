@@ -52,6 +52,9 @@ pub fn run(
     motion_label: &str,
 ) -> anyhow::Result<()> {
     let sc = args.scenario;
+    if matches!(sc, SimScenario::NlPure | SimScenario::NlOnline) {
+        return crate::cmd::simulate_imported_nl::run(args, path, text, ag_mm_s2, motion_label);
+    }
     if sc == SimScenario::MetaOnline {
         let s = ImportedStructure::from_json(text)
             .with_context(|| format!("structure file {}", path.display()))?;

@@ -47,6 +47,18 @@ pub enum OnOff {
     Off,
 }
 
+/// The nonlinear metamodel's form.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum NlFormArg {
+    /// Train both forms where both apply (a story structure with 3 or more histories) and keep the
+    /// one with the lower loss on the held-out histories.
+    Auto,
+    /// One latent spring per story on the elastic modes.
+    ModalHysteretic,
+    /// The elastic floors plus play operators on the drifts (any structure, from histories).
+    FloorHysteron,
+}
+
 /// The nonlinear metamodel's spring family.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum NlLawArg {
@@ -165,6 +177,21 @@ pub struct Args {
     /// Nonlinear: the latent springs' law family (`auto`: train both, keep the lower loss).
     #[arg(long, value_enum, default_value_t = NlLawArg::Auto)]
     pub law: NlLawArg,
+    /// Nonlinear: the model's form (`auto`: with 3 or more histories of a story structure, both
+    /// forms are trained and the one with the lower loss on the held-out histories is kept; an
+    /// imported structure takes the floor-hysteron form).
+    #[arg(long, value_enum, default_value_t = NlFormArg::Auto)]
+    pub form: NlFormArg,
+    /// Nonlinear, floor-hysteron form: Levenberg–Marquardt steps of the refinement on the
+    /// simulation error after the least-squares fit, at most (0: the least-squares fit alone); it
+    /// stops earlier on the validation histories (every third held out of the fit), and does not
+    /// run with fewer than 3 histories (none held out to stop on).
+    #[arg(long, default_value_t = crate::machinery::train::nonlinear::refine::RefineConfig::default().max_iterations)]
+    pub refine_steps: usize,
+    /// Nonlinear `--evaluate --histories`: score the hybrid loop too (the virtual rig, identified
+    /// compensation, force correction: `nl-online`) against each held-out history.
+    #[arg(long)]
+    pub hybrid: bool,
     /// Nonlinear: modes kept (default: as many as the structure's DOFs).
     #[arg(long)]
     pub modes: Option<usize>,
@@ -538,7 +565,9 @@ fn train_meta(args: &Args) -> anyhow::Result<()> {
 // ---- `rths train nonlinear` (issue 16) ----
 
 fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
-    use crate::machinery::train::nonlinear::{train, NlTrainConfig, SpringLaw};
+    use crate::machinery::train::nonlinear::choose::{train_form, Form, TrainedForm};
+    use crate::machinery::train::nonlinear::{NlTrainConfig, SpringLaw};
+    let t0 = std::time::Instant::now();
     let path = args
         .structure
         .as_ref()
@@ -557,6 +586,7 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
             .collect::<anyhow::Result<Vec<_>>>()?;
     }
     cfg.histories = args.histories.clone();
+    cfg.refine.max_iterations = args.refine_steps;
     cfg.generations = args.generations;
     cfg.stage1_generations = args.stage1_generations;
     cfg.force_noise = args.force_noise == OnOff::On;
@@ -573,17 +603,47 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
     };
     bar.set_style(
         indicatif::ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:40}] {pos}/{len} generations (stage 1 per spring, then \
-             stage 2), best loss {msg}",
+            "{elapsed_precise} [{bar:40}] {pos}/{len} (modal-hysteretic: generations of stage 1 \
+             per spring, then stage 2; floor-hysteron: refinement steps) {msg}",
         )
         .context("progress bar template")?,
     );
-    let t = train(&text, &cfg, |g, total, l| {
+    let form = match args.form {
+        NlFormArg::Auto => Form::Auto,
+        NlFormArg::ModalHysteretic => Form::Modal,
+        NlFormArg::FloorHysteron => Form::Hysteron,
+    };
+    let (trained, choice) = train_form(&text, &cfg, form, |g, total, what| {
         bar.set_length(total as u64);
         bar.set_position(g as u64);
-        bar.set_message(format!("{l:.3}%"));
+        bar.set_message(what);
     })?;
     bar.finish_and_clear();
+    if let Some(c) = &choice {
+        if c.losses_pct.is_empty() {
+            crate::outln!("form: {}", c.reason);
+        } else {
+            let l: Vec<String> = c
+                .losses_pct
+                .iter()
+                .map(|(f, v)| format!("{f} {v:.3}%"))
+                .collect();
+            crate::outln!(
+                "form chosen on the held-out histories {}: {}; kept the {} form ({})",
+                c.held_out.join(", "),
+                l.join(", "),
+                match &trained {
+                    TrainedForm::Modal(_) => "modal-hysteretic",
+                    TrainedForm::Hysteron(_) => "floor-hysteron",
+                },
+                c.reason
+            );
+        }
+    }
+    let t = match trained {
+        TrainedForm::Hysteron(f) => return report_hysteron(args, &f, t0),
+        TrainedForm::Modal(t) => t,
+    };
     let tr = &t.file.training;
     crate::outln!(
         "modal-hysteretic model of {} ({} modes, {} springs), seed {}: stage 1 {} generations \
@@ -643,6 +703,82 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
     crate::outln!("  wall time: {:.1} s", t.wall_time_s);
     t.file
         .save(&args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    crate::outln!("wrote {}", args.out.display());
+    Ok(())
+}
+
+/// Print and write a trained floor-hysteron model.
+fn report_hysteron(
+    args: &Args,
+    f: &rths_files::hysteron_model_file::HysteronModelFile,
+    t0: std::time::Instant,
+) -> anyhow::Result<()> {
+    let t = &f.training;
+    crate::outln!(
+        "floor-hysteron model of {} ({} floors: {}; {} directions, {} hysterons with weight; \
+         operator: {})",
+        f.structure.name,
+        f.floors.len(),
+        f.floors.join(", "),
+        f.directions.len(),
+        f.hysterons.len(),
+        f.operator.describe()
+    );
+    if !t.operators_tried.is_empty() {
+        let best = t
+            .operators_tried
+            .iter()
+            .map(|(_, l)| *l)
+            .fold(f64::INFINITY, f64::min);
+        let play = t
+            .operators_tried
+            .iter()
+            .filter(|(d, _)| d.starts_with("play,"))
+            .map(|(_, l)| *l)
+            .fold(None, |m: Option<f64>, l| Some(m.map_or(l, |m| m.min(l))))
+            .map(|l| ((), l))
+            .map_or(f64::NAN, |(_, l)| l);
+        crate::outln!(
+            "  basis chosen among {} (operator, threshold range) after least squares on the \
+             validation histories: the best play {play:.3}%, the kept {best:.3}%",
+            t.operators_tried.len()
+        );
+    }
+    crate::outln!(
+        "  restoring-force fit residual {:.2}% (RMS, of the recovered force); tangent scale {:.4}",
+        t.force_fit_pct,
+        t.stability_scale,
+    );
+    let pct = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.3}%"));
+    match &t.refinement {
+        Some(r) => crate::outln!(
+            "  refined on the simulation error: {} Levenberg–Marquardt steps, kept step {} ({}); \
+             stiffness × {:.4}, damping × {:.4}",
+            r.steps,
+            r.kept_step,
+            r.stopped,
+            r.stiffness_scale,
+            r.damping_scale
+        ),
+        None if t.validation_loss_pct.is_none() => crate::outln!(
+            "  not refined: no validation histories to stop on (fewer than 3 given, or \
+             --refine-steps 0)"
+        ),
+        None => crate::outln!("  not refined (--refine-steps 0)"),
+    }
+    crate::outln!(
+        "  mean floor NRMSE of the pure loop: training {} after least squares, {:.3}% kept; \
+         validation {}",
+        pct(t.least_squares_loss_pct),
+        t.train_loss_pct,
+        pct(t.validation_loss_pct)
+    );
+    for r in &t.runs {
+        crate::outln!("  trained on {r}");
+    }
+    crate::outln!("  wall time: {:.1} s", t0.elapsed().as_secs_f64());
+    f.save(&args.out)
         .with_context(|| format!("writing {}", args.out.display()))?;
     crate::outln!("wrote {}", args.out.display());
     Ok(())
@@ -732,9 +868,18 @@ const NL_SCORING_DUCTILITIES: [f64; 3] = [0.8, 2.0, 4.5];
 
 fn evaluate_nonlinear(args: &Args, path: &std::path::Path, text: &str) -> anyhow::Result<()> {
     use rayon::prelude::*;
-    let file = rths_files::nl_model_file::NlModelFile::load(&args.out)?;
-    file.check_structure(text)
+    use rths_files::hysteron_model_file::AnyNlModel;
+    let any = AnyNlModel::load(&args.out)?;
+    any.check_structure(text)
         .with_context(|| format!("model {} for {}", args.out.display(), path.display()))?;
+    let imported = crate::machinery::imported::file::is_imported(text);
+    let modal_story = matches!(any, AnyNlModel::Modal(_)) && !imported && !args.hybrid;
+    if !modal_story {
+        return evaluate_floors(args, path, text, &any);
+    }
+    let AnyNlModel::Modal(file) = any else {
+        anyhow::bail!("unreachable: a modal-hysteretic model expected");
+    };
     let s = rths_files::structure_file::Structure::from_json(text)?;
     if !args.histories.is_empty() {
         // Held-out runs of the lab's FE program (e.g. OpenSees's own run of a held-out record):
@@ -770,6 +915,156 @@ fn evaluate_nonlinear(args: &Args, path: &std::path::Path, text: &str) -> anyhow
         })
         .collect::<Result<Vec<_>, _>>()?;
     print_nl_rows(args, &s, "FE reference", &rows)
+}
+
+/// `--evaluate` of either form in the floors' coordinates (a floor-hysteron model, an imported
+/// structure, or `--hybrid`): the pure loop, and with `--hybrid` the hybrid loop, against the
+/// held-out histories (or, for a story structure without them, its FE reference on the scoring
+/// records at peak ductility 0.8, 2 and 4.5).
+fn evaluate_floors(
+    args: &Args,
+    path: &std::path::Path,
+    text: &str,
+    any: &rths_files::hysteron_model_file::AnyNlModel,
+) -> anyhow::Result<()> {
+    use crate::machinery::train::nonlinear::floors::{read_runs, FloorModel, FloorRun};
+    use crate::machinery::train::nonlinear::score::Learned;
+    use crate::studies::nonlinear::held_out::{score_run, HybridRig};
+    use rayon::prelude::*;
+    let fm = FloorModel::from_json(text)?;
+    let runs: Vec<FloorRun> = if args.histories.is_empty() {
+        anyhow::ensure!(
+            fm.stories,
+            "--evaluate of {} needs the held-out histories: --histories FILE...",
+            path.display()
+        );
+        let s = rths_files::structure_file::Structure::from_json(text)?;
+        anyhow::ensure!(
+            s.story_laws().is_some(),
+            "--evaluate of {} without --histories needs the structure's own yielding stories \
+             (its FE is the reference): give the held-out histories",
+            path.display()
+        );
+        let motions = NL_SCORING
+            .iter()
+            .map(|n| crate::studies::nonlinear::study::record(n))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let jobs: Vec<(&crate::machinery::motion::GroundMotion, f64)> = motions
+            .iter()
+            .flat_map(|m| NL_SCORING_DUCTILITIES.iter().map(move |d| (m, *d)))
+            .collect();
+        jobs.par_iter()
+            .map(|(m, d)| -> anyhow::Result<FloorRun> {
+                let scale =
+                    crate::machinery::train::nonlinear::runs::scale_for_ductility(&s, m, *d, DT_S)?;
+                let r = crate::machinery::train::nonlinear::runs::fe_run(&s, m, scale, DT_S)?;
+                Ok(FloorRun {
+                    label: r.label,
+                    specimen_force_kn: Vec::new(),
+                    ground_accel_mm_s2: r.ground_accel_mm_s2,
+                    floor_disp_mm: r.floor_disp_mm,
+                })
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?
+    } else {
+        let paths: Vec<&std::path::Path> = args.histories.iter().map(|p| p.as_path()).collect();
+        read_runs(&fm, &paths, DT_S)?
+    };
+    let model = Learned::of(any, DT_S)?;
+    let k_e = fm.specimen_k_kn_per_mm;
+    let rig = if args.hybrid {
+        Some(HybridRig::identified(
+            &fm.name,
+            rths_hal_sim::Preset::UnrCompact,
+            args.seed,
+        )?)
+    } else {
+        None
+    };
+    let rows = runs
+        .par_iter()
+        .map(|r| score_run(&model, k_e, r, rig.as_ref()))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    crate::outln!(
+        "{} model {} of {} against {} ({} Hz); NRMSE at the interface ({}), residual drift at \
+         the story with the largest reference residual:",
+        model.form(),
+        args.out.display(),
+        fm.name,
+        if args.histories.is_empty() {
+            "the FE reference"
+        } else {
+            "the held-out histories"
+        },
+        (1.0 / DT_S).round(),
+        fm.columns[fm.specimen_floor]
+    );
+    crate::outln!("| run | peak interface (mm) | pure NRMSE (%) | pure floors (%) | pure residual error (%) | hybrid NRMSE, measured (%) | hybrid NRMSE, model (%) | hybrid residual error (%) | hybrid / pure | L |");
+    crate::outln!("|---|---|---|---|---|---|---|---|---|---|");
+    let f = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.3}"));
+    let (mut pure, mut hyb, mut res_p, mut res_h, mut ratio) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for r in &rows {
+        let floors: Vec<String> = r.pure.floor_nrmse_pct.iter().map(|v| f(*v)).collect();
+        let rp = r.residual_error_pct(&r.pure);
+        let (hn, rh) = match &r.hybrid {
+            Some(h) if h.stopped.is_none() => (h.interface_nrmse_pct, r.residual_error_pct(h)),
+            _ => (None, None),
+        };
+        let q = match (hn, r.pure.interface_nrmse_pct) {
+            (Some(a), Some(b)) if b > 0.0 => Some(a / b),
+            _ => None,
+        };
+        crate::outln!(
+            "| {} | {:.1} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.label,
+            r.peak_interface_mm,
+            f(r.pure.interface_nrmse_pct),
+            floors.join(" / "),
+            f(rp),
+            match &r.hybrid {
+                Some(h) => match &h.stopped {
+                    Some(why) => format!("stopped ({why})"),
+                    None => f(hn),
+                },
+                None => "—".into(),
+            },
+            f(r.hybrid.as_ref().and_then(|h| h.model_interface_nrmse_pct)),
+            f(rh),
+            f(q),
+            r.length_scale
+        );
+        pure.extend(r.pure.interface_nrmse_pct);
+        hyb.extend(hn);
+        res_p.extend(rp);
+        res_h.extend(rh);
+        ratio.extend(q);
+    }
+    let stat = |v: &mut Vec<f64>| -> String {
+        if v.is_empty() {
+            return "—".into();
+        }
+        v.sort_by(f64::total_cmp);
+        format!("median {:.3}%, max {:.3}%", v[v.len() / 2], v[v.len() - 1])
+    };
+    crate::outln!(
+        "pure loop: NRMSE {}; residual drift error {} ({} of {} runs with a residual of 0.1 mm or \
+         more)",
+        stat(&mut pure),
+        stat(&mut res_p),
+        res_p.len(),
+        rows.len()
+    );
+    if args.hybrid {
+        let worst = ratio.iter().copied().fold(f64::NAN, f64::max);
+        crate::outln!(
+            "hybrid loop (the measured interface): NRMSE {}; residual drift error {}; hybrid / pure \
+             at most {worst:.2}",
+            stat(&mut hyb),
+            stat(&mut res_h)
+        );
+    }
+    Ok(())
 }
 
 /// The evaluation table of `rows`, their NRMSE median and max and the worst residual-drift error.

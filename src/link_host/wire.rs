@@ -324,6 +324,7 @@ pub fn model_kind_name(k: WireModelKind) -> &'static str {
         WireModelKind::StructureMeta => "structure-meta",
         WireModelKind::StructureModal => "structure-modal",
         WireModelKind::StructureReduced => "structure-reduced",
+        WireModelKind::StructureHysteron => "structure-hysteron",
     }
 }
 

@@ -323,7 +323,8 @@ fn c_of(delay_s: f64) -> u32 {
     rths_link::model_values_checksum(ModelKind::FeAts, &[delay_s], 28)
 }
 
-/// A structure's finite elements (N = 2, linear) and its modal-hysteretic model, uploaded to an LR
+/// A structure's finite elements (N = 2, linear), its modal-hysteretic and its floor-hysteron
+/// model (plays, Menegotto–Pinto), uploaded to an LR
 /// image: built as core's assembly builds them; a part the tick cannot run refused `TickBudget`,
 /// values that announce other sizes than they have `Shape`.
 #[test]
@@ -370,7 +371,34 @@ fn any_image_takes_a_structure_part_built_as_core_assembles_it() {
             drift: &[0.7],
         },
     };
-    for spec in [fe, modal] {
+    // The floor-hysteron model of the same floors: its story drifts, 3 plays and 1 Menegotto–Pinto
+    // model of the same hysterons.
+    let dirs = [1.0, 0.0, -1.0, 1.0];
+    let hyst = [0.0, 1.0, 40.0, 1.0, 2.0, 30.0, 0.0, 4.0, 20.0];
+    let floors = rths_core::metamodel::FloorStructure {
+        floors: 2,
+        mass: &m,
+        damping: &c,
+        stiffness: &k,
+        ground_mass: &gm,
+        specimen_floor: 0,
+        specimen_k_kn_per_mm: 50.0,
+    };
+    let hysteron = |operator| ModelSpec::StructureHysteron {
+        model: rths_core::control::FloorHysteronSpec {
+            floors,
+            directions: &dirs,
+            hysterons: &hyst,
+            operator,
+        },
+    };
+    let mp = rths_core::metamodel::MpShape::new(20.0, 0.925, 0.15).unwrap();
+    for spec in [
+        fe,
+        modal,
+        hysteron(rths_core::metamodel::HysteronOperator::Play),
+        hysteron(rths_core::metamodel::HysteronOperator::MenegottoPinto(mp)),
+    ] {
         let mut v = vec![0.0; MODEL_MAX_VALUES];
         let (kind, n) = rths_link::layout::lay_out(&spec, &mut v).unwrap();
         v.truncate(n);

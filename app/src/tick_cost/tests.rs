@@ -116,3 +116,25 @@ fn the_structure_estimates_are_never_below_a_measured_row_and_close_to_it() {
         }
     ));
 }
+
+#[test]
+fn the_floor_hysteron_estimate_is_its_measured_m7_row_and_the_m4_refuses_it() {
+    let k = ModelKind::StructureHysteron;
+    let dims = |directions, hysterons, mp| Dims {
+        dofs: 3,
+        directions,
+        hysterons,
+        bouc_wen: mp,
+        ..Dims::default()
+    };
+    // The measured row: 3 floors, 6 directions, 6 plays, nl-online on the M7: 8,010 max.
+    assert_eq!(M7_4096.instr_with_rig(k, &dims(6, 6, 0)), 8_010.0);
+    let (play, mp) = (
+        M7_4096.instr_dims(k, &dims(6, 18, 0)),
+        M7_4096.instr_dims(k, &dims(6, 18, 18)),
+    );
+    assert!(8_010.0 < play && play < mp, "{play} {mp}");
+    assert!(M7_4096.fits_dims(k, &dims(6, 18, 0)));
+    // Not measured on the M4: refused.
+    assert!(!M4_2048.fits_dims(k, &dims(1, 1, 0)));
+}

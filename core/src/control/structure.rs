@@ -11,8 +11,9 @@
 
 use crate::hysteresis::Law;
 use crate::metamodel::{
-    ModalHyst, ModalHystParams, ModalMode, ModelError, ReducedModal, ReducedModalParams,
-    ReducedMode, StaticCorrection, MODAL_MAX_SPRINGS,
+    FloorHysteron, FloorHysteronParams, FloorStructure, Hysteron, HysteronOperator, ModalHyst,
+    ModalHystParams, ModalMode, ModelError, ReducedModal, ReducedModalParams, ReducedMode,
+    StaticCorrection, HYST_MAX_DIRECTIONS, HYST_MAX_HYSTERONS, MODAL_MAX_SPRINGS,
 };
 use crate::params::ParamError;
 use crate::structure_n::{ChangN, StructureN, MAX_DOF};
@@ -378,6 +379,118 @@ impl StructureModal {
     }
 
     /// Back to rest, every spring virgin.
+    pub fn reset(&mut self) {
+        self.model.reset();
+        self.started = false;
+    }
+}
+
+/// Values of one hysteron in [`FloorHysteronSpec::hysterons`]: its direction's index (a whole
+/// number), threshold (mm) and weight (kN/mm).
+pub const HYSTERON_VALUES: usize = 3;
+
+/// The floor-hysteron metamodel's arrays, raw, as a model file or an upload carries them (the
+/// floors' matrices row-major; validated by [`Self::params`]). Its parameters are continuous-time
+/// matrices and rate-independent operators: the step is the controller's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FloorHysteronSpec<'a> {
+    /// The elastic floors.
+    pub floors: FloorStructure<'a>,
+    /// The directions, directions × floors, row-major (1..=[`HYST_MAX_DIRECTIONS`]).
+    pub directions: &'a [f64],
+    /// The hysterons, [`HYSTERON_VALUES`] each (1..=[`HYST_MAX_HYSTERONS`]).
+    pub hysterons: &'a [f64],
+    /// Every hysteron's operator.
+    pub operator: HysteronOperator,
+}
+
+impl FloorHysteronSpec<'_> {
+    /// The validated parameters at control step `dt_s`.
+    pub fn params(&self, dt_s: f64) -> Result<FloorHysteronParams, ModelError> {
+        let len = self.hysterons.len();
+        let h = len / HYSTERON_VALUES;
+        if h == 0 || h > HYST_MAX_HYSTERONS || h * HYSTERON_VALUES != len {
+            return Err(ModelError::Shape {
+                what: "hysterons (1..=64, 3 values each)",
+                expected: HYSTERON_VALUES * h.clamp(1, HYST_MAX_HYSTERONS),
+                got: len,
+            });
+        }
+        let mut hs = [Hysteron {
+            direction: 0,
+            threshold_mm: 1.0,
+            weight_kn_per_mm: 0.0,
+        }; HYST_MAX_HYSTERONS];
+        for (dst, v) in hs
+            .iter_mut()
+            .zip(self.hysterons.chunks_exact(HYSTERON_VALUES))
+        {
+            let &[direction, threshold_mm, weight_kn_per_mm] = v else {
+                return Err(ParamError::OutOfRange("hysteron (3 values)").into());
+            };
+            // In range first: then the cast is exact, and a fraction does not survive it.
+            let whole = direction >= 0.0
+                && direction < HYST_MAX_DIRECTIONS as f64
+                && (direction as usize) as f64 == direction;
+            if !whole {
+                return Err(
+                    ParamError::OutOfRange("hysteron direction (no such direction)").into(),
+                );
+            }
+            *dst = Hysteron {
+                direction: direction as usize,
+                threshold_mm,
+                weight_kn_per_mm,
+            };
+        }
+        FloorHysteronParams::new(
+            dt_s,
+            &self.floors,
+            self.directions,
+            hs.get(..h).unwrap_or(&[]),
+        )?
+        .with_operator(self.operator)
+    }
+}
+
+/// The floor-hysteron metamodel ([`FloorHysteron`]) as the controller steps it: tick 0 rests it
+/// under `ü_g(0)`, each later tick completes the step with `ü_g(k)` and the measured force.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StructureHysteron {
+    model: FloorHysteron,
+    started: bool,
+}
+
+impl StructureHysteron {
+    /// The model of `params`, at rest.
+    pub fn new(params: FloorHysteronParams) -> Self {
+        Self {
+            model: FloorHysteron::new(params),
+            started: false,
+        }
+    }
+
+    /// The model (its floors' and hysterons' state).
+    pub fn model(&self) -> &FloorHysteron {
+        &self.model
+    }
+
+    /// As [`StructureFe::next_target`]; a step that would overflow is refused (state unchanged).
+    #[inline]
+    pub fn next_target(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
+        finite_inputs(ag_mm_s2, force_kn)?;
+        if self.started {
+            self.model
+                .step(ag_mm_s2, force_kn)
+                .map_err(|_| super::StepError::NonFiniteOutput)
+        } else {
+            self.model.reset_at(ag_mm_s2);
+            self.started = true;
+            Ok(self.model.target_mm())
+        }
+    }
+
+    /// Back to rest, every hysteron virgin.
     pub fn reset(&mut self) {
         self.model.reset();
         self.started = false;

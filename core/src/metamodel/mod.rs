@@ -1,6 +1,7 @@
 //! Metamodel inference (docs/design.md §5): the linear-regression (LR) model of the paper's Eq. 6 with a bias,
 //! a basic Elman RNN, and the specimen-faithful LRX, one file each (`lr.rs`, `rnn.rs`, `lrx.rs`), and the structure
-//! metamodel of an N-DOF numerical substructure (`delta_arx.rs`). Training
+//! metamodel of an N-DOF numerical substructure (`delta_arx.rs`), and the learned models of a yielding one
+//! (`modal_hyst.rs`, `floor_hysteron.rs` with its Menegotto–Pinto play `mp_play.rs`). Training
 //! lives on the host; this is the `no_std`, allocation-free inference the firmware runs at 2048 Hz.
 //!
 //! Units of every feature: ground acceleration ü_g in mm/s², measured brace deformation x_fb in mm
@@ -16,16 +17,20 @@ pub use crate::filter::InputError;
 use crate::params::ParamError;
 
 mod delta_arx;
+mod floor_hysteron;
 mod lr;
 mod lrx;
 mod modal_hyst;
+mod mp_play;
 mod reduced_modal;
 mod rnn;
 
 pub use delta_arx::*;
+pub use floor_hysteron::*;
 pub use lr::*;
 pub use lrx::*;
 pub use modal_hyst::*;
+pub use mp_play::*;
 pub use reduced_modal::*;
 pub use rnn::*;
 

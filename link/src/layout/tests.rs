@@ -7,7 +7,7 @@ use std::{vec, vec::Vec};
 use super::*;
 use proptest::prelude::*;
 
-const KINDS: [ModelKind; 9] = [
+const KINDS: [ModelKind; 10] = [
     ModelKind::Lr,
     ModelKind::Lrx,
     ModelKind::Rnn,
@@ -17,6 +17,7 @@ const KINDS: [ModelKind; 9] = [
     ModelKind::StructureMeta,
     ModelKind::StructureModal,
     ModelKind::StructureReduced,
+    ModelKind::StructureHysteron,
 ];
 
 /// Distinct values for every slot: a value in the wrong place shows.
@@ -242,6 +243,69 @@ fn every_kind_reads_back_as_laid_out() {
     );
 }
 
+/// A floor-hysteron spec of 2 floors, 3 directions and 4 hysterons with the operator `op`.
+fn hysteron_round_trip(op: rths_core::metamodel::HysteronOperator) -> (ModelKind, Vec<f64>) {
+    let (m, c, k, g) = (
+        [1e-3, 0.0, 0.0, 1.5e-3],
+        [0.01, -0.002, -0.002, 0.02],
+        [300.0, -100.0, -100.0, 100.0],
+        [1e-3, 1.5e-3],
+    );
+    let dirs = [1.0, 0.0, -1.0, 1.0, 0.0, 1.0];
+    let hyst = [0.0, 1.0, 5.0, 1.0, 2.0, 4.0, 2.0, 3.0, 3.0, 0.0, 6.0, 2.0];
+    round_trip(&ModelSpec::StructureHysteron {
+        model: FloorHysteronSpec {
+            floors: FloorStructure {
+                floors: 2,
+                mass: &m,
+                damping: &c,
+                stiffness: &k,
+                ground_mass: &g,
+                specimen_floor: 1,
+                specimen_k_kn_per_mm: 50.0,
+            },
+            directions: &dirs,
+            hysterons: &hyst,
+            operator: op,
+        },
+    })
+}
+
+#[test]
+fn a_floor_hysteron_model_reads_back_as_laid_out_with_either_operator() {
+    use rths_core::metamodel::HysteronOperator;
+    let (kind, v) = hysteron_round_trip(HysteronOperator::Play);
+    assert_eq!(
+        (kind, v.len()),
+        (ModelKind::StructureHysteron, hysteron_value_count(2, 3, 4))
+    );
+    let d = dims(kind, &v).unwrap();
+    assert_eq!(
+        (d.dofs, d.directions, d.hysterons, d.bouc_wen),
+        (2, 3, 4, 0)
+    );
+    let mp = MpShape::new(20.0, 0.925, 0.15).unwrap();
+    let (kind, v) = hysteron_round_trip(HysteronOperator::MenegottoPinto(mp));
+    assert_eq!(kind, ModelKind::StructureHysteron);
+    assert_eq!(dims(kind, &v).unwrap().bouc_wen, 4);
+    // The operator's flag whole, the play's shape values 0, and a Menegotto–Pinto shape in range.
+    let mut w = v.clone();
+    w[5] = 0.5;
+    assert_eq!(dims(kind, &w), Err(LayoutError::Value));
+    w[5] = 0.0;
+    assert_eq!(dims(kind, &w), Err(LayoutError::Value));
+    let mut w = v.clone();
+    w[6] = 1e9;
+    assert_eq!(dims(kind, &w), Err(LayoutError::Value));
+    // Sizes that disagree with the count; a specimen past the floors.
+    let mut w = v.clone();
+    w[2] = 5.0;
+    assert_eq!(dims(kind, &w), Err(LayoutError::Shape));
+    let mut w = v;
+    w[3] = 2.0;
+    assert_eq!(dims(kind, &w), Err(LayoutError::Shape));
+}
+
 #[test]
 fn the_staging_area_holds_the_largest_model_of_every_kind() {
     let largest = [
@@ -257,6 +321,10 @@ fn the_staging_area_holds_the_largest_model_of_every_kind() {
         (
             "reduced, 32 modes, 16 outputs",
             reduced_value_count(REDUCED_MAX_MODES, REDUCED_MAX_OUTPUTS),
+        ),
+        (
+            "floor-hysteron, 8 floors, 16 directions, 64 hysterons",
+            hysteron_value_count(MAX_DOF, HYST_MAX_DIRECTIONS, HYST_MAX_HYSTERONS),
         ),
     ];
     for (what, n) in largest {
@@ -289,6 +357,14 @@ fn values_that_are_no_model_of_their_kind_are_refused() {
         (ModelKind::StructureMeta, 18),
         (ModelKind::StructureModal, 3),
         (ModelKind::StructureReduced, reduced_value_count(33, 16)),
+        (
+            ModelKind::StructureHysteron,
+            hysteron_value_count(1, 1, 1) - 1,
+        ),
+        (
+            ModelKind::StructureHysteron,
+            hysteron_value_count(8, 16, 65),
+        ),
     ] {
         assert_eq!(count_fits(kind, n), Err(LayoutError::Shape), "{kind:?} {n}");
         assert_eq!(

@@ -1,14 +1,16 @@
 //! The learned model of a structure's numerical part (`rths train nonlinear`: the
-//! modal-hysteretic metamodel, `rths_core::metamodel::ModalHyst`) as the numerical part of the
-//! structure scenarios: core's controller part [`StructureModal`] (tick 0 is the initial
-//! condition, as the FE's; story drifts from the model's floors), loaded for one structure file
-//! and refused for another.
+//! modal-hysteretic metamodel, `rths_core::metamodel::ModalHyst`, or the floor-hysteron one,
+//! `rths_core::metamodel::FloorHysteron`) as the numerical part of the structure scenarios: core's
+//! controller part [`StructureModal`] or [`StructureHysteron`] (tick 0 is the initial condition,
+//! as the FE's; story drifts from the model's floors), loaded for one structure file and refused
+//! for another.
 
 use std::path::Path;
 
 use anyhow::Context;
-use rths_core::control::StructureModal;
+use rths_core::control::{Analytical, StructureHysteron, StructureModal};
 use rths_core::params::DT_S;
+use rths_files::hysteron_model_file::{AnyNlModel, HysteronModelFile};
 use rths_files::nl_model_file::NlModelFile;
 
 /// Refuse a nonlinear model trained at another controller rate than this build's (its springs were
@@ -35,11 +37,45 @@ pub fn learned_model(file: &NlModelFile, structure_json: &str) -> anyhow::Result
     Ok(StructureModal::new(file.params(DT_S)?))
 }
 
-/// [`learned_model`] from the model file at `path`.
+/// The floor-hysteron model of the model file `file` for the structure file whose text is
+/// `structure_json`, at rest: refused with the reason unless it was trained for that structure at
+/// this build's rate.
+pub fn hysteron_model(
+    file: &HysteronModelFile,
+    structure_json: &str,
+) -> anyhow::Result<StructureHysteron> {
+    file.check_structure(structure_json)?;
+    rths_files::rate::check_dt(
+        "the nonlinear model",
+        file.dt_s,
+        DT_S,
+        &format!(
+            "rths train nonlinear --structure {}.json --histories ... --out FILE",
+            file.structure.name
+        ),
+    )?;
+    Ok(StructureHysteron::new(file.params(DT_S)?))
+}
+
+/// [`learned_model`] from the model file at `path` (a modal-hysteretic model file only; see
+/// [`load_any`] for either form).
 pub fn load(path: &Path, structure_json: &str) -> anyhow::Result<StructureModal> {
     let file = NlModelFile::load(path).with_context(|| format!("model {}", path.display()))?;
     learned_model(&file, structure_json)
         .with_context(|| format!("model {} refused", path.display()))
+}
+
+/// The controller part of the model file at `path`, of either form by the file's kind
+/// ([`learned_model`] or [`hysteron_model`]).
+pub fn load_any(path: &Path, structure_json: &str) -> anyhow::Result<Analytical> {
+    let file = AnyNlModel::load(path).with_context(|| format!("model {}", path.display()))?;
+    match &file {
+        AnyNlModel::Modal(f) => learned_model(f, structure_json).map(Analytical::StructureModal),
+        AnyNlModel::Hysteron(f) => {
+            hysteron_model(f, structure_json).map(Analytical::StructureHysteron)
+        }
+    }
+    .with_context(|| format!("model {} refused", path.display()))
 }
 
 /// The shipped learned models (`data/models/nl-S.json`, `rths train nonlinear`), by the name
@@ -66,9 +102,9 @@ pub fn for_structure(
     path: Option<&Path>,
     name: &str,
     structure_json: &str,
-) -> anyhow::Result<StructureModal> {
+) -> anyhow::Result<Analytical> {
     if let Some(p) = path {
-        return load(p, structure_json);
+        return load_any(p, structure_json);
     }
     let Some((_, text)) = SHIPPED.iter().find(|(n, _)| *n == name) else {
         anyhow::bail!(
@@ -79,5 +115,6 @@ pub fn for_structure(
     let file = NlModelFile::from_json(text)
         .with_context(|| format!("the shipped data/models/nl-{name}.json"))?;
     learned_model(&file, structure_json)
+        .map(Analytical::StructureModal)
         .with_context(|| format!("the shipped data/models/nl-{name}.json refused"))
 }

@@ -2,5 +2,6 @@
 //! study (`rths nonlinear-study`), on the structure machinery (`crate::machinery::structure`: the
 //! yielding structure's reference, its learned model, the rig compensation; docs/nonlinear.md).
 
+pub mod held_out;
 pub mod scenario;
 pub mod study;

@@ -11,14 +11,21 @@
 //! used by the FE that produces the training runs. The scoring records (El Centro, Kobe, Morgan
 //! Hill) are refused as training records.
 
+pub mod choose;
 pub mod cmaes;
 pub mod daq;
 pub mod eval;
+pub mod floors;
 pub mod histories;
+pub mod hysteron;
 pub mod modal;
+pub mod refine;
 pub mod runs;
+pub mod score;
 pub mod spring;
 pub mod stage1;
+#[cfg(test)]
+mod test_runs;
 
 use std::time::Instant;
 
@@ -99,6 +106,8 @@ pub struct NlTrainConfig {
     /// Train on these time histories of the lab's FE program (CSV files or recorder directories,
     /// [`histories`]) instead of rths's FE runs of `records` at `ductilities`.
     pub histories: Vec<std::path::PathBuf>,
+    /// The floor-hysteron form's refinement on the simulation error ([`refine`]).
+    pub refine: refine::RefineConfig,
 }
 
 impl NlTrainConfig {
@@ -125,6 +134,7 @@ impl NlTrainConfig {
             record_s: None,
             force_noise: true,
             histories: Vec::new(),
+            refine: refine::RefineConfig::default(),
         })
     }
 

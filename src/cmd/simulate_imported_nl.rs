@@ -1,0 +1,145 @@
+//! `rths simulate --structure S.json --scenario nl-pure|nl-online --model M.json` for an imported
+//! structure (a lab's nonlinear OpenSees model, exported elastic): its learned floor-hysteron model
+//! in core's controller, alone with the numerical stand-in specimen (`nl-pure`), or in the hybrid
+//! loop on the virtual rig with the rig's identified lead and force correction (`nl-online`).
+//! Writes `DIR/history.csv` (`time_s`, `interface_mm`, one `out_<NODE>_<DOF>_mm` per floor of the
+//! model). The rths host FE of an imported structure is linear, so these runs have no reference
+//! here: they are scored against the lab's own runs by `rths train nonlinear --evaluate
+//! --histories H... [--hybrid]` (docs/nonlinear.md).
+
+use std::ops::ControlFlow;
+use std::path::Path;
+
+use anyhow::Context;
+use rths_core::compensator::Compensator;
+use rths_core::control::{
+    Analytical, ControlConfig, Controller, FeedbackSource, StructureHysteron,
+};
+use rths_core::params::{Prototype, SpecimenScale, DT_S};
+use rths_core::supervisor::Limits;
+use rths_files::hysteron_model_file::AnyNlModel;
+use rths_hal_sim::{Preset, VirtualRig};
+
+use crate::cmd::plant::PresetArg;
+use crate::cmd::simulate_args::Args;
+use crate::machinery::drive;
+use crate::machinery::imported::fe::FeHistory;
+use crate::machinery::train::nonlinear::floors::FloorModel;
+use crate::machinery::train::nonlinear::score::Learned;
+use crate::studies::nonlinear::held_out::{run_hybrid, HybridRig};
+use crate::studies::nonlinear::scenario::SimScenario;
+
+/// Run `nl-pure` or `nl-online` of the imported structure `text` (at `path`) under `ag`.
+pub fn run(
+    args: &Args,
+    path: &Path,
+    text: &str,
+    ag_mm_s2: &[f64],
+    motion_label: &str,
+) -> anyhow::Result<()> {
+    let sc = args.scenario;
+    let Some(mp) = &args.model else {
+        anyhow::bail!(
+            "{sc} needs the structure's learned model: --model M.json from `rths train nonlinear \
+             --structure {} --histories H... --out M.json`",
+            path.display()
+        );
+    };
+    let any = AnyNlModel::load(mp).with_context(|| format!("model {}", mp.display()))?;
+    any.check_structure(text)
+        .with_context(|| format!("model {} refused", mp.display()))?;
+    rths_files::rate::check_dt(
+        "the nonlinear model",
+        any.dt_s(),
+        DT_S,
+        "rths train nonlinear --structure S.json --histories ... --out FILE",
+    )?;
+    let AnyNlModel::Hysteron(file) = &any else {
+        anyhow::bail!(
+            "model {}: an imported structure runs a floor-hysteron model",
+            mp.display()
+        );
+    };
+    let p = file.params(DT_S)?;
+    let fm = FloorModel::from_json(text)?;
+    let k_e = p.specimen_k_kn_per_mm();
+    let sf = p.specimen_floor();
+    let floors = p.floors();
+    let mut hist = FeHistory {
+        dt_s: DT_S,
+        output_columns: file.floors.clone(),
+        interface_mm: Vec::with_capacity(ag_mm_s2.len()),
+        outputs_mm: Vec::with_capacity(ag_mm_s2.len()),
+    };
+    let read = |a: &Analytical, h: &mut FeHistory| {
+        if let Analytical::StructureHysteron(m) = a {
+            let m = m.model();
+            h.interface_mm.push(m.floor_disp_mm(sf));
+            h.outputs_mm
+                .push((0..floors).map(|i| m.floor_disp_mm(i)).collect());
+        }
+    };
+    let stopped = match sc {
+        SimScenario::NlPure => {
+            let config = ControlConfig::new(
+                Prototype::paper(),
+                SpecimenScale::new(1.0, 1.0)?,
+                FeedbackSource::OwnLinearSpecimen {
+                    stiffness_kn_per_mm: k_e,
+                },
+                Limits::unbounded(),
+            )?;
+            let mut ctl = Controller::new(
+                config,
+                Analytical::StructureHysteron(StructureHysteron::new(p)),
+                Compensator::None,
+            );
+            drive::run::<VirtualRig>(&mut ctl, None, ag_mm_s2, None, DT_S, |st, ctl, _| {
+                read(ctl.analytical(), &mut hist);
+                if st.out.target_mm.is_finite() {
+                    ControlFlow::Continue(())
+                } else {
+                    ControlFlow::Break(())
+                }
+            })
+            .map(|(why, t)| format!("{why} at {t:.2} s"))
+        }
+        SimScenario::NlOnline => {
+            let preset = match args.preset {
+                PresetArg::Benchmark => Preset::Benchmark,
+                PresetArg::UnrCompact => Preset::UnrCompact,
+            };
+            let rig = HybridRig::identified(&fm.name, preset, args.seed)?;
+            let (online, stop, _) = run_hybrid(&Learned::Hysteron(p), k_e, ag_mm_s2, &rig)?;
+            hist = FeHistory {
+                output_columns: file.floors.clone(),
+                ..online
+            };
+            stop
+        }
+        _ => anyhow::bail!("{sc} is not a learned-model scenario"),
+    };
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let csv = dir.join("history.csv");
+        hist.write_csv(&csv)
+            .with_context(|| format!("writing {}", csv.display()))?;
+    }
+    let peak = |v: &[f64]| v.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+    crate::outln!(
+        "scenario            {sc} ({motion_label}, imported structure {}, floor-hysteron model {}: \
+         {floors} floors, {} hysterons)",
+        fm.name,
+        mp.display(),
+        p.hysterons().len()
+    );
+    match &stopped {
+        Some(why) => crate::outln!("stable              no: stopped ({why})"),
+        None => crate::outln!("stable              yes"),
+    }
+    crate::outln!("peak interface      {:.4} mm", peak(&hist.interface_mm));
+    if let Some(dir) = &args.out {
+        crate::outln!("wrote {}", dir.join("history.csv").display());
+    }
+    Ok(())
+}
