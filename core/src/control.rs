@@ -313,19 +313,24 @@ impl Analytical {
                 let model = m.model();
                 Some(model.floor_disp_mm(model.params().specimen_dof()))
             }
+            Analytical::StructureHysteron(m) => {
+                let model = m.model();
+                Some(model.floor_disp_mm(model.params().specimen_floor()))
+            }
             Analytical::StructureReduced(m) => Some(m.model().interface_mm()),
             _ => None,
         }
     }
 
     /// How many displacement read-outs [`Self::output_disp_mm`] gives: a structure file's DOFs
-    /// (its floors) for its FE parts and its modal-hysteretic model, an imported structure's
+    /// (its floors) for its FE parts, its modal-hysteretic and its floor-hysteron models, an imported structure's
     /// outputs (the lab's `--output` DOFs) for its reduced model; 0 for the other parts.
     pub fn output_count(&self) -> usize {
         match self {
             Analytical::StructureFe(m) => m.chang().model().dofs(),
             Analytical::StructureNl(m) => m.frame().dofs(),
             Analytical::StructureModal(m) => m.model().params().floors(),
+            Analytical::StructureHysteron(m) => m.model().params().floors(),
             Analytical::StructureReduced(m) => m.model().params().outputs(),
             _ => 0,
         }
@@ -343,6 +348,7 @@ impl Analytical {
             Analytical::StructureFe(m) => m.chang().disp().get(i).copied(),
             Analytical::StructureNl(m) => m.frame().chang().disp().get(i).copied(),
             Analytical::StructureModal(m) => Some(m.model().floor_disp_mm(i)),
+            Analytical::StructureHysteron(m) => Some(m.model().floor_disp_mm(i)),
             Analytical::StructureReduced(m) => Some(m.model().output_mm(i)),
             _ => None,
         }

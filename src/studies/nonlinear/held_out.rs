@@ -8,7 +8,6 @@
 
 use anyhow::Context;
 use rths_core::compensator::{Compensator, Lead};
-use rths_core::control::Analytical;
 use rths_core::metrics;
 use rths_core::params::{SpecimenScale, DT_S};
 use rths_hal_sim::{Preset, RigConfig};
@@ -17,25 +16,7 @@ use crate::machinery::imported::fe::FeHistory;
 use crate::machinery::structure::rig;
 use crate::machinery::train::nonlinear::floors::{residual_drifts, FloorRun};
 use crate::machinery::train::nonlinear::score::{length_scale, loop_score, Learned, LoopScore};
-use crate::studies::imported_hybrid::{self, Compensation, ReadOut};
-
-/// The floors of a learned model in the hybrid loop.
-struct FloorsReadOut {
-    floors: usize,
-    specimen: usize,
-}
-
-impl ReadOut for FloorsReadOut {
-    fn read(&self, analytical: &Analytical, outputs: &mut Vec<f64>) -> f64 {
-        let at = |i: usize| match analytical {
-            Analytical::StructureModal(m) => m.model().floor_disp_mm(i),
-            Analytical::StructureHysteron(m) => m.model().floor_disp_mm(i),
-            _ => f64::NAN,
-        };
-        outputs.extend((0..self.floors).map(at));
-        at(self.specimen)
-    }
-}
+use crate::studies::imported_hybrid::{self, Compensation};
 
 /// A held-out run's figures.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -181,11 +162,8 @@ pub fn run_hybrid_measured(
         },
         &rig.config,
         ag,
+        // The part's own read-outs: its floors, and the specimen's floor as the interface.
         (0..floors).map(|i| format!("floor_{i}")).collect(),
-        &FloorsReadOut {
-            floors,
-            specimen: sf,
-        },
     )?;
     Ok((
         online.model,
