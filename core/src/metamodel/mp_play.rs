@@ -150,8 +150,16 @@ pub fn mp_play(shape: &MpShape, r: f64, st: &mut MpState, delta: f64) -> f64 {
     let sig = if libm::fabs(span) > 1e-12 * r {
         st.sig_r + (target - st.sig_r) * transition((delta - st.eps_r) / span, big_r)
     } else {
-        // At the corner already: elastic from it, within the yield band.
-        (st.sig_r + (delta - st.eps_r)).clamp(-r, r)
+        // At the corner already: elastic from it, within the yield band. Written out rather than
+        // `f64::clamp`, whose check of its bounds is a panic path on the board's tick.
+        let s = st.sig_r + (delta - st.eps_r);
+        if s < -r {
+            -r
+        } else if s > r {
+            r
+        } else {
+            s
+        }
     };
     st.eps = delta;
     st.sig = sig;
