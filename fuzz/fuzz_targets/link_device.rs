@@ -190,7 +190,12 @@ fuzz_target!(|data: &[u8]| {
         } else {
             assert!(!matches!(effect, Effect::Identify(_)));
         }
-        if !(acked && matches!(req, Request::UploadRig | Request::RigCommit | Request::ModelCommit)) {
+        if !(acked
+            && matches!(
+                req,
+                Request::UploadRig | Request::RigCommit | Request::ModelCommit
+            ))
+        {
             assert_eq!(
                 rths_app::rig_upload::rig_checksum_of(&ctl),
                 rig0,

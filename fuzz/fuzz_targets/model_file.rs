@@ -3,16 +3,22 @@
 //! rate is refused for exactly that reason.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use rths::models::ToParamsError;
+use rths::machinery::models::ToParamsError;
 
 fuzz_target!(|data: &[u8]| {
     let text = String::from_utf8_lossy(data);
     if let Ok(m) = rths_files::model_file::ModelFile::from_json(&text) {
         assert!(m.validate().is_ok());
         let converted = match m.kind {
-            rths_files::model_file::ModelKind::Lr => rths::models::lr_params(&m).map(|_| ()),
-            rths_files::model_file::ModelKind::Rnn => rths::models::rnn_params(&m).map(|_| ()),
-            rths_files::model_file::ModelKind::Lrx => rths::models::lrx_params(&m).map(|_| ()),
+            rths_files::model_file::ModelKind::Lr => {
+                rths::machinery::models::lr_params(&m).map(|_| ())
+            }
+            rths_files::model_file::ModelKind::Rnn => {
+                rths::machinery::models::rnn_params(&m).map(|_| ())
+            }
+            rths_files::model_file::ModelKind::Lrx => {
+                rths::machinery::models::lrx_params(&m).map(|_| ())
+            }
         };
         let same_rate = (m.dt_s - rths_core::params::DT_S).abs()
             <= rths_files::rate::DT_TOLERANCE * rths_core::params::DT_S;

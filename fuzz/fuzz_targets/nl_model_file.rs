@@ -15,7 +15,7 @@ fuzz_target!(|data: &[u8]| {
         "dt_s {} accepted",
         m.dt_s
     );
-    if rths::nonlinear::model::check_rate(&m).is_ok() {
+    if rths::machinery::structure::model::check_rate(&m).is_ok() {
         if let Err(e) = m.params(rths_core::params::DT_S) {
             panic!("a validated model at the controller's rate was refused at its step: {e}");
         }

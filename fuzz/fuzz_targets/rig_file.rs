@@ -4,8 +4,8 @@
 //! structure scenarios' corrected lead, the device's FE + ATS and LRX uploads).
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use rths::identify::RigFile;
 use rths::link_host::wire::rig_values;
+use rths::machinery::identify::RigFile;
 use rths_link::ModelKind;
 
 fuzz_target!(|data: &[u8]| {
@@ -30,7 +30,7 @@ fuzz_target!(|data: &[u8]| {
     if let Err(e) = rig.lead_params() {
         panic!("a validated rig file's lead was refused: {e}");
     }
-    if let Err(e) = rths::nonlinear::rig::from_rig_file_named("fuzz", &rig, "fuzz") {
+    if let Err(e) = rths::machinery::structure::rig::from_rig_file_named("fuzz", &rig, "fuzz") {
         panic!("a validated rig file's compensation was refused: {e}");
     }
     for kind in [ModelKind::FeAts, ModelKind::Lrx] {

@@ -3,7 +3,7 @@
 //! a panic; an accepted setTrialResponse is finite.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use rths::site::protocol::{parse_handshake, parse_message, Action, HANDSHAKE_BYTES};
+use rths::machinery::site::protocol::{parse_handshake, parse_message, Action, HANDSHAKE_BYTES};
 
 fuzz_target!(|data: &[u8]| {
     let (head, rest) = data.split_at(data.len().min(HANDSHAKE_BYTES));

@@ -6,8 +6,8 @@
 //! finite matrices whose interface and outputs are among its DOFs.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use rths::imported::file::is_imported;
-use rths::imported::ImportedStructure;
+use rths::machinery::imported::file::is_imported;
+use rths::machinery::imported::ImportedStructure;
 use rths_core::params::DT_S;
 use rths_files::structure_file::Structure;
 
