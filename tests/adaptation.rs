@@ -101,8 +101,8 @@ fn run(
 }
 
 fn median_max(mut v: Vec<f64>) -> (f64, f64) {
-    v.sort_by(f64::total_cmp);
-    (v[v.len() / 2], v[v.len() - 1])
+    let med = rths_core::metrics::median(&mut v).expect("rows");
+    (med, v[v.len() - 1])
 }
 
 /// The measured table: rows = record × specimen × draw; columns = LRX identified fixed, LRX

@@ -414,12 +414,8 @@ fn lrx_table(preset: Preset) {
     .enumerate()
     {
         let mut v: Vec<f64> = all.iter().map(|r| r.1[j]).collect();
-        v.sort_by(f64::total_cmp);
-        println!(
-            "{name:16} median {:.2}%  max {:.2}%",
-            v[v.len() / 2],
-            v[v.len() - 1]
-        );
+        let med = rths_core::metrics::median(&mut v).expect("rows");
+        println!("{name:16} median {med:.2}%  max {:.2}%", v[v.len() - 1]);
     }
 }
 

@@ -11,6 +11,19 @@
 
 use libm::sqrt;
 
+/// The median of `values` (the mean of the two middle values when their count is even), `None`
+/// when empty; sorts the slice in place (total order). The one median of every study and report.
+pub fn median(values: &mut [f64]) -> Option<f64> {
+    values.sort_unstable_by(f64::total_cmp);
+    let n = values.len();
+    let upper = *values.get(n / 2)?;
+    Some(if n % 2 == 1 {
+        upper
+    } else {
+        0.5 * (values.get(n / 2 - 1).copied().unwrap_or(upper) + upper)
+    })
+}
+
 /// Why a metric could not be computed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum MetricError {

@@ -1044,8 +1044,8 @@ fn evaluate_floors(
         if v.is_empty() {
             return "—".into();
         }
-        v.sort_by(f64::total_cmp);
-        format!("median {:.3}%, max {:.3}%", v[v.len() / 2], v[v.len() - 1])
+        let med = rths_core::metrics::median(v).unwrap_or(f64::NAN);
+        format!("median {med:.3}%, max {:.3}%", v[v.len() - 1])
     };
     crate::outln!(
         "pure loop: NRMSE {}; residual drift error {} ({} of {} runs with a residual of 0.1 mm or \
@@ -1119,11 +1119,11 @@ fn print_nl_rows(
         );
         e.push(r.nrmse_pct);
     }
-    e.sort_by(f64::total_cmp);
+    let med = rths_core::metrics::median(&mut e).unwrap_or(f64::NAN);
     crate::outln!(
         "NRMSE median {:.3}%, max {:.3}%; residual drift error max {residual_err_pct:.1}% \
          ({judged} of {} runs with a residual of 0.1 mm or more)",
-        e.get(e.len() / 2).copied().unwrap_or(f64::NAN),
+        med,
         e.last().copied().unwrap_or(f64::NAN),
         rows.len()
     );

@@ -275,3 +275,13 @@ fn benchmark_criteria_on_known_signals() -> Result<(), MetricError> {
     );
     Ok(())
 }
+
+#[test]
+fn median_of_odd_even_and_empty_counts() {
+    assert_eq!(median(&mut []), None);
+    assert_eq!(median(&mut [3.0]), Some(3.0));
+    assert_eq!(median(&mut [5.0, 1.0, 3.0]), Some(3.0));
+    // Even count: the mean of the two middle values, not the upper one.
+    assert_eq!(median(&mut [8.0, 2.0, 5.0, 4.0]), Some(4.5));
+    assert_eq!(median(&mut [-1.0, 1.0]), Some(0.0));
+}

@@ -394,8 +394,7 @@ pub fn write_recording(
 /// Median and largest of `xs`, s (0 for none).
 pub fn median_max(xs: &[f64]) -> (f64, f64) {
     let mut v = xs.to_vec();
-    v.sort_by(f64::total_cmp);
-    let med = v.get(v.len() / 2).copied().unwrap_or(0.0);
+    let med = rths_core::metrics::median(&mut v).unwrap_or(0.0);
     (med, v.last().copied().unwrap_or(0.0))
 }
 

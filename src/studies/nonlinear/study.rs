@@ -397,19 +397,6 @@ fn runs_of<'a>(
     })
 }
 
-fn median(v: &mut [f64]) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    Some(if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    })
-}
-
 fn max(v: &[f64]) -> Option<f64> {
     v.iter().copied().reduce(f64::max)
 }
@@ -444,7 +431,7 @@ pub fn goals(rows: &[StudyRow]) -> Vec<Goal> {
         out.push(goal(
             "pure-loop NRMSE median ≤ 3 %",
             pure,
-            median(&mut v),
+            metrics::median(&mut v),
             3.0,
             n,
             note,

@@ -5,7 +5,9 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use super::{case_label, cases, goals, median, Robustness, CONTROLLERS};
+use rths_core::metrics::median;
+
+use super::{case_label, cases, goals, Robustness, CONTROLLERS};
 
 /// Y range of the panels, % (log scale); the bottom goes a decade lower when a run needs it (an
 /// adaptive metamodel reaches 0.05 %); runs outside are drawn at the edge.

@@ -428,14 +428,3 @@ pub fn run(cfg: &RobustnessConfig) -> anyhow::Result<Robustness> {
         jobs: done,
     })
 }
-
-/// Median (`None` if empty); sorts the slice in place.
-pub(crate) fn median(v: &mut [f64]) -> Option<f64> {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    match n {
-        0 => None,
-        _ if n % 2 == 1 => v.get(n / 2).copied(),
-        _ => Some(0.5 * (v.get(n / 2 - 1)? + v.get(n / 2)?)),
-    }
-}

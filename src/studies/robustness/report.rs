@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use serde::Serialize;
 
-use super::{case_label, cases, goals, median, DrawCase, Robustness, RobustnessRun, CONTROLLERS};
+use rths_core::metrics::median;
+
+use super::{case_label, cases, goals, DrawCase, Robustness, RobustnessRun, CONTROLLERS};
 use crate::studies::scenario::ScenarioId;
 use crate::studies::study::DrawnPlant;
 
