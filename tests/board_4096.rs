@@ -55,7 +55,7 @@ fn rths(dir: &Path, args: &[&str]) -> (bool, String, String) {
     )
 }
 
-/// `rths train meta` of frame-5x12 at this build's rate (4096 Hz), into `dir/m.json`.
+/// `rths train meta` of frame-5x12 at this build's rate (4096 Hz), into the file `m.json` in `dir`.
 fn train(dir: &Path) -> PathBuf {
     let frame = frame().display().to_string();
     let (ok, out, err) = rths(
