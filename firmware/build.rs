@@ -14,7 +14,8 @@
 //!   metamodel (`rths train meta`, refused if trained for another structure or rate), its
 //!   modal-hysteretic model (`rths train nonlinear`, any rate), or, for an imported structure
 //!   (`rths import opensees`), its reduced model (`rths train meta`; refused if trained for a
-//!   structure of another name). A rig compensation goes over the link (`rths link upload --rig`).
+//!   structure of another name or at another rate). A rig compensation goes over the link (`rths
+//!   link upload --rig`).
 //! - A default the board's tick cannot run is refused for a real board (the STM32F407: RNN-10,
 //!   FE + ATS at 4096 Hz), with the estimate of `rths_app::tick_cost` (the budget's measured
 //!   figures), as an upload is refused `TickBudget`; an emulated board builds it, to measure it.
@@ -400,6 +401,10 @@ fn budget_rows(out: &mut String, rows: &mut String, n: &mut usize, root: &Path) 
         .unwrap_or_default();
     for m in &reduced {
         let f = ReducedModelFile::from_json(&read(m))
+            .unwrap_or_else(|e| fail(format!("{}: {e}", m.display())));
+        // Trained at this build's rate, as an upload or a default must be (the rows name no
+        // structure file, so the name check is not made).
+        f.check_rate(dt)
             .unwrap_or_else(|e| fail(format!("{}: {e}", m.display())));
         let arrays = f
             .arrays()

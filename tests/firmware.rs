@@ -625,7 +625,7 @@ fn reduced_model_on_the_m7_matches_the_host_tick_by_tick() {
     // The host: the firmware's controller (`firmware/src/analytical.rs`) from the same file.
     let arrays = ReducedModelFile::load(&model_path)
         .unwrap()
-        .arrays_for(&structure)
+        .arrays_for(&structure, DT_S)
         .unwrap();
     let spec = ModelSpec::StructureReduced {
         model: arrays.spec(),

@@ -42,7 +42,7 @@ fn train(s: &ImportedStructure) -> ReducedModelFile {
 /// Worst held-out `(interface, output)` NRMSE of `file` on `s`, %.
 fn held_out_error(s: &ImportedStructure, file: &ReducedModelFile, seconds: Option<f64>) -> f64 {
     let params = file
-        .arrays_for(s)
+        .arrays_for(s, DT_S)
         .expect("the model is this structure's")
         .spec()
         .params(DT_S)
@@ -103,7 +103,9 @@ fn a_model_for_another_structure_or_a_corrupted_one_is_refused() {
     let s = load(SMALL);
     let file = train(&s);
     let other = load(LARGE);
-    let e = file.arrays_for(&other).expect_err("another structure");
+    let e = file
+        .arrays_for(&other, DT_S)
+        .expect_err("another structure");
     assert!(
         e.to_string().contains("trained for structure frame-2x3"),
         "{e}"
@@ -118,7 +120,7 @@ fn a_model_for_another_structure_or_a_corrupted_one_is_refused() {
     let mut bad = file.clone();
     bad.structure_checksum = "fnv1a64:0000000000000000".into();
     assert!(
-        bad.arrays_for(&s).is_err(),
+        bad.arrays_for(&s, DT_S).is_err(),
         "a checksum that is not the structure's"
     );
     let json = file
@@ -238,4 +240,146 @@ fn damping_that_is_not_classical_falls_back_to_the_sparse_host_fe() {
         assert_eq!(runs[0].interface_mm, fe.interface_mm);
         assert_eq!(runs[0].outputs_mm, fe.outputs_mm);
     }
+}
+
+fn rths(dir: &std::path::Path, args: &[&str]) -> (bool, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rths"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("rths runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// A reduced model trained at the other controller rate (`rths train meta --rate`) is refused
+/// where the controller's part is read (`rths simulate`, `rths check-model`; the link's upload and
+/// the firmware's default: rths-files' unit tests), naming both rates and how to train one at
+/// this build's: its mode count and error bound were measured at its own rate.
+#[test]
+fn a_model_trained_at_the_other_rate_is_refused_with_both_rates() {
+    use rths_core::params::{CONTROL_RATES_HZ, CONTROL_RATE_HZ};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let frame =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/structures/opensees-frame-1x1.json");
+    let frame = frame.display().to_string();
+    let other = CONTROL_RATES_HZ
+        .iter()
+        .find(|&&r| r != CONTROL_RATE_HZ)
+        .copied()
+        .unwrap();
+    for (rate, name) in [(CONTROL_RATE_HZ, "own.json"), (other, "other.json")] {
+        let (ok, _, err) = rths(
+            d,
+            &[
+                "train",
+                "meta",
+                "--structure",
+                &frame,
+                "--rate",
+                &rate.to_string(),
+                "--out",
+                name,
+            ],
+        );
+        assert!(ok, "{err}");
+    }
+    let simulate = |model: &str| {
+        rths(
+            d,
+            &[
+                "simulate",
+                "--structure",
+                &frame,
+                "--scenario",
+                "meta-pure",
+                "--model",
+                model,
+                "--motion",
+                "el-centro",
+                "--scale",
+                "0.1",
+                "--out",
+                "run",
+            ],
+        )
+    };
+    let (ok, _, err) = simulate("own.json");
+    assert!(ok, "the model of this build's rate runs: {err}");
+    let (ok, _, err) = simulate("other.json");
+    assert!(!ok, "the other rate's model ran");
+    let (ok2, _, err2) = rths(d, &["check-model", "other.json"]);
+    assert!(!ok2, "check-model accepted the other rate's model");
+    for e in [&err, &err2] {
+        for part in [
+            format!("the reduced model of frame-1x1 was made at {other} Hz"),
+            format!("this controller runs at {CONTROL_RATE_HZ} Hz"),
+            format!("`rths train meta --structure S.json --rate {CONTROL_RATE_HZ} --out M.json`"),
+        ] {
+            assert!(e.contains(&part), "{part:?} in: {e}");
+        }
+    }
+}
+
+/// `rths train meta --modes R` keeps exactly the `R` lowest modes and prints their error bound;
+/// an order the structure or core's controller cannot hold, and `--modes` on a structure that is
+/// not imported, are refused with the reason.
+#[test]
+fn a_fixed_order_is_kept_or_refused_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/structures");
+    let frame = data.join("opensees-frame-1x1.json").display().to_string();
+    let train = |modes: &str| {
+        rths(
+            d,
+            &[
+                "train",
+                "meta",
+                "--structure",
+                &frame,
+                "--modes",
+                modes,
+                "--out",
+                "m.json",
+            ],
+        )
+    };
+    let (ok, out, err) = train("7");
+    assert!(ok, "{err}");
+    assert!(out.contains("7 of 10 modes kept (--modes)"), "{out}");
+    assert!(out.contains("error bound "), "{out}");
+    let file = ReducedModelFile::load(&d.join("m.json")).unwrap();
+    assert_eq!(file.modes.len(), 7);
+    assert!(file.training.error_bound_pct.is_finite());
+    for (modes, reason) in [
+        ("0", "--modes 0: a reduced model keeps at least 1 mode"),
+        (
+            "11",
+            "--modes 11: frame-1x1 has 10 modes (its DOFs with mass)",
+        ),
+        ("33", "--modes 33: core's controller holds at most 32 modes"),
+    ] {
+        let (ok, _, err) = train(modes);
+        assert!(!ok, "--modes {modes} was kept");
+        assert!(err.contains(reason), "{reason:?} in: {err}");
+    }
+    let (ok, _, err) = rths(
+        d,
+        &[
+            "train",
+            "meta",
+            "--structure",
+            &data.join("shear8.json").display().to_string(),
+            "--modes",
+            "3",
+            "--out",
+            "x.json",
+        ],
+    );
+    assert!(!ok && err.contains("is not an imported structure"), "{err}");
 }

@@ -183,7 +183,7 @@ fn the_host_steps_the_reduced_rows_as_the_m7_does() {
         let text = std::fs::read_to_string(structure_path(name)).unwrap();
         let s = ImportedStructure::from_json(&text).unwrap();
         let file = reduced::train(&s, &records, dt, |_, _, _| {}).unwrap();
-        let arrays = file.arrays_for(&s).unwrap();
+        let arrays = file.arrays_for(&s, dt).unwrap();
         let spec = ModelSpec::StructureReduced {
             model: arrays.spec(),
         };

@@ -76,6 +76,11 @@ pub enum ReducedFileError {
         /// The controller's limit.
         max: usize,
     },
+    /// The file was trained at another controller rate (the rule of every file made at a
+    /// controller rate, [`crate::rate::check_dt`]): its modes are continuous-time, but its mode
+    /// count and its recorded error bound were measured at its own step.
+    #[error(transparent)]
+    OtherRate(#[from] crate::rate::OtherRate),
     /// Reading the file failed.
     #[error("reading {path}: {source}")]
     Read {
@@ -266,10 +271,31 @@ impl ReducedModelFile {
             .unwrap_or(false)
     }
 
-    /// The arrays for the controller, checked against `structure` (name and checksum).
+    /// Refuse the file unless it was trained at the controller step `dt_s` (within
+    /// [`crate::rate::DT_TOLERANCE`], as every file made at a controller rate). Its arrays would
+    /// run at any step, but the training chose its modes and measured its error bound by the pure
+    /// loop at its own step: that bound says nothing of another rate's loop.
+    pub fn check_rate(&self, dt_s: f64) -> Result<(), ReducedFileError> {
+        let run_hz = if dt_s > 0.0 {
+            (1.0 / dt_s).round()
+        } else {
+            0.0
+        };
+        crate::rate::check_dt(
+            &format!("the reduced model of {}", self.structure),
+            self.dt_s,
+            dt_s,
+            &format!("rths train meta --structure S.json --rate {run_hz:.0} --out M.json"),
+        )?;
+        Ok(())
+    }
+
+    /// The arrays for the controller at step `dt_s`, checked against `structure` (name and
+    /// checksum) and the rate ([`Self::check_rate`]).
     pub fn arrays_for(
         &self,
         structure: &impl StructureIdentity,
+        dt_s: f64,
     ) -> Result<ReducedArrays, ReducedFileError> {
         let checksum = structure.checksum();
         if self.structure != structure.name() || self.structure_checksum != checksum {
@@ -280,23 +306,33 @@ impl ReducedModelFile {
                 checksum,
             });
         }
+        self.check_rate(dt_s)?;
         self.arrays()
     }
 
-    /// The arrays for the controller, checked against the structure's name only: for a reader
-    /// that cannot condense the structure to compute its checksum (the firmware's build script;
-    /// the host commands use [`Self::arrays_for`]).
-    pub fn arrays_for_name(&self, name: &str) -> Result<ReducedArrays, ReducedFileError> {
+    /// The arrays for the controller at step `dt_s`, checked against the structure's name only
+    /// (for a reader that cannot condense the structure to compute its checksum: the firmware's
+    /// build script and the link's upload; the host commands use [`Self::arrays_for`]) and the
+    /// rate ([`Self::check_rate`]).
+    pub fn arrays_for_name(
+        &self,
+        name: &str,
+        dt_s: f64,
+    ) -> Result<ReducedArrays, ReducedFileError> {
         if self.structure != name {
             return Err(ReducedFileError::StructureName {
                 file_name: self.structure.clone(),
                 name: name.to_string(),
             });
         }
+        self.check_rate(dt_s)?;
         self.arrays()
     }
 
-    /// The arrays for the controller (shapes checked; values by core's validation).
+    /// The arrays for the controller, at no particular rate (shapes checked; values by core's
+    /// validation at the file's own step): for the training, which scores them at its step. A
+    /// controller takes them through [`Self::arrays_for`] or [`Self::arrays_for_name`], which
+    /// refuse another rate's file.
     pub fn arrays(&self) -> Result<ReducedArrays, ReducedFileError> {
         let n_out = self.outputs.len();
         let r = self.modes.len();

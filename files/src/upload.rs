@@ -374,8 +374,9 @@ fn hysteron(
 }
 
 /// An imported structure's reduced model, refused if trained for a structure of another name
-/// (the checksum of the condensed matrices is the host's: it needs the condensation) and
-/// validated at `dt_s` (continuous-time modes: any rate runs).
+/// (the checksum of the condensed matrices is the host's: it needs the condensation) or at
+/// another rate than `dt_s`'s (its mode count and error bound are its training rate's), and
+/// validated at `dt_s`.
 fn reduced(
     model: &Path,
     text: &str,
@@ -385,7 +386,7 @@ fn reduced(
     let f = ReducedModelFile::from_json(text).map_err(|e| err(model, e))?;
     let stext = std::fs::read_to_string(structure).map_err(|e| err(structure, e))?;
     let name = imported_structure_name(&stext).map_err(|e| err(structure, e))?;
-    let arrays = f.arrays_for_name(&name).map_err(|e| err(model, e))?;
+    let arrays = f.arrays_for_name(&name, dt_s).map_err(|e| err(model, e))?;
     let spec = arrays.spec();
     spec.params(dt_s).map_err(|e| err(model, e))?;
     structure_laid(
@@ -443,6 +444,38 @@ mod tests {
             "{e}"
         );
         assert!(lay_out_files(None, None, dt).is_err());
+    }
+
+    /// A reduced model trained at 2048 Hz (the fuzz seed of frame-1x1's) lays out for a 2048 Hz
+    /// controller, and is refused for a 4096 Hz one (an upload to a 4096 Hz board, a 4096 Hz
+    /// image's default), naming both rates and the command that trains one at 4096 Hz.
+    #[test]
+    fn a_reduced_model_is_refused_at_another_rate_than_its_training() {
+        use rths_core::params::dt_s;
+        let model = data("../fuzz/seeds/meta_model_file/frame-1x1-reduced.json");
+        let frame = data("structures/opensees-frame-1x1.json");
+        let laid = lay_out_files(Some(&model), Some(&frame), dt_s(2048)).unwrap();
+        assert_eq!(laid.kind, ModelKind::StructureReduced);
+        let e = lay_out_files(Some(&model), Some(&frame), dt_s(4096)).unwrap_err();
+        for part in [
+            "frame-1x1-reduced.json",
+            "the reduced model of frame-1x1 was made at 2048 Hz",
+            "this controller runs at 4096 Hz",
+            "`rths train meta --structure S.json --rate 4096 --out M.json`",
+        ] {
+            assert!(e.0.contains(part), "{part:?} in: {e}");
+        }
+        // The reader itself, as the host commands call it, and at the file's own rate.
+        let f = ReducedModelFile::load(&model).unwrap();
+        assert!(f.arrays_for_name("frame-1x1", dt_s(2048)).is_ok());
+        let e = f.arrays_for_name("frame-1x1", dt_s(4096)).unwrap_err();
+        assert!(
+            matches!(e, crate::reduced_model_file::ReducedFileError::OtherRate(_)),
+            "{e}"
+        );
+        // The structure's name is checked first: another structure is named as such.
+        let e = f.arrays_for_name("frame-2x4", dt_s(4096)).unwrap_err();
+        assert!(e.to_string().contains("not frame-2x4"), "{e}");
     }
 
     /// A floor-hysteron model of `shear3-yielding` (3 floors, its story drifts and one

@@ -234,6 +234,8 @@ fn check_reduced(
         ));
     }
     let m = ReducedModelFile::from_json(text).map_err(|e| e.to_string())?;
+    m.check_rate(rths_core::params::DT_S)
+        .map_err(|e| e.to_string())?;
     let a = m.arrays().map_err(|e| e.to_string())?;
     a.spec()
         .params(rths_core::params::DT_S)

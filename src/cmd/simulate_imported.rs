@@ -98,7 +98,7 @@ pub fn run(
             let file = ReducedModelFile::load(m)
                 .with_context(|| format!("reduced model file {}", m.display()))?;
             let arrays = file
-                .arrays_for(&s)
+                .arrays_for(&s, DT_S)
                 .with_context(|| format!("reduced model file {}", m.display()))?;
             Some((arrays.spec().params(DT_S)?, file.outputs.clone()))
         }

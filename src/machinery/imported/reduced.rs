@@ -62,6 +62,14 @@ pub enum ReducedError {
     /// The model file (its format, its structure, its arrays).
     #[error(transparent)]
     File(#[from] ReducedFileError),
+    /// The order asked (`rths train meta --modes R`) cannot be kept.
+    #[error("--modes {modes}: {reason}")]
+    Order {
+        /// The modes asked.
+        modes: usize,
+        /// Why not.
+        reason: String,
+    },
     /// The controller's supervisor stopped the pure loop (a step that was not finite).
     #[error("the reduced model's pure loop stopped ({reason}) at {time_s:.3} s")]
     Stopped {
@@ -92,7 +100,7 @@ pub fn hybrid_params(
     structure: &ImportedStructure,
     dt_s: f64,
 ) -> Result<ReducedModalParams, ReducedError> {
-    let arrays = file.arrays_for(structure)?;
+    let arrays = file.arrays_for(structure, dt_s)?;
     Ok(arrays.spec().params(dt_s)?.for_hybrid_loop()?)
 }
 
@@ -559,6 +567,19 @@ pub fn train(
     train_reporting(structure, records, dt_s, progress).map(|(file, _)| file)
 }
 
+/// How many modes the training keeps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModeChoice {
+    /// The fewest within [`REDUCED_TARGET_NRMSE_PCT`] on the training records, else the count with
+    /// the smallest bound (the default: each model as accurate as the target asks).
+    ForTarget,
+    /// Exactly this many, the lowest (`rths train meta --modes R`): a fixed order, so models of
+    /// any size cost the same per tick (the cost grows with the modes and outputs, not the DOFs).
+    /// Its bound is measured on the training records as the default's is: what the order costs
+    /// in accuracy.
+    Fixed(usize),
+}
+
 /// [`train`], and what the training records' runs were computed with: the modal superposition of
 /// all the modes where the damping is classical but for the specimen's DOF, the sparse host FE
 /// otherwise. The records run in parallel, and so do the mode counts tried (in batches of the
@@ -568,12 +589,78 @@ pub fn train_reporting(
     structure: &ImportedStructure,
     records: &[(String, Vec<f64>)],
     dt_s: f64,
+    progress: impl FnMut(&str, u64, u64),
+) -> Result<(ReducedModelFile, TrainingReference), ReducedError> {
+    train_choosing(structure, records, dt_s, ModeChoice::ForTarget, progress)
+}
+
+/// [`train_reporting`] with the modes kept chosen by `choice`. A fixed order is refused, with the
+/// reason, if it is 0, more than core's controller holds ([`REDUCED_MAX_MODES`]), more than the
+/// structure has (its DOFs with mass), or if its highest mode is damped at or beyond critical
+/// (core runs modes below it only).
+pub fn train_choosing(
+    structure: &ImportedStructure,
+    records: &[(String, Vec<f64>)],
+    dt_s: f64,
+    choice: ModeChoice,
     mut progress: impl FnMut(&str, u64, u64),
 ) -> Result<(ReducedModelFile, TrainingReference), ReducedError> {
+    if let ModeChoice::Fixed(r) = choice {
+        // Before the modes are computed (the eigen-solution is the training's largest part).
+        let reason = if r == 0 {
+            Some("a reduced model keeps at least 1 mode".to_string())
+        } else if r > REDUCED_MAX_MODES {
+            Some(format!(
+                "core's controller holds at most {REDUCED_MAX_MODES} modes \
+                 (rths_core::metamodel::REDUCED_MAX_MODES)"
+            ))
+        } else if r > structure.mass_dofs() {
+            Some(format!(
+                "{} has {} modes (its DOFs with mass)",
+                structure.name(),
+                structure.mass_dofs()
+            ))
+        } else {
+            None
+        };
+        if let Some(reason) = reason {
+            return Err(ReducedError::Order { modes: r, reason });
+        }
+    }
     progress("modes", 0, 1);
     let md = modes_of(structure)?;
     progress("modes", 1, 1);
     let (reference, kind) = reference_runs(structure, &md, records, dt_s, &mut progress)?;
+    if let ModeChoice::Fixed(r) = choice {
+        progress("modes kept", 0, 1);
+        let file = match score_modes(structure, &md, r, dt_s, records, &reference)? {
+            Scored::Model(_, file) => *file,
+            Scored::Stop => {
+                return Err(ReducedError::Order {
+                    modes: r,
+                    reason: format!(
+                        "mode {r} ({:.2} Hz) has a damping ratio of {:.3}; core runs modes \
+                         below critical damping only: ask for at most {} modes",
+                        md.omega[r - 1] / (2.0 * std::f64::consts::PI),
+                        md.zeta[r - 1],
+                        r - 1
+                    ),
+                })
+            }
+            // The arrays' own refusal, named.
+            Scored::Skip => {
+                return Err(reduced_of(structure, &md, r, dt_s).arrays().err().map_or(
+                    ReducedError::Order {
+                        modes: r,
+                        reason: "the model is not valid".into(),
+                    },
+                    ReducedError::File,
+                ))
+            }
+        };
+        progress("modes kept", 1, 1);
+        return Ok((file, kind));
+    }
     let max_r = REDUCED_MAX_MODES.min(md.omega.len());
     let batch = rayon::current_num_threads().max(1);
     let mut best: Option<(f64, ReducedModelFile)> = None;
