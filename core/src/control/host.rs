@@ -62,3 +62,6 @@ impl PartialEq for StructureHost {
         core::ptr::addr_eq(self.0.as_ref(), other.0.as_ref())
     }
 }
+
+#[cfg(test)]
+mod tests;
