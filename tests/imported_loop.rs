@@ -296,7 +296,9 @@ fn the_host_fe_in_the_loop_with_a_perfect_rig_is_its_pure_loop_bit_for_bit() {
     // low-pass: exactly the pure loop, since the measured force's departure from the estimate is
     // zero and each step is the pure loop's (the same K̂, the same right-hand side).
     let f1 = split::fundamental_hz(&s, k).expect("fundamental");
-    assert!((1.0..4.0).contains(&f1), "{f1} Hz");
+    assert!((2.0..2.2).contains(&f1), "{f1} Hz");
+    let f1 = split::departure_cutoff_hz(&s, k).expect("cutoff");
+    assert_eq!(f1, split::MAX_DEPARTURE_CUTOFF_HZ);
     for cutoff in [Some(f1), None] {
         let (hybrid, stop) = perfect_rig_run(&s, k, k, &ag, None, cutoff);
         assert_eq!(stop, None);

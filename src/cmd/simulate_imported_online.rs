@@ -46,7 +46,7 @@ struct OnlineJson {
     #[serde(skip_serializing_if = "Option::is_none")]
     specimen_estimate_kn_per_mm: Option<f64>,
     /// `fe-online-ats`: the low-pass cutoff of the measured force's departure from the estimate
-    /// (the structure's fundamental frequency), Hz.
+    /// (the structure's fundamental frequency, at most 2 Hz), Hz.
     #[serde(skip_serializing_if = "Option::is_none")]
     departure_cutoff_hz: Option<f64>,
     /// `fe-online-ats`: the host FE's mean wall time per controller tick, s (this host).
@@ -184,8 +184,9 @@ pub fn run(
                 });
             // The departure holds the load cell's noise and the rig's inertia and tracking error;
             // loading the model with it as is, the ATS amplified it into a 76 Hz oscillation
-            // that tripped every run (docs/opensees.md): it is low-passed at the fundamental.
-            let cutoff = split::fundamental_hz(s, estimate)
+            // that tripped every run (docs/opensees.md): it is low-passed at the fundamental,
+            // at most 2 Hz.
+            let cutoff = split::departure_cutoff_hz(s, estimate)
                 .with_context(|| format!("the fundamental frequency of {}", path.display()))?;
             let part = OperatorSplitting::new(s, estimate, DT_S)
                 .and_then(|p| p.with_departure_cutoff_hz(cutoff))

@@ -29,6 +29,22 @@ use super::condense;
 use super::fe::{FeError, SparseNewmark};
 use super::file::ImportedStructure;
 
+/// The highest cutoff of the measured force's departure from the estimate
+/// ([`departure_cutoff_hz`]), Hz. Measured with the paper's ATS and a rig file on the benchmark
+/// preset: departures low-passed at 9.9-10 Hz tripped the command-velocity interlock on frame-1x1
+/// and frame-2x3, at 5 Hz both were stable; 2 Hz leaves a margin (docs/opensees.md).
+pub const MAX_DEPARTURE_CUTOFF_HZ: f64 = 2.0;
+
+/// The cutoff `fe-online-ats` low-passes the measured force's departure at: the structure's
+/// fundamental frequency ([`fundamental_hz`] with the specimen at `k_e`), at most
+/// [`MAX_DEPARTURE_CUTOFF_HZ`], Hz.
+pub fn departure_cutoff_hz(
+    structure: &ImportedStructure,
+    estimate_kn_per_mm: f64,
+) -> Result<f64, FeError> {
+    Ok(fundamental_hz(structure, estimate_kn_per_mm)?.min(MAX_DEPARTURE_CUTOFF_HZ))
+}
+
 /// The fundamental frequency of `structure` with a specimen of `specimen_k_kn_per_mm` at its
 /// interface, Hz: inverse iteration on the whole sparse model (`K·x = λ·M·x`; its massless DOFs
 /// have no finite eigenvalue), one sparse Cholesky of `K`, at most 500 iterations or until the
