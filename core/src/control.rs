@@ -192,6 +192,10 @@ pub enum Analytical {
     /// The reduced-order modal model of a large linear numerical substructure (an imported
     /// OpenSees model): constant cost per tick whatever its DOF count.
     StructureReduced(StructureReduced),
+    /// A numerical substructure the host computes (the host build only: core's `std` feature),
+    /// e.g. an imported OpenSees model's sparse finite elements: core knows its trait alone.
+    #[cfg(feature = "std")]
+    StructureHost(StructureHost),
 }
 
 impl Analytical {
@@ -211,6 +215,8 @@ impl Analytical {
             Analytical::StructureModal(_) => ("structure-modal", None),
             Analytical::StructureHysteron(_) => ("structure-hysteron", None),
             Analytical::StructureReduced(_) => ("structure-reduced", None),
+            #[cfg(feature = "std")]
+            Analytical::StructureHost(_) => ("structure-host", None),
         }
     }
 
@@ -224,7 +230,16 @@ impl Analytical {
                 | Analytical::StructureModal(_)
                 | Analytical::StructureHysteron(_)
                 | Analytical::StructureReduced(_)
-        )
+        ) || self.is_host()
+    }
+
+    /// A host numerical substructure (`StructureHost`, the host build only; never on the firmware).
+    pub fn is_host(&self) -> bool {
+        #[cfg(feature = "std")]
+        if let Analytical::StructureHost(_) = self {
+            return true;
+        }
+        false
     }
 
     fn next_target(&mut self, ag_mm_s2: f64, fb: &Feedback) -> Result<f64, StepError> {
@@ -259,6 +274,10 @@ impl Analytical {
             Analytical::StructureModal(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
             Analytical::StructureHysteron(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
             Analytical::StructureReduced(m) => m.next_target(ag_mm_s2, fb.brace_force_kn)?,
+            #[cfg(feature = "std")]
+            Analytical::StructureHost(m) => {
+                m.part_mut().next_target(ag_mm_s2, fb.brace_force_kn)?
+            }
         };
         if y.is_finite() {
             Ok(y)
@@ -318,6 +337,8 @@ impl Analytical {
                 Some(model.floor_disp_mm(model.params().specimen_floor()))
             }
             Analytical::StructureReduced(m) => Some(m.model().interface_mm()),
+            #[cfg(feature = "std")]
+            Analytical::StructureHost(m) => Some(m.part().interface_disp_mm()),
             _ => None,
         }
     }
@@ -332,6 +353,8 @@ impl Analytical {
             Analytical::StructureModal(m) => m.model().params().floors(),
             Analytical::StructureHysteron(m) => m.model().params().floors(),
             Analytical::StructureReduced(m) => m.model().params().outputs(),
+            #[cfg(feature = "std")]
+            Analytical::StructureHost(m) => m.part().output_count(),
             _ => 0,
         }
     }
@@ -350,6 +373,8 @@ impl Analytical {
             Analytical::StructureModal(m) => Some(m.model().floor_disp_mm(i)),
             Analytical::StructureHysteron(m) => Some(m.model().floor_disp_mm(i)),
             Analytical::StructureReduced(m) => Some(m.model().output_mm(i)),
+            #[cfg(feature = "std")]
+            Analytical::StructureHost(m) => m.part().output_disp_mm(i),
             _ => None,
         }
     }
@@ -367,6 +392,8 @@ impl Analytical {
             Analytical::StructureModal(m) => m.reset(),
             Analytical::StructureHysteron(m) => m.reset(),
             Analytical::StructureReduced(m) => m.reset(),
+            #[cfg(feature = "std")]
+            Analytical::StructureHost(m) => m.part_mut().reset(),
         }
     }
 }
@@ -859,6 +886,9 @@ impl Controller {
     pub fn scenario_name(&self) -> (&'static str, Option<usize>) {
         match (&self.analytical, &self.compensator) {
             (Analytical::Fe(_), Compensator::Ats(_)) => ("fe-online-ats", None),
+            // The host's finite elements of an imported structure with the ATS.
+            #[cfg(feature = "std")]
+            (Analytical::StructureHost(_), Compensator::Ats(_)) => ("fe-online-ats", None),
             // A structure's part with the rig's identified lead (and force correction): the host's
             // hybrid scenarios of a structure file (`rths simulate --structure`).
             (
@@ -984,8 +1014,12 @@ impl Controller {
 }
 
 mod correction;
+#[cfg(feature = "std")]
+mod host;
 mod structure;
 pub use correction::ForceCorrection;
+#[cfg(feature = "std")]
+pub use host::{HostNumerical, StructureHost};
 pub use structure::{
     FloorHysteronSpec, ModalSpec, ReducedSpec, StoryLawSpec, StructureFe, StructureHysteron,
     StructureModal, StructureNl, StructureReduced, StructureSpec, HYSTERON_VALUES,

@@ -61,7 +61,8 @@ pub struct Args {
     pub drift: f64,
     /// Rig file (`rths identify`) of this run's rig: refused if it was identified on another preset,
     /// board, specimen or uncertainty draw, or if the model names another rig file. With
-    /// fe-online-ats, the ATS starts from the rig file's identified initial values.
+    /// fe-online-ats, the ATS starts from the rig file's identified initial values (and, on an
+    /// imported structure, the host FE and the force correction take its identified specimen).
     #[arg(long, value_name = "RIG.json")]
     pub rig: Option<PathBuf>,
     /// Output directory for `history.csv` and the figure.
@@ -81,7 +82,7 @@ fn scenario_help() -> String {
         .collect();
     format!(
         "Scenario: {} (rnn-pure-H / rnn-online-H for another hidden size H); with --structure: {}; \
-         with an imported structure: fe-pure, meta-pure, meta-online",
+         with an imported structure: fe-pure, fe-online-ats, meta-pure, meta-online",
         study.join(", "),
         structure.join(", ")
     )

@@ -55,7 +55,10 @@ pub fn run(
     if matches!(sc, SimScenario::NlPure | SimScenario::NlOnline) {
         return crate::cmd::simulate_imported_nl::run(args, path, text, ag_mm_s2, motion_label);
     }
-    if sc == SimScenario::MetaOnline {
+    if matches!(
+        sc,
+        SimScenario::MetaOnline | SimScenario::Study(ScenarioId::FeOnlineAts)
+    ) {
         let s = ImportedStructure::from_json(text)
             .with_context(|| format!("structure file {}", path.display()))?;
         return crate::cmd::simulate_imported_online::run(args, path, &s, ag_mm_s2, motion_label);
@@ -64,7 +67,7 @@ pub fn run(
         SimScenario::Study(ScenarioId::FePure) => false,
         SimScenario::MetaPure => true,
         _ => anyhow::bail!(
-            "{sc} is not available for an imported structure ({}): run fe-pure, meta-pure or meta-online",
+            "{sc} is not available for an imported structure ({}): run fe-pure, fe-online-ats, meta-pure or meta-online",
             path.display()
         ),
     };

@@ -1,12 +1,13 @@
-//! `rths simulate --structure S.json --scenario meta-online` for an imported structure: its
-//! analytical part in the hybrid loop on the virtual rig ([`crate::studies::imported_hybrid`]), scored
-//! against the whole model with the rig's true specimen.
+//! `rths simulate --structure S.json --scenario meta-online|fe-online-ats` for an imported
+//! structure: its analytical part (the reduced model, or the host FE by operator splitting) in the
+//! hybrid loop on the virtual rig ([`crate::studies::imported_hybrid`]), scored against the whole
+//! model with the rig's true specimen.
 
 use std::path::Path;
 
 use anyhow::Context;
 use rths_core::compensator::{Compensator, Lead};
-use rths_core::control::{Analytical, StructureReduced};
+use rths_core::control::{Analytical, ForceCorrection, StructureHost, StructureReduced};
 use rths_core::params::DT_S;
 use rths_hal_sim::Preset;
 use serde::Serialize;
@@ -16,11 +17,13 @@ use crate::cmd::simulate_args::Args;
 use crate::machinery::identify::rig_file::VIRTUAL_BOARD;
 use crate::machinery::identify::RigFile;
 use crate::machinery::imported::reduced::ReducedModelFile;
+use crate::machinery::imported::split::{self, OperatorSplitting};
 use crate::machinery::imported::ImportedStructure;
 use crate::machinery::reference::DrawnPlant;
 use crate::machinery::structure::rig::{self, RigCompensation};
 use crate::studies::imported_hybrid::{self as hybrid, Compensation, OnlineScore};
-use crate::studies::nonlinear::scenario::SimScenario;
+use crate::studies::nonlinear::scenario::{paper_ats, SimScenario};
+use crate::studies::scenario::ScenarioId;
 
 /// The JSON of an imported structure's hybrid run.
 #[derive(Debug, Serialize)]
@@ -36,8 +39,19 @@ struct OnlineJson {
     dt_s: f64,
     /// What the plant really had (evaluation only).
     plant: DrawnPlant,
-    /// The compensation the controller was given (identified, or the rig file's).
-    compensation: RigCompensation,
+    /// What was identified of the rig (the rig file's, or identified before the run; `null`:
+    /// `fe-online-ats` without a rig file, the paper's ATS start).
+    compensation: Option<RigCompensation>,
+    /// `fe-online-ats`: the specimen stiffness in the host FE's `K̂` (the lab's estimate), kN/mm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    specimen_estimate_kn_per_mm: Option<f64>,
+    /// `fe-online-ats`: the low-pass cutoff of the measured force's departure from the estimate
+    /// (the structure's fundamental frequency, at most 2 Hz), Hz.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    departure_cutoff_hz: Option<f64>,
+    /// `fe-online-ats`: the host FE's mean wall time per controller tick, s (this host).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    fe_s_per_step: Option<f64>,
     /// The reference's specimen stiffness (the plant's, at the prototype's scale), kN/mm.
     true_specimen_k_kn_per_mm: f64,
     /// The nominal specimen (the imported `--specimen-stiffness`), kN/mm.
@@ -78,7 +92,32 @@ fn refuse_flags(args: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Run `meta-online` on the imported structure `s` (from `path`) under `ag` (at `DT_S`).
+/// The rig file's compensation for `s`, checked against the run's plant (`None` without
+/// `--rig`).
+fn rig_file_compensation(
+    args: &Args,
+    s: &ImportedStructure,
+    preset: Preset,
+    rig_config: &rths_hal_sim::RigConfig,
+    factor: f64,
+) -> anyhow::Result<Option<RigCompensation>> {
+    let Some(p) = &args.rig else {
+        return Ok(None);
+    };
+    let file = RigFile::load(p).with_context(|| format!("rig file {}", p.display()))?;
+    file.check(preset.name(), VIRTUAL_BOARD)
+        .with_context(|| format!("rig file {} refused", p.display()))?;
+    file.check_plant(rig_config, factor)
+        .with_context(|| format!("rig file {} refused", p.display()))?;
+    Ok(Some(rig::from_rig_file_named(
+        s.name(),
+        &file,
+        &p.display().to_string(),
+    )?))
+}
+
+/// Run `meta-online` or `fe-online-ats` on the imported structure `s` (from `path`) under `ag`
+/// (at `DT_S`).
 pub fn run(
     args: &Args,
     path: &Path,
@@ -92,7 +131,11 @@ pub fn run(
         PresetArg::Benchmark => Preset::Benchmark,
         PresetArg::UnrCompact => Preset::UnrCompact,
     };
-    let (analytical, columns) = match sc {
+    let (rig_config, factor) = hybrid::rig_of(preset, args.seed, args.uncertainty);
+    let scale = hybrid::specimen_scale(s)?;
+    let from_file = rig_file_compensation(args, s, preset, &rig_config, factor)?;
+    let mut departure_cutoff_hz = None;
+    let (analytical, columns, compensation, comp, estimate, timer) = match sc {
         SimScenario::MetaOnline => {
             let Some(m) = &args.model else {
                 anyhow::bail!(
@@ -105,35 +148,75 @@ pub fn run(
                 .with_context(|| format!("reduced model file {}", m.display()))?;
             let params = crate::machinery::imported::reduced::hybrid_params(&file, s, DT_S)
                 .with_context(|| format!("reduced model file {}", m.display()))?;
+            // The compensation: the rig file's, else the rig identified first on this virtual
+            // plant (`rths identify`'s procedure: what a lab does before testing).
+            let comp = match from_file {
+                Some(c) => c,
+                None => rig::identify_rig(s.name(), &rig_config, factor)?,
+            };
+            let c = comp.corrected_lead;
             (
                 Analytical::StructureReduced(StructureReduced::new(params)),
                 file.outputs.clone(),
+                Compensation {
+                    compensator: Compensator::Lead(Lead::new(c.lead)),
+                    correction: c.correction,
+                },
+                Some(comp),
+                None,
+                None,
+            )
+        }
+        SimScenario::Study(ScenarioId::FeOnlineAts) => {
+            if let Some(m) = &args.model {
+                anyhow::bail!(
+                    "--model {} does not apply to fe-online-ats: its analytical part is the host \
+                     FE of the whole model",
+                    m.display()
+                );
+            }
+            // The lab's estimate of its specimen: the rig file's identified one at the
+            // structure's scale, else the imported --specimen-stiffness; never the drawn one.
+            let estimate = from_file
+                .as_ref()
+                .map_or(s.specimen_stiffness_kn_per_mm(), |c| {
+                    c.specimen_k_kn_per_mm * scale.force_scale() / scale.disp_scale()
+                });
+            // The departure holds the load cell's noise and the rig's inertia and tracking error;
+            // loading the model with it as is, the ATS amplified it into a 76 Hz oscillation
+            // that tripped every run (docs/opensees.md): it is low-passed at the fundamental,
+            // at most 2 Hz.
+            let cutoff = split::departure_cutoff_hz(s, estimate)
+                .with_context(|| format!("the fundamental frequency of {}", path.display()))?;
+            let part = OperatorSplitting::new(s, estimate, DT_S)
+                .and_then(|p| p.with_departure_cutoff_hz(cutoff))
+                .with_context(|| format!("the host FE of {}", path.display()))?;
+            departure_cutoff_hz = Some(cutoff);
+            let timer = part.timer();
+            // The shear structures' fe-online-ats: the paper's ATS (the rig file's start); the
+            // measured force corrected with the rig file's identified specimen, as meta-online
+            // corrects it (without a rig file: as measured).
+            let compensator = paper_ats(from_file.as_ref().map(|c| c.ats_initial))?;
+            (
+                Analytical::StructureHost(StructureHost::new(Box::new(part))),
+                s.outputs().iter().map(|o| o.column()).collect(),
+                Compensation {
+                    compensator,
+                    correction: from_file
+                        .as_ref()
+                        .map_or(ForceCorrection::NONE, |c| c.corrected_lead.correction),
+                },
+                from_file,
+                Some(estimate),
+                Some(timer),
             )
         }
         _ => anyhow::bail!("{sc} is not a hybrid scenario of an imported structure"),
     };
-    let (rig_config, factor) = hybrid::rig_of(preset, args.seed, args.uncertainty);
-    // The compensation: the rig file's, else the rig identified first on this virtual plant
-    // (`rths identify`'s procedure: what a lab does before testing).
-    let comp = match &args.rig {
-        Some(p) => {
-            let file = RigFile::load(p).with_context(|| format!("rig file {}", p.display()))?;
-            file.check(preset.name(), VIRTUAL_BOARD)
-                .with_context(|| format!("rig file {} refused", p.display()))?;
-            file.check_plant(&rig_config, factor)
-                .with_context(|| format!("rig file {} refused", p.display()))?;
-            rig::from_rig_file_named(s.name(), &file, &p.display().to_string())?
-        }
-        None => rig::identify_rig(s.name(), &rig_config, factor)?,
-    };
-    let c = comp.corrected_lead;
     let (run, stop) = hybrid::run_online(
-        hybrid::specimen_scale(s)?,
+        scale,
         analytical,
-        Compensation {
-            compensator: Compensator::Lead(Lead::new(c.lead)),
-            correction: c.correction,
-        },
+        compensation,
         &rig_config,
         ag_mm_s2,
         columns,
@@ -163,6 +246,9 @@ pub fn run(
         nominal_specimen_k_kn_per_mm: s.specimen_stiffness_kn_per_mm(),
         plant,
         compensation: comp,
+        specimen_estimate_kn_per_mm: estimate,
+        departure_cutoff_hz,
+        fe_s_per_step: timer.and_then(|t| t.s_per_step()),
         score,
     };
     if args.json {
@@ -198,15 +284,25 @@ fn print(j: &OnlineJson) {
         j.true_specimen_k_kn_per_mm,
         j.nominal_specimen_k_kn_per_mm
     );
-    let c = &j.compensation;
-    crate::outln!(
-        "compensation        {}: delay {:.2} ms, gain {:.4}, lead residual {:.1} %, specimen {:.5} kN/mm at the rig",
-        c.source,
-        c.delay_ms,
-        c.gain,
-        c.lead_residual_pct,
-        c.specimen_k_kn_per_mm
-    );
+    match &j.compensation {
+        Some(c) => crate::outln!(
+            "compensation        {}: delay {:.2} ms, gain {:.4}, lead residual {:.1} %, specimen {:.5} kN/mm at the rig",
+            c.source,
+            c.delay_ms,
+            c.gain,
+            c.lead_residual_pct,
+            c.specimen_k_kn_per_mm
+        ),
+        None => crate::outln!("compensation        the paper's ATS start (no rig file)"),
+    }
+    if let Some(k) = j.specimen_estimate_kn_per_mm {
+        crate::outln!(
+            "host FE             operator splitting, specimen estimate {k:.3} kN/mm in K̂, its departure low-passed at {:.3} Hz{}",
+            j.departure_cutoff_hz.unwrap_or(f64::NAN),
+            j.fe_s_per_step
+                .map_or(String::new(), |t| format!(", {:.1} µs per step", t * 1e6))
+        );
+    }
     let r = &j.score.report;
     match (&r.stop_reason, r.stop_time_s) {
         (Some(why), Some(t)) => {

@@ -29,6 +29,9 @@ pub enum FeError {
     /// The specimen's stiffness is not finite and ≥ 0.
     #[error("the specimen's stiffness must be finite and ≥ 0, got {0} kN/mm")]
     Specimen(f64),
+    /// A low-pass cutoff is not positive and finite.
+    #[error("the cutoff must be positive and finite, got {0} Hz")]
+    Cutoff(f64),
     /// The effective stiffness cannot be factorized.
     #[error("the effective stiffness K + 4/dt²·M + 2/dt·C cannot be factorized: {0}")]
     Factor(#[from] FactorError),
@@ -37,6 +40,7 @@ pub enum FeError {
 /// Newmark's average acceleration on an imported structure coupled with its numerical stand-in
 /// specimen. Parameters (matrices, factorization) are fixed at construction; the state is `u`,
 /// `v`, `a` ([`Self::reset`]).
+#[derive(Clone)]
 pub struct SparseNewmark {
     model: SparseModel,
     /// `M·ι`.
@@ -114,6 +118,13 @@ impl SparseNewmark {
 
     /// One step to the ground acceleration `ag_mm_s2` at its end.
     pub fn step(&mut self, ag_mm_s2: f64) {
+        self.step_loaded(ag_mm_s2, 0.0);
+    }
+
+    /// One step to the ground acceleration `ag_mm_s2` at its end, with the force
+    /// `interface_load_kn` applied at the interface over the step's end (the hybrid loop's
+    /// measured force less the stand-in's, [`super::split`]); 0 is [`Self::step`] bit for bit.
+    pub fn step_loaded(&mut self, ag_mm_s2: f64, interface_load_kn: f64) {
         let dt = self.dt_s;
         let (a0, a1, a2) = (4.0 / (dt * dt), 2.0 / dt, 4.0 / dt);
         // M·(a₀·u + a₂·v + a)
@@ -134,6 +145,11 @@ impl SparseNewmark {
         // − M·ι·ü_g
         for (r, g) in self.rhs.iter_mut().zip(self.ground_mass.iter()) {
             *r -= g * ag_mm_s2;
+        }
+        if interface_load_kn != 0.0 {
+            if let Some(r) = self.rhs.get_mut((self.model.interface, 0)) {
+                *r += interface_load_kn;
+            }
         }
         self.chol.solve_mut(&mut self.rhs);
         // a₊ = a₀·(u₊ − u) − a₂·v − a, v₊ = v + Δt/2·(a + a₊), then u₊.
@@ -156,9 +172,33 @@ impl SparseNewmark {
         self.u[(self.model.interface, 0)]
     }
 
+    /// Newmark's predictor of the interface's displacement at the end of the coming step,
+    /// `u + Δt·v + Δt²/4·a` (what the step's solution adds to it is `Δt²/4·a₊`), mm.
+    pub fn interface_predictor_mm(&self) -> f64 {
+        let i = (self.model.interface, 0);
+        let dt = self.dt_s;
+        self.u[i] + dt * self.v[i] + 0.25 * dt * dt * self.a[i]
+    }
+
+    /// Output `i`'s displacement (the structure's output order), mm; `None` past them.
+    pub fn output_mm(&self, i: usize) -> Option<f64> {
+        let e = *self.model.outputs.get(i)?;
+        self.u.get((e, 0)).copied()
+    }
+
+    /// How many outputs.
+    pub fn output_count(&self) -> usize {
+        self.model.outputs.len()
+    }
+
     /// The output DOFs' displacements, mm, in the structure's output order.
     pub fn outputs_mm(&self) -> impl Iterator<Item = f64> + '_ {
         self.model.outputs.iter().map(|&e| self.u[(e, 0)])
+    }
+
+    /// The step, s.
+    pub fn dt_s(&self) -> f64 {
+        self.dt_s
     }
 
     /// Equations of the whole model.

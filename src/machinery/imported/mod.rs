@@ -9,6 +9,8 @@
 //!   python3 and openseespy, reads its Matrix Market files into an [`ImportedFile`].
 //! - [`fe`]: the host FE of an imported structure: Newmark's average acceleration on the whole
 //!   sparse model, factorized once.
+//! - [`split`]: the host FE in the hybrid loop (`fe-online-ats`): the operator-splitting method
+//!   on the same Newmark step, a host part of core's controller.
 //! - [`reduced`]: the reduced-order modal model (`rths train meta`) and its file.
 //!
 //! The partition is the one of every structure file: the model is the whole test structure,
@@ -21,5 +23,6 @@ pub mod fe;
 pub mod file;
 pub mod modal_reference;
 pub mod reduced;
+pub mod split;
 
 pub use file::{DofLabel, ImportedFile, ImportedStructure, ImportedStructureError};
