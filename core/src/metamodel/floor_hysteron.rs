@@ -399,10 +399,10 @@ impl FloorHysteron {
             }
             *dv = s;
         }
-        // The operators' new states go to a scratch of the hysterons in use, committed only if
-        // the step is finite (the integrator keeps its own small state to rewind: copying it
-        // whole each tick, coefficients and all, was most of the tick's cost on the board); each
-        // adds its force −w·p along its direction.
+        // The operators' states change only if the step is finite (the plays' new outputs wait
+        // in a scratch, the Menegotto–Pinto states' old ones are kept; the integrator keeps its
+        // own small state to rewind: copying it whole each tick, coefficients and all, was most
+        // of the tick's cost on the board); each adds its force −w·p along its direction.
         let mut g = [0.0; HYST_MAX_DIRECTIONS];
         let count = self.p.count;
         match self.p.operator {
@@ -440,16 +440,19 @@ impl FloorHysteron {
                 }
             }
             HysteronOperator::MenegottoPinto(shape) => {
-                let mut mp = [MpState::REST; HYST_MAX_MP];
+                // Stepped in place; the states before the step are kept for the hysterons in use
+                // only (an empty slot costs its tag, where a scratch of states would be 2 KB to
+                // clear) and put back if the step overflows.
+                let mut before = [None; HYST_MAX_MP];
                 for ((h, st), old) in self
                     .p
                     .hyst
                     .iter()
-                    .zip(mp.iter_mut())
-                    .zip(&self.mp)
+                    .zip(self.mp.iter_mut())
+                    .zip(before.iter_mut())
                     .take(count)
                 {
-                    *st = *old;
+                    *old = Some(*st);
                     let (Some(dv), Some(gd)) = (delta.get(h.direction), g.get_mut(h.direction))
                     else {
                         continue;
@@ -457,10 +460,12 @@ impl FloorHysteron {
                     *gd -= h.weight_kn_per_mm * mp_play(&shape, h.threshold_mm, st, *dv);
                 }
                 if !self.advance(ground_accel_mm_s2, specimen_force_kn, &g) {
+                    for (st, old) in self.mp.iter_mut().zip(&before) {
+                        if let Some(o) = old {
+                            *st = *o;
+                        }
+                    }
                     return Err(ParamError::NotFinite("model state (the step overflowed)").into());
-                }
-                for (dst, st) in self.mp.iter_mut().zip(&mp).take(count) {
-                    *dst = *st;
                 }
             }
         }
