@@ -28,8 +28,10 @@
 //!   `RTHS_BUDGET_METAS` (the linear ones' metamodels at this build's rate, required: `budget.sh`
 //!   trains them), `RTHS_BUDGET_MODALS` (the yielding ones' modal models; default `nl-S.json` in
 //!   `data/models/`), `RTHS_BUDGET_REDUCED` (reduced models of imported structures,
-//!   comma-separated: `budget.sh` trains them; without it the budget has no reduced rows). The
-//!   modal and reduced models run a second time with a rig compensation (`nl-online`,
+//!   comma-separated: `budget.sh` trains them; without it the budget has no reduced rows),
+//!   `RTHS_BUDGET_HYSTERONS` (floor-hysteron models, their floors in them, comma-separated;
+//!   default `data/models/nl-fiber-frame-hysteron.json`, trained from OpenSees runs). The modal,
+//!   reduced and floor-hysteron models run a second time with a rig compensation (`nl-online`,
 //!   `meta-online`: the lead of `data/models/lrx.json` with its adaptation, a force correction and
 //!   the budget's scale), what it adds per tick.
 //! - The El Centro record `../data/ground_motions/IELC180.AT2` (values in g), embedded as f64 exactly
@@ -456,6 +458,34 @@ fn budget_rows(out: &mut String, rows: &mut String, n: &mut usize, root: &Path) 
             &laid,
             &rig,
         );
+    }
+    // The floor-hysteron models (rate-independent: any build's rate), laid out alone as `rths
+    // link upload --model` lays them out; N is the floors.
+    println!("cargo:rerun-if-env-changed=RTHS_BUDGET_HYSTERONS");
+    let hysterons: Vec<PathBuf> = std::env::var("RTHS_BUDGET_HYSTERONS")
+        .map(|l| l.split(',').map(PathBuf::from).collect())
+        .unwrap_or_else(|_| vec![root.join("data/models/nl-fiber-frame-hysteron.json")]);
+    for m in &hysterons {
+        println!("cargo:rerun-if-changed={}", m.display());
+        let f = rths_files::hysteron_model_file::HysteronModelFile::from_json(&read(m))
+            .unwrap_or_else(|e| fail(format!("{}: {e}", m.display())));
+        let laid = lay_out_files(Some(m), None, dt).unwrap_or_else(|e| fail(e.to_string()));
+        let k = f.specimen_stiffness_kn_per_mm;
+        let (name, floors) = (f.structure.name.as_str(), f.floors.len());
+        budget_row(
+            out,
+            rows,
+            n,
+            "structure-hysteron",
+            name,
+            floors,
+            0,
+            k,
+            &laid,
+            &[],
+        );
+        let rig = budget_rig(root, k);
+        budget_row(out, rows, n, "nl-online", name, floors, 0, k, &laid, &rig);
     }
 }
 

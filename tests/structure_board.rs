@@ -10,7 +10,13 @@
 //! - `fe-online-lead`: the yielding finite elements of `shear3-yielding`, the same compensation;
 //! - `nl-online` of a floor-hysteron model (issue 25) of `shear3-yielding`: its elastic floors and
 //!   plays on its spring network's directions, uploaded with `--model` alone and with
-//!   `--structure`, the same compensation.
+//!   `--structure`, the same compensation;
+//! - `nl-online` of the shipped floor-hysteron model of the fiber frame trained from OpenSees runs
+//!   (`data/models/nl-fiber-frame-hysteron.json`) with its imported structure, the same
+//!   compensation.
+//!
+//! Built with `--features sim,rate-4096`, the image and the host run at 4096 Hz (the floor-hysteron
+//! runs were measured so; CI runs the 2048 Hz build).
 //!
 //! Each runs against the plant in the MCU (the `unr-compact` virtual rig, seed 1) through the whole
 //! El Centro record, and the host's run of the same controller (core's, installed by the device's
@@ -42,19 +48,31 @@ fn data(p: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(p)
 }
 
-/// The emulated Cortex-M7's link image (its default, the shipped LR; what runs is uploaded).
+/// The emulated Cortex-M7's link image (its default, the shipped LR; what runs is uploaded), at
+/// the host's rate (`--features sim,rate-4096` builds the 4096 Hz image, its default FE + ATS,
+/// which needs no model file of that rate: the floor-hysteron runs below then compare the board
+/// at 4096 Hz with the host at 4096 Hz).
 fn m7_link_elf() -> PathBuf {
-    let status = Command::new(env!("CARGO"))
-        .current_dir(firmware_dir())
-        .args([
+    let mut build = Command::new(env!("CARGO"));
+    if cfg!(feature = "rate-4096") {
+        build.env("RTHS_MODEL", "fe-ats").args([
+            "build-m7",
+            "--no-default-features",
+            "--features",
+            "board-mps2-an500,link,rate-4096",
+        ]);
+    } else {
+        build.env_remove("RTHS_MODEL").args([
             "build-m7",
             "--no-default-features",
             "--features",
             "board-mps2-an500,link",
-        ])
+        ]);
+    }
+    let status = build
+        .current_dir(firmware_dir())
         .env_remove("CARGO_TARGET_DIR")
         .env_remove("RTHS_FAULT")
-        .env_remove("RTHS_MODEL")
         .env_remove("RTHS_STRUCTURE")
         .env_remove("RTHS_BUDGET")
         .status()
@@ -259,7 +277,8 @@ fn report_is_the_hosts_score(
 ) {
     use rths::studies::nonlinear::scenario as nl;
     let (ok, out, err) = rths(dir, &["report", &csv.display().to_string(), "--json"]);
-    if scenario == "meta-online" {
+    let text = std::fs::read_to_string(structure).unwrap();
+    if scenario == "meta-online" || rths::machinery::imported::file::is_imported(&text) {
         // An imported structure's reference is not the report's yet: refused, saying so.
         assert!(!ok, "{what}: {out}");
         assert!(err.contains("imported structure"), "{what}: {err}");
@@ -268,7 +287,6 @@ fn report_is_the_hosts_score(
     }
     assert!(ok, "{what}: rths report failed: {err}");
     let report: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
-    let text = std::fs::read_to_string(structure).unwrap();
     let s = rths_files::structure_file::Structure::from_json(&text).unwrap();
     let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
     let mut case = nl::StructureCase::new(s, &ag)
@@ -534,5 +552,47 @@ fn a_floor_hysteron_model_runs_on_the_m7_bit_for_bit_with_the_host() {
     assert!(
         err.contains("shear3-yielding") && err.contains("shear8-yielding"),
         "{err}"
+    );
+}
+
+/// The shipped floor-hysteron model of the fiber frame (`data/models/nl-fiber-frame-hysteron.json`,
+/// trained by `rths train nonlinear` from OpenSees runs of `opensees-fiber-frame`'s fiber-section
+/// model, docs/nonlinear.md) with its imported structure and the rig's compensation, `nl-online`
+/// on the emulated M7 through El Centro bit for bit with the host (`rths report` refuses an
+/// imported structure's recording, saying so). The 10 % goal is checked by the structure budget
+/// (`firmware/budget.sh`: its floor-hysteron rows at 4096 Hz), not here.
+#[test]
+#[cfg_attr(
+    rths_no_qemu,
+    ignore = "needs qemu-system-arm, not found when the tests were built (docs/ci.md)"
+)]
+fn the_trained_floor_hysteron_model_of_the_fiber_frame_runs_on_the_m7_bit_for_bit() {
+    if qemu_missing("the trained floor-hysteron model on the emulated Cortex-M7") {
+        return;
+    }
+    let elf = m7_link_elf();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (ok, _, err) = rths(
+        d,
+        &["identify", "--preset", "unr-compact", "--out", "rig.json"],
+    );
+    assert!(ok, "{err}");
+    let r = on_the_board_and_the_host(
+        &elf,
+        d,
+        "fiber-frame floor-hysteron nl-online",
+        "nl-online",
+        Some(&data("models/nl-fiber-frame-hysteron.json")),
+        &data("structures/opensees-fiber-frame.json"),
+        &d.join("rig.json"),
+        2.0,
+    );
+    assert_eq!(r["end_state"], "done", "the whole record: {r}");
+    let max = r["instr_per_tick"]["max"].as_f64().unwrap();
+    println!(
+        "fiber-frame floor-hysteron nl-online at {CONTROL_RATE_HZ} Hz: {max} instructions per tick \
+         at most, {:.2} % of the tick at 480 MHz and 1.5 cycles per instruction",
+        100.0 * max * 1.5 * f64::from(CONTROL_RATE_HZ) / 480e6
     );
 }

@@ -2,7 +2,8 @@
 //! the same twelve controllers (FE linear, FE yielding, structure metamodel, modal-hysteretic
 //! metamodel of `data/models/nl-S.json`; N = 1, 3, 8), the same
 //! El Centro ticks at 4096 Hz, the same ideal rig, and the same FNV-1a checksum of each command
-//! stream; and two of its reduced-model rows (imported frames). The expected checksums are the
+//! stream; two of its reduced-model rows (imported frames) and its floor-hysteron row (the shipped
+//! model of the fiber frame). The expected checksums are the
 //! emulated Cortex-M7's (`STRUCTURE` lines of its QEMU run, docs/firmware.md#the-structure-budget):
 //! host and firmware step these controllers bit for bit.
 
@@ -190,4 +191,23 @@ fn the_host_steps_the_reduced_rows_as_the_m7_does() {
         let fnv = run(&spec, file.specimen_k_kn_per_mm, &ag);
         assert_eq!(fnv, expected, "reduced {name}: {fnv:016x}");
     }
+}
+
+/// The budget's floor-hysteron row (`structure-hysteron`: the shipped model of the fiber frame
+/// trained from OpenSees runs, laid out alone as `rths link upload --model` lays it out) rerun on
+/// the host: the M7's command checksum at 4096 Hz (its `STRUCTURE` line, docs/firmware.md).
+#[test]
+fn the_host_steps_the_floor_hysteron_row_as_the_m7_does() {
+    let dt = dt_s(4096);
+    let ag = GroundMotion::try_el_centro().unwrap().resample_mm_s2(dt);
+    let model = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("data/models/nl-fiber-frame-hysteron.json");
+    let laid = rths_files::upload::lay_out_files(Some(&model), None, dt).unwrap();
+    let k = laid.specimen_k_kn_per_mm.unwrap();
+    let fnv =
+        rths_link::layout::with_spec(laid.kind, &laid.values, |spec| run(spec, k, &ag)).unwrap();
+    assert_eq!(
+        fnv, 0x311300a2910dd9d4_u64,
+        "floor-hysteron fiber_frame: {fnv:016x}"
+    );
 }

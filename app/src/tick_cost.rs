@@ -55,11 +55,15 @@ pub struct StructureCost {
     pub reduced: [f64; 2],
     /// The modes of the reduced model's base row.
     pub reduced_modes: f64,
-    /// The floor-hysteron model's cost beyond the linear FE of its floors and its plays and
-    /// directions costed as bilinear stories (the step copies the integrator and the operators'
-    /// state to refuse an overflowing step): the M7's from its one measured row (3 floors, 6
-    /// directions, 6 plays, `nl-online`: 8,010 max); infinite where not measured (refused).
+    /// The floor-hysteron model's cost beyond the linear FE of its floors, its plays and
+    /// directions costed as bilinear stories and its Menegotto–Pinto plays at `hysteron_mp`: the
+    /// M7's from its measured play row (3 floors, 6 directions, 6 plays, `nl-online`: 2,810
+    /// max); infinite where not measured (refused).
     pub hysteron_base: f64,
+    /// A Menegotto–Pinto hysteron (two `pow` a step): the M7's from its measured row (the
+    /// trained fiber-frame model: 3 floors, 6 directions, 6 of them, `nl-online`: 6,105 max)
+    /// less the play row, per hysteron, plus a play's share; infinite where not measured.
+    pub hysteron_mp: f64,
     /// What the rig compensation of a structure part adds (the lead with its adaptation and the
     /// force correction): the largest measured (compensated − uncompensated) row.
     pub rig: f64,
@@ -92,16 +96,16 @@ impl StructureCost {
                 let more = (dims.modes as f64 - self.reduced_modes).max(0.0);
                 self.reduced[0] + self.reduced[1] * more
             }
-            // One measured row (the M7): the floors are the linear FE's Chang step; each play and
+            // Two measured rows (the M7): the floors are the linear FE's Chang step; each play and
             // each direction is costed as a bilinear story (a play is one compare and a clamp, a
             // direction n multiply-adds each way, both cheaper than a story's law), each
-            // Menegotto–Pinto play as a Bouc–Wen story (both call `pow`), plus the measured rest.
+            // Menegotto–Pinto play at its own measured cost, plus the measured rest.
             ModelKind::StructureHysteron => {
                 let mp = dims.bouc_wen.min(dims.hysterons) as f64;
                 let plays = dims.hysterons as f64 - mp;
                 self.fe_instr(n)
                     + self.per_story[0] * (plays + dims.directions as f64)
-                    + self.per_story[1] * mp
+                    + self.hysteron_mp * mp
                     + self.hysteron_base
             }
             ModelKind::Lr | ModelKind::Lrx | ModelKind::Rnn | ModelKind::FeAts => 0.0,
@@ -129,6 +133,7 @@ impl PathCost {
             reduced: [6_845.0, 1_877.0],
             reduced_modes: 2.0,
             hysteron_base: f64::INFINITY,
+            hysteron_mp: f64::INFINITY,
             rig: 2_780.0,
         }),
     };
@@ -150,8 +155,10 @@ impl PathCost {
             modal: [870.0, 116.0, 84.0],
             reduced: [2_055.0, 50.0],
             reduced_modes: 2.0,
-            // 8,010 (measured, nl-online) − 395 (rig) − 1,145 (FE, N = 3) − 12 × 105.
-            hysteron_base: 5_210.0,
+            // 2,810 (measured, nl-online, 6 plays) − 395 (rig) − 1,145 (FE, N = 3) − 12 × 105.
+            hysteron_base: 10.0,
+            // (6,105 (measured, nl-online, 6 Menegotto–Pinto plays) − 2,810) / 6 + 105, rounded up.
+            hysteron_mp: 655.0,
             rig: 395.0,
         }),
     };

@@ -293,6 +293,15 @@ fn lu_inverse(m: &Padded) -> Option<Padded> {
     }))
 }
 
+/// The state of a [`ChangN`] one step changes (see [`ChangN::motion`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ChangNMotion {
+    disp: Dofs,
+    vel: Dofs,
+    accel: Dofs,
+    next: Dofs,
+}
+
 /// Chang's explicit method (2002 form) on a [`StructureN`]: the formulas of
 /// [`crate::integrator::Chang`], with loops over the DOFs in use.
 ///
@@ -371,6 +380,25 @@ impl ChangN {
     /// Acceleration (relative to the ground) at the last completed step, mm/s².
     pub fn accel(&self) -> &Dofs {
         &self.accel
+    }
+
+    /// What a step changes, for a caller that may take the step back ([`Self::rewind`]): 256 B,
+    /// where a copy of the whole integrator also copies its coefficients (4.4 KB at 8 DOFs).
+    pub fn motion(&self) -> ChangNMotion {
+        ChangNMotion {
+            disp: self.disp,
+            vel: self.vel,
+            accel: self.accel,
+            next: self.next,
+        }
+    }
+
+    /// Back to the state [`Self::motion`] saved.
+    pub fn rewind(&mut self, m: &ChangNMotion) {
+        self.disp = m.disp;
+        self.vel = m.vel;
+        self.accel = m.accel;
+        self.next = m.next;
     }
 
     #[inline]

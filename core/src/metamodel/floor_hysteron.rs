@@ -389,50 +389,99 @@ impl FloorHysteron {
             return Err(ParamError::NotFinite("ground acceleration or specimen force").into());
         }
         let n = self.p.floors();
-        let x = *self.p.chang.next_displacement();
         // Each direction's coordinate at the predicted displacement.
         let mut delta = [0.0; HYST_MAX_DIRECTIONS];
+        let x = self.p.chang.next_displacement();
         for (dv, a) in delta.iter_mut().zip(&self.p.dir).take(self.p.directions) {
             let mut s = 0.0;
-            for (ai, xi) in a.iter().zip(&x).take(n) {
+            for (ai, xi) in a.iter().zip(x).take(n) {
                 s += ai * xi;
             }
             *dv = s;
         }
-        // The operators move on a copy, committed only if the step is finite; each adds its
-        // force −w·p along its direction.
+        // The operators' states change only if the step is finite (the plays' new outputs wait
+        // in a scratch, the Menegotto–Pinto states' old ones are kept; the integrator keeps its
+        // own small state to rewind: copying it whole each tick, coefficients and all, was most
+        // of the tick's cost on the board); each adds its force −w·p along its direction.
         let mut g = [0.0; HYST_MAX_DIRECTIONS];
-        let mut play = [0.0; HYST_MAX_HYSTERONS];
-        let mut mp = [MpState::REST; HYST_MAX_MP];
+        let count = self.p.count;
         match self.p.operator {
             HysteronOperator::Play => {
-                play = self.play;
-                for (h, y) in self.p.hyst.iter().zip(play.iter_mut()).take(self.p.count) {
+                let mut play = [0.0; HYST_MAX_HYSTERONS];
+                for ((h, y), old) in self
+                    .p
+                    .hyst
+                    .iter()
+                    .zip(play.iter_mut())
+                    .zip(&self.play)
+                    .take(count)
+                {
                     let (Some(dv), Some(gd)) = (delta.get(h.direction), g.get_mut(h.direction))
                     else {
+                        *y = *old;
                         continue;
                     };
                     let lo = dv - h.threshold_mm;
                     let hi = dv + h.threshold_mm;
-                    if *y < lo {
-                        *y = lo;
-                    } else if *y > hi {
-                        *y = hi;
-                    }
+                    *y = if *old < lo {
+                        lo
+                    } else if *old > hi {
+                        hi
+                    } else {
+                        *old
+                    };
                     *gd -= h.weight_kn_per_mm * *y;
+                }
+                if !self.advance(ground_accel_mm_s2, specimen_force_kn, &g) {
+                    return Err(ParamError::NotFinite("model state (the step overflowed)").into());
+                }
+                for (dst, y) in self.play.iter_mut().zip(&play).take(count) {
+                    *dst = *y;
                 }
             }
             HysteronOperator::MenegottoPinto(shape) => {
-                mp = self.mp;
-                for (h, st) in self.p.hyst.iter().zip(mp.iter_mut()).take(self.p.count) {
+                // Stepped in place; the states before the step are kept for the hysterons in use
+                // only (an empty slot costs its tag, where a scratch of states would be 2 KB to
+                // clear) and put back if the step overflows.
+                let mut before = [None; HYST_MAX_MP];
+                for ((h, st), old) in self
+                    .p
+                    .hyst
+                    .iter()
+                    .zip(self.mp.iter_mut())
+                    .zip(before.iter_mut())
+                    .take(count)
+                {
+                    *old = Some(*st);
                     let (Some(dv), Some(gd)) = (delta.get(h.direction), g.get_mut(h.direction))
                     else {
                         continue;
                     };
                     *gd -= h.weight_kn_per_mm * mp_play(&shape, h.threshold_mm, st, *dv);
                 }
+                if !self.advance(ground_accel_mm_s2, specimen_force_kn, &g) {
+                    for (st, old) in self.mp.iter_mut().zip(&before) {
+                        if let Some(o) = old {
+                            *st = *o;
+                        }
+                    }
+                    return Err(ParamError::NotFinite("model state (the step overflowed)").into());
+                }
             }
         }
+        Ok(self.target_mm())
+    }
+
+    /// The floors' step with the hysterons' forces `g` along the directions and the specimen's
+    /// force; false (the integrator as it was) if the force or the result is not finite.
+    #[inline]
+    fn advance(
+        &mut self,
+        ground_accel_mm_s2: f64,
+        specimen_force_kn: f64,
+        g: &[f64; HYST_MAX_DIRECTIONS],
+    ) -> bool {
+        let n = self.p.floors();
         let mut r: Dofs = [0.0; MAX_DOF];
         for (gd, a) in g.iter().zip(&self.p.dir).take(self.p.directions) {
             for (ri, ai) in r.iter_mut().zip(a).take(n) {
@@ -443,20 +492,15 @@ impl FloorHysteron {
             *rs += specimen_force_kn;
         }
         if !r.iter().all(|v| v.is_finite()) {
-            return Err(ParamError::NotFinite("model state (the step overflowed)").into());
+            return false;
         }
-        let before = self.p.chang;
+        let before = self.p.chang.motion();
         self.p.chang.advance(ground_accel_mm_s2, &r);
-        let next = self.target_mm();
-        if !next.is_finite() || !self.p.chang.disp().iter().all(|v| v.is_finite()) {
-            self.p.chang = before;
-            return Err(ParamError::NotFinite("model state (the step overflowed)").into());
+        if !self.target_mm().is_finite() || !self.p.chang.disp().iter().all(|v| v.is_finite()) {
+            self.p.chang.rewind(&before);
+            return false;
         }
-        match self.p.operator {
-            HysteronOperator::Play => self.play = play,
-            HysteronOperator::MenegottoPinto(_) => self.mp = mp,
-        }
-        Ok(next)
+        true
     }
 }
 

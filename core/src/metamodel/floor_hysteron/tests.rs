@@ -248,6 +248,38 @@ fn a_non_finite_input_is_refused_and_the_state_kept() {
     assert_eq!(h, before);
 }
 
+/// A step whose result overflows (finite inputs, a force past the floors' range) is refused and
+/// rewinds the integrator and keeps every hysteron's state, with either operator: the model is
+/// bit for bit the one before, and steps on as a copy that never saw the refused step.
+#[test]
+fn an_overflowing_step_is_refused_and_the_state_kept() {
+    let play = one_story(200.0, 100.0, 2.0, 150.0).expect("valid");
+    for p in [
+        play,
+        play.with_operator(mp(20.0, 0.925, 0.15)).expect("one"),
+    ] {
+        let mut h = FloorHysteron::new(p);
+        h.reset_at(ag(0));
+        for k in 1..500 {
+            let t = h.target_mm();
+            h.step(ag(k) * 3.0, 100.0 * t).expect("finite");
+        }
+        let before = h;
+        assert!(h.step(f64::MAX, f64::MAX).is_err());
+        assert_eq!(h, before);
+        let mut twin = before;
+        for k in 500..700 {
+            let (a, b) = (h.target_mm(), twin.target_mm());
+            let (x, y) = (
+                h.step(ag(k) * 3.0, 100.0 * a),
+                twin.step(ag(k) * 3.0, 100.0 * b),
+            );
+            assert_eq!(x.map(f64::to_bits), y.map(f64::to_bits));
+        }
+        assert_eq!(h, twin);
+    }
+}
+
 /// A two-story frame with hysterons on both drifts and on the roof drift (cross-story) dissipates:
 /// after the record and free vibration it comes to rest with a residual drift and bounded motion.
 #[test]
