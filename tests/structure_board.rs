@@ -27,107 +27,22 @@
 //! Skipped (loudly) only when `qemu-system-arm` is missing; CI installs it (`RTHS_REQUIRE_QEMU`).
 #![cfg(feature = "sim")]
 
+mod board_link;
 mod common;
+use board_link::{board_and_host, m7_link_elf, rths};
 use common::*;
 
-use std::mem::MaybeUninit;
-use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use rths::machinery::motion::GroundMotion;
-use rths_app::rig_upload::{dims_of, install_rig, InForce};
-use rths_app::run::{Run, TickFacts};
-use rths_app::tick_cost::TickBudget;
-use rths_core::control::{ControlConfig, Controller, FeedbackSource};
-use rths_core::params::{Prototype, SpecimenScale, CONTROL_RATE_HZ, DT_S};
-use rths_core::supervisor::Limits;
-use rths_hal_sim::{Preset, Specimen};
+use rths_core::params::{CONTROL_RATE_HZ, DT_S};
 
 fn data(p: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("data").join(p)
 }
 
-/// The emulated Cortex-M7's link image (its default, the shipped LR; what runs is uploaded), at
-/// the host's rate (`--features sim,rate-4096` builds the 4096 Hz image, its default FE + ATS,
-/// which needs no model file of that rate: the floor-hysteron runs below then compare the board
-/// at 4096 Hz with the host at 4096 Hz).
-fn m7_link_elf() -> PathBuf {
-    let mut build = Command::new(env!("CARGO"));
-    if cfg!(feature = "rate-4096") {
-        build.env("RTHS_MODEL", "fe-ats").args([
-            "build-m7",
-            "--no-default-features",
-            "--features",
-            "board-mps2-an500,link,rate-4096",
-        ]);
-    } else {
-        build.env_remove("RTHS_MODEL").args([
-            "build-m7",
-            "--no-default-features",
-            "--features",
-            "board-mps2-an500,link",
-        ]);
-    }
-    let status = build
-        .current_dir(firmware_dir())
-        .env_remove("CARGO_TARGET_DIR")
-        .env_remove("RTHS_FAULT")
-        .env_remove("RTHS_STRUCTURE")
-        .env_remove("RTHS_BUDGET")
-        .status()
-        .expect("cargo");
-    assert!(status.success(), "firmware build (M7, link) failed");
-    let dest = Path::new(env!("CARGO_TARGET_TMPDIR")).join("rths-firmware-m7-link.elf");
-    std::fs::copy(
-        firmware_dir().join("target/m7/thumbv7em-none-eabihf/release/rths-firmware"),
-        &dest,
-    )
-    .unwrap();
-    dest
-}
-
-fn rths(dir: &Path, args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_rths"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-/// The controller the board builds, on the host: the image's own configuration
-/// (`firmware/src/analytical.rs`), the part installed from the same values by the device's own
-/// function (`model_upload::install`), then the rig compensation (`rig_upload::install_rig`).
-fn host_controller<'s>(
-    slot: &'s mut MaybeUninit<Controller>,
-    laid: &rths_files::upload::LaidOut,
-    rig: &[f64],
-) -> &'s mut Controller {
-    let cfg = ControlConfig::new(
-        Prototype::paper().with_brace_factor(1.0).unwrap(),
-        SpecimenScale::default(),
-        FeedbackSource::Measured,
-        Limits::paper_actuator(),
-    )
-    .unwrap();
-    let ctl = Controller::init_in(slot, cfg);
-    rths_app::model_upload::install(ctl, laid.kind, &laid.values).unwrap();
-    let part = InForce {
-        kind: laid.kind,
-        dims: dims_of(ctl),
-        budget: Some(TickBudget::cortex_m7_480mhz(f64::from(CONTROL_RATE_HZ))),
-    };
-    install_rig(ctl, &part, laid.kind, rig).unwrap();
-    ctl
-}
-
-/// One structure part on the board and on the host: `rths link run` with the lab's files, then
-/// the same controller on the host; every command and the RESULT line's figures compared.
+/// One structure part on the board and on the host ([`board_and_host`]), then `rths report` of
+/// the board's recording against the host's scoring of the same run.
 #[allow(clippy::too_many_arguments)]
 fn on_the_board_and_the_host(
     elf: &Path,
@@ -139,123 +54,27 @@ fn on_the_board_and_the_host(
     rig: &Path,
     length_scale: f64,
 ) -> serde_json::Value {
-    let csv = dir.join(format!("{what}.csv"));
-    let mut args: Vec<String> = ["link", "--qemu"]
-        .iter()
-        .map(|s| s.to_string())
-        .chain([elf.display().to_string(), "run".into()])
-        .collect();
-    if let Some(m) = model {
-        args.extend(["--model".into(), m.display().to_string()]);
-    }
-    args.extend([
-        "--structure".into(),
-        structure.display().to_string(),
-        "--rig".into(),
-        rig.display().to_string(),
-        "--length-scale".into(),
-        format!("{length_scale}"),
-        "--out".into(),
-        csv.display().to_string(),
-    ]);
-    let argv: Vec<&str> = args.iter().map(String::as_str).collect();
-    let (ok, out, err) = rths(dir, &argv);
-    println!("{what}: {out}{err}");
-    assert!(ok, "{what}: rths link run failed: {err}");
-    let line = out
-        .lines()
-        .rev()
-        .find_map(|l| l.strip_prefix("RESULT "))
-        .expect("the board's RESULT line");
-    let r: serde_json::Value = serde_json::from_str(line).unwrap();
-    assert_eq!(r["scenario"], scenario, "{what}: {r}");
-    assert_eq!(r["model"], "uploaded over the link", "{what}");
-    let rec = rths::link_host::read_recording_file(&csv).unwrap();
-
-    // The host: the same files laid out, the same controller, the same virtual rig and record.
-    let laid = rths_files::upload::lay_out_files(model, Some(structure), DT_S).unwrap();
-    let rig_file = rths::machinery::identify::RigFile::load(rig).unwrap();
-    let rig_values = rths::link_host::structure_rig_values(
-        &rig_file,
-        laid.specimen_k_kn_per_mm.unwrap(),
+    let run = board_and_host(
+        elf,
+        dir,
+        what,
+        scenario,
+        model,
+        structure,
+        rig,
         length_scale,
-        rths::machinery::train::lrx::RIG_LEAD_ADAPT_TICKS,
-    )
-    .unwrap();
-    let mut slot = Box::new(MaybeUninit::uninit());
-    let ctl = host_controller(&mut slot, &laid, &rig_values);
-    assert_eq!(ctl.scenario_name().0, scenario);
-    let mut plant = rths_hal_sim::VirtualRig::new(
-        rths::machinery::reference::rig_config(Preset::UnrCompact, Specimen::Linear, 1.0, 1)
-            .build()
-            .unwrap(),
     );
-    let ag = GroundMotion::el_centro().resample_mm_s2(DT_S);
-    let mut run = Run::new();
-    let mut commands = Vec::with_capacity(ag.len());
-    // The host's rows as `run_hybrid` takes them (target, command in force, measured; rig scale).
-    let mut rows: Vec<[f64; 4]> = Vec::with_capacity(ag.len());
-    let stop = rths::machinery::drive::run(ctl, Some(&mut plant), &ag, None, DT_S, |st, _, _| {
-        commands.push(st.out.command_mm);
-        rows.push([
-            st.target_mm,
-            st.command_mm,
-            st.measured_mm,
-            st.measured_force_kn,
-        ]);
-        let notify = run.after_tick(&TickFacts {
-            k: st.k as u32,
-            counted: true,
-            row: None,
-            instr: 0,
-            command_mm: st.out.command_mm,
-            measured_mm: st.measured_mm,
-            state: st.out.state,
-            overrun: false,
-            queued: true,
-        });
-        if notify && run.fault_settled() {
-            ControlFlow::Break(())
-        } else {
-            ControlFlow::Continue(())
-        }
-    });
-    let host_fnv = format!("{:016x}", run.command_fnv.finish());
-    let mut identical = 0usize;
-    for (row, host) in rec.rows.iter().zip(&commands) {
-        assert_eq!(
-            row.command_mm.to_bits(),
-            host.to_bits(),
-            "{what}: tick {}: board {} mm, host {host} mm",
-            row.tick,
-            row.command_mm
-        );
-        identical += 1;
-    }
-    println!(
-        "{what} on the M7: {} ticks, {}, command FNV board {} host {host_fnv}; {identical} commands \
-         bit-identical; instructions per tick {}; stack {} B",
-        r["ticks"], r["end_state"], r["command_fnv"], r["instr_per_tick"], r["stack_bytes"]
-    );
-    assert_eq!(
-        identical,
-        commands.len(),
-        "{what}: every tick of the host's run"
-    );
-    assert_eq!(r["ticks"], run.ticks, "{what}");
-    assert_eq!(r["command_fnv"], host_fnv, "{what}");
-    assert_eq!(r["overruns"], 0, "{what}");
     report_is_the_hosts_score(
         dir,
         what,
         scenario,
-        &csv,
+        &run.recording,
         structure,
         length_scale,
-        &rows,
-        stop,
+        &run.rows,
+        run.stop,
     );
-    r
+    run.result
 }
 
 /// `rths report RUN.csv --json` of the board's recording: its study figures are, bit for bit,
