@@ -319,10 +319,38 @@ fn number(file: &Path, line: usize, column: &str, token: &str) -> Result<f64, Hi
     Ok(v)
 }
 
-/// The uniform step of `times` (1-based `lines` of each), checked against `run_dt_s`.
+/// How far the number `token` stands for may be from it, as printed: half a unit of its last digit,
+/// at most half a unit of the 6th significant digit (`5e-6 × |value|`). OpenSees's recorders print
+/// 6 significant digits unless told `-precision`, so a time of 48.8281 s is known to 5e-5 s, a
+/// tenth of a 4096 Hz step; a shorter print ("0", "0.5", a writer's shortest round trip) is taken
+/// as that precise at least.
+pub fn printed_resolution(token: &str) -> f64 {
+    let t = token.trim();
+    let (mantissa, exponent) = match t.find(['e', 'E']) {
+        Some(i) => (&t[..i], t[i + 1..].parse::<i32>().unwrap_or(0)),
+        None => (t, 0),
+    };
+    let decimals = mantissa.find('.').map_or(0, |i| {
+        mantissa[i + 1..]
+            .chars()
+            .filter(char::is_ascii_digit)
+            .count()
+    });
+    let decimals = i32::try_from(decimals).unwrap_or(i32::MAX);
+    let last_digit = 0.5 * 10f64.powi(exponent.saturating_sub(decimals));
+    let value = t.parse::<f64>().map_or(0.0, f64::abs);
+    last_digit.min(SIX_DIGITS_REL * value)
+}
+
+/// Half a unit of the 6th significant digit, relative to the value: at most 5e-6.
+const SIX_DIGITS_REL: f64 = 5e-6;
+
+/// The uniform step of `times` (1-based `lines` of each, each known to `res` as printed), checked
+/// against `run_dt_s`.
 fn uniform_step(
     file: &Path,
     times: &[f64],
+    res: &[f64],
     lines: &[usize],
     run_dt_s: f64,
 ) -> Result<f64, HistoryError> {
@@ -335,13 +363,19 @@ fn uniform_step(
     }
     // Each step against the median step (a gap shows on its own line), then the rate from the
     // mean over the whole file: a time column printed with few digits still gives the step to a
-    // part in 1e6 over a run of any useful length.
+    // part in 1e6 over a run of any useful length. A step is allowed the rounding of the two
+    // times it is the difference of, and of the two the median is.
     let mut steps: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
     steps.sort_by(f64::total_cmp);
     let median = steps[steps.len() / 2];
+    let mut sorted_res = res.to_vec();
+    sorted_res.sort_by(f64::total_cmp);
+    let median_res = sorted_res.get(sorted_res.len() / 2).copied().unwrap_or(0.0);
+    let r = |k: usize| res.get(k).copied().unwrap_or(0.0);
     for k in 1..n {
         let step = times[k] - times[k - 1];
-        if median <= 0.0 || (step - median).abs() > STEP_TOLERANCE * median {
+        let allowed = STEP_TOLERANCE * median + r(k) + r(k - 1) + 2.0 * median_res;
+        if median <= 0.0 || (step - median).abs() > allowed {
             return Err(HistoryError::UnevenTime {
                 file: file.to_path_buf(),
                 line: lines[k],
@@ -405,6 +439,7 @@ pub fn parse_csv(text: &str, file: &Path, run_dt_s: f64) -> Result<TimeHistory, 
     }
     let width = header.len();
     let mut cols: Vec<Vec<f64>> = vec![Vec::new(); width];
+    let mut time_res = Vec::new();
     let mut line_of = Vec::new();
     for (line, row) in it {
         if line_of.len() >= MAX_HISTORY_ROWS {
@@ -426,9 +461,10 @@ pub fn parse_csv(text: &str, file: &Path, run_dt_s: f64) -> Result<TimeHistory, 
         for ((c, f), name) in cols.iter_mut().zip(&fields).zip(&header) {
             c.push(number(file, line, name, f)?);
         }
+        time_res.push(fields.first().map_or(0.0, |f| printed_resolution(f)));
         line_of.push(line);
     }
-    let dt_s = uniform_step(file, &cols[0], &line_of, run_dt_s)?;
+    let dt_s = uniform_step(file, &cols[0], &time_res, &line_of, run_dt_s)?;
     let mut cols = cols.into_iter().skip(1);
     let mut next = || cols.next().unwrap_or_default();
     let ground_accel_mm_s2 = next();
@@ -459,11 +495,13 @@ pub struct RecorderRows {
     pub value: Vec<f64>,
     /// Each row's 1-based line.
     pub line: Vec<usize>,
+    /// How far each time may be from the one printed ([`printed_resolution`]), s.
+    pub time_res_s: Vec<f64>,
 }
 
 /// One recorder file's `time value` rows.
 pub fn parse_recorder(text: &str, file: &Path) -> Result<RecorderRows, HistoryError> {
-    let (mut t, mut v, mut l) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut t, mut v, mut l, mut res) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (line, row) in lines(text) {
         if l.len() >= MAX_HISTORY_ROWS {
             return Err(HistoryError::TooMany {
@@ -483,12 +521,14 @@ pub fn parse_recorder(text: &str, file: &Path) -> Result<RecorderRows, HistoryEr
         }
         t.push(number(file, line, "time", fields[0])?);
         v.push(number(file, line, "value", fields[1])?);
+        res.push(printed_resolution(fields[0]));
         l.push(line);
     }
     Ok(RecorderRows {
         time_s: t,
         value: v,
         line: l,
+        time_res_s: res,
     })
 }
 
@@ -528,11 +568,12 @@ pub fn read_recorder_dir(
         Ok((file, r))
     };
     let (first, ground) = read(RECORDER_FILES[0])?;
-    let (times, ag, line_of) = (ground.time_s, ground.value, ground.line);
-    let dt_s = uniform_step(&first, &times, &line_of, run_dt_s)?;
+    let (times, ag, line_of, times_res) =
+        (ground.time_s, ground.value, ground.line, ground.time_res_s);
+    let dt_s = uniform_step(&first, &times, &times_res, &line_of, run_dt_s)?;
     let same = |name: &str| -> Result<Vec<f64>, HistoryError> {
         let (file, rows) = read(name)?;
-        let (t, v, l) = (rows.time_s, rows.value, rows.line);
+        let (t, v, l, t_res) = (rows.time_s, rows.value, rows.line, rows.time_res_s);
         if t.len() != times.len() {
             return Err(HistoryError::Mismatch {
                 line: l.last().copied().unwrap_or(0),
@@ -546,7 +587,10 @@ pub fn read_recorder_dir(
             });
         }
         for (k, (a, b)) in t.iter().zip(&times).enumerate() {
-            if (a - b).abs() > STEP_TOLERANCE * dt_s {
+            let allowed = STEP_TOLERANCE * dt_s
+                + t_res.get(k).copied().unwrap_or(0.0)
+                + times_res.get(k).copied().unwrap_or(0.0);
+            if (a - b).abs() > allowed {
                 return Err(HistoryError::Mismatch {
                     file,
                     line: l[k],
@@ -747,6 +791,84 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("out_7_1.out: line 40: 40 rows"), "{e}");
+    }
+
+    #[test]
+    fn printed_resolution_is_half_the_last_digit() {
+        for (token, want) in [
+            ("0.000488281", 0.5e-9),
+            ("48.8281", 0.5e-4),
+            ("4.88281e-05", 0.5e-10),
+            ("50", 2.5e-4),
+            ("1E3", 5e-3),
+            ("1.00000E3", 5e-3),
+            ("1234.56", 5e-3),
+            (" 0.00048828125 ", 0.5e-11),
+            // Shorter than 6 significant digits: as precise as 6 at least.
+            ("0", 0.0),
+            ("1", 5e-6),
+            ("0.5", 2.5e-6),
+        ] {
+            let got = printed_resolution(token);
+            assert!(
+                (got - want).abs() <= 1e-9 * want,
+                "{token}: {got} against {want}"
+            );
+        }
+    }
+
+    /// C's `%g` with 6 significant digits, as OpenSees's recorders print without `-precision`.
+    fn six_digits(v: f64) -> String {
+        if v == 0.0 {
+            return "0".into();
+        }
+        let e = v.abs().log10().floor() as i32;
+        if !(-5..6).contains(&e) {
+            let s = format!("{v:.5e}");
+            return s;
+        }
+        let decimals = usize::try_from(5 - e).unwrap_or(0);
+        let s = format!("{v:.decimals$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    }
+
+    #[test]
+    fn a_recorder_run_printed_with_six_digits_reads_and_a_missing_row_is_refused() {
+        // One minute at 2048 Hz: past 10 s the times are printed to 1e-4 s, a fifth of a step.
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path();
+        let n = 60 * 2048;
+        let write = |name: &str, skip: Option<usize>| {
+            let t: String = (1..=n)
+                .filter(|k| Some(*k) != skip)
+                .map(|k| {
+                    let t = k as f64 * DT;
+                    format!("{} {}\n", six_digits(t), six_digits((t * 3.0).sin()))
+                })
+                .collect();
+            std::fs::write(p.join(name), t).unwrap();
+        };
+        for f in RECORDER_FILES {
+            write(f, None);
+        }
+        let h = read_recorder_dir(p, RecorderUnits::MM_KN, DT).unwrap();
+        assert_eq!(h.len(), n);
+        // A row missing at 50 s: its line is named.
+        write("interface_disp.out", Some(50 * 2048));
+        let e = read_recorder_dir(p, RecorderUnits::MM_KN, DT)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("interface_disp.out"), "{e}");
+        write("interface_disp.out", None);
+        write("ground_accel.out", Some(50 * 2048));
+        let e = read_recorder_dir(p, RecorderUnits::MM_KN, DT)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(&format!("line {}", 50 * 2048)), "{e}");
     }
 
     proptest! {

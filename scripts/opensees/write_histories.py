@@ -4,6 +4,7 @@
     python3 write_histories.py MODEL.py --specimen NODE:DOF --specimen-element TAG
         --output NODE:DOF [--output ...] --record AT2 [--record ...] --scale S [--scale ...]
         --dt DT --out-dir DIR [--duration-s T] [--free-s F] [--units si|mm-kn] [--direction 1]
+        [--recorders]
 
 MODEL.py is built as `export_model.py` builds it (run as `rths_export`, its directory on
 `sys.path`), with the specimen modelled by a numerical stand-in element `--specimen-element` (a
@@ -17,6 +18,15 @@ motion enters as the nodal loads `-M*iota*ag(t)` (transient.py's `ground_loads`)
 Writes DIR/RECORD-xSCALE.csv per run in rths's history layout (units mm, kN, mm/s^2):
 `time_s,ground_accel_mm_s2,specimen_force_kn,interface_mm,out_<NODE>_<DOF>_mm...`; the specimen
 force is the stand-in element's resisting force at the specimen node in the specimen's direction.
+With `--recorders`, each run is written instead as a directory DIR/RECORD-xSCALE/ of OpenSees's
+own recorder files at their default precision (6 significant digits), the layout `--histories`
+also reads: `recorder Node ... disp` for the interface and each output, `recorder Element ...
+basicForce` for the specimen's stand-in (its force in tension, which is the force at the specimen
+node when that node is the element's second end; the script refuses the other order), and
+`ground_accel.out` written by the script at the recorders' times (OpenSees records no ground
+acceleration). The recorders write a row at time 0 and one per committed step, as the CSV has;
+a step that needed sub-steps would write its sub-steps too: the reader then refuses the run naming
+the line.
 stdout gets one JSON line per run (file, steps, seconds, seconds per step, peak interface mm).
 Exit codes: 0 done, 2 bad arguments or a model/analysis that fails, 3 openseespy missing.
 """
@@ -82,7 +92,19 @@ def parse_dof(text):
         fail(2, f"`{text}` is not NODE:DOF")
 
 
-def run(args, ops, model, record, scale, outs):
+def attach_recorders(args, ops, folder, sn, sd, outs):
+    """OpenSees's own recorders of one run into `folder` (the layout of `--histories`)."""
+    os.makedirs(folder, exist_ok=True)
+    ops.recorder("Node", "-file", os.path.join(folder, "interface_disp.out"), "-time",
+                 "-node", sn, "-dof", sd, "disp")
+    for n, d in outs:
+        ops.recorder("Node", "-file", os.path.join(folder, f"out_{n}_{d}.out"), "-time",
+                     "-node", n, "-dof", d, "disp")
+    ops.recorder("Element", "-file", os.path.join(folder, "specimen_force.out"), "-time",
+                 "-ele", args.specimen_element, "basicForce")
+
+
+def run(args, ops, model, record, scale, outs, folder=None):
     runpy.run_path(model, run_name="rths_export")
     from transient import ground_loads
 
@@ -98,6 +120,11 @@ def run(args, ops, model, record, scale, outs):
         fail(2, f"element {args.specimen_element} does not end at node {sn}")
     ndf = len(ops.nodeDOFs(sn))
     slot = ends.index(sn) * ndf + sd - 1
+    if folder is not None:
+        if ends.index(sn) != 1:
+            fail(2, f"--recorders: node {sn} must be element {args.specimen_element}'s second end "
+                    "(basicForce is the force at that end)")
+        attach_recorders(args, ops, folder, sn, sd, outs)
 
     ops.timeSeries("Path", SERIES_TAG, "-dt", args.dt, "-values", *ag)
     loads = ground_loads(ops, args.direction)
@@ -132,6 +159,12 @@ def run(args, ops, model, record, scale, outs):
         if ok != 0:
             fail(2, f"{record} x{scale}: the analysis did not converge at step {k}")
         rows.append(row(k * args.dt))
+    if folder is not None:
+        # Removing the recorders closes their files; the ground acceleration at their times.
+        ops.remove("recorders")
+        with open(os.path.join(folder, "ground_accel.out"), "w", encoding="ascii") as f:
+            for r in rows:
+                f.write(f"{r[0]:.17g} {r[1] / length_to_mm:.17g}\n")
     return rows, spent
 
 
@@ -149,6 +182,7 @@ def main():
     p.add_argument("--free-s", type=float, default=5.0)
     p.add_argument("--units", choices=("si", "mm-kn"))
     p.add_argument("--direction", type=int, default=1)
+    p.add_argument("--recorders", action="store_true")
     args = p.parse_args()
     try:
         import openseespy.opensees as ops
@@ -168,12 +202,16 @@ def main():
     for record in args.record:
         stem = os.path.splitext(os.path.basename(record))[0]
         for scale in args.scale:
-            rows, spent = run(args, ops, model, record, scale, outs)
-            path = os.path.join(args.out_dir, f"{stem}-x{scale:g}.csv")
-            with open(path, "w", encoding="ascii") as f:
-                f.write(",".join(header) + "\n")
-                for r in rows:
-                    f.write(",".join(f"{v:.17g}" for v in r) + "\n")
+            if args.recorders:
+                path = os.path.join(args.out_dir, f"{stem}-x{scale:g}")
+                rows, spent = run(args, ops, model, record, scale, outs, folder=path)
+            else:
+                rows, spent = run(args, ops, model, record, scale, outs)
+                path = os.path.join(args.out_dir, f"{stem}-x{scale:g}.csv")
+                with open(path, "w", encoding="ascii") as f:
+                    f.write(",".join(header) + "\n")
+                    for r in rows:
+                        f.write(",".join(f"{v:.17g}" for v in r) + "\n")
             steps = len(rows) - 1
             print(json.dumps({"file": path, "steps": steps, "analyze_s": spent,
                               "per_step_s": spent / max(steps, 1),
