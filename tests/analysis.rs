@@ -218,3 +218,54 @@ fn one_reference_response_for_analysis_trainer_and_firmware() {
     assert_eq!(bits(&analysis.brace_disp_mm), bits(&per_tick));
     assert_eq!(bits(&trainer.brace_disp_mm), bits(&per_tick));
 }
+
+/// `rths analyze --structure --free-s`: the run's history is the record and that much free
+/// vibration (so a held-out run can come to rest), and a free vibration that is not a number of
+/// seconds between 0 and 600 is refused.
+#[test]
+fn analyze_free_vibration_lengthens_the_history_and_refuses_a_bad_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let structure =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("data/structures/shear3-yielding.json");
+    let rows = |free: &str| {
+        let h = dir.path().join(format!("h{free}.csv"));
+        let out = rths(&[
+            "analyze",
+            "--structure",
+            structure.to_str().unwrap(),
+            "--motion",
+            "el-centro",
+            "--free-s",
+            free,
+            "--history",
+            h.to_str().unwrap(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            String::from_utf8_lossy(&out.stdout).contains(&format!("+{free} s free vibration")),
+            "{}",
+            String::from_utf8_lossy(&out.stdout)
+        );
+        std::fs::read_to_string(&h).unwrap().lines().count() - 1
+    };
+    let (short, long) = (rows("10"), rows("30"));
+    assert_eq!(long - short, 20 * 2048);
+    for bad in ["-1", "NaN", "1e9"] {
+        let out = rths(&[
+            "analyze",
+            "--structure",
+            structure.to_str().unwrap(),
+            &format!("--free-s={bad}"),
+        ]);
+        assert!(!out.status.success(), "--free-s {bad}");
+        assert!(
+            String::from_utf8_lossy(&out.stderr).contains("--free-s"),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}

@@ -43,6 +43,10 @@ pub struct Args {
     /// nonlinear --histories` reads: every floor an output, the linear specimen the stand-in).
     #[arg(long, value_name = "FILE.csv", requires = "structure")]
     pub history: Option<PathBuf>,
+    /// With `--structure`: seconds of free vibration after the record, so the frame comes to rest
+    /// and its residual drift is defined (a held-out history's residual is judged only at rest).
+    #[arg(long, value_name = "S", requires = "structure", default_value_t = crate::machinery::structure::FREE_VIBRATION_S)]
+    pub free_s: f64,
 }
 
 /// The record named by `--motion`: an existing file first, then an embedded name.
@@ -163,13 +167,19 @@ fn nonlinear(args: &Args, path: &Path, motion: &GroundMotion) -> anyhow::Result<
     }
     let structure = rths_files::structure_file::Structure::load(path)?;
     let ag = motion.resample_mm_s2(DT_S);
-    let r = crate::machinery::structure::fe_reference(&structure, &ag, DT_S)?;
+    if !(args.free_s.is_finite() && (0.0..=600.0).contains(&args.free_s)) {
+        anyhow::bail!(
+            "--free-s {}: the free vibration must be between 0 and 600 s",
+            args.free_s
+        );
+    }
+    let r = crate::machinery::structure::fe_reference_free(&structure, &ag, DT_S, args.free_s)?;
     crate::outln!(
         "ground motion          {}: PGA {:.4} g, {:.3} s (+{} s free vibration)",
         motion.name,
         motion.pga_g(),
         motion.duration_s(),
-        crate::machinery::structure::FREE_VIBRATION_S
+        args.free_s
     );
     crate::outln!(
         "structure              {} ({} DOFs, Chang explicit at {} Hz)",

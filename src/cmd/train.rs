@@ -599,6 +599,20 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
             .collect::<anyhow::Result<Vec<_>>>()?;
     }
     cfg.histories = args.histories.clone();
+    for h in &args.histories {
+        let swinging = crate::machinery::train::nonlinear::histories::still_swinging(h, DT_S)?;
+        if let Some((column, residual_mm, swing_mm)) = swinging.first() {
+            crate::outln!(
+                "note: {}: {column} still swings {swing_mm:.2} mm at the end (mean {residual_mm:.2} \
+                 mm over the last {} s; {} output(s) so): its free vibration is too short for the \
+                 residual drift the training fits; write the run with a longer one \
+                 (write_histories.py --free-s, rths analyze --free-s)",
+                h.display(),
+                crate::machinery::structure::RESIDUAL_WINDOW_S,
+                swinging.len(),
+            );
+        }
+    }
     cfg.refine.max_iterations = args.refine_steps;
     cfg.generations = args.generations;
     cfg.stage1_generations = args.stage1_generations;
@@ -950,7 +964,7 @@ fn evaluate_floors(
 ) -> anyhow::Result<()> {
     use crate::machinery::train::nonlinear::floors::{read_runs, FloorModel, FloorRun};
     use crate::machinery::train::nonlinear::score::Learned;
-    use crate::studies::nonlinear::held_out::{score_run, HybridRig};
+    use crate::studies::nonlinear::held_out::{score_run, HybridRig, ResidualJudgement};
     use rayon::prelude::*;
     let fm = FloorModel::from_json(text)?;
     let runs: Vec<FloorRun> = if args.histories.is_empty() {
@@ -1023,15 +1037,29 @@ fn evaluate_floors(
     crate::outln!("| run | peak interface (mm) | pure NRMSE (%) | pure floors (%) | pure residual error (%) | hybrid NRMSE, measured (%) | hybrid NRMSE, model (%) | hybrid residual error (%) | hybrid / pure | L |");
     crate::outln!("|---|---|---|---|---|---|---|---|---|---|");
     let f = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.3}"));
+    let judged = |j: ResidualJudgement| match j {
+        ResidualJudgement::Judged(p) => format!("{p:.3}"),
+        ResidualJudgement::Small => "— (under 0.1 mm)".into(),
+        ResidualJudgement::NotAtRest {
+            residual_mm,
+            swing_mm,
+        } => format!("not at rest ({residual_mm:.2} mm, swinging {swing_mm:.2} mm)"),
+    };
     let (mut pure, mut hyb, mut res_p, mut res_h, mut ratio) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut not_at_rest = 0;
     for r in &rows {
         let floors: Vec<String> = r.pure.floor_nrmse_pct.iter().map(|v| f(*v)).collect();
-        let rp = r.residual_error_pct(&r.pure);
-        let (hn, rh) = match &r.hybrid {
-            Some(h) if h.stopped.is_none() => (h.interface_nrmse_pct, r.residual_error_pct(h)),
+        let jp = r.residual_error(&r.pure);
+        if matches!(jp, ResidualJudgement::NotAtRest { .. }) {
+            not_at_rest += 1;
+        }
+        let rp = jp.pct();
+        let (hn, jh) = match &r.hybrid {
+            Some(h) if h.stopped.is_none() => (h.interface_nrmse_pct, Some(r.residual_error(h))),
             _ => (None, None),
         };
+        let rh = jh.and_then(|j| j.pct());
         let q = match (hn, r.pure.interface_nrmse_pct) {
             (Some(a), Some(b)) if b > 0.0 => Some(a / b),
             _ => None,
@@ -1042,7 +1070,7 @@ fn evaluate_floors(
             r.peak_interface_mm,
             f(r.pure.interface_nrmse_pct),
             floors.join(" / "),
-            f(rp),
+            judged(jp),
             match &r.hybrid {
                 Some(h) => match &h.stopped {
                     Some(why) => format!("stopped ({why})"),
@@ -1051,7 +1079,7 @@ fn evaluate_floors(
                 None => "—".into(),
             },
             f(r.hybrid.as_ref().and_then(|h| h.model_interface_nrmse_pct)),
-            f(rh),
+            jh.map_or("—".to_string(), judged),
             f(q),
             r.length_scale
         );
@@ -1069,12 +1097,20 @@ fn evaluate_floors(
         format!("median {med:.3}%, max {:.3}%", v[v.len() - 1])
     };
     crate::outln!(
-        "pure loop: NRMSE {}; residual drift error {} ({} of {} runs with a residual of 0.1 mm or \
-         more)",
+        "pure loop: NRMSE {}; residual drift error {} ({} of {} runs at rest with a residual of \
+         0.1 mm or more{})",
         stat(&mut pure),
         stat(&mut res_p),
         res_p.len(),
-        rows.len()
+        rows.len(),
+        if not_at_rest > 0 {
+            format!(
+                "; {not_at_rest} not at rest: their histories' free vibration is too short for a \
+                 residual drift"
+            )
+        } else {
+            String::new()
+        }
     );
     if args.hybrid {
         let worst = ratio.iter().copied().fold(f64::NAN, f64::max);
@@ -1105,17 +1141,24 @@ fn print_nl_rows(
     crate::outln!("|---|---|---|---|---|");
     let mut e: Vec<f64> = Vec::new();
     let mut residual_err_pct: f64 = 0.0;
-    let mut judged = 0;
+    let (mut judged, mut not_at_rest) = (0, 0);
     for r in rows {
         // The residual drift is judged at the story with the largest reference residual, where
-        // that residual is at least 0.1 mm (as the scoring study does).
+        // that residual is at least 0.1 mm (as the scoring study does) and the reference has come
+        // to rest.
         if let Some((k, rr)) = r
             .residual_ref_mm
             .iter()
             .enumerate()
             .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
         {
-            if rr.abs() >= 0.1 {
+            let tail = crate::machinery::structure::ResidualTail {
+                mean_mm: *rr,
+                swing_mm: r.residual_ref_swing_mm.get(k).copied().unwrap_or(f64::NAN),
+            };
+            if rr.abs() >= 0.1 && !tail.at_rest() {
+                not_at_rest += 1;
+            } else if rr.abs() >= 0.1 {
                 let rm = r.residual_model_mm.get(k).copied().unwrap_or(f64::NAN);
                 residual_err_pct = residual_err_pct.max(100.0 * (rm - rr).abs() / rr.abs());
                 judged += 1;
@@ -1143,10 +1186,15 @@ fn print_nl_rows(
     let med = rths_core::metrics::median(&mut e).unwrap_or(f64::NAN);
     crate::outln!(
         "NRMSE median {:.3}%, max {:.3}%; residual drift error max {residual_err_pct:.1}% \
-         ({judged} of {} runs with a residual of 0.1 mm or more)",
+         ({judged} of {} runs at rest with a residual of 0.1 mm or more{})",
         med,
         e.last().copied().unwrap_or(f64::NAN),
-        rows.len()
+        rows.len(),
+        if not_at_rest > 0 {
+            format!("; {not_at_rest} not at rest: free vibration too short for a residual drift")
+        } else {
+            String::new()
+        }
     );
     Ok(())
 }

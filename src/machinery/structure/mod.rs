@@ -19,6 +19,45 @@ use rths_files::structure_file::Structure;
 pub const FREE_VIBRATION_S: f64 = 10.0;
 /// The residual drift is the mean drift over this last stretch of the free vibration, s.
 pub const RESIDUAL_WINDOW_S: f64 = 2.0;
+/// A reference's residual drift is judged only where the run has come to rest: the drift's
+/// peak-to-peak swing over [`RESIDUAL_WINDOW_S`] at most this fraction of the residual. The mean of
+/// an oscillation of peak-to-peak `s` over a window of one period or more is off by at most
+/// `s / 2π`, so at 0.25 the residual is known to 4 % of itself, inside the 20 % a model is allowed.
+/// A run still swinging more (a lab's history with too short a free vibration) has no residual drift
+/// yet: scoring says so instead of giving a figure.
+pub const AT_REST_SWING_RATIO: f64 = 0.25;
+
+/// The tail of one drift history: its mean over the last [`RESIDUAL_WINDOW_S`] (the residual
+/// drift) and its peak-to-peak swing there, mm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ResidualTail {
+    /// The mean over the window, mm.
+    pub mean_mm: f64,
+    /// Peak-to-peak over the window, mm.
+    pub swing_mm: f64,
+}
+
+impl ResidualTail {
+    /// The tail of `drift_mm` at step `dt_s`.
+    pub fn of(drift_mm: &[f64], dt_s: f64) -> Self {
+        let w = ((RESIDUAL_WINDOW_S / dt_s) as usize).max(1);
+        let tail = &drift_mm[drift_mm.len().saturating_sub(w)..];
+        let (lo, hi) = tail
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(*v), h.max(*v))
+            });
+        Self {
+            mean_mm: tail.iter().sum::<f64>() / tail.len().max(1) as f64,
+            swing_mm: if tail.is_empty() { 0.0 } else { hi - lo },
+        }
+    }
+
+    /// Whether the run has come to rest in the sense of [`AT_REST_SWING_RATIO`].
+    pub fn at_rest(&self) -> bool {
+        self.swing_mm <= AT_REST_SWING_RATIO * self.mean_mm.abs()
+    }
+}
 
 /// The response of a nonlinear structure, one row per step.
 #[derive(Debug, Clone, Default)]
@@ -49,13 +88,9 @@ impl NlResponse {
 
     /// Residual drift of each story: the mean over the last [`RESIDUAL_WINDOW_S`], mm.
     pub fn residual_drift_mm(&self, dt_s: f64) -> Vec<f64> {
-        let w = ((RESIDUAL_WINDOW_S / dt_s) as usize).max(1);
         self.story_drift_mm
             .iter()
-            .map(|d| {
-                let tail = &d[d.len().saturating_sub(w)..];
-                tail.iter().sum::<f64>() / tail.len().max(1) as f64
-            })
+            .map(|d| ResidualTail::of(d, dt_s).mean_mm)
             .collect()
     }
 
@@ -75,11 +110,21 @@ pub fn fe_reference(
     ground_accel_mm_s2: &[f64],
     dt_s: f64,
 ) -> anyhow::Result<NlResponse> {
+    fe_reference_free(structure, ground_accel_mm_s2, dt_s, FREE_VIBRATION_S)
+}
+
+/// [`fe_reference`] with `free_s` of free vibration instead of [`FREE_VIBRATION_S`].
+pub fn fe_reference_free(
+    structure: &Structure,
+    ground_accel_mm_s2: &[f64],
+    dt_s: f64,
+    free_s: f64,
+) -> anyhow::Result<NlResponse> {
     let mut frame = structure
         .nonlinear_whole(dt_s)
         .with_context(|| format!("structure {}", structure.name()))?;
     let n = frame.dofs();
-    let free = (FREE_VIBRATION_S / dt_s) as usize;
+    let free = (free_s.max(0.0) / dt_s) as usize;
     let total = ground_accel_mm_s2.len() + free;
     let ag = |i: usize| ground_accel_mm_s2.get(i).copied().unwrap_or(0.0);
     let mut r = NlResponse {
@@ -153,4 +198,52 @@ pub fn drift_nrmse_pct(drifts: &[Vec<f64>], r: &NlResponse) -> anyhow::Result<Ve
         .zip(&r.story_drift_mm)
         .map(|(x, x_ref)| nrmse_pct(x, x_ref).map_err(|e| anyhow::anyhow!("NRMSE: {e:?}")))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DT: f64 = 1.0 / 2048.0;
+
+    /// An offset `r` with a sinusoid of peak-to-peak `swing` at `f_hz` over 10 s.
+    fn tail(r: f64, swing: f64, f_hz: f64) -> Vec<f64> {
+        (0..20480)
+            .map(|i| r + 0.5 * swing * (2.0 * std::f64::consts::PI * f_hz * i as f64 * DT).sin())
+            .collect()
+    }
+
+    #[test]
+    fn a_run_at_rest_has_its_offset_as_residual() {
+        let t = ResidualTail::of(&tail(2.5, 0.0, 1.0), DT);
+        assert!((t.mean_mm - 2.5).abs() < 1e-12);
+        assert_eq!(t.swing_mm, 0.0);
+        assert!(t.at_rest());
+    }
+
+    #[test]
+    fn the_swing_allowed_keeps_the_residual_within_four_percent() {
+        // The worst window for a mean: not a whole number of periods. At the allowed swing the
+        // residual is within s / 2π = 4 % of itself for any frequency with a period in the window.
+        for f_hz in [0.5, 0.7, 1.3, 2.9, 7.1] {
+            let t = ResidualTail::of(&tail(1.0, AT_REST_SWING_RATIO, f_hz), DT);
+            assert!((t.mean_mm - 1.0).abs() <= 0.04, "{f_hz} Hz: {t:?}");
+            // Under the allowed swing, with the window's own bias, the run is at rest.
+            let t = ResidualTail::of(&tail(1.0, 0.9 * AT_REST_SWING_RATIO, f_hz), DT);
+            assert!(t.at_rest(), "{f_hz} Hz: {t:?}");
+        }
+    }
+
+    #[test]
+    fn a_run_still_swinging_is_not_at_rest() {
+        // The fiber frame's held-out runs with 5 s of free vibration: a residual of 0.3 mm under a
+        // swing of 10 mm.
+        let t = ResidualTail::of(&tail(-0.3, 10.0, 0.9), DT);
+        assert!(!t.at_rest(), "{t:?}");
+        // A run exactly at zero with no swing is at rest (nothing to judge, by the 0.1 mm rule).
+        assert!(ResidualTail::of(&[0.0; 8], DT).at_rest());
+        // An empty history: no swing, no residual.
+        let e = ResidualTail::of(&[], DT);
+        assert_eq!((e.mean_mm, e.swing_mm), (0.0, 0.0));
+    }
 }

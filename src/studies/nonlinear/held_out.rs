@@ -2,7 +2,8 @@
 //! held-out histories are read here and never by the training): the pure loop (the model with the
 //! stand-in specimen) and the hybrid loop (core's controller on the virtual rig, with the rig's
 //! identified lead and force correction: `nl-online`), each at the interface and every floor, and
-//! the residual drift of the story with the largest reference residual. The hybrid loop's
+//! the residual drift of the story with the largest reference residual (where the reference has
+//! come to rest). The hybrid loop's
 //! interface is the displacement the rig was *measured* to impose (prototype scale), not the
 //! model's own target: that is what the specimen went through; its other floors are the model's.
 
@@ -14,7 +15,8 @@ use rths_hal_sim::{Preset, RigConfig};
 
 use crate::machinery::imported::fe::FeHistory;
 use crate::machinery::structure::rig;
-use crate::machinery::train::nonlinear::floors::{residual_drifts, FloorRun};
+use crate::machinery::structure::ResidualTail;
+use crate::machinery::train::nonlinear::floors::{residual_tails, FloorRun};
 use crate::machinery::train::nonlinear::score::{length_scale, loop_score, Learned, LoopScore};
 use crate::studies::imported_hybrid::{self, Compensation};
 
@@ -27,6 +29,9 @@ pub struct RunScore {
     pub peak_interface_mm: f64,
     /// The reference's residual drifts, mm.
     pub residual_ref_mm: Vec<f64>,
+    /// How much the reference still swings over the residual window, story by story, mm
+    /// (peak-to-peak).
+    pub residual_ref_swing_mm: Vec<f64>,
     /// The pure loop.
     pub pure: LoopScore,
     /// The hybrid loop (`None`: not run).
@@ -35,19 +40,66 @@ pub struct RunScore {
     pub length_scale: f64,
 }
 
+/// Whether a run's residual drift can be judged, and the error where it can.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ResidualJudgement {
+    /// The error of the loop's residual at the story with the largest reference residual, % of it.
+    Judged(f64),
+    /// The reference's largest residual is under 0.1 mm: nothing to judge.
+    Small,
+    /// The reference is still swinging over the residual window by more than
+    /// [`AT_REST_SWING_RATIO`](crate::machinery::structure::AT_REST_SWING_RATIO) of its residual: the history's free vibration is too short for a
+    /// residual drift to be defined.
+    NotAtRest {
+        /// The reference's residual at that story, mm.
+        residual_mm: f64,
+        /// Its peak-to-peak swing over the window, mm.
+        swing_mm: f64,
+    },
+}
+
+impl ResidualJudgement {
+    /// The error, where judged.
+    pub fn pct(&self) -> Option<f64> {
+        match self {
+            Self::Judged(p) => Some(*p),
+            _ => None,
+        }
+    }
+}
+
 impl RunScore {
-    /// The residual-drift error of `l` at the story with the largest reference residual, % of it
-    /// (`None` when that residual is under 0.1 mm).
-    pub fn residual_error_pct(&self, l: &LoopScore) -> Option<f64> {
-        let (k, r) = self
+    /// The residual-drift error of `l` at the story with the largest reference residual, % of it,
+    /// where that residual is 0.1 mm or more and the reference has come to rest.
+    pub fn residual_error(&self, l: &LoopScore) -> ResidualJudgement {
+        let Some((k, r)) = self
             .residual_ref_mm
             .iter()
             .enumerate()
-            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))?;
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        else {
+            return ResidualJudgement::Small;
+        };
         if r.abs() < 0.1 {
-            return None;
+            return ResidualJudgement::Small;
         }
-        Some(100.0 * (l.residual_mm.get(k).copied().unwrap_or(f64::NAN) - r).abs() / r.abs())
+        let tail = ResidualTail {
+            mean_mm: *r,
+            swing_mm: self
+                .residual_ref_swing_mm
+                .get(k)
+                .copied()
+                .unwrap_or(f64::NAN),
+        };
+        if !tail.at_rest() {
+            return ResidualJudgement::NotAtRest {
+                residual_mm: *r,
+                swing_mm: tail.swing_mm,
+            };
+        }
+        ResidualJudgement::Judged(
+            100.0 * (l.residual_mm.get(k).copied().unwrap_or(f64::NAN) - r).abs() / r.abs(),
+        )
     }
 }
 
@@ -112,10 +164,12 @@ pub fn score_run(
             (Some(s), length)
         }
     };
+    let tails = residual_tails(&run.floor_disp_mm, DT_S);
     Ok(RunScore {
         label: run.label.clone(),
         peak_interface_mm: metrics::peak_abs(&run.floor_disp_mm[sf]),
-        residual_ref_mm: residual_drifts(&run.floor_disp_mm, DT_S),
+        residual_ref_mm: tails.iter().map(|t| t.mean_mm).collect(),
+        residual_ref_swing_mm: tails.iter().map(|t| t.swing_mm).collect(),
         pure,
         hybrid,
         length_scale: length,
@@ -171,4 +225,52 @@ pub fn run_hybrid_measured(
         stop.map(|(why, t)| format!("{why} at {t:.2} s")),
         length,
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scored(ref_mm: [f64; 2], swing_mm: [f64; 2], model_mm: [f64; 2]) -> (RunScore, LoopScore) {
+        let l = LoopScore {
+            interface_nrmse_pct: Some(1.0),
+            model_interface_nrmse_pct: None,
+            floor_nrmse_pct: vec![Some(1.0); 2],
+            residual_mm: model_mm.to_vec(),
+            stopped: None,
+        };
+        let r = RunScore {
+            label: "run".into(),
+            peak_interface_mm: 40.0,
+            residual_ref_mm: ref_mm.to_vec(),
+            residual_ref_swing_mm: swing_mm.to_vec(),
+            pure: l.clone(),
+            hybrid: None,
+            length_scale: 1.0,
+        };
+        (r, l)
+    }
+
+    #[test]
+    fn the_residual_is_judged_at_the_largest_story_once_at_rest() {
+        // Story 2 holds the larger residual (10 mm), at rest: the model's 12 mm is 20 % off.
+        let (r, l) = scored([0.5, -10.0], [0.4, 1.0], [0.0, -12.0]);
+        let ResidualJudgement::Judged(p) = r.residual_error(&l) else {
+            panic!("{:?}", r.residual_error(&l));
+        };
+        assert!((p - 20.0).abs() < 1e-9, "{p}");
+        // The same run still swinging 5 mm about its 10 mm: no figure, and why.
+        let (r, l) = scored([0.5, -10.0], [0.4, 5.0], [0.0, -12.0]);
+        assert_eq!(
+            r.residual_error(&l),
+            ResidualJudgement::NotAtRest {
+                residual_mm: -10.0,
+                swing_mm: 5.0
+            }
+        );
+        assert_eq!(r.residual_error(&l).pct(), None);
+        // A run that comes back under 0.1 mm: nothing to judge.
+        let (r, l) = scored([0.05, -0.08], [0.0, 0.0], [1.0, 1.0]);
+        assert_eq!(r.residual_error(&l), ResidualJudgement::Small);
+    }
 }

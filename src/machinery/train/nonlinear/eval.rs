@@ -8,7 +8,7 @@ use rths_files::nl_model_file::NlModelFile;
 use rths_files::structure_file::Structure;
 
 use crate::machinery::motion::GroundMotion;
-use crate::machinery::structure::RESIDUAL_WINDOW_S;
+use crate::machinery::structure::ResidualTail;
 use crate::machinery::train::nonlinear::runs::{fe_run, pure_loop, FeRun};
 use crate::machinery::train::TrainError;
 
@@ -28,6 +28,9 @@ pub struct EvalRow {
     pub nrmse_pct: f64,
     /// Residual drift of each story, FE reference, mm.
     pub residual_ref_mm: Vec<f64>,
+    /// How much each story of the reference still swings over the residual window, mm
+    /// (peak-to-peak).
+    pub residual_ref_swing_mm: Vec<f64>,
     /// Residual drift of each story, model, mm.
     pub residual_model_mm: Vec<f64>,
     /// RMS error over the first [`STARTUP_S`] and over the rest, % of the reference's peak.
@@ -100,21 +103,22 @@ pub fn evaluate_run(
             .map(|(d, u)| d.iter().fold(0.0_f64, |a, v| a.max(v.abs())) / u)
             .fold(0.0, f64::max)
     };
-    let w = ((RESIDUAL_WINDOW_S / dt_s) as usize).max(1);
     let residual = |d: &[Vec<f64>]| -> Vec<f64> {
         d.iter()
-            .map(|d| {
-                let tail = &d[d.len().saturating_sub(w)..];
-                tail.iter().sum::<f64>() / tail.len().max(1) as f64
-            })
+            .map(|d| ResidualTail::of(d, dt_s).mean_mm)
             .collect()
     };
+    let swing: Vec<f64> = dr
+        .iter()
+        .map(|d| ResidualTail::of(d, dt_s).swing_mm)
+        .collect();
     Ok(EvalRow {
         label: run.label.clone(),
         ductility_ref: ductility(&dr),
         ductility_model: ductility(&dm),
         nrmse_pct,
         residual_ref_mm: residual(&dr),
+        residual_ref_swing_mm: swing,
         residual_model_mm: residual(&dm),
         startup_rms_pct: rms(&xm[..split], &xr[..split]),
         rest_rms_pct: rms(&xm[split..], &xr[split..]),

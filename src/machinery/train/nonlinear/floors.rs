@@ -21,7 +21,7 @@ use rths_files::structure_file::{Structure, StructureFile};
 
 use crate::machinery::imported::file::{is_imported, ImportedFile};
 use crate::machinery::imported::ImportedStructure;
-use crate::machinery::structure::RESIDUAL_WINDOW_S;
+use crate::machinery::structure::ResidualTail;
 use crate::machinery::train::TrainError;
 
 /// The elastic floors of a structure, dense, rths units.
@@ -282,7 +282,8 @@ impl FloorRun {
         }
     }
 
-    /// Each story's residual drift: the mean over the last [`RESIDUAL_WINDOW_S`], mm.
+    /// Each story's residual drift: the mean over the last
+    /// [`RESIDUAL_WINDOW_S`](crate::machinery::structure::RESIDUAL_WINDOW_S), mm.
     pub fn residual_drift_mm(&self, dt_s: f64) -> Vec<f64> {
         residual_drifts(&self.floor_disp_mm, dt_s)
     }
@@ -290,7 +291,15 @@ impl FloorRun {
 
 /// Each story's residual drift of `floors` (`[floor][step]`), mm.
 pub fn residual_drifts(floors: &[Vec<f64>], dt_s: f64) -> Vec<f64> {
-    let w = ((RESIDUAL_WINDOW_S / dt_s) as usize).max(1);
+    residual_tails(floors, dt_s)
+        .iter()
+        .map(|t| t.mean_mm)
+        .collect()
+}
+
+/// Each story's residual tail of `floors` (`[floor][step]`): its residual drift and how much it
+/// still swings.
+pub fn residual_tails(floors: &[Vec<f64>], dt_s: f64) -> Vec<ResidualTail> {
     (0..floors.len())
         .map(|i| {
             let d: Vec<f64> = match i.checked_sub(1) {
@@ -301,8 +310,7 @@ pub fn residual_drifts(floors: &[Vec<f64>], dt_s: f64) -> Vec<f64> {
                     .collect(),
                 None => floors[i].clone(),
             };
-            let tail = &d[d.len().saturating_sub(w)..];
-            tail.iter().sum::<f64>() / tail.len().max(1) as f64
+            ResidualTail::of(&d, dt_s)
         })
         .collect()
 }
