@@ -1143,26 +1143,18 @@ fn print_nl_rows(
     let mut residual_err_pct: f64 = 0.0;
     let (mut judged, mut not_at_rest) = (0, 0);
     for r in rows {
-        // The residual drift is judged at the story with the largest reference residual, where
-        // that residual is at least 0.1 mm (as the scoring study does) and the reference has come
-        // to rest.
-        if let Some((k, rr)) = r
-            .residual_ref_mm
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-        {
-            let tail = crate::machinery::structure::ResidualTail {
-                mean_mm: *rr,
-                swing_mm: r.residual_ref_swing_mm.get(k).copied().unwrap_or(f64::NAN),
-            };
-            if rr.abs() >= 0.1 && !tail.at_rest() {
-                not_at_rest += 1;
-            } else if rr.abs() >= 0.1 {
-                let rm = r.residual_model_mm.get(k).copied().unwrap_or(f64::NAN);
-                residual_err_pct = residual_err_pct.max(100.0 * (rm - rr).abs() / rr.abs());
+        // The residual drift is judged as the held-out scoring judges it.
+        match crate::machinery::structure::ResidualJudgement::of(
+            &r.residual_ref_mm,
+            &r.residual_ref_swing_mm,
+            &r.residual_model_mm,
+        ) {
+            crate::machinery::structure::ResidualJudgement::Judged(p) => {
+                residual_err_pct = residual_err_pct.max(p);
                 judged += 1;
             }
+            crate::machinery::structure::ResidualJudgement::NotAtRest { .. } => not_at_rest += 1,
+            crate::machinery::structure::ResidualJudgement::Small => {}
         }
         let res = |v: &[f64]| {
             v.iter()

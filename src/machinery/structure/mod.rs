@@ -59,6 +59,64 @@ impl ResidualTail {
     }
 }
 
+/// Whether a run's residual drift can be judged, and the error where it can.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ResidualJudgement {
+    /// The error of the loop's residual at the story with the largest reference residual, % of it.
+    Judged(f64),
+    /// The reference's largest residual is under 0.1 mm: nothing to judge.
+    Small,
+    /// The reference is still swinging over the residual window by more than
+    /// [`AT_REST_SWING_RATIO`] of its residual: the history's free vibration is too short for a
+    /// residual drift to be defined.
+    NotAtRest {
+        /// The reference's residual at that story, mm.
+        residual_mm: f64,
+        /// Its peak-to-peak swing over the window, mm.
+        swing_mm: f64,
+    },
+}
+
+impl ResidualJudgement {
+    /// The error, where judged.
+    pub fn pct(&self) -> Option<f64> {
+        match self {
+            Self::Judged(p) => Some(*p),
+            _ => None,
+        }
+    }
+}
+
+impl ResidualJudgement {
+    /// The judgement of a model's residual drifts `model_mm` against a reference's `ref_mm` (each
+    /// story's, with their swings `ref_swing_mm` over the residual window): at the story with the
+    /// largest reference residual, where that residual is 0.1 mm or more and the reference has
+    /// come to rest.
+    pub fn of(ref_mm: &[f64], ref_swing_mm: &[f64], model_mm: &[f64]) -> Self {
+        let Some((k, r)) = ref_mm
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        else {
+            return Self::Small;
+        };
+        if r.abs() < 0.1 {
+            return Self::Small;
+        }
+        let tail = ResidualTail {
+            mean_mm: *r,
+            swing_mm: ref_swing_mm.get(k).copied().unwrap_or(f64::NAN),
+        };
+        if !tail.at_rest() {
+            return Self::NotAtRest {
+                residual_mm: *r,
+                swing_mm: tail.swing_mm,
+            };
+        }
+        Self::Judged(100.0 * (model_mm.get(k).copied().unwrap_or(f64::NAN) - r).abs() / r.abs())
+    }
+}
+
 /// The response of a nonlinear structure, one row per step.
 #[derive(Debug, Clone, Default)]
 pub struct NlResponse {

@@ -15,7 +15,7 @@ use rths_hal_sim::{Preset, RigConfig};
 
 use crate::machinery::imported::fe::FeHistory;
 use crate::machinery::structure::rig;
-use crate::machinery::structure::ResidualTail;
+pub use crate::machinery::structure::ResidualJudgement;
 use crate::machinery::train::nonlinear::floors::{residual_tails, FloorRun};
 use crate::machinery::train::nonlinear::score::{length_scale, loop_score, Learned, LoopScore};
 use crate::studies::imported_hybrid::{self, Compensation};
@@ -40,65 +40,14 @@ pub struct RunScore {
     pub length_scale: f64,
 }
 
-/// Whether a run's residual drift can be judged, and the error where it can.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum ResidualJudgement {
-    /// The error of the loop's residual at the story with the largest reference residual, % of it.
-    Judged(f64),
-    /// The reference's largest residual is under 0.1 mm: nothing to judge.
-    Small,
-    /// The reference is still swinging over the residual window by more than
-    /// [`AT_REST_SWING_RATIO`](crate::machinery::structure::AT_REST_SWING_RATIO) of its residual: the history's free vibration is too short for a
-    /// residual drift to be defined.
-    NotAtRest {
-        /// The reference's residual at that story, mm.
-        residual_mm: f64,
-        /// Its peak-to-peak swing over the window, mm.
-        swing_mm: f64,
-    },
-}
-
-impl ResidualJudgement {
-    /// The error, where judged.
-    pub fn pct(&self) -> Option<f64> {
-        match self {
-            Self::Judged(p) => Some(*p),
-            _ => None,
-        }
-    }
-}
-
 impl RunScore {
     /// The residual-drift error of `l` at the story with the largest reference residual, % of it,
     /// where that residual is 0.1 mm or more and the reference has come to rest.
     pub fn residual_error(&self, l: &LoopScore) -> ResidualJudgement {
-        let Some((k, r)) = self
-            .residual_ref_mm
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-        else {
-            return ResidualJudgement::Small;
-        };
-        if r.abs() < 0.1 {
-            return ResidualJudgement::Small;
-        }
-        let tail = ResidualTail {
-            mean_mm: *r,
-            swing_mm: self
-                .residual_ref_swing_mm
-                .get(k)
-                .copied()
-                .unwrap_or(f64::NAN),
-        };
-        if !tail.at_rest() {
-            return ResidualJudgement::NotAtRest {
-                residual_mm: *r,
-                swing_mm: tail.swing_mm,
-            };
-        }
-        ResidualJudgement::Judged(
-            100.0 * (l.residual_mm.get(k).copied().unwrap_or(f64::NAN) - r).abs() / r.abs(),
+        ResidualJudgement::of(
+            &self.residual_ref_mm,
+            &self.residual_ref_swing_mm,
+            &l.residual_mm,
         )
     }
 }
