@@ -600,7 +600,7 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
     }
     cfg.histories = args.histories.clone();
     for h in &args.histories {
-        let swinging = crate::machinery::train::nonlinear::histories::still_swinging(h, DT_S)?;
+        let swinging = crate::machinery::train::nonlinear::refine::still_swinging(h, DT_S)?;
         if let Some((column, residual_mm, swing_mm)) = swinging.first() {
             crate::outln!(
                 "note: {}: {column} still swings {swing_mm:.2} mm at the end (mean {residual_mm:.2} \

@@ -203,60 +203,10 @@ fn history_of_floors(
     }
 }
 
-/// The outputs of the history at `path` that are still swinging at its end: `(column, residual
-/// mm, swing mm)` where the swing over the residual window is more than
-/// [`AT_REST_SWING_RATIO`](crate::machinery::structure::AT_REST_SWING_RATIO) of the larger of the
-/// residual and [`RESIDUAL_FLOOR`](super::refine::RESIDUAL_FLOOR) of the peak (the scale the
-/// refinement's residual-drift term uses). Such a run's free vibration is too short: where it
-/// comes to rest is not in it, and the residual the training fits is the swing's phase. The ratio
-/// is unitless, so the history is read in any units.
-pub fn still_swinging(path: &Path, dt_s: f64) -> Result<Vec<(String, f64, f64)>, TrainError> {
-    use crate::machinery::structure::{ResidualTail, AT_REST_SWING_RATIO};
-    let h = rths_files::history::read(path, RecorderUnits::MM_KN, dt_s)
-        .map_err(|e| TrainError::Setting(e.to_string()))?;
-    Ok(h.outputs
-        .iter()
-        .filter_map(|(d, x)| {
-            let t = ResidualTail::of(x, dt_s);
-            let peak = x.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
-            let scale = t.mean_mm.abs().max(super::refine::RESIDUAL_FLOOR * peak);
-            (t.swing_mm > AT_REST_SWING_RATIO * scale).then(|| (d.column(), t.mean_mm, t.swing_mm))
-        })
-        .collect())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::machinery::motion::GroundMotion;
-
-    /// A history whose floor still swings at its end is named with its column; one at rest is not.
-    #[test]
-    fn a_run_still_swinging_at_its_end_is_named() {
-        let dt = rths_core::params::DT_S;
-        let dir = tempfile::tempdir().unwrap();
-        let write = |name: &str, swing_mm: f64| {
-            let n = 8 * 2048;
-            let x: Vec<f64> = (0..n)
-                .map(|k| 5.0 + 0.5 * swing_mm * (6.0 * k as f64 * dt).sin())
-                .collect();
-            let h = TimeHistory {
-                source: dir.path().join(name),
-                dt_s: dt,
-                ground_accel_mm_s2: vec![0.0; n],
-                specimen_force_kn: vec![0.0; n],
-                interface_mm: x.clone(),
-                outputs: vec![(OutputDof { node: 1, dof: 1 }, x)],
-            };
-            std::fs::write(&h.source, rths_files::history::to_csv(&h)).unwrap();
-            h.source
-        };
-        let swinging = still_swinging(&write("a.csv", 4.0), dt).unwrap();
-        assert_eq!(swinging.len(), 1, "{swinging:?}");
-        assert_eq!(swinging[0].0, "out_1_1_mm");
-        assert!((swinging[0].2 - 4.0).abs() < 0.01, "{swinging:?}");
-        assert!(still_swinging(&write("b.csv", 0.5), dt).unwrap().is_empty());
-    }
 
     /// The story forces recovered from the floors by equilibrium are the FE's own to a small
     /// fraction of their peak.
