@@ -19,7 +19,7 @@
 
 mod board_link;
 mod common;
-use board_link::{board_and_host, m7_link_elf, rths};
+use board_link::{board_and_host, identified_rig, m7_link_elf, m7_tick_pct, rths};
 use common::*;
 
 use std::path::{Path, PathBuf};
@@ -118,12 +118,7 @@ fn meta_online_runs_on_the_m7_at_4096_hz_bit_for_bit_with_the_host() {
     let d = dir.path();
     let model = train(d);
     // The rig, identified as a lab identifies its own: the emulated board's plant.
-    let (ok, _, err) = rths(
-        d,
-        &["identify", "--preset", "unr-compact", "--out", "rig.json"],
-    );
-    assert!(ok, "{err}");
-    let rig = d.join("rig.json");
+    let rig = identified_rig(d);
     let structure = frame();
     let run = board_and_host(
         &elf,
@@ -166,11 +161,7 @@ fn the_learned_fiber_frame_runs_on_the_m7_at_4096_hz_bit_for_bit_within_the_tick
     let elf = m7_link_elf();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let (ok, _, err) = rths(
-        d,
-        &["identify", "--preset", "unr-compact", "--out", "rig.json"],
-    );
-    assert!(ok, "{err}");
+    let rig = identified_rig(d);
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("data");
     let run = board_and_host(
         &elf,
@@ -179,7 +170,7 @@ fn the_learned_fiber_frame_runs_on_the_m7_at_4096_hz_bit_for_bit_within_the_tick
         "nl-online",
         Some(&data.join("models/nl-fiber-frame-hysteron.json")),
         &data.join("structures/opensees-fiber-frame.json"),
-        &d.join("rig.json"),
+        &rig,
         LENGTH_SCALE,
     );
     assert_eq!(
@@ -192,7 +183,7 @@ fn the_learned_fiber_frame_runs_on_the_m7_at_4096_hz_bit_for_bit_within_the_tick
     let max = run.result["instr_per_tick"]["max"]
         .as_f64()
         .expect("the RESULT line's instruction count");
-    let pct = 100.0 * max * 1.5 * f64::from(CONTROL_RATE_HZ) / 480e6;
+    let pct = m7_tick_pct(max);
     println!(
         "fiber-frame floor-hysteron nl-online at 4096 Hz: {max} instructions per tick at most, \
          {pct:.2} % of the tick"

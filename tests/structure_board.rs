@@ -29,7 +29,7 @@
 
 mod board_link;
 mod common;
-use board_link::{board_and_host, m7_link_elf, rths};
+use board_link::{board_and_host, identified_rig, m7_link_elf, m7_tick_pct, rths};
 use common::*;
 
 use std::path::{Path, PathBuf};
@@ -168,12 +168,7 @@ fn the_nonlinear_hybrid_runs_on_the_m7_bit_for_bit_with_the_host() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     // The rig, identified as a lab identifies its own: the emulated board's plant.
-    let (ok, _, err) = rths(
-        d,
-        &["identify", "--preset", "unr-compact", "--out", "rig.json"],
-    );
-    assert!(ok, "{err}");
-    let rig = d.join("rig.json");
+    let rig = identified_rig(d);
     let shear3 = data("structures/shear3-yielding.json");
 
     let r = on_the_board_and_the_host(
@@ -315,11 +310,7 @@ fn a_floor_hysteron_model_runs_on_the_m7_bit_for_bit_with_the_host() {
     let elf = m7_link_elf();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let (ok, _, err) = rths(
-        d,
-        &["identify", "--preset", "unr-compact", "--out", "rig.json"],
-    );
-    assert!(ok, "{err}");
+    let rig = identified_rig(d);
     let shear3 = data("structures/shear3-yielding.json");
     let model = d.join("hysteron.json");
     shear3_hysteron(&shear3, &model);
@@ -347,7 +338,7 @@ fn a_floor_hysteron_model_runs_on_the_m7_bit_for_bit_with_the_host() {
         "nl-online",
         Some(&model),
         &shear3,
-        &d.join("rig.json"),
+        &rig,
         2.0,
     );
     assert_eq!(r["end_state"], "done", "the whole record: {r}");
@@ -392,11 +383,7 @@ fn the_trained_floor_hysteron_model_of_the_fiber_frame_runs_on_the_m7_bit_for_bi
     let elf = m7_link_elf();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let (ok, _, err) = rths(
-        d,
-        &["identify", "--preset", "unr-compact", "--out", "rig.json"],
-    );
-    assert!(ok, "{err}");
+    let rig = identified_rig(d);
     let r = on_the_board_and_the_host(
         &elf,
         d,
@@ -404,7 +391,7 @@ fn the_trained_floor_hysteron_model_of_the_fiber_frame_runs_on_the_m7_bit_for_bi
         "nl-online",
         Some(&data("models/nl-fiber-frame-hysteron.json")),
         &data("structures/opensees-fiber-frame.json"),
-        &d.join("rig.json"),
+        &rig,
         2.0,
     );
     assert_eq!(r["end_state"], "done", "the whole record: {r}");
@@ -412,6 +399,6 @@ fn the_trained_floor_hysteron_model_of_the_fiber_frame_runs_on_the_m7_bit_for_bi
     println!(
         "fiber-frame floor-hysteron nl-online at {CONTROL_RATE_HZ} Hz: {max} instructions per tick \
          at most, {:.2} % of the tick at 480 MHz and 1.5 cycles per instruction",
-        100.0 * max * 1.5 * f64::from(CONTROL_RATE_HZ) / 480e6
+        m7_tick_pct(max)
     );
 }

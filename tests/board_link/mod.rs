@@ -36,6 +36,23 @@ pub fn rths(dir: &Path, args: &[&str]) -> (bool, String, String) {
     )
 }
 
+/// `rths identify` of the emulated board's plant (the `unr-compact` virtual rig), as a lab
+/// identifies its own rig: `dir/rig.json`.
+pub fn identified_rig(dir: &Path) -> PathBuf {
+    let (ok, _, err) = rths(
+        dir,
+        &["identify", "--preset", "unr-compact", "--out", "rig.json"],
+    );
+    assert!(ok, "{err}");
+    dir.join("rig.json")
+}
+
+/// The share of the emulated Cortex-M7's tick at this build's rate that `instr` instructions take,
+/// % (480 MHz at the budget's cycles per instruction: `rths_app::tick_cost`).
+pub fn m7_tick_pct(instr: f64) -> f64 {
+    100.0 * instr / TickBudget::cortex_m7_480mhz(f64::from(CONTROL_RATE_HZ)).instr_per_tick()
+}
+
 /// The emulated Cortex-M7's link image at the host's rate (what runs is uploaded). At 2048 Hz its
 /// default is the shipped LR; a `rate-4096` build makes the 4096 Hz image with its default FE +
 /// ATS, which needs no model file of that rate.

@@ -103,23 +103,18 @@ pub fn evaluate_run(
             .map(|(d, u)| d.iter().fold(0.0_f64, |a, v| a.max(v.abs())) / u)
             .fold(0.0, f64::max)
     };
-    let residual = |d: &[Vec<f64>]| -> Vec<f64> {
-        d.iter()
-            .map(|d| ResidualTail::of(d, dt_s).mean_mm)
-            .collect()
+    let tails = |d: &[Vec<f64>]| -> Vec<ResidualTail> {
+        d.iter().map(|d| ResidualTail::of(d, dt_s)).collect()
     };
-    let swing: Vec<f64> = dr
-        .iter()
-        .map(|d| ResidualTail::of(d, dt_s).swing_mm)
-        .collect();
+    let (tr, tm) = (tails(&dr), tails(&dm));
     Ok(EvalRow {
         label: run.label.clone(),
         ductility_ref: ductility(&dr),
         ductility_model: ductility(&dm),
         nrmse_pct,
-        residual_ref_mm: residual(&dr),
-        residual_ref_swing_mm: swing,
-        residual_model_mm: residual(&dm),
+        residual_ref_mm: tr.iter().map(|t| t.mean_mm).collect(),
+        residual_ref_swing_mm: tr.iter().map(|t| t.swing_mm).collect(),
+        residual_model_mm: tm.iter().map(|t| t.mean_mm).collect(),
         startup_rms_pct: rms(&xm[..split], &xr[..split]),
         rest_rms_pct: rms(&xm[split..], &xr[split..]),
     })
