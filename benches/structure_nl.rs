@@ -4,7 +4,8 @@
 //! cost does not depend on N), ns per tick (`docs/nonlinear.md`, `docs/benchmark.md`);
 //! and one step of the modal-hysteretic
 //! metamodel of the same building (every mode, one Bouc–Wen or bilinear spring per story:
-//! `ModalHyst::step`), the learned model's cost (`docs/nonlinear.md`).
+//! `ModalHyst::step`), the learned model's cost (`docs/nonlinear.md`); and the shipped
+//! floor-hysteron model of the fiber frame (`FloorHysteron::step`).
 
 use std::hint::black_box;
 
@@ -13,7 +14,7 @@ use rths::machinery::motion::GroundMotion;
 use rths::machinery::train::nonlinear::modal::elastic_modes;
 use rths_core::hysteresis::Law;
 use rths_core::metamodel::{DeltaArx, DeltaArxParams, DELTA_ARX_COEFFS};
-use rths_core::metamodel::{ModalHyst, ModalHystParams, ModalMode};
+use rths_core::metamodel::{FloorHysteron, ModalHyst, ModalHystParams, ModalMode};
 use rths_core::structure::{LinearStructure, ShearBuilding, Vector};
 use rths_core::structure_n::{ChangN, StructureN, MAX_DOF};
 use rths_core::structure_nl::NonlinearFrame;
@@ -221,6 +222,27 @@ fn shipped(c: &mut Criterion) {
             })
         });
     }
+    // The floor-hysteron model learned from OpenSees runs of the fiber-section frame (issue 25):
+    // its cost is its floors and hysterons, nothing of the frame's elements or fibers.
+    let path = format!(
+        "{}/data/models/nl-fiber-frame-hysteron.json",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let file =
+        rths_files::hysteron_model_file::HysteronModelFile::load(std::path::Path::new(&path))
+            .expect("shipped model");
+    let k_e = file.specimen_stiffness_kn_per_mm;
+    let mut m = FloorHysteron::new(file.params(DT_4096_S).expect("valid model"));
+    let (mut k, mut target) = (0usize, 0.0);
+    g.bench_function("hysteron_nl-fiber-frame", |b| {
+        b.iter(|| {
+            k = (k + 1) % ag.len();
+            target = m
+                .step(black_box(ag[k]), black_box(k_e * target))
+                .unwrap_or(0.0);
+            black_box(target)
+        })
+    });
     g.finish();
 }
 
