@@ -37,7 +37,7 @@ pub fn rths(dir: &Path, args: &[&str]) -> (bool, String, String) {
 }
 
 /// `rths identify` of the emulated board's plant (the `unr-compact` virtual rig), as a lab
-/// identifies its own rig: `dir/rig.json`.
+/// identifies its own rig, into the file `rig.json` in `dir`.
 pub fn identified_rig(dir: &Path) -> PathBuf {
     let (ok, _, err) = rths(
         dir,
