@@ -146,7 +146,35 @@ pub fn fit_hysteron(
                 )
             },
         )?;
-        (f, h, Some(r))
+        // The refinement is kept only if it lowers the loss the operator was chosen on: its
+        // own objective (squared floor errors plus the residual drifts) differs, and it
+        // projects onto the fixed shares' caps, not the data's caps the least squares used
+        // (`hysteron::fit`). Measured on the fiber frame: it kept a step whose mean floor
+        // NRMSE on the validation histories was 8.98 % against the least squares' 4.60 %.
+        let refined = validation_loss(
+            &Learned::Hysteron(hysteron::params(&f, &h, dt_s)?),
+            k_e,
+            val_runs,
+        );
+        let unrefined = validation_loss(
+            &Learned::Hysteron(hysteron::params(fm, &start, dt_s)?),
+            k_e,
+            val_runs,
+        );
+        if refined < unrefined {
+            (f, h, Some(r))
+        } else {
+            let mut r = r;
+            r.best_iteration = 0;
+            r.stiffness_scale = 1.0;
+            r.damping_scale = 1.0;
+            r.stopped = format!(
+                "{}; not kept: mean floor NRMSE {refined:.3} % on the validation histories \
+                 against the least squares' {unrefined:.3} %",
+                r.stopped
+            );
+            (fm.clone(), start, Some(r))
+        }
     };
     let p = hysteron::params(&fm2, &fit, dt_s)?;
     let loss = validation_loss(&Learned::Hysteron(p), fm.specimen_k_kn_per_mm, fit_runs);

@@ -1,8 +1,11 @@
 //! Training of the floor-hysteron form (docs/nonlinear.md "The floor-hysteron form"): the elastic
 //! floors of the lab's model ([`super::floors`]) plus a restoring-force deviation that is a
 //! non-negative combination of play operators, fitted by ridge-regularized non-negative least
-//! squares on the restoring force recovered by equilibrium from the training histories, then
-//! scaled if need be so the fully yielded tangent keeps a positive stiffness.
+//! squares on the restoring force recovered by equilibrium from the training histories (the
+//! residual weighted by the flexibility, [`flexibility_squared`]: the model is judged on
+//! displacements), each direction's weights capped where the data put them within the fully
+//! yielded tangent's bound ([`direction_caps`]), then scaled if need be so the fully yielded
+//! tangent keeps a positive stiffness.
 //!
 //! The basis: the directions of a spring network of the floors ([`directions`]: the story drifts
 //! and the drifts over several stories, the cross-story terms a yielding beam couples); on each,
@@ -284,10 +287,23 @@ pub fn fit(
     let h = hs.len();
     let mut gram = DMatrix::<f64>::zeros(h, h);
     let mut rhs = DVector::<f64>::zeros(h);
-    let mut dev_sq = 0.0;
     let mut ref_sq = 0.0;
-    // The directions' mutual products (a_h·a_h').
-    let aa = DMatrix::from_fn(dirs.len(), dirs.len(), |i, j| dot(&dirs[i], &dirs[j]));
+    // The plain force residual's Gram and right-hand side, for the reported fit residual.
+    let mut gram_f = DMatrix::<f64>::zeros(h, h);
+    let mut rhs_f = DVector::<f64>::zeros(h);
+    let mut dev_f_sq = 0.0;
+    let wmat = flexibility_squared(&fm.stiffness).ok_or_else(|| {
+        TrainError::Setting(format!(
+            "structure {}: the floors' elastic stiffness is not positive definite",
+            fm.name
+        ))
+    })?;
+    // The directions' mutual products: a_h·W·a_h' for the fit, a_h·a_h' for the plain residual.
+    let vecs: Vec<DVector<f64>> = dirs.iter().map(|d| DVector::from_column_slice(d)).collect();
+    let aa = DMatrix::from_fn(dirs.len(), dirs.len(), |i, j| {
+        (vecs[i].transpose() * &wmat * &vecs[j])[(0, 0)]
+    });
+    let aa_f = DMatrix::from_fn(dirs.len(), dirs.len(), |i, j| dot(&dirs[i], &dirs[j]));
     for r in runs {
         let forces = restoring_force_kn(fm, r, dt_s, FIT_EVERY);
         let mut bank = Bank::new(op, h);
@@ -301,12 +317,15 @@ pub fn fit(
                 let xv = DVector::from_vec(x);
                 // The deviation of the recovered force from the elastic one.
                 let dev = &forces[next].1 - &fm.stiffness * xv;
-                dev_sq += dev.norm_squared();
+                let wdev = &wmat * &dev;
+                dev_f_sq += dev.norm_squared();
                 ref_sq += forces[next].1.norm_squared();
-                // b_h = −p_h·(a_h·dev); the Gram's entries (a_h·a_h')·p_h·p_h'.
-                let ad: Vec<f64> = dirs.iter().map(|a| dot(a, dev.as_slice())).collect();
+                // b_h = −p_h·(a_h·W·dev); the Gram's entries (a_h·W·a_h')·p_h·p_h'.
+                let ad: Vec<f64> = dirs.iter().map(|a| dot(a, wdev.as_slice())).collect();
+                let ad_f: Vec<f64> = dirs.iter().map(|a| dot(a, dev.as_slice())).collect();
                 for (i, (ei, _)) in hs.iter().enumerate() {
                     rhs[i] -= play[i] * ad[*ei];
+                    rhs_f[i] -= play[i] * ad_f[*ei];
                 }
                 for i in 0..h {
                     if play[i] == 0.0 {
@@ -314,7 +333,9 @@ pub fn fit(
                     }
                     let ei = hs[i].0;
                     for j in i..h {
-                        gram[(i, j)] += aa[(ei, hs[j].0)] * play[i] * play[j];
+                        let pp = play[i] * play[j];
+                        gram[(i, j)] += aa[(ei, hs[j].0)] * pp;
+                        gram_f[(i, j)] += aa_f[(ei, hs[j].0)] * pp;
                     }
                 }
                 next += 1;
@@ -324,6 +345,7 @@ pub fn fit(
     for i in 0..h {
         for j in 0..i {
             gram[(i, j)] = gram[(j, i)];
+            gram_f[(i, j)] = gram_f[(j, i)];
         }
     }
     let mean_diag = (0..h).map(|i| gram[(i, i)]).sum::<f64>() / h.max(1) as f64;
@@ -336,6 +358,15 @@ pub fn fit(
         .collect();
     let groups: Vec<usize> = hs.iter().map(|(e, _)| *e).collect();
     let start_w = nnls(&gram, &rhs, lambda);
+    // The caps the data choose within the fully yielded tangent's own bound
+    // ([`direction_caps`]): the fixed shares above, scaled down together where a frame's
+    // condensed stiffness has negative springs, held the fiber frame's least squares on them
+    // and left 10 % of `K` fully yielded (it recentred). With them (and `W = K⁻²`) its
+    // validation loss fell from 6.23 % to 4.60 % (interface 4.67 % → 2.96 %).
+    let shares = capped_least_squares(&gram, &rhs, lambda, &groups, &caps, start_w.clone());
+    let caps = direction_caps(&gram, &rhs, lambda, &hs, &dirs, &fm.stiffness, &shares)
+        .and_then(|wanted| with_room(&dirs, &fm.stiffness, &wanted, &caps))
+        .unwrap_or(caps);
     let w = capped_least_squares(&gram, &rhs, lambda, &groups, &caps, start_w);
     let mut wm = DMatrix::<f64>::zeros(n, n);
     for (wi, (e, _)) in w.iter().zip(&hs) {
@@ -358,7 +389,7 @@ pub fn fit(
     let resid = {
         let wv = DVector::from_iterator(h, w.iter().map(|x| x * scale));
         // |dev − Φw|² = |dev|² − 2 bᵀw + wᵀGw (b and G as accumulated).
-        let v = dev_sq - 2.0 * rhs.dot(&wv) + (wv.transpose() * &gram * &wv)[(0, 0)];
+        let v = dev_f_sq - 2.0 * rhs_f.dot(&wv) + (wv.transpose() * &gram_f * &wv)[(0, 0)];
         100.0 * (v.max(0.0) / ref_sq.max(f64::MIN_POSITIVE)).sqrt()
     };
     let hysterons = w
@@ -386,6 +417,146 @@ pub fn fit(
         stability_scale: scale,
         force_fit_pct: resid,
     })
+}
+
+/// The caps: each direction's larger of `wanted` and `shares` if the bound holds them, else
+/// `wanted + s·shares`, `s ≤ 1` the largest (less a margin) that keeps
+/// `Σ caps_e·a_e·a_eᵀ ⪯ (1 − ε)·K`: the room the bound leaves past the sums the barrier's
+/// iterate wants, in proportion to the fixed shares (without it a direction the bound does not
+/// hold back could not grow past that sum in the capped fit). `None` if `wanted` leaves no
+/// definite slack.
+fn with_room(
+    dirs: &[Vec<f64>],
+    k: &DMatrix<f64>,
+    wanted: &[f64],
+    shares: &[f64],
+) -> Option<Vec<f64>> {
+    let n = k.nrows();
+    let sum = |c: &[f64]| -> DMatrix<f64> {
+        let mut s = DMatrix::<f64>::zeros(n, n);
+        for (a, ci) in dirs.iter().zip(c) {
+            let v = DVector::from_column_slice(a);
+            s += &v * v.transpose() * *ci;
+        }
+        s
+    };
+    let bound = k * (1.0 - MIN_TANGENT_FRACTION);
+    // The larger of the two per direction where the bound keeps it (a network without
+    // negative springs: the fixed shares themselves, where the least squares is within them).
+    let larger: Vec<f64> = wanted.iter().zip(shares).map(|(w, c)| w.max(*c)).collect();
+    if largest_generalized_eigenvalue(&sum(&larger), &bound).is_some_and(|mu| mu <= 1.0 + 1e-9) {
+        return Some(larger);
+    }
+    let slack = bound - sum(wanted);
+    let mu = largest_generalized_eigenvalue(&sum(shares), &slack)?;
+    let s = if mu > 1.0 { 1.0 / mu } else { 1.0 } * (1.0 - 1e-6);
+    let caps: Vec<f64> = wanted.iter().zip(shares).map(|(w, c)| w + s * c).collect();
+    caps.iter().all(|c| c.is_finite()).then_some(caps)
+}
+
+/// Each direction's cap on the sum of its weights, chosen by the data: the weights of
+/// `min ½wᵀ(G + λI)w − bᵀw` over `w ≥ 0` and the fully yielded tangent's own bound
+/// `Σ w_h·a_h·a_hᵀ ⪯ (1 − ε)·K` (a convex set; log-barrier Newton from `inside`, a point of the
+/// fixed shares' caps, the barrier shrunk tenfold a stage), summed per direction. Any weights
+/// within these sums keep the bound (each `a·aᵀ` is positive semidefinite), so the fit within
+/// them is one core accepts, and a direction the training runs show yielding far (a story's
+/// mechanism) gets the stiffness it needs where the fixed shares of `K = Σ κ·a·aᵀ` (scaled down
+/// together when a frame's condensed stiffness has springs of negative `κ`) left it elastic:
+/// measured on the fiber frame, story 2's sum 14.0 kN/mm at its share's cap against 23 kN/mm the
+/// unconstrained fit wants (docs/nonlinear.md). `None` if the Newton iteration fails (the shares'
+/// caps are kept). Deterministic.
+fn direction_caps(
+    g: &DMatrix<f64>,
+    b: &DVector<f64>,
+    lambda: f64,
+    grid: &[(usize, f64)],
+    dirs: &[Vec<f64>],
+    k: &DMatrix<f64>,
+    inside: &[f64],
+) -> Option<Vec<f64>> {
+    let h = b.len();
+    let n = k.nrows();
+    let mut a = g.clone();
+    for i in 0..h {
+        a[(i, i)] += lambda;
+    }
+    let bound = k * (1.0 - MIN_TANGENT_FRACTION);
+    let vecs: Vec<DVector<f64>> = dirs.iter().map(|d| DVector::from_column_slice(d)).collect();
+    let slack = |w: &DVector<f64>| -> DMatrix<f64> {
+        let mut r = bound.clone();
+        for (wi, (e, _)) in w.iter().zip(grid) {
+            r -= &vecs[*e] * vecs[*e].transpose() * *wi;
+        }
+        r
+    };
+    // The barrier objective at `w` (None outside: a weight ≤ 0 or the slack not definite).
+    let value = |w: &DVector<f64>, tau: f64| -> Option<f64> {
+        if w.iter().any(|x| x.is_nan() || *x <= 0.0) {
+            return None;
+        }
+        let l = slack(w).cholesky()?.l();
+        let logdet: f64 = (0..n).map(|i| 2.0 * l[(i, i)].ln()).sum();
+        let logw: f64 = w.iter().map(|x| x.ln()).sum();
+        Some(0.5 * (w.transpose() * &a * w)[(0, 0)] - b.dot(w) - tau * (logw + logdet))
+    };
+    // Strictly inside: half the shares' fit, lifted off zero.
+    let top = inside.iter().fold(0.0_f64, |m, x| m.max(*x)).max(1e-9);
+    let mut w = DVector::from_iterator(h, inside.iter().map(|x| 0.5 * x + 1e-6 * top));
+    let tau0 = 1e-3 * (b.dot(&w).abs() + (w.transpose() * &a * &w)[(0, 0)]).max(1e-12);
+    value(&w, tau0)?;
+    let mut tau = tau0;
+    for _stage in 0..10 {
+        for _newton in 0..100 {
+            let rinv = slack(&w).cholesky()?.inverse();
+            let q = DMatrix::from_fn(vecs.len(), vecs.len(), |i, j| {
+                (vecs[i].transpose() * &rinv * &vecs[j])[(0, 0)]
+            });
+            let grad = DVector::from_fn(h, |i, _| {
+                (a.row(i) * &w)[(0, 0)] - b[i] - tau / w[i] + tau * q[(grid[i].0, grid[i].0)]
+            });
+            let hess = DMatrix::from_fn(h, h, |i, j| {
+                let d = if i == j { tau / (w[i] * w[i]) } else { 0.0 };
+                a[(i, j)] + d + tau * q[(grid[i].0, grid[j].0)].powi(2)
+            });
+            let step = -hess.cholesky()?.solve(&grad);
+            let decrement = -grad.dot(&step);
+            if decrement.is_nan() || decrement <= 1e-14 * tau0 {
+                break;
+            }
+            let f0 = value(&w, tau)?;
+            let mut t = 1.0;
+            let mut moved = false;
+            for _ in 0..60 {
+                let trial = &w + &step * t;
+                if value(&trial, tau).is_some_and(|f| f <= f0 - 0.25 * t * decrement) {
+                    w = trial;
+                    moved = true;
+                    break;
+                }
+                t *= 0.5;
+            }
+            if !moved {
+                break;
+            }
+        }
+        tau *= 0.1;
+    }
+    let mut caps = vec![0.0; dirs.len()];
+    for (wi, (e, _)) in w.iter().zip(grid) {
+        caps[*e] += wi;
+    }
+    caps.iter().all(|c| c.is_finite()).then_some(caps)
+}
+
+/// The least squares' weight on the force residual, `W = K⁻²` (`None` if `K` is not positive
+/// definite): the model is judged on displacements, and a force error `δf` costs a displacement
+/// error of about `K⁻¹·δf`, so the fit minimizes `|K⁻¹·(dev − Φw)|²` rather than `|dev − Φw|²`
+/// (no constant to tune). With equal force weights on every floor, the fiber frame's fit gave
+/// the interface story too little: validation interface NRMSE 4.98 %; with `K⁻²`, 2.96 % (mean
+/// floor NRMSE 4.77 % → 4.60 %; `K⁻¹`, the energy norm, 4.60 % but interface 4.71 %).
+fn flexibility_squared(k: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let f = k.clone().cholesky()?.inverse();
+    Some(&f * &f)
 }
 
 /// `min ½wᵀ(G + λI)w − bᵀw` with `w ≥ 0` and each group's sum at most its cap, by accelerated
