@@ -15,7 +15,7 @@
 //! loss are kept, and the search ends after [`RefineConfig::patience`] steps without a better one.
 //!
 //! Why the refinement did not move the fiber frame's model (measured on its eight training runs,
-//! two held out for validation; docs/nonlinear.md "Why the fiber-frame model recenters"): the
+//! two held out for validation; docs/nonlinear.md "Why the fiber-frame model recentered"): the
 //! residual-drift term was 87 % of the training objective (0.0173 against the floors' 0.0025) and
 //! 74 % of the validation one, and every run was still swinging 2–11 mm at its end: the steps
 //! fitted the swing's phase (that term 0.0173 → 0.0107) while the floors got worse (training
@@ -24,12 +24,11 @@
 //! sat on the per-direction share caps (shares of `K` divided by 3.86 by the network's two
 //! negative springs), which the projection onto the fully yielded tangent's bound lifts; and a
 //! weight at 0 (or a scale at its bound) whose descent leaves the set is held out of the step
-//! (a step solved with it free, then projected, is not a descent direction; with the share caps
-//! it took the search from 6 to 10 kept steps, validation 6.15 → 6.07 %). Measured, before →
-//! after: the fiber frame's validation mean floor NRMSE 6.23 % → 5.31 % (its interface 4.67 →
-//! 4.14 %; the at-rest test alone: 6.15 %), its held-out
-//! interface median 11.72 → 9.88 %, max 28.31 → 24.17 %; the Steel02 frame's validation 3.86 % →
-//! 3.69 %, held-out 4.70 → 4.49 % / 8.44 → 7.96 % (its refinement had kept no step either).
+//! (a step solved with it free, then projected, is not a descent direction). On the least
+//! squares' fit of the time (share caps, unweighted) these took the fiber frame's validation mean
+//! floor NRMSE from 6.23 % to 5.31 %; on the flexibility-weighted fit within the data's caps
+//! ([`super::hysteron::fit`]) the refinement of its hysterons ([`basis`]) takes it from 4.60 % to
+//! 4.06 %.
 
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
