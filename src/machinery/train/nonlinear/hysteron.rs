@@ -788,3 +788,78 @@ pub fn pure_loop(p: FloorHysteronParams, ag_mm_s2: &[f64]) -> Option<Vec<Vec<f64
     }
     Some(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 3-floor stiffness whose spring network has a negative spring (floor 1 to floor 3), as
+    /// a frame's condensed stiffness may: kN/mm.
+    fn frame_k() -> DMatrix<f64> {
+        DMatrix::from_row_slice(
+            3,
+            3,
+            &[180.0, -120.0, 15.0, -120.0, 200.0, -90.0, 15.0, -90.0, 80.0],
+        )
+    }
+
+    fn sum_of(dirs: &[Vec<f64>], c: &[f64]) -> DMatrix<f64> {
+        let mut s = DMatrix::<f64>::zeros(3, 3);
+        for (a, ci) in dirs.iter().zip(c) {
+            let v = DVector::from_column_slice(a);
+            s += &v * v.transpose() * *ci;
+        }
+        s
+    }
+
+    #[test]
+    fn the_flexibility_weight_is_the_squared_inverse_stiffness() {
+        let k = frame_k();
+        let w = flexibility_squared(&k).expect("positive definite");
+        let err = (&w * &k * &k - DMatrix::<f64>::identity(3, 3)).abs().max();
+        assert!(err < 1e-12, "{err}");
+        assert!(
+            flexibility_squared(&DMatrix::from_row_slice(2, 2, &[1.0, 2.0, 2.0, 1.0])).is_none()
+        );
+    }
+
+    /// The data's caps keep the fully yielded tangent's bound, and where the least squares wants
+    /// more than the network's shares (scaled down by the negative spring) they give it more.
+    #[test]
+    fn the_data_s_caps_keep_the_tangent_bound_and_lift_the_shares() {
+        let k = frame_k();
+        let (dirs, kappa) = directions(&k);
+        let grid: Vec<(usize, f64)> = kappa
+            .iter()
+            .enumerate()
+            .filter(|(_, kp)| **kp > 0.0)
+            .map(|(e, _)| (e, 10.0))
+            .collect();
+        let share_caps: Vec<f64> = kappa
+            .iter()
+            .map(|kp| (1.0 - MIN_TANGENT_FRACTION) * kp)
+            .collect();
+        // The least squares' target: twice each share (G = I, b = the wanted weights).
+        let h = grid.len();
+        let g = DMatrix::<f64>::identity(h, h);
+        let b = DVector::from_iterator(h, grid.iter().map(|(e, _)| 2.0 * share_caps[*e]));
+        let groups: Vec<usize> = grid.iter().map(|(e, _)| *e).collect();
+        let w0 = nnls(&g, &b, 1e-6);
+        let inside = capped_least_squares(&g, &b, 1e-6, &groups, &share_caps, w0);
+        let wanted = direction_caps(&g, &b, 1e-6, &grid, &dirs, &k, &inside).expect("converges");
+        let caps = with_room(&dirs, &k, &wanted, &share_caps).expect("slack");
+        let bound = &k * (1.0 - MIN_TANGENT_FRACTION);
+        let mu = largest_generalized_eigenvalue(&sum_of(&dirs, &caps), &bound).expect("definite");
+        assert!(mu <= 1.0 + 1e-9, "{mu}");
+        let (lifted, fixed): (f64, f64) = (caps.iter().sum(), share_caps.iter().sum());
+        assert!(
+            lifted > 1.05 * fixed,
+            "{caps:?} against the shares' {share_caps:?}"
+        );
+        // Deterministic: the same data give the same caps, bit for bit.
+        let again = direction_caps(&g, &b, 1e-6, &grid, &dirs, &k, &inside)
+            .and_then(|w| with_room(&dirs, &k, &w, &share_caps))
+            .expect("converges");
+        assert_eq!(caps, again);
+    }
+}

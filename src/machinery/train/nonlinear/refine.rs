@@ -795,6 +795,13 @@ mod tests {
             h.weight_kn_per_mm *= 0.5;
         }
         let basis = basis(&fm, fit_runs, &start);
+        // It moves the least squares' hysterons only: each one kept costs the board's tick.
+        assert_eq!(basis.grid.len(), start.hysterons.len());
+        assert!(basis
+            .grid
+            .iter()
+            .zip(&start.hysterons)
+            .all(|((e, r), h)| *e == h.direction && *r == h.threshold_mm));
         let cfg = RefineConfig {
             max_iterations: 12,
             ..RefineConfig::default()
@@ -831,8 +838,9 @@ mod tests {
             r1.val_loss_end.expect("val"),
         );
         assert!(v1 < 0.2 * v0, "validation loss {v0} → {v1}");
-        // Every model it kept is one core accepts.
+        // Every model it kept is one core accepts, with no hysteron the start did not have.
         assert!(hysteron::params(&fm1, &fit1, DT_S_TEST).is_ok());
+        assert!(fit1.hysterons.len() <= start.hysterons.len());
     }
 
     /// A story whose reference still swings at the run's end adds no residual-drift term (its
