@@ -526,7 +526,7 @@ fn accumulate(row: &[f64], r0: f64, jtj: &mut DMatrix<f64>, jtr: &mut DVector<f6
 /// The basis of `fm` on `runs` the least-squares fit `start` used (its directions, caps and
 /// grid).
 pub fn basis(fm: &FloorModel, runs: &[FloorRun], start: &HysteronFit) -> Basis {
-    let (directions, kappa) = hysteron::directions(&fm.stiffness);
+    let (directions, kappa) = hysteron::basis_directions(&fm.stiffness);
     let c = hysteron::Candidate {
         operator: start.operator,
         range: start.range,
