@@ -210,16 +210,8 @@ fn shipped(c: &mut Criterion) {
             ModalHystParams::new(DT_4096_S, &mm, &shape, 0, k_e, laws, &drift)
                 .expect("valid model"),
         );
-        let mut k = 0usize;
-        let mut target = 0.0;
-        g.bench_function(format!("modal_{file}"), |b| {
-            b.iter(|| {
-                k = (k + 1) % ag.len();
-                target = m
-                    .step(black_box(ag[k]), black_box(k_e * target))
-                    .unwrap_or(0.0);
-                black_box(target)
-            })
+        step_through(&mut g, &format!("modal_{file}"), &ag, k_e, |a, f| {
+            m.step(a, f).ok()
         });
     }
     // The floor-hysteron model learned from OpenSees runs of the fiber-section frame (issue 25):
@@ -233,17 +225,29 @@ fn shipped(c: &mut Criterion) {
             .expect("shipped model");
     let k_e = file.specimen_stiffness_kn_per_mm;
     let mut m = FloorHysteron::new(file.params(DT_4096_S).expect("valid model"));
+    step_through(&mut g, "hysteron_nl-fiber-frame", &ag, k_e, |a, f| {
+        m.step(a, f).ok()
+    });
+    g.finish();
+}
+
+/// One tick of a learned model per iteration, along the record `ag` (mm/s²), the specimen's
+/// force `k_e` times the last target fed back.
+fn step_through(
+    g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    name: &str,
+    ag: &[f64],
+    k_e: f64,
+    mut step: impl FnMut(f64, f64) -> Option<f64>,
+) {
     let (mut k, mut target) = (0usize, 0.0);
-    g.bench_function("hysteron_nl-fiber-frame", |b| {
+    g.bench_function(name, |b| {
         b.iter(|| {
             k = (k + 1) % ag.len();
-            target = m
-                .step(black_box(ag[k]), black_box(k_e * target))
-                .unwrap_or(0.0);
+            target = step(black_box(ag[k]), black_box(k_e * target)).unwrap_or(0.0);
             black_box(target)
         })
     });
-    g.finish();
 }
 
 criterion_group!(benches, step, metamodel_step, shipped);

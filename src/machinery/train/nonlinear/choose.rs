@@ -126,7 +126,7 @@ pub fn fit_hysteron(
     let (fm2, fit, report) = if cfg.max_iterations == 0 || val_runs.is_empty() {
         (fm.clone(), start, None)
     } else {
-        let basis = refine::basis(fm, fit_runs, &start);
+        let basis = refine::basis(fm, fit_runs, &start)?;
         let (f, h, r) = refine::refine(
             fm,
             &basis,

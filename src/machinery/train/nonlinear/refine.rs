@@ -26,7 +26,7 @@
 //! weight at 0 (or a scale at its bound) whose descent leaves the set is held out of the step
 //! (a step solved with it free, then projected, is not a descent direction). On the least
 //! squares' fit of the time (share caps, unweighted) these took the fiber frame's validation mean
-//! floor NRMSE from 6.23 % to 5.31 %; on the flexibility-weighted fit within the data's caps
+//! floor NRMSE from 6.23 % to 5.31 %; on the flexibility-weighted fit
 //! ([`super::hysteron::fit`]) the refinement of its hysterons ([`basis`]) takes it from 4.60 % to
 //! 4.06 % on the spring network's directions, and from 4.81 % to 3.01 % on the story drifts in
 //! `K`-orthogonal form (the basis now).
@@ -526,8 +526,13 @@ fn accumulate(row: &[f64], r0: f64, jtj: &mut DMatrix<f64>, jtr: &mut DVector<f6
 
 /// The basis of `fm` on `runs` the least-squares fit `start` used (its directions, caps and
 /// grid).
-pub fn basis(fm: &FloorModel, runs: &[FloorRun], start: &HysteronFit) -> Basis {
-    let (directions, kappa) = hysteron::basis_directions(&fm.stiffness);
+pub fn basis(fm: &FloorModel, runs: &[FloorRun], start: &HysteronFit) -> Result<Basis, TrainError> {
+    let (directions, kappa) = hysteron::story_directions(&fm.stiffness).ok_or_else(|| {
+        TrainError::Setting(format!(
+            "structure {}: the floors' elastic stiffness is not positive definite",
+            fm.name
+        ))
+    })?;
     let c = hysteron::Candidate {
         operator: start.operator,
         range: start.range,
@@ -545,13 +550,13 @@ pub fn basis(fm: &FloorModel, runs: &[FloorRun], start: &HysteronFit) -> Basis {
                 .any(|h| h.direction == *e && h.threshold_mm == *r)
         })
         .collect();
-    Basis {
+    Ok(Basis {
         operator: start.operator,
         range: start.range,
         directions,
         kappa,
         grid,
-    }
+    })
 }
 
 /// Refine `start` (a least-squares fit on `fit_runs` of `fm`, whose hysterons are on `basis`'s
@@ -795,7 +800,7 @@ mod tests {
         for h in &mut start.hysterons {
             h.weight_kn_per_mm *= 0.5;
         }
-        let basis = basis(&fm, fit_runs, &start);
+        let basis = basis(&fm, fit_runs, &start).expect("basis");
         // It moves the least squares' hysterons only: each one kept costs the board's tick.
         assert_eq!(basis.grid.len(), start.hysterons.len());
         assert!(basis
