@@ -13,6 +13,12 @@ use rths_link::ModelKind;
 /// figure as the budget report's `cycles_per_instr`).
 pub const CYCLES_PER_INSTR: f64 = 1.5;
 
+/// The share of a tick a learned structure model may take with its rig compensation on the
+/// fastest board at the highest rate (the Cortex-M7 at 4096 Hz): the learned nonlinear model's
+/// goal, "within 10 % of the tick". The training keeps its models within it
+/// ([`TickBudget::max_hysterons`]).
+pub const LEARNED_TICK_SHARE: f64 = 0.10;
+
 /// The measured cost of one controller tick of each path on one core, instructions per tick (the
 /// budget report's `instr/tick max`, 2048 Hz; the 4096 Hz rows differ by < 0.2 %).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -157,8 +163,11 @@ impl PathCost {
             reduced_modes: 2.0,
             // 2,810 (measured, nl-online, 6 plays) − 395 (rig) − 1,145 (FE, N = 3) − 12 × 105.
             hysteron_base: 10.0,
-            // (6,105 (measured, nl-online, 6 Menegotto–Pinto plays) − 2,810) / 6 + 105, rounded up.
-            hysteron_mp: 655.0,
+            // The larger of the two measured rows' cost per Menegotto–Pinto play, rounded up:
+            // (6,105 (nl-online, 6 of them on 6 directions) − 2,810) / 6 + 105 = 655, and
+            // (4,690 (nl-online at 4096 Hz, 4 of them on 3 directions) − 395 − 1,145 − 3 × 105
+            // − 10) / 4 = 706.25.
+            hysteron_mp: 707.0,
             rig: 395.0,
         }),
     };
@@ -250,6 +259,37 @@ impl TickBudget {
     /// The tick can run a `kind` model of sizes `dims` (without a rig compensation).
     pub fn fits_dims(&self, kind: ModelKind, dims: &Dims) -> bool {
         self.instr_dims(kind, dims) <= self.instr_per_tick()
+    }
+
+    /// The most hysterons a floor-hysteron model of `floors` floors and `directions` directions
+    /// may keep (`menegotto_pinto`: of that operator, else plays) for its estimate with the rig
+    /// compensation to stay within `share` of the tick (0: not even one; a core whose costs were
+    /// not measured gives 0).
+    pub fn max_hysterons(
+        &self,
+        floors: usize,
+        directions: usize,
+        menegotto_pinto: bool,
+        share: f64,
+    ) -> usize {
+        let limit = share * self.instr_per_tick();
+        let cost = |h: usize| {
+            self.instr_with_rig(
+                ModelKind::StructureHysteron,
+                &Dims {
+                    dofs: floors,
+                    directions,
+                    hysterons: h,
+                    bouc_wen: if menegotto_pinto { h } else { 0 },
+                    ..Dims::default()
+                },
+            )
+        };
+        // The cost grows with each hysteron; the controller holds at most 64 of them.
+        (1..=64)
+            .take_while(|h| cost(*h) <= limit)
+            .last()
+            .unwrap_or(0)
     }
 
     /// The estimate as a share of the tick, % (over 100: the model cannot meet the tick).

@@ -768,8 +768,10 @@ fn report_hysteron(
             .map_or(f64::NAN, |(_, l)| l);
         crate::outln!(
             "  basis chosen among {} (operator, threshold range) after least squares on the \
-             validation histories: the best play {play:.3}%, the kept {best:.3}%",
-            t.operators_tried.len()
+             validation histories (the best play {play:.3}%, the best {best:.3}%), then the {} \
+             best refined and the lowest validation loss kept",
+            t.operators_tried.len(),
+            crate::machinery::train::nonlinear::choose::REFINED_CANDIDATES
         );
     }
     crate::outln!(
@@ -964,7 +966,8 @@ fn evaluate_floors(
 ) -> anyhow::Result<()> {
     use crate::machinery::train::nonlinear::floors::{read_runs, FloorModel, FloorRun};
     use crate::machinery::train::nonlinear::score::Learned;
-    use crate::studies::nonlinear::held_out::{score_run, HybridRig, ResidualJudgement};
+    use crate::machinery::train::nonlinear::score::LoopScore;
+    use crate::studies::nonlinear::held_out::{score_run, HybridRig, ResidualJudgement, RunScore};
     use rayon::prelude::*;
     let fm = FloorModel::from_json(text)?;
     let runs: Vec<FloorRun> = if args.histories.is_empty() {
@@ -1037,8 +1040,18 @@ fn evaluate_floors(
     crate::outln!("| run | peak interface (mm) | pure NRMSE (%) | pure floors (%) | pure residual error (%) | hybrid NRMSE, measured (%) | hybrid NRMSE, model (%) | hybrid residual error (%) | hybrid / pure | L |");
     crate::outln!("|---|---|---|---|---|---|---|---|---|---|");
     let f = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.3}"));
-    let judged = |j: ResidualJudgement| match j {
-        ResidualJudgement::Judged(p) => format!("{p:.3}"),
+    // Where judged, the story and both residuals too: an error of 100 % is a model at rest at 0
+    // or at twice the residual, which a lab reads differently.
+    let judged = |j: ResidualJudgement, r: &RunScore, l: &LoopScore| match j {
+        ResidualJudgement::Judged(p) => {
+            let k = ResidualJudgement::story(&r.residual_ref_mm).unwrap_or(0);
+            format!(
+                "{p:.3} (story {}: {:.2} mm, model {:.2} mm)",
+                k + 1,
+                r.residual_ref_mm.get(k).copied().unwrap_or(f64::NAN),
+                l.residual_mm.get(k).copied().unwrap_or(f64::NAN)
+            )
+        }
         ResidualJudgement::Small => "— (under 0.1 mm)".into(),
         ResidualJudgement::NotAtRest {
             residual_mm,
@@ -1070,7 +1083,7 @@ fn evaluate_floors(
             r.peak_interface_mm,
             f(r.pure.interface_nrmse_pct),
             floors.join(" / "),
-            judged(jp),
+            judged(jp, r, &r.pure),
             match &r.hybrid {
                 Some(h) => match &h.stopped {
                     Some(why) => format!("stopped ({why})"),
@@ -1079,7 +1092,10 @@ fn evaluate_floors(
                 None => "—".into(),
             },
             f(r.hybrid.as_ref().and_then(|h| h.model_interface_nrmse_pct)),
-            jh.map_or("—".to_string(), judged),
+            match (jh, &r.hybrid) {
+                (Some(j), Some(h)) => judged(j, r, h),
+                _ => "—".to_string(),
+            },
             f(q),
             r.length_scale
         );

@@ -88,16 +88,22 @@ impl ResidualJudgement {
 }
 
 impl ResidualJudgement {
+    /// The story a judgement is made at: the one with the largest reference residual (`None`:
+    /// no story).
+    pub fn story(ref_mm: &[f64]) -> Option<usize> {
+        ref_mm
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            .map(|(k, _)| k)
+    }
+
     /// The judgement of a model's residual drifts `model_mm` against a reference's `ref_mm` (each
     /// story's, with their swings `ref_swing_mm` over the residual window): at the story with the
     /// largest reference residual, where that residual is 0.1 mm or more and the reference has
     /// come to rest.
     pub fn of(ref_mm: &[f64], ref_swing_mm: &[f64], model_mm: &[f64]) -> Self {
-        let Some((k, r)) = ref_mm
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
-        else {
+        let Some((k, r)) = Self::story(ref_mm).and_then(|k| ref_mm.get(k).map(|r| (k, r))) else {
             return Self::Small;
         };
         if r.abs() < 0.1 {

@@ -208,6 +208,9 @@ mod tests {
             panic!("{:?}", r.residual_error(&l));
         };
         assert!((p - 20.0).abs() < 1e-9, "{p}");
+        // The story the evaluation's table names (the second, by magnitude, not by sign).
+        assert_eq!(ResidualJudgement::story(&r.residual_ref_mm), Some(1));
+        assert_eq!(ResidualJudgement::story(&[]), None);
         // The same run still swinging 5 mm about its 10 mm: no figure, and why.
         let (r, l) = scored([0.5, -10.0], [0.4, 5.0], [0.0, -12.0]);
         assert_eq!(
