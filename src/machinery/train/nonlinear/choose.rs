@@ -124,7 +124,12 @@ pub fn fit_hysteron(
     // the lowest validation loss after refinement kept ([`REFINED_CANDIDATES`]).
     let few = if refining { REFINED_CANDIDATES } else { 1 };
     let mut kept: Option<Refined> = None;
-    for (i, (start, _)) in ranked.into_iter().take(few).enumerate() {
+    for (i, (start, l)) in ranked.into_iter().take(few).enumerate() {
+        // The best is refined whatever its loss (its error is the training's); a runner-up
+        // whose least squares diverged, or whose refinement fails, is passed over.
+        if i > 0 && !l.is_finite() {
+            continue;
+        }
         let r = refine_candidate(
             fm,
             start,
@@ -134,7 +139,12 @@ pub fn fit_hysteron(
             cfg,
             refining,
             |d, n, w| on_step(d, n, format!("candidate {} of {few}: {w}", i + 1)),
-        )?;
+        );
+        let r = match r {
+            Ok(r) => r,
+            Err(e) if i == 0 => return Err(e),
+            Err(_) => continue,
+        };
         if kept.as_ref().is_none_or(|k| r.val_loss < k.val_loss) {
             kept = Some(r);
         }
@@ -557,5 +567,79 @@ mod tests {
         let held = fit_hysteron(&fm, &runs[..2], &runs[2..], id, 1, DT_S, cfg, |_, _, _| {})
             .expect("trained");
         assert!(held.training.refinement.is_some());
+    }
+
+    /// The least squares' best few are each refined and the lowest validation loss kept: never
+    /// worse than refining the least squares' best alone.
+    #[test]
+    fn the_best_few_are_refined_and_the_lowest_kept() {
+        let fm = one_floor();
+        let shape = MpShape::new(20.0, 0.925, 0.15).expect("valid");
+        let p = truth(
+            &fm,
+            &[(9.0, 90.0), (18.5, 90.0)],
+            HysteronOperator::MenegottoPinto(shape),
+        );
+        let runs: Vec<FloorRun> = [(5000.0, 0.0), (9000.0, 1.0), (7000.0, 2.0)]
+            .iter()
+            .map(|&(a, ph)| run_of(p, ground(4.0, a, ph), &format!("run-{a}")))
+            .collect();
+        let (fit_runs, val_runs) = (&runs[..2], &runs[2..]);
+        let id = NlStructureId {
+            name: fm.name.clone(),
+            checksum: "fnv1a64:0".into(),
+        };
+        let cfg = RefineConfig {
+            max_iterations: 2,
+            ..RefineConfig::default()
+        };
+        let mut said = Vec::new();
+        let kept = fit_hysteron(&fm, fit_runs, val_runs, id, 1, DT_S, cfg, |_, _, w| {
+            said.push(w)
+        })
+        .expect("trained");
+        let refined = |i: usize| {
+            said.iter()
+                .any(|w| w.starts_with(&format!("candidate {i} of")))
+        };
+        assert!((1..=REFINED_CANDIDATES).all(refined), "{said:?}");
+        assert!(!refined(REFINED_CANDIDATES + 1));
+        // The least squares' best alone, refined the same way.
+        let best = hysteron::candidates()
+            .into_iter()
+            .filter_map(|c| {
+                let f = hysteron::fit(&fm, fit_runs, DT_S, c).ok()?;
+                let l = validation_loss(
+                    &Learned::Hysteron(hysteron::params(&fm, &f, DT_S).ok()?),
+                    fm.specimen_k_kn_per_mm,
+                    val_runs,
+                );
+                Some((f, l))
+            })
+            .fold(
+                None,
+                |b: Option<(hysteron::HysteronFit, f64)>, (f, l)| match b {
+                    Some((_, bl)) if bl <= l => b,
+                    _ => Some((f, l)),
+                },
+            )
+            .expect("a candidate");
+        let alone = refine_candidate(
+            &fm,
+            best.0,
+            fit_runs,
+            val_runs,
+            DT_S,
+            cfg,
+            true,
+            |_, _, _| {},
+        )
+        .expect("refined");
+        let v = kept.training.validation_loss_pct.expect("validation");
+        assert!(
+            v <= alone.val_loss + 1e-12,
+            "{v} against {}",
+            alone.val_loss
+        );
     }
 }
