@@ -242,16 +242,9 @@ fn refine_candidate(
     } else {
         val_runs
     };
-    let start_loss = validation_loss(
-        &Learned::Hysteron(hysteron::params(fm, &start, dt_s)?),
-        k_e,
-        fit_runs,
-    );
-    let unrefined = validation_loss(
-        &Learned::Hysteron(hysteron::params(fm, &start, dt_s)?),
-        k_e,
-        judge,
-    );
+    let start_model = Learned::Hysteron(hysteron::params(fm, &start, dt_s)?);
+    let start_loss = validation_loss(&start_model, k_e, fit_runs);
+    let unrefined = validation_loss(&start_model, k_e, judge);
     if !refining {
         return Ok(Refined {
             fm: fm.clone(),
@@ -488,10 +481,18 @@ pub fn train_form(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::machinery::train::nonlinear::test_runs::{ground, one_floor, run_of, truth};
+    use crate::machinery::train::nonlinear::test_runs::{one_floor, runs_of, truth};
     use rths_core::metamodel::{HysteronOperator, MpShape};
     use rths_core::params::DT_S;
     use rths_files::hysteron_model_file::OperatorSpec;
+
+    /// The structure id of a synthetic model's file.
+    fn test_id(fm: &FloorModel) -> NlStructureId {
+        NlStructureId {
+            name: fm.name.clone(),
+            checksum: "fnv1a64:0".into(),
+        }
+    }
 
     /// Runs of a story whose reversals are rounded (a Menegotto–Pinto hysteron, Steel02's shape)
     /// make the training choose a Menegotto–Pinto basis on the validation run, well below the
@@ -505,10 +506,7 @@ mod tests {
             &[(18.5, 190.0)],
             HysteronOperator::MenegottoPinto(shape),
         );
-        let runs: Vec<FloorRun> = [(5000.0, 0.0), (10000.0, 1.0), (7500.0, 2.0)]
-            .iter()
-            .map(|&(a, ph)| run_of(p, ground(6.0, a, ph), &format!("run-{a}")))
-            .collect();
+        let runs = runs_of(p, 6.0, &[(5000.0, 0.0), (10000.0, 1.0), (7500.0, 2.0)]);
         let peak = runs[1].floor_disp_mm[0]
             .iter()
             .fold(0.0_f64, |m, v| m.max(v.abs()));
@@ -517,10 +515,7 @@ mod tests {
             max_iterations: 0,
             ..RefineConfig::default()
         };
-        let id = NlStructureId {
-            name: fm.name.clone(),
-            checksum: "fnv1a64:0".into(),
-        };
+        let id = test_id(&fm);
         let f = fit_hysteron(&fm, &runs[..2], &runs[2..], id, 1, DT_S, cfg, |_, _, _| {})
             .expect("trained");
         assert!(
@@ -547,14 +542,8 @@ mod tests {
     fn the_refinement_runs_only_with_validation_histories() {
         let fm = one_floor();
         let p = truth(&fm, &[(6.0, 120.0), (14.0, 60.0)], HysteronOperator::Play);
-        let runs: Vec<FloorRun> = [(2500.0, 0.0), (4500.0, 1.0), (3500.0, 2.0)]
-            .iter()
-            .map(|&(a, ph)| run_of(p, ground(4.0, a, ph), &format!("run-{a}")))
-            .collect();
-        let id = NlStructureId {
-            name: fm.name.clone(),
-            checksum: "fnv1a64:0".into(),
-        };
+        let runs = runs_of(p, 4.0, &[(2500.0, 0.0), (4500.0, 1.0), (3500.0, 2.0)]);
+        let id = test_id(&fm);
         let cfg = RefineConfig {
             max_iterations: 2,
             ..RefineConfig::default()
@@ -580,15 +569,9 @@ mod tests {
             &[(9.0, 90.0), (18.5, 90.0)],
             HysteronOperator::MenegottoPinto(shape),
         );
-        let runs: Vec<FloorRun> = [(5000.0, 0.0), (9000.0, 1.0), (7000.0, 2.0)]
-            .iter()
-            .map(|&(a, ph)| run_of(p, ground(4.0, a, ph), &format!("run-{a}")))
-            .collect();
+        let runs = runs_of(p, 4.0, &[(5000.0, 0.0), (9000.0, 1.0), (7000.0, 2.0)]);
         let (fit_runs, val_runs) = (&runs[..2], &runs[2..]);
-        let id = NlStructureId {
-            name: fm.name.clone(),
-            checksum: "fnv1a64:0".into(),
-        };
+        let id = test_id(&fm);
         let cfg = RefineConfig {
             max_iterations: 2,
             ..RefineConfig::default()

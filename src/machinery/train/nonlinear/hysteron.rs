@@ -756,7 +756,7 @@ pub fn pure_loop(p: FloorHysteronParams, ag_mm_s2: &[f64]) -> Option<Vec<Vec<f64
 
 #[cfg(test)]
 mod tests {
-    use super::super::test_runs::{ground, one_floor, run_of, truth};
+    use super::super::test_runs::{one_floor, runs_of, truth};
     use super::*;
 
     /// A model of three plays is fitted with at least three hysterons; held to two, it keeps two
@@ -770,10 +770,7 @@ mod tests {
             &[(4.0, 40.0), (9.0, 50.0), (16.0, 60.0)],
             HysteronOperator::Play,
         );
-        let runs: Vec<FloorRun> = [(6000.0, 0.0), (9000.0, 1.0)]
-            .iter()
-            .map(|&(a, ph)| run_of(p, ground(6.0, a, ph), &format!("run-{a}")))
-            .collect();
+        let runs = runs_of(p, 6.0, &[(6000.0, 0.0), (9000.0, 1.0)]);
         let c = Candidate {
             operator: HysteronOperator::Play,
             range: THRESHOLD_RANGES[0],

@@ -751,7 +751,7 @@ pub fn still_swinging(path: &Path, dt_s: f64) -> Result<Vec<(String, f64, f64)>,
 mod tests {
     use super::*;
     use crate::machinery::train::nonlinear::hysteron::Candidate;
-    use crate::machinery::train::nonlinear::test_runs::{ground, one_floor, run_of, truth};
+    use crate::machinery::train::nonlinear::test_runs::{one_floor, runs_of, truth};
 
     /// A history whose floor still swings at its end is named with its column; one at rest is not.
     #[test]
@@ -787,10 +787,7 @@ mod tests {
     fn the_refinement_recovers_a_known_model_deterministically() {
         let fm = one_floor();
         let p = truth(&fm, &[(6.0, 120.0), (14.0, 60.0)], HysteronOperator::Play);
-        let runs: Vec<FloorRun> = [(2500.0, 0.0), (4500.0, 1.0), (3500.0, 2.0)]
-            .iter()
-            .map(|&(a, ph)| run_of(p, ground(5.0, a, ph), &format!("run-{a}")))
-            .collect();
+        let runs = runs_of(p, 5.0, &[(2500.0, 0.0), (4500.0, 1.0), (3500.0, 2.0)]);
         let (fit_runs, val_runs) = (&runs[..2], &runs[2..]);
         let c = Candidate {
             operator: HysteronOperator::Play,

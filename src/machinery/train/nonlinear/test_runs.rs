@@ -90,3 +90,16 @@ pub(crate) fn run_of(p: FloorHysteronParams, ag: Vec<f64>, label: &str) -> Floor
         floor_disp_mm: floors,
     }
 }
+
+/// The runs of `p` under [`ground`] motions of `seconds`, one per `(peak mm/s², phase)`, labelled
+/// by their peak.
+pub(crate) fn runs_of(
+    p: FloorHysteronParams,
+    seconds: f64,
+    motions: &[(f64, f64)],
+) -> Vec<FloorRun> {
+    motions
+        .iter()
+        .map(|&(a, ph)| run_of(p, ground(seconds, a, ph), &format!("run-{a}")))
+        .collect()
+}
