@@ -13,7 +13,7 @@ use rths::machinery::motion::GroundMotion;
 use rths::machinery::structure::{drift_nrmse_pct, elastic_drifts, fe_reference};
 use rths::machinery::train::nonlinear::histories::{history_of_run, read_runs};
 use rths::machinery::train::nonlinear::runs::fe_run;
-use rths::machinery::train::nonlinear::{eval, train, NlTrainConfig, SpringLaw};
+use rths::machinery::train::nonlinear::{eval, families_label, train, NlTrainConfig, SpringLaw};
 use rths_core::params::DT_S;
 use rths_files::history::RecorderUnits;
 use rths_files::structure_file::Structure;
@@ -73,13 +73,18 @@ fn histories_of_the_lab_s_fe_train_a_model_that_beats_the_linear_path() {
     let v = t.validation.clone().expect("a validation split");
     let (held, scores) = (v.held_out, v.losses_pct);
     assert_eq!(held, vec!["loma-prieta-0.9.csv".to_string()]);
-    assert_eq!(scores.len(), 2);
+    // Each family, and each story's own best family when they differ.
+    assert!((2..=3).contains(&scores.len()), "{scores:?}");
     let kept = scores
         .iter()
         .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(l, _)| l.name())
+        .map(|(l, _)| l.clone())
         .unwrap();
-    assert_eq!(t.file.springs[0].law, kept, "{scores:?}");
+    assert_eq!(
+        families_label(t.file.springs.iter().map(|s| s.law.as_str())),
+        kept,
+        "{scores:?}"
+    );
     assert!(t.file.training.runs[0].ends_with("(history)"));
     // Scoring (the truth): El Centro × 1.5, held out, on the yielding file's FE.
     let el = GroundMotion::try_el_centro().unwrap();
@@ -106,6 +111,64 @@ fn histories_of_the_lab_s_fe_train_a_model_that_beats_the_linear_path() {
             .len(),
         3
     );
+}
+
+/// A frame whose first story is bilinear and whose upper stories are Bouc–Wen: each story's own
+/// best family is a candidate of its own, and given validation histories are held out of the fit.
+#[test]
+fn each_story_may_take_its_own_spring_family_chosen_on_the_validation_histories() {
+    let yielding = Structure::load(&root("data/structures/shear3-mixed-yielding.json")).unwrap();
+    let elastic = elastic_text("data/structures/shear3-mixed-yielding.json");
+    let dir = tempfile::tempdir().unwrap();
+    let mut paths = Vec::new();
+    for (name, scale) in [
+        ("northridge", 0.3),
+        ("loma-prieta", 0.8),
+        ("northridge", 0.55),
+    ] {
+        let run = fe_run(&yielding, &truncated(name, 10.0), scale, DT_S).unwrap();
+        let p = dir.path().join(format!("{name}-{scale}.csv"));
+        let h = history_of_run(&yielding, &run, DT_S, &p);
+        std::fs::write(&p, rths_files::history::to_csv(&h)).unwrap();
+        paths.push(p);
+    }
+    let mut cfg = quick(3, paths[..2].to_vec());
+    cfg.laws = vec![SpringLaw::Bilinear, SpringLaw::BoucWen];
+    cfg.validation_histories = paths[2..].to_vec();
+    let t = train(&elastic, &cfg, |_, _, _| {}).unwrap();
+    let v = t.validation.clone().expect("a validation split");
+    assert_eq!(v.held_out, vec!["northridge-0.55.csv".to_string()]);
+    // Story 1's bilinear law is fitted best by the bilinear family, the upper stories' Bouc–Wen
+    // laws by Bouc–Wen: the third candidate.
+    let labels: Vec<&str> = v.losses_pct.iter().map(|(l, _)| l.as_str()).collect();
+    assert_eq!(
+        labels,
+        ["bilinear", "bouc-wen", "bilinear / bouc-wen / bouc-wen"],
+        "{:?}",
+        v.losses_pct
+    );
+    let (kept, _) = v
+        .losses_pct
+        .iter()
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap();
+    assert_eq!(
+        &families_label(t.file.springs.iter().map(|s| s.law.as_str())),
+        kept
+    );
+    // The validation history is listed as such, and was not fitted.
+    assert!(
+        t.file.training.runs[2].ends_with("(history, validation)"),
+        "{:?}",
+        t.file.training.runs
+    );
+    assert!(t.file.training.runs[..2]
+        .iter()
+        .all(|r| r.ends_with("(history)")));
+    // Validation histories without training ones are refused.
+    let mut bad = quick(3, Vec::new());
+    bad.validation_histories = paths[2..].to_vec();
+    assert!(train(&elastic, &bad, |_, _, _| {}).is_err());
 }
 
 #[test]

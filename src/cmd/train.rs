@@ -579,7 +579,7 @@ fn train_meta(args: &Args) -> anyhow::Result<()> {
 
 fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
     use crate::machinery::train::nonlinear::choose::{train_form, Form, TrainedForm};
-    use crate::machinery::train::nonlinear::{NlTrainConfig, SpringLaw};
+    use crate::machinery::train::nonlinear::{families_label, NlTrainConfig, SpringLaw};
     let t0 = std::time::Instant::now();
     let path = args
         .structure
@@ -691,7 +691,7 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
     crate::outln!(
         "  {} springs; loss (mean floor NRMSE over the runs): initial {:.3}%, after stage 1 \
          {:.3}%, trained {:.3}%",
-        t.file.springs.first().map_or("?", |s| s.law.as_str()),
+        families_label(t.file.springs.iter().map(|s| s.law.as_str())),
         tr.initial_loss_pct,
         t.stage1_loss_pct,
         tr.final_loss_pct
@@ -705,10 +705,7 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
     }
     if let Some(v) = &t.validation {
         let (held, scores) = (&v.held_out, &v.losses_pct);
-        let scores: Vec<String> = scores
-            .iter()
-            .map(|(l, v)| format!("{} {v:.3}%", l.name()))
-            .collect();
+        let scores: Vec<String> = scores.iter().map(|(l, v)| format!("{l} {v:.3}%")).collect();
         crate::outln!(
             "  validation on {} (held out of the fit): {}; kept the lower",
             held.join(", "),

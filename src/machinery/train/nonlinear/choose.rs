@@ -423,14 +423,16 @@ pub fn train_form(
         k_e,
         &val_runs,
     );
+    // The modal form fits on the same histories and chooses its spring families on the same
+    // held-out ones.
     let mut modal_cfg = cfg.clone();
-    modal_cfg.histories = cfg
+    let (val_paths, fit_paths): (Vec<_>, Vec<_>) = cfg
         .histories
         .iter()
         .enumerate()
-        .filter(|(i, _)| !is_validation(*i))
-        .map(|(_, p)| p.clone())
-        .collect();
+        .partition(|(i, _)| is_validation(*i));
+    modal_cfg.histories = fit_paths.into_iter().map(|(_, p)| p.clone()).collect();
+    modal_cfg.validation_histories = val_paths.into_iter().map(|(_, p)| p.clone()).collect();
     let modal = super::train(json, &modal_cfg, |g, n, l| {
         on_progress(g, n, format!("modal-hysteretic {l:.3}%"))
     })?;

@@ -106,6 +106,10 @@ pub struct NlTrainConfig {
     /// Train on these time histories of the lab's FE program (CSV files or recorder directories,
     /// [`histories`]) instead of rths's FE runs of `records` at `ductilities`.
     pub histories: Vec<std::path::PathBuf>,
+    /// Histories held out of the fit, on which the spring family is chosen (`--form auto` gives
+    /// its own validation histories, so the family and the form are chosen on the same runs).
+    /// Empty: every third of `histories`, when there are 3 or more.
+    pub validation_histories: Vec<std::path::PathBuf>,
     /// The floor-hysteron form's refinement on the simulation error ([`refine`]).
     pub refine: refine::RefineConfig,
 }
@@ -134,6 +138,7 @@ impl NlTrainConfig {
             record_s: None,
             force_noise: true,
             histories: Vec::new(),
+            validation_histories: Vec::new(),
             refine: refine::RefineConfig::default(),
         })
     }
@@ -163,6 +168,11 @@ impl NlTrainConfig {
         }
         if self.laws.is_empty() {
             return Err(TrainError::Setting("no spring law to try".into()));
+        }
+        if !self.validation_histories.is_empty() && self.histories.is_empty() {
+            return Err(TrainError::Setting(
+                "validation histories without training histories".into(),
+            ));
         }
         if self.generations == 0 {
             return Err(TrainError::Setting("generations must be ≥ 1".into()));
@@ -197,11 +207,12 @@ pub struct Template {
     fy_base_kn: Vec<f64>,
     specimen_k_kn_per_mm: f64,
     specimen_dof: usize,
-    law: SpringLaw,
+    /// Each story's spring family, from the ground up.
+    laws: Vec<SpringLaw>,
 }
 
 impl Template {
-    /// From the elastic modes and the training runs, springs of the family `law`.
+    /// From the elastic modes and the training runs, every story's spring of the family `law`.
     pub fn new(s: &Structure, modes: ElasticModes, runs: &[FeRun], law: SpringLaw) -> Self {
         let n = modes.story_k0_kn_per_mm.len();
         let fy_base_kn = (0..n)
@@ -226,8 +237,21 @@ impl Template {
             fy_base_kn,
             specimen_k_kn_per_mm: s.specimen().1,
             specimen_dof: s.specimen_dof(),
-            law,
+            laws: vec![law; n],
         }
+    }
+
+    /// The same template with story `k`'s spring of the family `laws[k]` (one per story).
+    fn with_laws(mut self, laws: Vec<SpringLaw>) -> Result<Self, TrainError> {
+        if laws.len() != self.springs() {
+            return Err(TrainError::Setting(format!(
+                "{} spring families for {} stories",
+                laws.len(),
+                self.springs()
+            )));
+        }
+        self.laws = laws;
+        Ok(self)
     }
 
     /// Length of θ.
@@ -271,7 +295,7 @@ impl Template {
             .enumerate()
             .map(|(k, t)| {
                 stage1::spring_spec(
-                    self.law,
+                    self.laws[k],
                     self.modes.story_k0_kn_per_mm[k],
                     self.fy_base_kn[k],
                     t,
@@ -434,7 +458,7 @@ pub struct Validation {
     /// The runs held out of the fit.
     pub held_out: Vec<String>,
     /// Each family's loss on them (%), in the order tried.
-    pub losses_pct: Vec<(SpringLaw, f64)>,
+    pub losses_pct: Vec<(String, f64)>,
 }
 
 /// Train the metamodel of the structure file `structure_json` (its text: the model records its
@@ -461,7 +485,12 @@ pub fn train(
     let runs = if cfg.histories.is_empty() {
         runs::fe_runs_for_ductilities(&s, &records, &cfg.ductilities, cfg.dt_s)?
     } else {
-        let paths: Vec<&std::path::Path> = cfg.histories.iter().map(|p| p.as_path()).collect();
+        let paths: Vec<&std::path::Path> = cfg
+            .histories
+            .iter()
+            .chain(&cfg.validation_histories)
+            .map(|p| p.as_path())
+            .collect();
         let units = rths_files::structure_file::StructureFile::parse(structure_json)
             .map_err(|e| TrainError::Setting(format!("structure file: {e}")))?
             .units;
@@ -486,13 +515,27 @@ pub fn train(
         .collect();
     let springs = modes.story_k0_kn_per_mm.len();
     let per_law = springs * cfg.stage1_generations + cfg.generations;
-    let total = per_law * cfg.laws.len();
+    // With more than one family, a last search runs stage 2 on each story's own best family.
+    let total = per_law * cfg.laws.len()
+        + if cfg.laws.len() > 1 {
+            cfg.generations
+        } else {
+            0
+        };
     let mut best: Option<(Template, cmaes::CmaResult, f64, f64)> = None;
     let mut best_score = f64::INFINITY;
     // Histories are a lab's runs of no known intensity: with 3 or more and a family to choose,
-    // every third (the 3rd, 6th, ...) is held out of the fit and the family is chosen on them.
+    // every third (the 3rd, 6th, ...) is held out of the fit and the family is chosen on them,
+    // unless the validation histories are given.
+    let given = cfg.validation_histories.len();
     let validate = !cfg.histories.is_empty() && runs.len() >= 3 && cfg.laws.len() > 1;
-    let is_val = |i: usize| validate && i % 3 == 2;
+    let is_val = |i: usize| {
+        if given > 0 {
+            i >= cfg.histories.len()
+        } else {
+            validate && i % 3 == 2
+        }
+    };
     let pick = |want: bool| -> (Vec<FeRun>, Vec<ForceDaq>) {
         runs.iter()
             .zip(&daq)
@@ -503,22 +546,41 @@ pub fn train(
     };
     let (fit_runs, fit_daq) = pick(false);
     let (val_runs, val_daq) = pick(true);
-    let mut val_scores: Vec<(SpringLaw, f64)> = Vec::new();
+    let mut val_scores: Vec<(String, f64)> = Vec::new();
+    // Per story, each family's stage-1 θ slice and its story-force loss (%) on the validation
+    // runs (on the fitted runs when there are none).
+    let mut per_story: Vec<Vec<(SpringLaw, Vec<f64>, f64)>> = vec![Vec::new(); springs];
+    // Stage 2 (the whole model on the runs' floor displacements, from stage 1's θ), then the
+    // score the candidates are compared on.
+    let stage2 = |template: &Template,
+                  x0: &[f64],
+                  base: usize,
+                  report: &mut dyn FnMut(usize, usize, f64)| {
+        let res = cmaes::minimize(
+            |th| loss(template, th, &fit_runs, &fit_daq, cfg.dt_s),
+            x0,
+            STAGE2_SIGMA0,
+            cfg.generations,
+            cfg.population,
+            cfg.seed,
+            |g, l| report(base + g, total, l),
+        );
+        // The family is chosen on the validation runs when there are any (the training loss
+        // rewards the family that fits the fitted runs best, not the one that generalizes).
+        let score = if val_runs.is_empty() {
+            res.best_loss
+        } else {
+            loss(template, &res.best, &val_runs, &val_daq, cfg.dt_s)
+        };
+        (res, score)
+    };
     for (i, law) in cfg.laws.iter().enumerate() {
         let template = Template::new(&s, modes.clone(), &fit_runs, *law);
         let mut x0 = template.initial(cfg.seed)?;
         let initial_loss = loss(&template, &x0, &fit_runs, &fit_daq, cfg.dt_s);
         // Stage 1: each spring on its story's force–drift history, from its random draw.
-        for k in 0..springs {
-            let histories: Vec<stage1::StoryHistory<'_>> = fit_runs
-                .iter()
-                .filter_map(|r| {
-                    Some(stage1::StoryHistory {
-                        drift_mm: r.story_drift_mm.get(k)?,
-                        force_kn: r.story_force_kn.get(k)?,
-                    })
-                })
-                .collect();
+        for (k, candidates) in per_story.iter_mut().enumerate() {
+            let histories = story_histories(&fit_runs, k);
             let slot = k * PER_SPRING..(k + 1) * PER_SPRING;
             let base = i * per_law + k * cfg.stage1_generations;
             let mut t0 = x0[slot.clone()].to_vec();
@@ -557,31 +619,59 @@ pub fn train(
             } else {
                 r
             };
+            let story_loss = if val_runs.is_empty() {
+                r.best_loss
+            } else {
+                stage1::story_loss(
+                    *law,
+                    template.modes.story_k0_kn_per_mm[k],
+                    template.fy_base_kn[k],
+                    &r.best,
+                    &story_histories(&val_runs, k),
+                )
+            };
+            candidates.push((*law, r.best.clone(), story_loss));
             x0[slot].copy_from_slice(&r.best);
         }
         let stage1_loss = loss(&template, &x0, &fit_runs, &fit_daq, cfg.dt_s);
-        // Stage 2: the whole model on the runs' floor displacements, from stage 1's θ.
-        let base = i * per_law + springs * cfg.stage1_generations;
-        let res = cmaes::minimize(
-            |th| loss(&template, th, &fit_runs, &fit_daq, cfg.dt_s),
+        let (res, score) = stage2(
+            &template,
             &x0,
-            STAGE2_SIGMA0,
-            cfg.generations,
-            cfg.population,
-            cfg.seed,
-            |g, l| on_generation(base + g, total, l),
+            i * per_law + springs * cfg.stage1_generations,
+            &mut on_generation,
         );
-        // The family is chosen on the validation runs when there are any (the training loss
-        // rewards the family that fits the fitted runs best, not the one that generalizes).
-        let score = if val_runs.is_empty() {
-            res.best_loss
-        } else {
-            loss(&template, &res.best, &val_runs, &val_daq, cfg.dt_s)
-        };
-        val_scores.push((*law, score));
+        val_scores.push((law.name().to_string(), score));
         // Strictly lower wins, so the order of `laws` breaks ties.
         if best.is_none() || score < best_score {
             best_score = score;
+            best = Some((template, res, initial_loss, stage1_loss));
+        }
+    }
+    // Each story's own best family (a frame may yield differently story by story): kept only if
+    // the whole model on it scores lower than every single family.
+    let own: Vec<(SpringLaw, Vec<f64>)> = per_story
+        .iter()
+        .filter_map(|c| {
+            c.iter()
+                .min_by(|a, b| a.2.total_cmp(&b.2))
+                .map(|(l, t, _)| (*l, t.clone()))
+        })
+        .collect();
+    let laws: Vec<SpringLaw> = own.iter().map(|(l, _)| *l).collect();
+    if cfg.laws.len() > 1 && own.len() == springs && laws.iter().any(|l| *l != laws[0]) {
+        let template = Template::new(&s, modes.clone(), &fit_runs, laws[0]).with_laws(laws)?;
+        let mut x0 = template.initial(cfg.seed)?;
+        let initial_loss = loss(&template, &x0, &fit_runs, &fit_daq, cfg.dt_s);
+        for (k, (_, t)) in own.iter().enumerate() {
+            x0[k * PER_SPRING..(k + 1) * PER_SPRING].copy_from_slice(t);
+        }
+        let stage1_loss = loss(&template, &x0, &fit_runs, &fit_daq, cfg.dt_s);
+        let (res, score) = stage2(&template, &x0, per_law * cfg.laws.len(), &mut on_generation);
+        val_scores.push((
+            families_label(template.laws.iter().map(|l| l.name())),
+            score,
+        ));
+        if score < best_score {
             best = Some((template, res, initial_loss, stage1_loss));
         }
     }
@@ -603,9 +693,12 @@ pub fn train(
         seed: cfg.seed,
         runs: runs
             .iter()
-            .map(|r| {
+            .enumerate()
+            .map(|(i, r)| {
                 if r.ductility.is_finite() {
                     format!("{} (ductility {:.2})", r.label, r.ductility)
+                } else if is_val(i) {
+                    format!("{} (history, validation)", r.label)
                 } else {
                     format!("{} (history)", r.label)
                 }
@@ -636,6 +729,28 @@ pub fn train(
             losses_pct: val_scores,
         }),
     })
+}
+
+/// Story `k`'s drift and force histories in `runs` (those that have the story).
+fn story_histories(runs: &[FeRun], k: usize) -> Vec<stage1::StoryHistory<'_>> {
+    runs.iter()
+        .filter_map(|r| {
+            Some(stage1::StoryHistory {
+                drift_mm: r.story_drift_mm.get(k)?,
+                force_kn: r.story_force_kn.get(k)?,
+            })
+        })
+        .collect()
+}
+
+/// The name of the spring families from the ground up: the family's name when every story has
+/// it, else each story's in turn (`bilinear / bouc-wen / bouc-wen`).
+pub fn families_label<'a>(names: impl IntoIterator<Item = &'a str>) -> String {
+    let names: Vec<&str> = names.into_iter().collect();
+    match names.first() {
+        Some(first) if names.iter().all(|n| n == first) => first.to_string(),
+        _ => names.join(" / "),
+    }
 }
 
 /// The first `seconds` of a record (all of it if shorter).
