@@ -169,6 +169,22 @@ fn each_story_may_take_its_own_spring_family_chosen_on_the_validation_histories(
     let mut bad = quick(3, Vec::new());
     bad.validation_histories = paths[2..].to_vec();
     assert!(train(&elastic, &bad, |_, _, _| {}).is_err());
+    // `--form auto` holds the same history out of both choices: the modal form's family is
+    // chosen on the history the form is chosen on.
+    use rths::machinery::train::nonlinear::choose::{train_form, Form, TrainedForm};
+    let mut auto = quick(3, paths.clone());
+    auto.laws = vec![SpringLaw::Bilinear, SpringLaw::BoucWen];
+    let (trained, choice) = train_form(&elastic, &auto, Form::Auto, |_, _, _| {}).unwrap();
+    let choice = choice.expect("a form choice");
+    assert_eq!(choice.held_out, vec!["northridge-0.55.csv".to_string()]);
+    let TrainedForm::Modal(m) = trained else {
+        panic!("the floor-hysteron form kept: {:?}", choice.losses_pct);
+    };
+    assert_eq!(
+        m.validation.expect("a validation").held_out,
+        choice.held_out
+    );
+    assert!(m.file.training.runs[2].ends_with("(history, validation)"));
 }
 
 #[test]
