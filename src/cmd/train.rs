@@ -62,7 +62,8 @@ pub enum NlFormArg {
 /// The nonlinear metamodel's spring family.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum NlLawArg {
-    /// Train bilinear and Bouc–Wen springs, keep the lower training loss.
+    /// Train bilinear and Bouc–Wen springs, and each story's own better family where they
+    /// differ; keep the lowest validation loss (training loss without validation histories).
     Auto,
     /// Bilinear kinematic hardening.
     Bilinear,
@@ -174,7 +175,8 @@ pub struct Args {
     /// cell noise and 16-bit converter, fixed seeded sequence per run) or exact.
     #[arg(long, value_enum, default_value_t = OnOff::On)]
     pub force_noise: OnOff,
-    /// Nonlinear: the latent springs' law family (`auto`: train both, keep the lower loss).
+    /// Nonlinear: the latent springs' law family (`auto`: train both, and each story's own
+    /// better one where they differ; keep the lowest loss).
     #[arg(long, value_enum, default_value_t = NlLawArg::Auto)]
     pub law: NlLawArg,
     /// Nonlinear: the model's form (`auto`: with 3 or more histories of a story structure, both
