@@ -709,7 +709,7 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
         let (held, scores) = (&v.held_out, &v.losses_pct);
         let scores: Vec<String> = scores.iter().map(|(l, v)| format!("{l} {v:.3}%")).collect();
         crate::outln!(
-            "  validation on {} (held out of the fit): {}; kept the lower",
+            "  validation on {} (held out of the fit): {}; kept the lowest",
             held.join(", "),
             scores.join(", ")
         );
