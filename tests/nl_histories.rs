@@ -38,6 +38,20 @@ fn elastic_text(path: &str) -> String {
     v.to_string()
 }
 
+/// rths's FE of `yielding` on the first 10 s of each (record, scale), written as history files
+/// `NAME-SCALE.csv` in `dir` (the lab's FE runs), in the order given.
+fn write_histories(yielding: &Structure, runs: &[(&str, f64)], dir: &Path) -> Vec<PathBuf> {
+    runs.iter()
+        .map(|(name, scale)| {
+            let run = fe_run(yielding, &truncated(name, 10.0), *scale, DT_S).unwrap();
+            let p = dir.join(format!("{name}-{scale}.csv"));
+            let h = history_of_run(yielding, &run, DT_S, &p);
+            std::fs::write(&p, rths_files::history::to_csv(&h)).unwrap();
+            p
+        })
+        .collect()
+}
+
 fn quick(seed: u64, histories: Vec<PathBuf>) -> NlTrainConfig {
     let mut cfg = NlTrainConfig::new(seed).unwrap();
     cfg.laws = vec![SpringLaw::BoucWen];
@@ -53,18 +67,15 @@ fn histories_of_the_lab_s_fe_train_a_model_that_beats_the_linear_path() {
     let elastic = elastic_text("data/structures/shear3-yielding.json");
     let dir = tempfile::tempdir().unwrap();
     // The lab's FE (here rths's own, of the yielding file) on training records only.
-    let mut paths = Vec::new();
-    for (name, scale) in [
-        ("northridge", 0.15),
-        ("northridge", 0.45),
-        ("loma-prieta", 0.9),
-    ] {
-        let run = fe_run(&yielding, &truncated(name, 10.0), scale, DT_S).unwrap();
-        let p = dir.path().join(format!("{name}-{scale}.csv"));
-        let h = history_of_run(&yielding, &run, DT_S, &p);
-        std::fs::write(&p, rths_files::history::to_csv(&h)).unwrap();
-        paths.push(p);
-    }
+    let paths = write_histories(
+        &yielding,
+        &[
+            ("northridge", 0.15),
+            ("northridge", 0.45),
+            ("loma-prieta", 0.9),
+        ],
+        dir.path(),
+    );
     let mut cfg = quick(2, paths.clone());
     cfg.laws = vec![SpringLaw::Bilinear, SpringLaw::BoucWen];
     let t = train(&elastic, &cfg, |_, _, _| {}).unwrap();
@@ -120,18 +131,15 @@ fn each_story_may_take_its_own_spring_family_chosen_on_the_validation_histories(
     let yielding = Structure::load(&root("data/structures/shear3-mixed-yielding.json")).unwrap();
     let elastic = elastic_text("data/structures/shear3-mixed-yielding.json");
     let dir = tempfile::tempdir().unwrap();
-    let mut paths = Vec::new();
-    for (name, scale) in [
-        ("northridge", 0.3),
-        ("loma-prieta", 0.8),
-        ("northridge", 0.55),
-    ] {
-        let run = fe_run(&yielding, &truncated(name, 10.0), scale, DT_S).unwrap();
-        let p = dir.path().join(format!("{name}-{scale}.csv"));
-        let h = history_of_run(&yielding, &run, DT_S, &p);
-        std::fs::write(&p, rths_files::history::to_csv(&h)).unwrap();
-        paths.push(p);
-    }
+    let paths = write_histories(
+        &yielding,
+        &[
+            ("northridge", 0.3),
+            ("loma-prieta", 0.8),
+            ("northridge", 0.55),
+        ],
+        dir.path(),
+    );
     let mut cfg = quick(3, paths[..2].to_vec());
     cfg.laws = vec![SpringLaw::Bilinear, SpringLaw::BoucWen];
     cfg.validation_histories = paths[2..].to_vec();
