@@ -159,6 +159,7 @@ pub fn fit_hysteron(
     else {
         return Err(TrainError::Setting("no hysteron candidate to fit".into()));
     };
+    let fit = fit.without_idle_directions();
     let p = hysteron::params(&fm2, &fit, dt_s)?;
     let loss = validation_loss(&Learned::Hysteron(p), fm.specimen_k_kn_per_mm, fit_runs);
     let val_loss = (!val_runs.is_empty())

@@ -527,7 +527,7 @@ fn accumulate(row: &[f64], r0: f64, jtj: &mut DMatrix<f64>, jtr: &mut DVector<f6
 /// The basis of `fm` on `runs` the least-squares fit `start` used (its directions, caps and
 /// grid).
 pub fn basis(fm: &FloorModel, runs: &[FloorRun], start: &HysteronFit) -> Result<Basis, TrainError> {
-    let (directions, kappa) = hysteron::story_directions(&fm.stiffness).ok_or_else(|| {
+    let (directions, kappa) = hysteron::basis_directions(&fm.stiffness).ok_or_else(|| {
         TrainError::Setting(format!(
             "structure {}: the floors' elastic stiffness is not positive definite",
             fm.name
