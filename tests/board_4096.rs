@@ -147,7 +147,7 @@ const NL_TICK_GOAL_PCT: f64 = 10.0;
 /// `nl-online` on the emulated M7's 4096 Hz link image, uploaded with its imported structure and the
 /// rig file as a lab uploads them: every command bit for bit with the host's run of the same
 /// controller, and its instruction count within the 10 % of the 4096 Hz tick (480 MHz, 1.5
-/// cycles per instruction, as the structure budget counts). Measured: 6,550 instructions, 8.38 % (7 Menegotto–Pinto plays).
+/// cycles per instruction, as the structure budget counts). Measured: 6,665 instructions, 8.53 % (7 Menegotto–Pinto plays on 5 directions).
 #[test]
 #[cfg_attr(
     rths_no_qemu,
