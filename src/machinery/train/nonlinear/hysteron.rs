@@ -203,6 +203,13 @@ pub fn directions(k: &DMatrix<f64>) -> (Vec<Vec<f64>>, Vec<f64>) {
     (dirs, kappa)
 }
 
+/// The floors' stiffness in story drifts `d = D·x`: `K_d = D⁻ᵀ·K·D⁻¹` (`D⁻¹`: `x_i = Σ_{j≤i} d_j`).
+fn story_drift_stiffness(k: &DMatrix<f64>) -> DMatrix<f64> {
+    let n = k.nrows();
+    let dinv = DMatrix::from_fn(n, n, |i, j| if j <= i { 1.0 } else { 0.0 });
+    dinv.transpose() * k * &dinv
+}
+
 /// The basis's directions: the story drifts in `K`-orthogonal form, and their shares. In story
 /// drifts `d = D·x` the floors' stiffness is `K_d = D⁻ᵀ·K·D⁻¹`; factored `K_d = U·Λ·Uᵀ` (`U` unit
 /// upper triangular, eliminated from the top story down), `xᵀK·x = Σ_s λ_s·(Uᵀd)_s²`, so direction
@@ -216,9 +223,7 @@ pub fn directions(k: &DMatrix<f64>) -> (Vec<Vec<f64>>, Vec<f64>) {
 /// `K` is not positive definite.
 pub fn story_directions(k: &DMatrix<f64>) -> Option<(Vec<Vec<f64>>, Vec<f64>)> {
     let n = k.nrows();
-    // D⁻¹: x_i = Σ_{j≤i} d_j.
-    let dinv = DMatrix::from_fn(n, n, |i, j| if j <= i { 1.0 } else { 0.0 });
-    let kd = dinv.transpose() * k * &dinv;
+    let kd = story_drift_stiffness(k);
     // U·Λ·Uᵀ from the Cholesky factor of K_d with its order reversed.
     let rev = DMatrix::from_fn(n, n, |i, j| kd[(n - 1 - i, n - 1 - j)]);
     let c = rev.cholesky()?.l();
@@ -267,8 +272,7 @@ pub const STORY_COUPLING_MIN: f64 = 1e-3;
 pub fn basis_directions(k: &DMatrix<f64>) -> Option<(Vec<Vec<f64>>, Vec<f64>)> {
     let (mut dirs, mut kappa) = story_directions(k)?;
     let n = k.nrows();
-    let dinv = DMatrix::from_fn(n, n, |i, j| if j <= i { 1.0 } else { 0.0 });
-    let kd = dinv.transpose() * k * &dinv;
+    let kd = story_drift_stiffness(k);
     for s in 0..n.saturating_sub(1) {
         let coupling = kd[(s, s + 1)].abs() / (kd[(s, s)] * kd[(s + 1, s + 1)]).sqrt();
         // A NaN coupling (a singular story) is not coupled.
