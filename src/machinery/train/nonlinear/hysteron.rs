@@ -222,8 +222,13 @@ fn story_drift_stiffness(k: &DMatrix<f64>) -> DMatrix<f64> {
 /// 37 kN/mm on story 1 (docs/nonlinear.md). The network's directions (`None` from here) where
 /// `K` is not positive definite.
 pub fn story_directions(k: &DMatrix<f64>) -> Option<(Vec<Vec<f64>>, Vec<f64>)> {
-    let n = k.nrows();
-    let kd = story_drift_stiffness(k);
+    story_directions_of_drift_stiffness(&story_drift_stiffness(k))
+}
+
+/// [`story_directions`] from the stiffness in story drifts `K_d` (which [`basis_directions`]
+/// also reads, so it is computed once).
+fn story_directions_of_drift_stiffness(kd: &DMatrix<f64>) -> Option<(Vec<Vec<f64>>, Vec<f64>)> {
+    let n = kd.nrows();
     // U·Λ·Uᵀ from the Cholesky factor of K_d with its order reversed.
     let rev = DMatrix::from_fn(n, n, |i, j| kd[(n - 1 - i, n - 1 - j)]);
     let c = rev.cholesky()?.l();
@@ -270,9 +275,9 @@ pub const STORY_COUPLING_MIN: f64 = 1e-3;
 /// 2–3.3 (written for this comparison, not training's) interface NRMSE median 5.30 % → 3.52 %
 /// (docs/nonlinear.md). A shear building's basis is its story directions alone.
 pub fn basis_directions(k: &DMatrix<f64>) -> Option<(Vec<Vec<f64>>, Vec<f64>)> {
-    let (mut dirs, mut kappa) = story_directions(k)?;
     let n = k.nrows();
     let kd = story_drift_stiffness(k);
+    let (mut dirs, mut kappa) = story_directions_of_drift_stiffness(&kd)?;
     for s in 0..n.saturating_sub(1) {
         let coupling = kd[(s, s + 1)].abs() / (kd[(s, s)] * kd[(s + 1, s + 1)]).sqrt();
         // A NaN coupling (a singular story) is not coupled.
