@@ -1,0 +1,196 @@
+#!/usr/bin/env python3
+"""The interface's yield displacement of an openseespy model, from a pushover: the yield that turns a
+run's peak interface displacement into its ductility (docs/nonlinear.md, "Held out in the goal's
+range").
+
+    python3 pushover.py MODEL.py --control NODE:DOF --to-mm MAX [--target-ductility 4]
+        [--step-mm 0.5] [--pattern triangular|uniform] [--output NODE:DOF ...] [--out CURVE.csv]
+        [--units si|mm-kn] [--direction 1]
+
+MODEL.py is built as `export_model.py` builds it (run as `rths_export`, its directory on
+`sys.path`), at rest, with its specimen stand-in in place (the pushover is of the structure the
+training runs integrate). Lateral loads in direction `--direction` go on every node with mass:
+`M*iota` (the ground loads of `transient.py`) times the node's height (its last coordinate) for
+`triangular`, as they are for `uniform`. The analysis is static, displacement control of
+`--control` in steps of `--step-mm` up to `--to-mm` (Newton on `NormDispIncr` 1e-8, Krylov-Newton
+and quarter steps where a step does not converge), so the curve passes the peak lateral force.
+
+The curve (control displacement, total lateral force) is idealized as ASCE 41-17 section 7.4.3.2.5
+does: a first line from the origin through the curve at 0.6 of the yield force, a second to the
+target point, the areas under both equal; the yield displacement is where the lines meet. The
+target is `--target-ductility` times that yield (iterated; default 4, the top of the ductility
+range a run is judged in), within the curve.
+
+stdout gets one JSON line: initial stiffness (kN/mm, of the first step), effective stiffness, yield
+force and displacement, target displacement, peak force. `--out` writes the curve as CSV
+(`control_mm,lateral_force_kn,out_<NODE>_<DOF>_mm...`). Exit codes: 0 done, 2 bad arguments or a
+model/analysis that fails, 3 openseespy missing.
+"""
+
+import argparse
+import json
+import os
+import runpy
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+# Tags of the load series and pattern, away from a lab's own.
+SERIES_TAG = 987021
+PATTERN_TAG = 987021
+# Iterations of the idealization (each a fixed-point step on the yield force; it settles in a few).
+IDEALIZE_ITERATIONS = 100
+
+
+def fail(code, message):
+    print(f"pushover.py: {message}", file=sys.stderr)
+    sys.exit(code)
+
+
+def parse_dof(text):
+    try:
+        node, dof = text.split(":")
+        return int(node), int(dof)
+    except ValueError:
+        fail(2, f"`{text}` is not NODE:DOF")
+
+
+def interp(x, xs, ys):
+    """Linear interpolation of y at x on the rising table (xs, ys)."""
+    for i in range(1, len(xs)):
+        if xs[i] >= x:
+            a = (x - xs[i - 1]) / (xs[i] - xs[i - 1])
+            return ys[i - 1] + a * (ys[i] - ys[i - 1])
+    return ys[-1]
+
+
+def area(xs, ys, upto):
+    """Area under the curve from 0 to `upto` (trapezoids; the curve starts at the origin)."""
+    total, px, py = 0.0, 0.0, 0.0
+    for x, y in zip(xs, ys):
+        if x > upto:
+            y = interp(upto, [px, x], [py, y])
+            total += 0.5 * (py + y) * (upto - px)
+            return total
+        total += 0.5 * (py + y) * (x - px)
+        px, py = x, y
+    return total
+
+
+def idealize(xs, vs, target_mm):
+    """ASCE 41-17's bilinear idealization of the curve up to `target_mm`: (k_e, V_y, d_y)."""
+    vt = interp(target_mm, xs, vs)
+    a = area(xs, vs, target_mm)
+    # Before the peak the force rises, so the displacement at a force is read on that branch.
+    rise = max(range(len(vs)), key=lambda i: vs[i]) + 1
+    vy = interp(0.25 * target_mm, xs, vs)
+    ke = vs[0] / xs[0]
+    for _ in range(IDEALIZE_ITERATIONS):
+        x06 = interp(0.6 * vy, vs[:rise], xs[:rise])
+        ke = 0.6 * vy / x06
+        den = 0.5 * (target_mm - vt / ke)
+        if den <= 0.0:
+            fail(2, f"the curve to {target_mm:g} mm does not yield: extend --to-mm")
+        vy = (a - 0.5 * vt * target_mm) / den
+    return ke, vy, vy / ke
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("model")
+    p.add_argument("--control", required=True)
+    p.add_argument("--to-mm", type=float, required=True)
+    p.add_argument("--target-ductility", type=float, default=4.0)
+    p.add_argument("--step-mm", type=float, default=0.5)
+    p.add_argument("--pattern", choices=("triangular", "uniform"), default="triangular")
+    p.add_argument("--output", action="append", default=[])
+    p.add_argument("--out")
+    p.add_argument("--units", choices=("si", "mm-kn"))
+    p.add_argument("--direction", type=int, default=1)
+    args = p.parse_args()
+    if not args.to_mm > 0.0 or not args.step_mm > 0.0 or args.step_mm >= args.to_mm:
+        fail(2, "--to-mm and --step-mm must be positive, the step below the range")
+    if not args.target_ductility > 1.0:
+        fail(2, "--target-ductility must be above 1")
+    try:
+        import openseespy.opensees as ops
+    except ImportError as e:
+        fail(3, f"openseespy cannot be imported ({e})")
+    model = os.path.abspath(args.model)
+    sys.path.insert(0, os.path.dirname(model))
+    scope = runpy.run_path(model, run_name="rths_export")
+    units = args.units or scope.get("RTHS_UNITS")
+    if units not in ("si", "mm-kn"):
+        fail(2, f"{args.model}: give the model's units (--units si|mm-kn or RTHS_UNITS)")
+    length_to_mm, force_to_kn = (1000.0, 1e-3) if units == "si" else (1.0, 1.0)
+    from transient import ground_loads
+
+    cn, cd = parse_dof(args.control)
+    outs = [parse_dof(o) for o in args.output]
+    try:
+        ops.nodeDisp(cn, cd)
+    except Exception:  # openseespy raises its own error type for a missing node
+        fail(2, f"--control {args.control}: no such node and DOF in the model")
+    loads = []
+    for node, values in ground_loads(ops, args.direction):
+        height = ops.nodeCoord(node)[-1] if args.pattern == "triangular" else 1.0
+        loads.append((node, [-v * height for v in values]))
+    total = sum(v[args.direction - 1] for _, v in loads)
+    if total <= 0.0:
+        fail(2, "no lateral load: no node with mass in that direction stands above height 0 "
+                "(a model without heights takes --pattern uniform)")
+    ops.timeSeries("Linear", SERIES_TAG)
+    ops.pattern("Plain", PATTERN_TAG, SERIES_TAG)
+    for node, values in loads:
+        ops.load(node, *[v / total for v in values])
+    step = args.step_mm / length_to_mm
+    ops.wipeAnalysis()
+    ops.system("BandGeneral")
+    ops.numberer("RCM")
+    ops.constraints("Transformation")
+    ops.test("NormDispIncr", 1e-8, 50)
+    ops.algorithm("Newton")
+    ops.integrator("DisplacementControl", cn, cd, step)
+    ops.analysis("Static")
+    xs, vs, rows = [], [], []
+    for k in range(int(round(args.to_mm / args.step_mm))):
+        ok = ops.analyze(1)
+        if ok != 0:
+            ops.algorithm("KrylovNewton")
+            ops.integrator("DisplacementControl", cn, cd, step / 4.0)
+            ok = ops.analyze(4)
+            ops.integrator("DisplacementControl", cn, cd, step)
+            ops.algorithm("Newton")
+        if ok != 0:
+            fail(2, f"the pushover did not converge at step {k + 1}")
+        # The pattern's loads sum to 1, so the load factor is the total lateral force.
+        x = ops.nodeDisp(cn, cd) * length_to_mm
+        v = ops.getLoadFactor(PATTERN_TAG) * force_to_kn
+        xs.append(x)
+        vs.append(v)
+        rows.append([x, v] + [ops.nodeDisp(n, d) * length_to_mm for n, d in outs])
+    if args.out:
+        with open(args.out, "w", encoding="ascii") as f:
+            f.write(",".join(["control_mm", "lateral_force_kn"] +
+                             [f"out_{n}_{d}_mm" for n, d in outs]) + "\n")
+            for r in rows:
+                f.write(",".join(f"{v:.17g}" for v in r) + "\n")
+    # The target is μ times the yield it gives: a fixed point, reached in a few passes.
+    target = 0.5 * xs[-1]
+    for _ in range(IDEALIZE_ITERATIONS):
+        ke, vy, dy = idealize(xs, vs, target)
+        nxt = args.target_ductility * dy
+        if nxt > xs[-1]:
+            fail(2, f"the target ({args.target_ductility:g} x {dy:.1f} mm) is past the curve: "
+                    "extend --to-mm")
+        if abs(nxt - target) < 1e-9 * xs[-1]:
+            break
+        target = nxt
+    print(json.dumps({"initial_stiffness_kn_per_mm": vs[0] / xs[0],
+                      "effective_stiffness_kn_per_mm": ke, "yield_force_kn": vy,
+                      "yield_mm": dy, "target_mm": target,
+                      "target_ductility": args.target_ductility, "peak_force_kn": max(vs)}))
+
+
+if __name__ == "__main__":
+    main()
