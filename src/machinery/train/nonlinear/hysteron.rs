@@ -271,8 +271,8 @@ pub const STORY_COUPLING_MIN: f64 = 1e-3;
 /// alone cannot say that. Together the weights may pass `K`; the fit's final scale and the
 /// refinement's projection hold the bound core requires. Measured on the fiber frame (the
 /// twelve runs of the shipped model): the least squares' best validation loss 5.18 % → 4.77 %,
-/// refined 3.83 % → 3.80 %, and on four runs of two synthetic records at interface ductility
-/// 2–3.3 (written for this comparison, not training's) interface NRMSE median 5.30 % → 3.52 %
+/// refined 3.83 % → 3.80 %, and on four runs of two synthetic records at peak interface
+/// 57–92 mm (written for this comparison, not training's) interface NRMSE median 5.30 % → 3.52 %
 /// (docs/nonlinear.md). A shear building's basis is its story directions alone.
 pub fn basis_directions(k: &DMatrix<f64>) -> Option<(Vec<Vec<f64>>, Vec<f64>)> {
     let n = k.nrows();
