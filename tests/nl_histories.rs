@@ -469,8 +469,8 @@ fn the_fiber_frame_learned_from_opensees_runs_beats_its_elastic_floors_on_a_held
 /// 200 kN/mm beside the 100 kN/mm specimen, so the interface yields at 18.517 mm under any
 /// load pattern until story 2 yields), the idealized yield must be that one within 2 %, and the
 /// initial stiffness the story's and the specimen's 300 kN/mm. A model without heights under the
-/// triangular pattern, and a control node the model lacks, are refused with exit code 2 and a
-/// message that says why.
+/// triangular pattern, a control node the model lacks and a model script that fails are refused
+/// with exit code 2 and a message that says why.
 #[test]
 #[cfg_attr(
     rths_no_opensees,
@@ -520,4 +520,21 @@ fn a_pushover_gives_the_interface_s_yield_of_a_steel02_frame() {
     .unwrap();
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("77:1"));
+    // A model script that fails is named with its error, not a Python traceback.
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("broken_model.py");
+    std::fs::write(&bad, "raise ValueError('no such section')\n").unwrap();
+    let mut py = opensees("pushover").unwrap();
+    let o = py
+        .arg(root("scripts/opensees/pushover.py"))
+        .arg(&bad)
+        .args(["--control", "1:1", "--to-mm", "10"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("broken_model.py: the model script failed: ValueError: no such section"),
+        "{err}"
+    );
 }

@@ -23,8 +23,11 @@ Exit codes: 0 done, 2 bad arguments or a model script that fails, 3 openseespy c
 import argparse
 import json
 import os
-import runpy
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from transient import build_model  # noqa: E402 (after the path)
 
 UNITS = ("si", "mm-kn")
 
@@ -65,15 +68,7 @@ def main():
         fail(3, f"cannot import openseespy ({e})")
 
     model = os.path.abspath(args.model)
-    if not os.path.isfile(model):
-        fail(2, f"{args.model}: no such model script")
-    sys.path.insert(0, os.path.dirname(model))
-    try:
-        scope = runpy.run_path(model, run_name="rths_export")
-    except SystemExit as e:
-        fail(2, f"{args.model}: the model script exited ({e.code})")
-    except Exception as e:
-        fail(2, f"{args.model}: the model script failed: {type(e).__name__}: {e}")
+    scope = build_model(model, fail)
 
     units = args.units or scope.get("RTHS_UNITS")
     if units not in UNITS:

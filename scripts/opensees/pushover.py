@@ -30,10 +30,11 @@ model/analysis that fails, 3 openseespy missing.
 import argparse
 import json
 import os
-import runpy
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from transient import build_model, ground_loads  # noqa: E402 (after the path)
 
 # Tags of the load series and pattern, away from a lab's own.
 SERIES_TAG = 987021
@@ -116,15 +117,11 @@ def main():
         import openseespy.opensees as ops
     except ImportError as e:
         fail(3, f"openseespy cannot be imported ({e})")
-    model = os.path.abspath(args.model)
-    sys.path.insert(0, os.path.dirname(model))
-    scope = runpy.run_path(model, run_name="rths_export")
+    scope = build_model(args.model, fail)
     units = args.units or scope.get("RTHS_UNITS")
     if units not in ("si", "mm-kn"):
         fail(2, f"{args.model}: give the model's units (--units si|mm-kn or RTHS_UNITS)")
     length_to_mm, force_to_kn = (1000.0, 1e-3) if units == "si" else (1.0, 1.0)
-    from transient import ground_loads
-
     cn, cd = parse_dof(args.control)
     outs = [parse_dof(o) for o in args.output]
     try:

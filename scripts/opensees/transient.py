@@ -31,6 +31,28 @@ SERIES_TAG = 987001
 PATTERN_TAG = 987001
 
 
+def build_model(path, fail):
+    """Run the model script at `path` as every script here does: as `rths_export` (its
+    `if __name__ == "__main__":` part does not run), its directory on `sys.path` so it may import
+    its own modules. Returns its globals; a missing or failing script is `fail(2, message)`."""
+    model = os.path.abspath(path)
+    if not os.path.isfile(model):
+        fail(2, f"{path}: no such model script")
+    if os.path.dirname(model) not in sys.path:
+        sys.path.insert(0, os.path.dirname(model))
+    try:
+        return runpy.run_path(model, run_name="rths_export")
+    except SystemExit as e:
+        fail(2, f"{path}: the model script exited ({e.code})")
+    except Exception as e:  # the script's own error, or OpenSees's
+        fail(2, f"{path}: the model script failed: {type(e).__name__}: {e}")
+
+
+def fail_exit(code, message):
+    print(f"transient.py: {message}", file=sys.stderr)
+    sys.exit(code)
+
+
 def ground_loads(ops, direction):
     """(node, nodal load per unit ground acceleration) for every node with mass: -M*iota."""
     ops.wipeAnalysis()
@@ -74,9 +96,7 @@ def main():
 
     import openseespy.opensees as ops
 
-    model = os.path.abspath(args.model)
-    sys.path.insert(0, os.path.dirname(model))
-    runpy.run_path(model, run_name="rths_export")
+    build_model(args.model, fail_exit)
 
     with open(args.record, encoding="ascii") as f:
         ag = [float(line) for line in f if line.strip()]

@@ -34,11 +34,12 @@ Exit codes: 0 done, 2 bad arguments or a model/analysis that fails, 3 openseespy
 import argparse
 import json
 import os
-import runpy
 import sys
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from transient import build_model, ground_loads  # noqa: E402 (after the path)
 
 G_MM_S2 = 9806.65
 SERIES_TAG = 987011
@@ -105,8 +106,7 @@ def attach_recorders(args, ops, folder, sn, sd, outs):
 
 
 def run(args, ops, model, record, scale, outs, folder=None):
-    runpy.run_path(model, run_name="rths_export")
-    from transient import ground_loads
+    build_model(model, fail)
 
     length_to_mm, force_to_kn = (1000.0, 1e-3) if args.units == "si" else (1.0, 1.0)
     dt_rec, ag_g = read_at2(record)
@@ -189,9 +189,8 @@ def main():
     except ImportError as e:
         fail(3, f"openseespy cannot be imported ({e})")
     model = os.path.abspath(args.model)
-    sys.path.insert(0, os.path.dirname(model))
+    scope = build_model(model, fail)
     if args.units is None:
-        scope = runpy.run_path(model, run_name="rths_export")
         args.units = scope.get("RTHS_UNITS")
         if args.units not in ("si", "mm-kn"):
             fail(2, f"{args.model}: give the model's units (--units si|mm-kn or RTHS_UNITS)")

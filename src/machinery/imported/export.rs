@@ -230,6 +230,12 @@ pub fn export(req: &ImportRequest, dir: &Path) -> Result<(), ExportError> {
             .into(),
         );
     }
+    // The exporter runs the model through `transient.py`'s helper, which it imports from beside it.
+    let helper = dir.join("transient.py");
+    std::fs::write(&helper, TRANSIENT).map_err(|source| ExportError::Io {
+        path: helper.clone(),
+        source,
+    })?;
     run_script(EXPORTER, "export_model.py", dir, &args).map(|_| ())
 }
 
