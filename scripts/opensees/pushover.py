@@ -34,7 +34,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from transient import build_model, ground_loads  # noqa: E402 (after the path)
+from transient import build_model, ground_loads, parse_dof  # noqa: E402 (after the path)
 
 # Tags of the load series and pattern, away from a lab's own.
 SERIES_TAG = 987021
@@ -46,14 +46,6 @@ IDEALIZE_ITERATIONS = 100
 def fail(code, message):
     print(f"pushover.py: {message}", file=sys.stderr)
     sys.exit(code)
-
-
-def parse_dof(text):
-    try:
-        node, dof = text.split(":")
-        return int(node), int(dof)
-    except ValueError:
-        fail(2, f"`{text}` is not NODE:DOF")
 
 
 def interp(x, xs, ys):
@@ -122,8 +114,8 @@ def main():
     if units not in ("si", "mm-kn"):
         fail(2, f"{args.model}: give the model's units (--units si|mm-kn or RTHS_UNITS)")
     length_to_mm, force_to_kn = (1000.0, 1e-3) if units == "si" else (1.0, 1.0)
-    cn, cd = parse_dof(args.control)
-    outs = [parse_dof(o) for o in args.output]
+    cn, cd = parse_dof(args.control, fail)
+    outs = [parse_dof(o, fail) for o in args.output]
     try:
         ops.nodeDisp(cn, cd)
     except Exception:  # openseespy raises its own error type for a missing node

@@ -48,6 +48,15 @@ def build_model(path, fail):
         fail(2, f"{path}: the model script failed: {type(e).__name__}: {e}")
 
 
+def parse_dof(text, fail):
+    """(node, dof) of `NODE:DOF`; anything else is `fail(2, message)`."""
+    try:
+        node, dof = text.split(":")
+        return int(node), int(dof)
+    except ValueError:
+        fail(2, f"`{text}` is not NODE:DOF")
+
+
 def fail_exit(code, message):
     print(f"transient.py: {message}", file=sys.stderr)
     sys.exit(code)
@@ -100,10 +109,7 @@ def main():
 
     with open(args.record, encoding="ascii") as f:
         ag = [float(line) for line in f if line.strip()]
-    dofs = []
-    for item in args.dofs.split(","):
-        node, dof = item.split(":")
-        dofs.append((int(node), int(dof)))
+    dofs = [parse_dof(item, fail_exit) for item in args.dofs.split(",")]
 
     ops.timeSeries("Path", SERIES_TAG, "-dt", args.dt, "-values", *ag)
     if args.excitation == "uniform":

@@ -39,7 +39,7 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from transient import build_model, ground_loads  # noqa: E402 (after the path)
+from transient import build_model, ground_loads, parse_dof  # noqa: E402 (after the path)
 
 G_MM_S2 = 9806.65
 SERIES_TAG = 987011
@@ -85,14 +85,6 @@ def resample(dt_in, values, dt_out, duration_s):
     return out
 
 
-def parse_dof(text):
-    try:
-        node, dof = text.split(":")
-        return int(node), int(dof)
-    except ValueError:
-        fail(2, f"`{text}` is not NODE:DOF")
-
-
 def attach_recorders(args, ops, folder, sn, sd, outs):
     """OpenSees's own recorders of one run into `folder` (the layout of `--histories`)."""
     os.makedirs(folder, exist_ok=True)
@@ -114,7 +106,7 @@ def run(args, ops, model, record, scale, outs, folder=None):
     duration = min(duration, (len(ag_g) - 1) * dt_rec)
     ag = resample(dt_rec, [scale * a * G_MM_S2 / length_to_mm for a in ag_g], args.dt, duration)
     ag += [0.0] * int(round(args.free_s / args.dt))
-    sn, sd = parse_dof(args.specimen)
+    sn, sd = parse_dof(args.specimen, fail)
     ends = ops.eleNodes(args.specimen_element)
     if sn not in ends:
         fail(2, f"element {args.specimen_element} does not end at node {sn}")
@@ -194,7 +186,7 @@ def main():
         args.units = scope.get("RTHS_UNITS")
         if args.units not in ("si", "mm-kn"):
             fail(2, f"{args.model}: give the model's units (--units si|mm-kn or RTHS_UNITS)")
-    outs = [parse_dof(o) for o in args.output]
+    outs = [parse_dof(o, fail) for o in args.output]
     os.makedirs(args.out_dir, exist_ok=True)
     header = ["time_s", "ground_accel_mm_s2", "specimen_force_kn", "interface_mm"] + \
         [f"out_{n}_{d}_mm" for n, d in outs]
