@@ -464,19 +464,21 @@ fn the_fiber_frame_learned_from_opensees_runs_beats_its_elastic_floors_on_a_held
     assert!(e < 0.5 * l, "{e} vs {l}");
 }
 
-/// `pushover.py`, the yield that turns a run's peak interface into its ductility: on the Steel02
+/// `pushover.py`, the yield that turns a run's peak interface into its ductility. On the Steel02
 /// shear frame, whose story 1 is bilinear but for Steel02's rounding (yield force 3703.4 kN on
-/// 200 kN/mm beside the 100 kN/mm specimen, so the interface yields at 18.517 mm under any
-/// load pattern until story 2 yields), the idealized yield must be that one within 2 %, and the
-/// initial stiffness the story's and the specimen's 300 kN/mm. A model without heights under the
-/// triangular pattern, a control node the model lacks and a model script that fails are refused
-/// with exit code 2 and a message that says why.
+/// 200 kN/mm beside the 100 kN/mm specimen: its total force is story 1's shear, so the interface
+/// yields at 18.517 mm), the idealized yield must be that one within 2 % and the initial stiffness
+/// the story's and the specimen's 300 kN/mm. On the fiber frame under the triangular pattern, the
+/// printed bilinear must be ASCE 41-17's on the written curve: its first line through the curve at
+/// 0.6 of the yield force and the areas under both equal to the target, within 0.5 %. A model
+/// without heights under the triangular pattern, a control node the model lacks and a model
+/// script that fails are refused with exit code 2 and a message that says why.
 #[test]
 #[cfg_attr(
     rths_no_opensees,
     ignore = "needs openseespy, not found when the tests were built (docs/ci.md)"
 )]
-fn a_pushover_gives_the_interface_s_yield_of_a_steel02_frame() {
+fn a_pushover_gives_the_interface_s_yield_and_asce_41_s_bilinear() {
     let run = |args: &[&str]| {
         let mut py = opensees("pushover")?;
         py.arg(root("scripts/opensees/pushover.py"))
@@ -504,6 +506,64 @@ fn a_pushover_gives_the_interface_s_yield_of_a_steel02_frame() {
     assert!(
         (target / (4.0 * dy) - 1.0).abs() < 1e-6,
         "{target} for 4 x {dy}"
+    );
+
+    // The fiber frame, triangular loads: the bilinear checked against the curve it wrote.
+    let dir = tempfile::tempdir().unwrap();
+    let curve_path = dir.path().join("curve.csv");
+    let mut py = opensees("pushover").unwrap();
+    let o = py
+        .arg(root("scripts/opensees/pushover.py"))
+        .arg(root("data/structures/opensees/fiber_frame.py"))
+        .args(["--control", "5:1", "--to-mm", "200", "--out"])
+        .arg(&curve_path)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let line = stdout.lines().find(|l| l.starts_with('{')).unwrap();
+    let v: serde_json::Value = serde_json::from_str(line).unwrap();
+    let (ke, vy, target) = (
+        v["effective_stiffness_kn_per_mm"].as_f64().unwrap(),
+        v["yield_force_kn"].as_f64().unwrap(),
+        v["target_mm"].as_f64().unwrap(),
+    );
+    let mut pts = vec![(0.0_f64, 0.0_f64)];
+    for row in std::fs::read_to_string(&curve_path)
+        .unwrap()
+        .lines()
+        .skip(1)
+    {
+        let mut c = row.split(',').map(|x| x.parse::<f64>().unwrap());
+        pts.push((c.next().unwrap(), c.next().unwrap()));
+    }
+    // Linear interpolation of the curve: the force at x, and (on the rising part) x at a force.
+    let force_at = |x: f64| {
+        let i = pts.iter().position(|p| p.0 >= x).unwrap().max(1);
+        let (a, b) = (pts[i - 1], pts[i]);
+        a.1 + (x - a.0) / (b.0 - a.0) * (b.1 - a.1)
+    };
+    let i = pts.iter().position(|p| p.1 >= 0.6 * vy).unwrap();
+    let (a, b) = (pts[i - 1], pts[i]);
+    let x06 = a.0 + (0.6 * vy - a.1) / (b.1 - a.1) * (b.0 - a.0);
+    assert!(
+        (ke * x06 / (0.6 * vy) - 1.0).abs() < 0.005,
+        "k_e {ke} through ({x06}, {})",
+        0.6 * vy
+    );
+    let mut area = 0.0;
+    for w in pts.windows(2) {
+        let (x0, x1) = (w[0].0, w[1].0.min(target));
+        if x0 >= target {
+            break;
+        }
+        area += 0.5 * (force_at(x0) + force_at(x1)) * (x1 - x0);
+    }
+    let vt = force_at(target);
+    let bilinear = vy * vy / (2.0 * ke) + 0.5 * (vy + vt) * (target - vy / ke);
+    assert!(
+        (bilinear / area - 1.0).abs() < 0.005,
+        "bilinear {bilinear} against the curve's {area} kN·mm"
     );
 
     let o = run(&["--control", "1:1", "--to-mm", "100"]).unwrap();

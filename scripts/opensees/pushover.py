@@ -17,7 +17,8 @@ and quarter steps where a step does not converge), so the curve passes the peak 
 
 The curve (control displacement, total lateral force) is idealized as ASCE 41-17 section 7.4.3.2.5
 does: a first line from the origin through the curve at 0.6 of the yield force, a second to the
-target point, the areas under both equal; the yield displacement is where the lines meet. The
+target point (or to the peak force, where the curve falls before the target), the areas under
+both equal; the yield displacement is where the lines meet. The
 target is `--target-ductility` times that yield (iterated; default 4, the top of the ductility
 range a run is judged in), within the curve.
 
@@ -71,20 +72,37 @@ def area(xs, ys, upto):
 
 
 def idealize(xs, vs, target_mm):
-    """ASCE 41-17's bilinear idealization of the curve up to `target_mm`: (k_e, V_y, d_y)."""
-    vt = interp(target_mm, xs, vs)
-    a = area(xs, vs, target_mm)
-    # Before the peak the force rises, so the displacement at a force is read on that branch.
-    rise = max(range(len(vs)), key=lambda i: vs[i]) + 1
-    vy = interp(0.25 * target_mm, xs, vs)
-    ke = vs[0] / xs[0]
+    """ASCE 41-17's bilinear idealization of the curve up to `target_mm` (or up to the peak force,
+    where the curve falls before the target): (k_e, V_y, d_y)."""
+    # The tables start at the origin, so a first step already past 0.6 V_y is read on the
+    # elastic line through it rather than extrapolated.
+    xs, vs = [0.0] + xs, [0.0] + vs
+    peak = max(range(len(vs)), key=lambda i: vs[i])
+    d = min(target_mm, xs[peak])
+    vt = interp(d, xs, vs)
+    a = area(xs[1:], vs[1:], d)
+    rise_x, rise_v = xs[: peak + 1], vs[: peak + 1]
+    vy = interp(0.25 * d, xs, vs)
     for _ in range(IDEALIZE_ITERATIONS):
-        x06 = interp(0.6 * vy, vs[:rise], xs[:rise])
+        x06 = interp(0.6 * vy, rise_v, rise_x)
+        if not x06 > 0.0:
+            fail(2, "the curve has no rising branch to idealize")
         ke = 0.6 * vy / x06
-        den = 0.5 * (target_mm - vt / ke)
-        if den <= 0.0:
-            fail(2, f"the curve to {target_mm:g} mm does not yield: extend --to-mm")
-        vy = (a - 0.5 * vt * target_mm) / den
+        den = 0.5 * (d - vt / ke)
+        if den <= 1e-12 * d:
+            if d < target_mm:
+                # Elastic up to its peak, then falling: it yields at the peak.
+                return ke, vt, vt / ke
+            fail(2, f"the curve to {d:g} mm does not yield: extend --to-mm")
+        nxt = (a - 0.5 * vt * d) / den
+        if abs(nxt - vy) <= 1e-12 * abs(vy):
+            vy = nxt
+            break
+        vy = nxt
+    else:
+        fail(2, "the bilinear idealization did not settle")
+    if not (ke > 0.0 and 0.0 < vy <= vs[peak] * (1.0 + 1e-9)):
+        fail(2, f"no bilinear fits the curve (k_e {ke:g}, V_y {vy:g} for a peak of {vs[peak]:g})")
     return ke, vy, vy / ke
 
 
@@ -105,6 +123,8 @@ def main():
         fail(2, "--to-mm and --step-mm must be positive, the step below the range")
     if not args.target_ductility > 1.0:
         fail(2, "--target-ductility must be above 1")
+    if args.direction < 1:
+        fail(2, "--direction counts from 1")
     try:
         import openseespy.opensees as ops
     except ImportError as e:
@@ -120,8 +140,15 @@ def main():
         ops.nodeDisp(cn, cd)
     except Exception:  # openseespy raises its own error type for a missing node
         fail(2, f"--control {args.control}: no such node and DOF in the model")
+    for n, d in outs:
+        try:
+            ops.nodeDisp(n, d)
+        except Exception:  # openseespy raises its own error type for a missing node
+            fail(2, f"--output {n}:{d}: no such node and DOF in the model")
     loads = []
     for node, values in ground_loads(ops, args.direction):
+        if len(values) < args.direction:
+            fail(2, f"--direction {args.direction}: node {node} has {len(values)} DOF(s)")
         height = ops.nodeCoord(node)[-1] if args.pattern == "triangular" else 1.0
         loads.append((node, [-v * height for v in values]))
     total = sum(v[args.direction - 1] for _, v in loads)
@@ -173,8 +200,11 @@ def main():
             fail(2, f"the target ({args.target_ductility:g} x {dy:.1f} mm) is past the curve: "
                     "extend --to-mm")
         if abs(nxt - target) < 1e-9 * xs[-1]:
+            target = nxt
             break
         target = nxt
+    else:
+        fail(2, "the target did not settle at the ductility's multiple of the yield")
     print(json.dumps({"initial_stiffness_kn_per_mm": vs[0] / xs[0],
                       "effective_stiffness_kn_per_mm": ke, "yield_force_kn": vy,
                       "yield_mm": dy, "target_mm": target,

@@ -181,9 +181,9 @@ def main():
     except ImportError as e:
         fail(3, f"openseespy cannot be imported ({e})")
     model = os.path.abspath(args.model)
-    scope = build_model(model, fail)
     if args.units is None:
-        args.units = scope.get("RTHS_UNITS")
+        # Built here only to read its units: each run builds it again, at rest.
+        args.units = build_model(model, fail).get("RTHS_UNITS")
         if args.units not in ("si", "mm-kn"):
             fail(2, f"{args.model}: give the model's units (--units si|mm-kn or RTHS_UNITS)")
     outs = [parse_dof(o, fail) for o in args.output]
