@@ -597,4 +597,23 @@ fn a_pushover_gives_the_interface_s_yield_and_asce_41_s_bilinear() {
         err.contains("broken_model.py: the model script failed: ValueError: no such section"),
         "{err}"
     );
+    // A lab model with a module of its own named like one of ours gets its own.
+    let lab = dir.path().join("lab");
+    std::fs::create_dir(&lab).unwrap();
+    std::fs::write(lab.join("transient.py"), "LAB_SECTION = 'W14x90'\n").unwrap();
+    let model =
+        std::fs::read_to_string(root("data/structures/opensees/shear3_steel02.py")).unwrap();
+    std::fs::write(
+        lab.join("model.py"),
+        format!("import transient\nassert transient.LAB_SECTION == 'W14x90'\n{model}"),
+    )
+    .unwrap();
+    let mut py = opensees("pushover").unwrap();
+    let o = py
+        .arg(root("scripts/opensees/pushover.py"))
+        .arg(lab.join("model.py"))
+        .args(["--control", "1:1", "--to-mm", "100", "--pattern", "uniform"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }

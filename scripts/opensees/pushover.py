@@ -59,15 +59,12 @@ def interp(x, xs, ys):
 
 
 def area(xs, ys, upto):
-    """Area under the curve from 0 to `upto` (trapezoids; the curve starts at the origin)."""
-    total, px, py = 0.0, 0.0, 0.0
-    for x, y in zip(xs, ys):
+    """Area under the curve from its first point to `upto` (trapezoids)."""
+    total = 0.0
+    for px, py, x, y in zip(xs, ys, xs[1:], ys[1:]):
         if x > upto:
-            y = interp(upto, [px, x], [py, y])
-            total += 0.5 * (py + y) * (upto - px)
-            return total
+            return total + 0.5 * (py + interp(upto, [px, x], [py, y])) * (upto - px)
         total += 0.5 * (py + y) * (x - px)
-        px, py = x, y
     return total
 
 
@@ -80,7 +77,7 @@ def idealize(xs, vs, target_mm):
     peak = max(range(len(vs)), key=lambda i: vs[i])
     d = min(target_mm, xs[peak])
     vt = interp(d, xs, vs)
-    a = area(xs[1:], vs[1:], d)
+    a = area(xs, vs, d)
     rise_x, rise_v = xs[: peak + 1], vs[: peak + 1]
     vy = interp(0.25 * d, xs, vs)
     for _ in range(IDEALIZE_ITERATIONS):

@@ -33,13 +33,19 @@ PATTERN_TAG = 987001
 
 def build_model(path, fail):
     """Run the model script at `path` as every script here does: as `rths_export` (its
-    `if __name__ == "__main__":` part does not run), its directory on `sys.path` so it may import
-    its own modules. Returns its globals; a missing or failing script is `fail(2, message)`."""
+    `if __name__ == "__main__":` part does not run), its directory first on `sys.path` so it
+    imports its own modules, whatever their names. Returns its globals; a missing or failing
+    script is `fail(2, message)`."""
     model = os.path.abspath(path)
     if not os.path.isfile(model):
         fail(2, f"{path}: no such model script")
-    if os.path.dirname(model) not in sys.path:
-        sys.path.insert(0, os.path.dirname(model))
+    # As `python MODEL.py` would: its folder first on the path, and no module of ours cached under
+    # a name the script may use for one of its own (this one is imported as `transient`).
+    folder = os.path.dirname(model)
+    if folder in sys.path:
+        sys.path.remove(folder)
+    sys.path.insert(0, folder)
+    sys.modules.pop("transient", None)
     try:
         return runpy.run_path(model, run_name="rths_export")
     except SystemExit as e:
