@@ -27,7 +27,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from transient import build_model  # noqa: E402 (after the path)
+from transient import assemble, build_model  # noqa: E402 (after the path)
 
 UNITS = ("si", "mm-kn")
 
@@ -75,20 +75,7 @@ def main():
         fail(2, f"{args.model}: give the model's units (--units si|mm-kn, or RTHS_UNITS = "
                 "\"si\" | \"mm-kn\" in the script); found {units!r}")
 
-    ops.wipeAnalysis()
-    ops.system("FullGeneral")
-    ops.numberer("RCM")
-    ops.constraints("Transformation")
-    ops.algorithm("Linear")
-    ops.integrator("GimmeMCK", 0.0, 0.0, 1.0)
-    ops.analysis("Transient")
-    # One step of zero length numbers the equations and sizes the system (no time passes).
-    if ops.analyze(1, 0.0) != 0:
-        fail(2, f"{args.model}: OpenSees could not assemble the model (a mechanism? see its "
-                "messages above)")
-    n = ops.systemSize()
-    if n == 0:
-        fail(2, f"{args.model}: the model has no free DOFs")
+    n = assemble(ops, lambda code, message: fail(code, f"{args.model}: {message}"))
 
     equations = [None] * n
     influence = [0.0] * n

@@ -143,7 +143,7 @@ def main():
         except Exception:  # openseespy raises its own error type for a missing node
             fail(2, f"--output {n}:{d}: no such node and DOF in the model")
     loads = []
-    for node, values in ground_loads(ops, args.direction):
+    for node, values in ground_loads(ops, args.direction, fail):
         if len(values) < args.direction:
             fail(2, f"--direction {args.direction}: node {node} has {len(values)} DOF(s)")
         height = ops.nodeCoord(node)[-1] if args.pattern == "triangular" else 1.0

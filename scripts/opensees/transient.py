@@ -68,8 +68,10 @@ def fail_exit(code, message):
     sys.exit(code)
 
 
-def ground_loads(ops, direction):
-    """(node, nodal load per unit ground acceleration) for every node with mass: -M*iota."""
+def assemble(ops, fail):
+    """Number the model's equations and size its system (one step of zero length, so no time
+    passes); the system's size, with a `GimmeMCK` analysis left in place to read its matrices. A
+    model OpenSees cannot assemble, or one without free DOFs, is `fail(2, message)`."""
     ops.wipeAnalysis()
     ops.system("FullGeneral")
     ops.numberer("RCM")
@@ -78,9 +80,16 @@ def ground_loads(ops, direction):
     ops.integrator("GimmeMCK", 0.0, 0.0, 1.0)
     ops.analysis("Transient")
     if ops.analyze(1, 0.0) != 0:
-        print("transient.py: OpenSees could not assemble the model", file=sys.stderr)
-        sys.exit(2)
+        fail(2, "OpenSees could not assemble the model (a mechanism? see its messages above)")
     n = ops.systemSize()
+    if n == 0:
+        fail(2, "the model has no free DOFs")
+    return n
+
+
+def ground_loads(ops, direction, fail):
+    """(node, nodal load per unit ground acceleration) for every node with mass: -M*iota."""
+    n = assemble(ops, fail)
     eqs = {node: ops.nodeDOFs(node) for node in sorted(ops.getNodeTags())}
     iota = [0.0] * n
     for node, dofs in eqs.items():
@@ -121,7 +130,7 @@ def main():
     if args.excitation == "uniform":
         ops.pattern("UniformExcitation", PATTERN_TAG, args.direction, "-accel", SERIES_TAG)
     else:
-        loads = ground_loads(ops, args.direction)
+        loads = ground_loads(ops, args.direction, fail_exit)
         ops.pattern("Plain", PATTERN_TAG, SERIES_TAG)
         for node, values in loads:
             ops.load(node, *values)

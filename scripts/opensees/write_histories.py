@@ -119,7 +119,7 @@ def run(args, ops, model, record, scale, outs, folder=None):
         attach_recorders(args, ops, folder, sn, sd, outs)
 
     ops.timeSeries("Path", SERIES_TAG, "-dt", args.dt, "-values", *ag)
-    loads = ground_loads(ops, args.direction)
+    loads = ground_loads(ops, args.direction, fail)
     ops.pattern("Plain", PATTERN_TAG, SERIES_TAG)
     for node, values in loads:
         ops.load(node, *values)
