@@ -367,7 +367,7 @@ fn a_floor_hysteron_model_runs_on_the_m7_bit_for_bit_with_the_host() {
 
 /// The shipped floor-hysteron model of the fiber frame (`data/models/nl-fiber-frame-hysteron.json`,
 /// trained by `rths train nonlinear` from OpenSees runs of `opensees-fiber-frame`'s fiber-section
-/// model, docs/nonlinear.md) with its imported structure and the rig's compensation, `nl-online`
+/// model, docs/opensees-nonlinear.md) with its imported structure and the rig's compensation, `nl-online`
 /// on the emulated M7 through El Centro bit for bit with the host (`rths report` refuses an
 /// imported structure's recording, saying so). The 10 % goal is checked by the structure budget
 /// (`firmware/budget.sh`: its floor-hysteron rows at 4096 Hz), not here.

@@ -1,5 +1,5 @@
 //! Time histories a lab's FE program writes of its numerical model with a numerical stand-in
-//! for the specimen: the training data of `rths train nonlinear --histories` (docs/nonlinear.md,
+//! for the specimen: the training data of `rths train nonlinear --histories` (docs/opensees-nonlinear.md,
 //! "Time histories as training data").
 //!
 //! Two layouts, one result ([`TimeHistory`]):

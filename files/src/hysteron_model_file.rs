@@ -1,4 +1,4 @@
-//! Model files of the floor-hysteron metamodel (`rths train nonlinear`, docs/nonlinear.md "The
+//! Model files of the floor-hysteron metamodel (`rths train nonlinear`, docs/opensees-nonlinear.md "The
 //! floor-hysteron form"): the `rths-nl-model` format with `kind: "floor-hysteron"`, tied to the
 //! structure file it was trained for by the same checksum as the modal-hysteretic kind
 //! ([`crate::nl_model_file`]).

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """The interface's yield displacement of an openseespy model, from a pushover: the yield that turns a
-run's peak interface displacement into its ductility (docs/nonlinear.md, "Held out in the goal's
+run's peak interface displacement into its ductility (docs/opensees-nonlinear.md, "Held out in the goal's
 range").
 
     python3 pushover.py MODEL.py --control NODE:DOF --to-mm MAX [--target-ductility 4]

@@ -5,7 +5,7 @@
 //! Writes `DIR/history.csv` (`time_s`, `interface_mm`, one `out_<NODE>_<DOF>_mm` per floor of the
 //! model). The rths host FE of an imported structure is linear, so these runs have no reference
 //! here: they are scored against the lab's own runs by `rths train nonlinear --evaluate
-//! --histories H... [--hybrid]` (docs/nonlinear.md).
+//! --histories H... [--hybrid]` (docs/opensees-nonlinear.md).
 
 use std::ops::ControlFlow;
 use std::path::Path;

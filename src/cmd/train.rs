@@ -161,7 +161,7 @@ pub struct Args {
     #[arg(long = "records", value_name = "NAME")]
     pub nl_records: Vec<String>,
     /// Nonlinear: train on these time histories of the lab's FE runs instead of rths's FE runs of
-    /// the training records (a CSV file or an OpenSees recorder directory each; docs/nonlinear.md).
+    /// the training records (a CSV file or an OpenSees recorder directory each; docs/opensees-nonlinear.md).
     #[arg(long = "histories", value_name = "FILE", num_args = 1.., conflicts_with = "nl_records")]
     pub histories: Vec<PathBuf>,
     /// Nonlinear: CMA-ES generations of stage 2 (the whole model on the runs).

@@ -1,4 +1,4 @@
-//! Floor-hysteron metamodel of a yielding numerical substructure (docs/nonlinear.md, "The
+//! Floor-hysteron metamodel of a yielding numerical substructure (docs/opensees-nonlinear.md, "The
 //! floor-hysteron form"): the structure's elastic model reduced to the floors a lab records (mass,
 //! damping and stiffness, `n ≤ 8` floors), plus a learned restoring-force deviation that is a sum
 //! of play (backlash) operators of several thresholds on linear combinations of the floors (story

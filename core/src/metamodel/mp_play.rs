@@ -1,6 +1,6 @@
 //! The Menegotto–Pinto play: a play operator whose reversals are rounded by the previous
 //! excursion (the Bauschinger effect of steel), for the floor-hysteron model
-//! ([`super::FloorHysteron`], docs/nonlinear.md "The floor-hysteron form").
+//! ([`super::FloorHysteron`], docs/opensees-nonlinear.md "The floor-hysteron form").
 //!
 //! A play of threshold `r` is `p(δ) = δ − σ(δ)` with `σ` an elastic–perfectly-plastic element of
 //! unit stiffness yielding at `r`; its loops obey Masing's rule (every reversal curve is the

@@ -1,9 +1,10 @@
-//! `rths train nonlinear`'s choice of the form (docs/nonlinear.md "Which form the training
-//! chooses"): with a lab's histories of a story structure, both forms are trained on the same
-//! histories with every third one (the 3rd, 6th, ...) held out, and the one whose pure loop misses
-//! the held-out histories' floors by less is kept. The scoring records are never among them: they
-//! are not given to the training at all. An imported structure (yielding spread over members) has
-//! no stories for the modal-hysteretic form's springs: the floor-hysteron form is the only one.
+//! `rths train nonlinear`'s choice of the form (docs/opensees-nonlinear.md "Measured: both forms
+//! on the same held-out OpenSees and FE runs"): with a lab's histories of a story structure, both
+//! forms are trained on the same histories with every third one (the 3rd, 6th, ...) held out, and
+//! the one whose pure loop misses the held-out histories' floors by less is kept. The scoring
+//! records are never among them: they are not given to the training at all. An imported structure
+//! (yielding spread over members) has no stories for the modal-hysteretic form's springs: the
+//! floor-hysteron form is the only one.
 
 use std::path::{Path, PathBuf};
 
@@ -118,7 +119,7 @@ pub fn fit_hysteron(
     // stop it, and its objective (squared floor errors plus the residual drifts) is not the
     // measure the model is judged on. Measured on the fiber frame's two training runs: 10 steps
     // lowered that objective but raised the training runs' own mean floor NRMSE from 6.34 % to
-    // 9.11 % (docs/nonlinear.md "The basis and the refinement").
+    // 9.11 % (docs/opensees-nonlinear.md "The basis and the refinement").
     let refining = cfg.max_iterations > 0 && !val_runs.is_empty();
     // The least squares' ranking is not the refined one: each of the best few is refined and
     // the lowest validation loss after refinement kept ([`REFINED_CANDIDATES`]).

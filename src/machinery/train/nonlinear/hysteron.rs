@@ -1,4 +1,4 @@
-//! Training of the floor-hysteron form (docs/nonlinear.md "The floor-hysteron form"): the elastic
+//! Training of the floor-hysteron form (docs/opensees-nonlinear.md "The floor-hysteron form"): the elastic
 //! floors of the lab's model ([`super::floors`]) plus a restoring-force deviation that is a
 //! non-negative combination of play operators, fitted by ridge-regularized non-negative least
 //! squares on the restoring force recovered by equilibrium from the training histories (the
@@ -219,7 +219,7 @@ fn story_drift_stiffness(k: &DMatrix<f64>) -> DMatrix<f64> {
 /// story drifts, the spring network's neighbours ([`directions`]), and its fit is the same.
 /// Measured on the fiber frame (whose network has two negative springs and kept no hysteron on
 /// story 1, the interface story): validation mean floor NRMSE 4.06 % → 3.01 %, 3 → 4 hysterons,
-/// 37 kN/mm on story 1 (docs/nonlinear.md). The network's directions (`None` from here) where
+/// 37 kN/mm on story 1 (docs/opensees-nonlinear.md). The network's directions (`None` from here) where
 /// `K` is not positive definite.
 pub fn story_directions(k: &DMatrix<f64>) -> Option<(Vec<Vec<f64>>, Vec<f64>)> {
     story_directions_of_drift_stiffness(&story_drift_stiffness(k))
@@ -273,7 +273,7 @@ pub const STORY_COUPLING_MIN: f64 = 1e-3;
 /// twelve runs of the shipped model): the least squares' best validation loss 5.18 % → 4.77 %,
 /// refined 3.83 % → 3.80 %, and on four runs of two synthetic records at peak interface
 /// 57–92 mm (written for this comparison, not training's) interface NRMSE median 5.30 % → 3.52 %
-/// (docs/nonlinear.md). A shear building's basis is its story directions alone.
+/// (docs/opensees-nonlinear.md). A shear building's basis is its story directions alone.
 pub fn basis_directions(k: &DMatrix<f64>) -> Option<(Vec<Vec<f64>>, Vec<f64>)> {
     let n = k.nrows();
     let kd = story_drift_stiffness(k);

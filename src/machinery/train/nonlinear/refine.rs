@@ -1,4 +1,4 @@
-//! Refinement of the floor-hysteron form on the simulation error (docs/nonlinear.md "The
+//! Refinement of the floor-hysteron form on the simulation error (docs/opensees-nonlinear.md "The
 //! floor-hysteron form"): the least-squares fit ([`super::hysteron::fit`]) matches the restoring
 //! force recovered by equilibrium, which is not what the model is judged on; here the weights of
 //! every hysteron of the basis (and, with [`RefineConfig::elastic`], a scale of the elastic
@@ -15,7 +15,7 @@
 //! loss are kept, and the search ends after [`RefineConfig::patience`] steps without a better one.
 //!
 //! Why the refinement did not move the fiber frame's model (measured on its eight training runs,
-//! two held out for validation; docs/nonlinear.md "Why the fiber-frame model recentered"): the
+//! two held out for validation; docs/opensees-nonlinear.md "Why the fiber-frame model recentered"): the
 //! residual-drift term was 87 % of the training objective (0.0173 against the floors' 0.0025) and
 //! 74 % of the validation one, and every run was still swinging 2–11 mm at its end: the steps
 //! fitted the swing's phase (that term 0.0173 → 0.0107) while the floors got worse (training
