@@ -1,7 +1,7 @@
 """A 3-story shear frame whose stories yield by Steel02 (Menegotto-Pinto), built with openseespy:
 the elastic structure is `data/structures/opensees-shear3-steel02.json` (the same masses, story
 stiffnesses, specimen and 2 % Rayleigh damping), the yielding is a law rths's story springs
-(bilinear, Bouc-Wen) were not written for. docs/nonlinear.md, "Learning from OpenSees runs".
+(bilinear, Bouc-Wen) were not written for. docs/opensees-nonlinear.md, "Shipped OpenSees models".
 
 Units: kN, mm, s (`RTHS_UNITS = "mm-kn"`). Node tags are the floors (1 to 3; the ground is node
 100), so `out_<FLOOR>_1_mm` names a floor as rths's story structures do. Story k is a

@@ -1,5 +1,5 @@
-//! `rths train nonlinear`'s choice of the form (docs/opensees-nonlinear.md "Measured: both forms
-//! on the same held-out OpenSees and FE runs"): with a lab's histories of a story structure, both
+//! `rths train nonlinear`'s choice of the form (docs/opensees-nonlinear.md "The floor-hysteron
+//! form", "Which form the training chooses"): with a lab's histories of a story structure, both
 //! forms are trained on the same histories with every third one (the 3rd, 6th, ...) held out, and
 //! the one whose pure loop misses the held-out histories' floors by less is kept. The scoring
 //! records are never among them: they are not given to the training at all. An imported structure
