@@ -27,15 +27,12 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from transient import assemble, build_model  # noqa: E402 (after the path)
+from transient import assemble, build_model, failer  # noqa: E402 (after the path)
 
 UNITS = ("si", "mm-kn")
 
 
-def fail(code, message):
-    """Print the reason on stderr and exit with `code`."""
-    print(f"export_model.py: {message}", file=sys.stderr)
-    sys.exit(code)
+fail = failer("export_model.py")
 
 
 def write_mtx(path, a, n):

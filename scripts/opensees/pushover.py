@@ -35,7 +35,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from transient import build_model, ground_loads, parse_dof  # noqa: E402 (after the path)
+from transient import build_model, failer, ground_loads, parse_dof  # noqa: E402 (after the path)
 
 # Tags of the load series and pattern, away from a lab's own.
 SERIES_TAG = 987021
@@ -44,9 +44,7 @@ PATTERN_TAG = 987021
 IDEALIZE_ITERATIONS = 100
 
 
-def fail(code, message):
-    print(f"pushover.py: {message}", file=sys.stderr)
-    sys.exit(code)
+fail = failer("pushover.py")
 
 
 def interp(x, xs, ys):
@@ -133,15 +131,11 @@ def main():
     length_to_mm, force_to_kn = (1000.0, 1e-3) if units == "si" else (1.0, 1.0)
     cn, cd = parse_dof(args.control, fail)
     outs = [parse_dof(o, fail) for o in args.output]
-    try:
-        ops.nodeDisp(cn, cd)
-    except Exception:  # openseespy raises its own error type for a missing node
-        fail(2, f"--control {args.control}: no such node and DOF in the model")
-    for n, d in outs:
+    for flag, (n, d) in [("--control", (cn, cd))] + [("--output", o) for o in outs]:
         try:
             ops.nodeDisp(n, d)
         except Exception:  # openseespy raises its own error type for a missing node
-            fail(2, f"--output {n}:{d}: no such node and DOF in the model")
+            fail(2, f"{flag} {n}:{d}: no such node and DOF in the model")
     loads = []
     for node, values in ground_loads(ops, args.direction, fail):
         if len(values) < args.direction:

@@ -63,9 +63,15 @@ def parse_dof(text, fail):
         fail(2, f"`{text}` is not NODE:DOF")
 
 
-def fail_exit(code, message):
-    print(f"transient.py: {message}", file=sys.stderr)
-    sys.exit(code)
+def failer(script):
+    """The `fail(code, message)` of a script: `script: message` on stderr, then exit `code`."""
+    def fail(code, message):
+        print(f"{script}: {message}", file=sys.stderr)
+        sys.exit(code)
+    return fail
+
+
+fail_exit = failer("transient.py")
 
 
 def assemble(ops, fail):

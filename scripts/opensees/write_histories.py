@@ -39,16 +39,14 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from transient import build_model, ground_loads, parse_dof  # noqa: E402 (after the path)
+from transient import build_model, failer, ground_loads, parse_dof  # noqa: E402 (after the path)
 
 G_MM_S2 = 9806.65
 SERIES_TAG = 987011
 PATTERN_TAG = 987011
 
 
-def fail(code, message):
-    print(f"write_histories.py: {message}", file=sys.stderr)
-    sys.exit(code)
+fail = failer("write_histories.py")
 
 
 def read_at2(path):
