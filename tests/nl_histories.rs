@@ -195,6 +195,54 @@ fn each_story_may_take_its_own_spring_family_chosen_on_the_validation_histories(
     assert!(m.file.training.runs[2].ends_with("(history, validation)"));
 }
 
+/// Every third history by file name is held out of the fit: the same files listed in another order
+/// (a shell lists `*.csv` by its locale's collation) give the same model, byte for byte, and a
+/// history given twice (under two spellings) is refused naming it, since it would be fitted and
+/// held out at once.
+#[test]
+fn histories_are_taken_by_file_name_and_one_given_twice_is_refused() {
+    use rths::machinery::train::nonlinear::choose::{train_form, Form, TrainedForm};
+    let yielding = Structure::load(&root("data/structures/shear3-yielding.json")).unwrap();
+    let elastic = elastic_text("data/structures/shear3-yielding.json");
+    let dir = tempfile::tempdir().unwrap();
+    let paths = write_histories(
+        &yielding,
+        &[
+            ("northridge", 0.45),
+            ("loma-prieta", 0.9),
+            ("northridge", 0.15),
+        ],
+        dir.path(),
+    );
+    let model = |order: Vec<PathBuf>| {
+        let (t, _) = train_form(&elastic, &quick(4, order), Form::Hysteron, |_, _, _| {}).unwrap();
+        let TrainedForm::Hysteron(f) = t else {
+            panic!("--form floor-hysteron trains that form");
+        };
+        f.to_json().unwrap()
+    };
+    let given = model(paths.clone());
+    let reversed = model(paths.iter().rev().cloned().collect());
+    assert_eq!(given, reversed);
+    // By name: loma-prieta-0.9, northridge-0.15, northridge-0.45; the third is held out.
+    let f: serde_json::Value = serde_json::from_str(&given).unwrap();
+    assert_eq!(
+        f["training"]["runs"][2], "northridge-0.45.csv (history, validation)",
+        "{}",
+        f["training"]["runs"]
+    );
+    // The first file again as `DIR/./NAME`.
+    let again = dir.path().join(".").join(paths[0].file_name().unwrap());
+    let twice = vec![paths[0].clone(), paths[1].clone(), again.clone()];
+    let err = train_form(&elastic, &quick(4, twice), Form::Hysteron, |_, _, _| {})
+        .expect_err("a history given twice is refused");
+    assert!(
+        err.to_string()
+            .contains(&format!("{}: history given twice", again.display())),
+        "{err}"
+    );
+}
+
 #[test]
 fn a_bad_history_is_refused_naming_the_file_and_the_line() {
     let dir = tempfile::tempdir().unwrap();
@@ -219,6 +267,25 @@ fn a_bad_history_is_refused_naming_the_file_and_the_line() {
         err.contains(&format!("{}: line 5: time step", p.display())),
         "{err}"
     );
+    assert!(!dir.path().join("m.json").exists());
+    // A history given twice is refused before any is read.
+    let out = Command::new(env!("CARGO_BIN_EXE_rths"))
+        .args(["train", "nonlinear", "--structure"])
+        .arg(root("data/structures/shear3-yielding.json"))
+        .arg("--histories")
+        .arg(&p)
+        .arg(&p)
+        .arg("--out")
+        .arg(dir.path().join("m.json"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&format!("{}: history given twice", p.display())),
+        "{err}"
+    );
+    assert!(!err.contains("line 5"), "{err}");
     assert!(!dir.path().join("m.json").exists());
 }
 

@@ -161,7 +161,8 @@ pub struct Args {
     #[arg(long = "records", value_name = "NAME")]
     pub nl_records: Vec<String>,
     /// Nonlinear: train on these time histories of the lab's FE runs instead of rths's FE runs of
-    /// the training records (a CSV file or an OpenSees recorder directory each; docs/opensees-nonlinear.md).
+    /// the training records (a CSV file or an OpenSees recorder directory each; taken by file
+    /// name, every third held out; docs/opensees-nonlinear.md).
     #[arg(long = "histories", value_name = "FILE", num_args = 1.., conflicts_with = "nl_records")]
     pub histories: Vec<PathBuf>,
     /// Nonlinear: CMA-ES generations of stage 2 (the whole model on the runs).
@@ -186,8 +187,8 @@ pub struct Args {
     pub form: NlFormArg,
     /// Nonlinear, floor-hysteron form: Levenberg–Marquardt steps of the refinement on the
     /// simulation error after the least-squares fit, at most (0: the least-squares fit alone); it
-    /// stops earlier on the validation histories (every third held out of the fit), and does not
-    /// run with fewer than 3 histories (none held out to stop on).
+    /// stops earlier on the validation histories (every third by file name held out of the fit),
+    /// and does not run with fewer than 3 histories (none held out to stop on).
     #[arg(long, default_value_t = crate::machinery::train::nonlinear::refine::RefineConfig::default().max_iterations)]
     pub refine_steps: usize,
     /// Nonlinear `--evaluate --histories`: score the hybrid loop too (the virtual rig, identified
@@ -600,8 +601,10 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
             .map(|n| crate::cmd::analyze::load_motion(Some(n)))
             .collect::<anyhow::Result<Vec<_>>>()?;
     }
-    cfg.histories = args.histories.clone();
-    for h in &args.histories {
+    // By file name, a history given twice refused before any is read (the training orders them
+    // so too: this only makes the notes below come in that order).
+    cfg.histories = crate::machinery::train::nonlinear::histories::in_name_order(&args.histories)?;
+    for h in &cfg.histories {
         let swinging = crate::machinery::train::nonlinear::refine::still_swinging(h, DT_S)?;
         if let Some((column, residual_mm, swing_mm)) = swinging.first() {
             crate::outln!(
@@ -919,8 +922,11 @@ fn evaluate_nonlinear(args: &Args, path: &std::path::Path, text: &str) -> anyhow
     let s = rths_files::structure_file::Structure::from_json(text)?;
     if !args.histories.is_empty() {
         // Held-out runs of the lab's FE program (e.g. OpenSees's own run of a held-out record):
-        // read here, by the scoring, and never by the training.
-        let paths: Vec<&std::path::Path> = args.histories.iter().map(|p| p.as_path()).collect();
+        // read here, by the scoring, and never by the training. A run given twice would count
+        // twice in the median.
+        let ordered =
+            crate::machinery::train::nonlinear::histories::in_name_order(&args.histories)?;
+        let paths: Vec<&std::path::Path> = ordered.iter().map(|p| p.as_path()).collect();
         let units = rths_files::structure_file::StructureFile::parse(text)?.units;
         let runs = crate::machinery::train::nonlinear::histories::read_runs(
             &s,
@@ -1004,7 +1010,9 @@ fn evaluate_floors(
             })
             .collect::<anyhow::Result<Vec<_>>>()?
     } else {
-        let paths: Vec<&std::path::Path> = args.histories.iter().map(|p| p.as_path()).collect();
+        let ordered =
+            crate::machinery::train::nonlinear::histories::in_name_order(&args.histories)?;
+        let paths: Vec<&std::path::Path> = ordered.iter().map(|p| p.as_path()).collect();
         read_runs(&fm, &paths, DT_S)?
     };
     let model = Learned::of(any, DT_S)?;

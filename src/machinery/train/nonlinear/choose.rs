@@ -1,10 +1,10 @@
 //! `rths train nonlinear`'s choice of the form (docs/opensees-nonlinear.md "The floor-hysteron
 //! form", "Which form the training chooses"): with a lab's histories of a story structure, both
-//! forms are trained on the same histories with every third one (the 3rd, 6th, ...) held out, and
-//! the one whose pure loop misses the held-out histories' floors by less is kept. The scoring
-//! records are never among them: they are not given to the training at all. An imported structure
-//! (yielding spread over members) has no stories for the modal-hysteretic form's springs: the
-//! floor-hysteron form is the only one.
+//! forms are trained on the same histories with every third one by file name (the 3rd, 6th, ...)
+//! held out, and the one whose pure loop misses the held-out histories' floors by less is kept.
+//! The scoring records are never among them: they are not given to the training at all. An
+//! imported structure (yielding spread over members) has no stories for the modal-hysteretic
+//! form's springs: the floor-hysteron form is the only one.
 
 use std::path::{Path, PathBuf};
 
@@ -14,6 +14,7 @@ use rths_files::hysteron_model_file::{HysteronModelFile, HysteronTraining, Refin
 use rths_files::nl_model_file::{structure_checksum, NlStructureId};
 
 use super::floors::{read_runs, FloorModel, FloorRun};
+use super::histories::in_name_order;
 use super::hysteron::{self, HYSTERON_METHOD, RIDGE};
 use super::refine::{self, RefineConfig};
 use super::score::{validation_loss, Learned};
@@ -325,6 +326,20 @@ pub fn train_form(
     form: Form,
     mut on_progress: impl FnMut(usize, usize, String),
 ) -> Result<(TrainedForm, Option<Choice>), TrainError> {
+    // The histories by file name: the split below (every third) is then the files', not the
+    // shell's listing's.
+    let both: Vec<PathBuf> = cfg
+        .histories
+        .iter()
+        .chain(&cfg.validation_histories)
+        .cloned()
+        .collect();
+    in_name_order(&both)?;
+    let cfg = &NlTrainConfig {
+        histories: in_name_order(&cfg.histories)?,
+        validation_histories: in_name_order(&cfg.validation_histories)?,
+        ..cfg.clone()
+    };
     let fm = FloorModel::from_json(json)?;
     let structure = NlStructureId {
         name: fm.name.clone(),
@@ -354,8 +369,8 @@ pub fn train_form(
     let paths: Vec<&Path> = cfg.histories.iter().map(PathBuf::as_path).collect();
     on_progress(0, 1, "reading the histories".into());
     let runs = read_runs(&fm, &paths, cfg.dt_s)?;
-    // Every third history (the 3rd, 6th, ...) is held out of the fit: the floor-hysteron form's
-    // refinement stops on them, and `auto` chooses the form on them.
+    // Every third history by file name (the 3rd, 6th, ...) is held out of the fit: the
+    // floor-hysteron form's refinement stops on them, and `auto` chooses the form on them.
     let pick = |want: bool| -> Vec<FloorRun> {
         runs.iter()
             .enumerate()

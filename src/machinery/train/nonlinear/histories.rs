@@ -9,7 +9,8 @@
 //! accelerations and velocities are central differences of the recorded floors (second-order in
 //! the step; at 2048 Hz the error is far below the laws' own).
 
-use std::path::Path;
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
 
 use rths_files::history::{OutputDof, RecorderUnits, TimeHistory};
 use rths_files::structure_file::{Structure, Units};
@@ -142,6 +143,32 @@ pub fn recorder_units(units: Units) -> RecorderUnits {
         Units::Si => RecorderUnits::SI,
         Units::MmKn => RecorderUnits::MM_KN,
     }
+}
+
+/// The histories `paths` in the order of their file names (byte order; the whole path breaks a
+/// tie), refusing a history given twice.
+///
+/// Every third history is held out of the fit, so the order decides the model: taken by name, the
+/// same files give the same model however a shell lists `*.csv` (its order follows the locale),
+/// and a run given twice cannot be both fitted and held out.
+pub fn in_name_order(paths: &[PathBuf]) -> Result<Vec<PathBuf>, TrainError> {
+    let mut seen = BTreeSet::new();
+    for p in paths {
+        // The same file by two spellings (`a.csv`, `./a.csv`) is one history.
+        let key = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        if !seen.insert(key) {
+            return Err(TrainError::Setting(format!(
+                "{}: history given twice (a run is fitted or held out, not both)",
+                p.display()
+            )));
+        }
+    }
+    let mut ordered = paths.to_vec();
+    ordered.sort_by(|a, b| {
+        let name = |p: &Path| p.file_name().map(|n| n.as_encoded_bytes().to_vec());
+        name(a).cmp(&name(b)).then_with(|| a.cmp(b))
+    });
+    Ok(ordered)
 }
 
 /// Read every history (a CSV file, or a recorder directory in `units`) of the story structure `s`.

@@ -108,7 +108,8 @@ pub struct NlTrainConfig {
     pub histories: Vec<std::path::PathBuf>,
     /// Histories held out of the fit, on which the spring family is chosen (`--form auto` gives
     /// its own validation histories, so the family and the form are chosen on the same runs).
-    /// Empty: every third of `histories`, when there are 3 or more.
+    /// Empty: every third of `histories` (by file name through [`choose::train_form`]), when
+    /// there are 3 or more.
     pub validation_histories: Vec<std::path::PathBuf>,
     /// The floor-hysteron form's refinement on the simulation error ([`refine`]).
     pub refine: refine::RefineConfig,
