@@ -198,7 +198,7 @@ fn each_story_may_take_its_own_spring_family_chosen_on_the_validation_histories(
 /// Every third history by file name is held out of the fit: the same files listed in another order
 /// (a shell lists `*.csv` by its locale's collation) give the same model, byte for byte, and a
 /// history given twice (under two spellings) is refused naming it, since it would be fitted and
-/// held out at once.
+/// held out at once; so is one that is not there.
 #[test]
 fn histories_are_taken_by_file_name_and_one_given_twice_is_refused() {
     use rths::machinery::train::nonlinear::choose::{train_form, Form, TrainedForm};
@@ -221,24 +221,45 @@ fn histories_are_taken_by_file_name_and_one_given_twice_is_refused() {
         };
         f.to_json().unwrap()
     };
+    // Loma Prieta in a folder of its own, whose whole path sorts last.
+    let sub = dir.path().join("z");
+    std::fs::create_dir(&sub).unwrap();
+    let moved = sub.join(paths[1].file_name().unwrap());
+    std::fs::rename(&paths[1], &moved).unwrap();
+    let paths = vec![paths[0].clone(), moved, paths[2].clone()];
     let given = model(paths.clone());
     let reversed = model(paths.iter().rev().cloned().collect());
     assert_eq!(given, reversed);
-    // By name: loma-prieta-0.9, northridge-0.15, northridge-0.45; the third is held out.
+    // By name: loma-prieta-0.9, northridge-0.15, northridge-0.45; the third is held out (by
+    // whole path it would be Loma Prieta's).
     let f: serde_json::Value = serde_json::from_str(&given).unwrap();
     assert_eq!(
         f["training"]["runs"][2], "northridge-0.45.csv (history, validation)",
         "{}",
         f["training"]["runs"]
     );
-    // The first file again as `DIR/./NAME`.
-    let again = dir.path().join(".").join(paths[0].file_name().unwrap());
+    // The first file again as `DIR/z/../NAME`: the same file by another spelling.
+    let again = sub.join("..").join(paths[0].file_name().unwrap());
     let twice = vec![paths[0].clone(), paths[1].clone(), again.clone()];
     let err = train_form(&elastic, &quick(4, twice), Form::Hysteron, |_, _, _| {})
         .expect_err("a history given twice is refused");
     assert!(
         err.to_string()
             .contains(&format!("{}: history given twice", again.display())),
+        "{err}"
+    );
+    // A history that is not there is named.
+    let gone = dir.path().join("gone.csv");
+    let err = train_form(
+        &elastic,
+        &quick(4, vec![paths[0].clone(), gone.clone()]),
+        Form::Hysteron,
+        |_, _, _| {},
+    )
+    .expect_err("a missing history is refused");
+    assert!(
+        err.to_string()
+            .contains(&format!("{}: cannot read", gone.display())),
         "{err}"
     );
 }

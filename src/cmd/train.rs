@@ -162,7 +162,8 @@ pub struct Args {
     pub nl_records: Vec<String>,
     /// Nonlinear: train on these time histories of the lab's FE runs instead of rths's FE runs of
     /// the training records (a CSV file or an OpenSees recorder directory each; taken by file
-    /// name, every third held out; docs/opensees-nonlinear.md).
+    /// name, and with 3 or more every third held out of the fit; a history given twice is
+    /// refused; docs/opensees-nonlinear.md).
     #[arg(long = "histories", value_name = "FILE", num_args = 1.., conflicts_with = "nl_records")]
     pub histories: Vec<PathBuf>,
     /// Nonlinear: CMA-ES generations of stage 2 (the whole model on the runs).

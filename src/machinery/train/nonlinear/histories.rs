@@ -146,7 +146,7 @@ pub fn recorder_units(units: Units) -> RecorderUnits {
 }
 
 /// The histories `paths` in the order of their file names (byte order; the whole path breaks a
-/// tie), refusing a history given twice.
+/// tie), refusing a history given twice and one that is not there.
 ///
 /// Every third history is held out of the fit, so the order decides the model: taken by name, the
 /// same files give the same model however a shell lists `*.csv` (its order follows the locale),
@@ -154,11 +154,13 @@ pub fn recorder_units(units: Units) -> RecorderUnits {
 pub fn in_name_order(paths: &[PathBuf]) -> Result<Vec<PathBuf>, TrainError> {
     let mut seen = BTreeSet::new();
     for p in paths {
-        // The same file by two spellings (`a.csv`, `./a.csv`) is one history.
-        let key = std::fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        // The same file by two spellings (a name, and the same name by way of a parent folder) is
+        // one history.
+        let key = std::fs::canonicalize(p)
+            .map_err(|e| TrainError::Setting(format!("{}: cannot read: {e}", p.display())))?;
         if !seen.insert(key) {
             return Err(TrainError::Setting(format!(
-                "{}: history given twice (a run is fitted or held out, not both)",
+                "{}: history given twice (each run counts once: fitted, held out or scored)",
                 p.display()
             )));
         }

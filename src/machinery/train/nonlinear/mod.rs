@@ -526,8 +526,9 @@ pub fn train(
     let mut best: Option<(Template, cmaes::CmaResult, f64, f64)> = None;
     let mut best_score = f64::INFINITY;
     // Histories are a lab's runs of no known intensity: with 3 or more and a family to choose,
-    // every third (the 3rd, 6th, ...) is held out of the fit and the family is chosen on them,
-    // unless the validation histories are given.
+    // every third (the 3rd, 6th, ...; in the order given here, by file name through
+    // `choose::train_form`) is held out of the fit and the family is chosen on them, unless the
+    // validation histories are given.
     let given = cfg.validation_histories.len();
     let validate = !cfg.histories.is_empty() && runs.len() >= 3 && cfg.laws.len() > 1;
     let is_val = |i: usize| {
