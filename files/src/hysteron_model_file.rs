@@ -121,6 +121,10 @@ pub struct HysteronTraining {
     /// The refinement on the simulation error, if it ran.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub refinement: Option<RefinementRecord>,
+    /// The free fit of the thresholds and the operator's shape off the least squares' grid
+    /// (`--free-fit`), if it ran: what it did to each candidate refined, and whether it was kept.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub free_fit: Vec<String>,
 }
 
 /// What the refinement on the simulation error did (provenance).

@@ -99,15 +99,15 @@ pub fn operator_spec(op: HysteronOperator) -> OperatorSpec {
 }
 
 /// The outputs of a bank of operators (each on its direction) integrated along a path.
-struct Bank {
+pub(super) struct Bank {
     op: HysteronOperator,
     play: Vec<f64>,
     mp: Vec<MpState>,
-    out: Vec<f64>,
+    pub(super) out: Vec<f64>,
 }
 
 impl Bank {
-    fn new(op: HysteronOperator, h: usize) -> Self {
+    pub(super) fn new(op: HysteronOperator, h: usize) -> Self {
         Self {
             op,
             play: vec![0.0; h],
@@ -117,7 +117,7 @@ impl Bank {
     }
 
     /// Move every operator of `grid` to its direction's coordinate in `delta`.
-    fn update(&mut self, grid: &[(usize, f64)], delta: &[f64]) {
+    pub(super) fn update(&mut self, grid: &[(usize, f64)], delta: &[f64]) {
         match self.op {
             HysteronOperator::Play => {
                 for ((y, o), (e, thr)) in self.play.iter_mut().zip(&mut self.out).zip(grid) {
@@ -300,14 +300,14 @@ pub fn basis_directions(k: &DMatrix<f64>) -> Option<(Vec<Vec<f64>>, Vec<f64>)> {
 }
 
 /// The largest `μ` with `W·v = μ·K·v` (`K` positive definite), or `None` if it is not.
-fn largest_generalized_eigenvalue(w: &DMatrix<f64>, k: &DMatrix<f64>) -> Option<f64> {
+pub(super) fn largest_generalized_eigenvalue(w: &DMatrix<f64>, k: &DMatrix<f64>) -> Option<f64> {
     let l_inv = k.clone().cholesky()?.l().try_inverse()?;
     let g = &l_inv * w * l_inv.transpose();
     let g = (&g + g.transpose()) * 0.5;
     Some(g.symmetric_eigen().eigenvalues.max())
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
@@ -614,7 +614,7 @@ pub fn max_hysterons(floors: usize, directions: usize, op: HysteronOperator) -> 
 /// (no constant to tune). With equal force weights on every floor, the fiber frame's fit gave
 /// the interface story too little: validation interface NRMSE 4.98 %; with `K⁻²`, 2.96 % (mean
 /// floor NRMSE 4.77 % → 4.60 %; `K⁻¹`, the energy norm, 4.60 % but interface 4.71 %).
-fn flexibility_squared(k: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+pub(super) fn flexibility_squared(k: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     let f = k.clone().cholesky()?.inverse();
     Some(&f * &f)
 }
@@ -622,7 +622,7 @@ fn flexibility_squared(k: &DMatrix<f64>) -> Option<DMatrix<f64>> {
 /// `min ½wᵀ(G + λI)w − bᵀw` with `w ≥ 0` and each group's sum at most its cap, by accelerated
 /// projected gradient (FISTA) from `w0`: the projection onto a group's set is a clip at 0 or, past
 /// the cap, the projection onto the scaled simplex. Deterministic.
-fn capped_least_squares(
+pub(super) fn capped_least_squares(
     g: &DMatrix<f64>,
     b: &DVector<f64>,
     lambda: f64,
@@ -696,7 +696,7 @@ fn capped_least_squares(
 /// Non-negative least squares `min ½wᵀ(G + λI)w − bᵀw, w ≥ 0` by Lawson and Hanson's active set
 /// (on the normal equations; exact and deterministic: the passive set grows by the steepest
 /// violated weight, and a step that would make a weight negative stops at the boundary).
-fn nnls(g: &DMatrix<f64>, b: &DVector<f64>, lambda: f64) -> Vec<f64> {
+pub(super) fn nnls(g: &DMatrix<f64>, b: &DVector<f64>, lambda: f64) -> Vec<f64> {
     let h = b.len();
     let mut a = g.clone();
     for i in 0..h {

@@ -22,6 +22,7 @@ pub mod modal;
 pub mod refine;
 pub mod runs;
 pub mod score;
+pub mod shape;
 pub mod spring;
 pub mod stage1;
 #[cfg(test)]

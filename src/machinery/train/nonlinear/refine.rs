@@ -60,6 +60,9 @@ pub struct RefineConfig {
     pub every: usize,
     /// Refine a scale of the elastic stiffness and one of the damping too.
     pub elastic: bool,
+    /// Before the refinement, move the least squares' thresholds and operator shape off their
+    /// grid ([`super::shape::free_fit`]), kept where it lowers the validation loss.
+    pub free_fit: bool,
 }
 
 impl Default for RefineConfig {
@@ -70,6 +73,7 @@ impl Default for RefineConfig {
             residual_weight: RESIDUAL_WEIGHT,
             every: 4,
             elastic: true,
+            free_fit: false,
         }
     }
 }
@@ -526,29 +530,21 @@ fn accumulate(row: &[f64], r0: f64, jtj: &mut DMatrix<f64>, jtr: &mut DVector<f6
 
 /// The basis of `fm` on `runs` the least-squares fit `start` used (its directions, caps and
 /// grid).
-pub fn basis(fm: &FloorModel, runs: &[FloorRun], start: &HysteronFit) -> Result<Basis, TrainError> {
+pub fn basis(fm: &FloorModel, start: &HysteronFit) -> Result<Basis, TrainError> {
     let (directions, kappa) = hysteron::basis_directions(&fm.stiffness).ok_or_else(|| {
         TrainError::Setting(format!(
             "structure {}: the floors' elastic stiffness is not positive definite",
             fm.name
         ))
     })?;
-    let c = hysteron::Candidate {
-        operator: start.operator,
-        range: start.range,
-    };
     // The least squares' hysterons only: each one the model keeps costs the board's tick (a
     // Menegotto–Pinto play some 655 instructions on the Cortex-M7), and refining every candidate
     // of the grid kept 24 of them on the fiber frame (most under 1e-3 kN/mm), 2.6× the 10 %
     // budget of a 4096 Hz tick, where the least squares had chosen 6.
-    let grid = hysteron::thresholds(&directions, &kappa, runs, c)
-        .into_iter()
-        .filter(|(e, r)| {
-            start
-                .hysterons
-                .iter()
-                .any(|h| h.direction == *e && h.threshold_mm == *r)
-        })
+    let grid = start
+        .hysterons
+        .iter()
+        .map(|h| (h.direction, h.threshold_mm))
         .collect();
     Ok(Basis {
         operator: start.operator,
@@ -797,7 +793,7 @@ mod tests {
         for h in &mut start.hysterons {
             h.weight_kn_per_mm *= 0.5;
         }
-        let basis = basis(&fm, fit_runs, &start).expect("basis");
+        let basis = basis(&fm, &start).expect("basis");
         // It moves the least squares' hysterons only: each one kept costs the board's tick.
         assert_eq!(basis.grid.len(), start.hysterons.len());
         assert!(basis
