@@ -195,7 +195,7 @@ pub struct Args {
     /// Nonlinear, floor-hysteron form: before the refinement, move each refined candidate's
     /// thresholds and Menegotto–Pinto shape off the least squares' grid to lower the same force
     /// residual (CMA-ES; the weights refitted at every point), kept where it lowers the loss on
-    /// the validation histories. Some 30–60 s a candidate on two cores.
+    /// the validation histories. Some 20 s a candidate on two cores (the fiber frame's runs).
     #[arg(long)]
     pub free_fit: bool,
     /// Nonlinear `--evaluate --histories`: score the hybrid loop too (the virtual rig, identified

@@ -1,5 +1,5 @@
-//! The free fit of the floor-hysteron form (docs/opensees-nonlinear.md "The basis and the
-//! refinement"): the least squares put the hysterons on a grid of thresholds and try a grid of
+//! The free fit of the floor-hysteron form (`--free-fit`; docs/opensees-nonlinear.md "The free
+//! fit"): the least squares put the hysterons on a grid of thresholds and try a grid of
 //! Menegotto–Pinto shapes; here the kept hysterons' thresholds and the operator's shape
 //! (`R₀`, `c_R1`, `c_R2`) are moved off the grid to lower the same flexibility-weighted force
 //! residual, the weights solved by the same capped least squares at every point (the fit is
