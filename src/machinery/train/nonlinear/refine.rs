@@ -92,7 +92,8 @@ const FD_REL: f64 = 1e-3;
 const FD_FLOOR: f64 = 1e-5;
 const FD_LOG: f64 = 1e-4;
 
-/// The basis the refinement moves: the hysterons of the least-squares start ([`basis`]).
+/// The basis the refinement moves: the hysterons of its start, the least squares' or the free
+/// fit's ([`basis`]).
 #[derive(Debug, Clone)]
 pub struct Basis {
     /// The hysterons' operator.
@@ -528,8 +529,8 @@ fn accumulate(row: &[f64], r0: f64, jtj: &mut DMatrix<f64>, jtr: &mut DVector<f6
     }
 }
 
-/// The basis of `fm` on `runs` the least-squares fit `start` used (its directions, caps and
-/// grid).
+/// The basis of `fm` the fit `start` stands on (its directions, caps and hysterons: the least
+/// squares' thresholds on their grid, or the free fit's off it).
 pub fn basis(fm: &FloorModel, start: &HysteronFit) -> Result<Basis, TrainError> {
     let (directions, kappa) = hysteron::basis_directions(&fm.stiffness).ok_or_else(|| {
         TrainError::Setting(format!(
@@ -537,9 +538,9 @@ pub fn basis(fm: &FloorModel, start: &HysteronFit) -> Result<Basis, TrainError> 
             fm.name
         ))
     })?;
-    // The least squares' hysterons only: each one the model keeps costs the board's tick (a
-    // Menegotto–Pinto play some 655 instructions on the Cortex-M7), and refining every candidate
-    // of the grid kept 24 of them on the fiber frame (most under 1e-3 kN/mm), 2.6× the 10 %
+    // The start's hysterons only (the least squares' or the free fit's): each one the model
+    // keeps costs the board's tick (a Menegotto–Pinto play some 655 instructions on the
+    // Cortex-M7), and refining every candidate of the grid kept 24 of them on the fiber frame (most under 1e-3 kN/mm), 2.6× the 10 %
     // budget of a 4096 Hz tick, where the least squares had chosen 6.
     let grid = start
         .hysterons
@@ -555,8 +556,8 @@ pub fn basis(fm: &FloorModel, start: &HysteronFit) -> Result<Basis, TrainError> 
     })
 }
 
-/// Refine `start` (a least-squares fit on `fit_runs` of `fm`, whose hysterons are on `basis`'s
-/// grid) on the simulation error over `fit_runs`, stopping on `val_runs` (may be empty).
+/// Refine `start` (a fit on `fit_runs` of `fm`, whose hysterons are `basis`'s) on the
+/// simulation error over `fit_runs`, stopping on `val_runs` (may be empty).
 /// `on_step(done, max, fit_loss, val_loss)` reports each accepted step. Returns the floors (the
 /// elastic scales applied), the fit, and the report.
 #[allow(clippy::too_many_arguments)]
