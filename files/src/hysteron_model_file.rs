@@ -90,7 +90,8 @@ impl OperatorSpec {
 pub struct HysteronTraining {
     /// The method.
     pub method: String,
-    /// The seed (the fit is deterministic; kept for the command line's record).
+    /// The seed (of the free fit's search, `--free-fit`; the least squares and the refinement are
+    /// deterministic without it).
     pub seed: u64,
     /// The training histories.
     pub runs: Vec<String>,

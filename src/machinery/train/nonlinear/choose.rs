@@ -134,30 +134,46 @@ pub fn fit_hysteron(
         if i > 0 && !l.is_finite() {
             continue;
         }
+        // The least squares' own loss on the fitted runs, reported as such when the free fit's
+        // start is refined instead.
+        let ls_loss = cfg.free_fit.then(|| {
+            hysteron::params(fm, &start, dt_s)
+                .map(|p| validation_loss(&Learned::Hysteron(p), k_e, fit_runs))
+        });
         let start = if cfg.free_fit {
-            let f = shape::free_fit(fm, fit_runs, dt_s, &start, seed)?;
-            let lf = validation_loss(
-                &Learned::Hysteron(hysteron::params(fm, &f, dt_s)?),
-                k_e,
-                judge,
-            );
-            let kept = lf < l;
-            free_notes.push(format!(
-                "candidate {}: {} to {}, thresholds {}; loss {l:.3} % to {lf:.3} %{}",
-                i + 1,
-                hysteron::operator_spec(start.operator).describe(),
-                hysteron::operator_spec(f.operator).describe(),
-                f.hysterons
-                    .iter()
-                    .map(|h| format!("{:.2}", h.threshold_mm))
-                    .collect::<Vec<_>>()
-                    .join(" / "),
-                if kept { ", kept" } else { ", not kept" }
-            ));
-            if kept {
-                f
-            } else {
-                start
+            // A free fit that fails leaves the least squares' candidate as it was.
+            let moved = shape::free_fit(fm, fit_runs, dt_s, &start, seed).and_then(|f| {
+                let p = hysteron::params(fm, &f, dt_s)?;
+                Ok((validation_loss(&Learned::Hysteron(p), k_e, judge), f))
+            });
+            match moved {
+                Ok((lf, f)) => {
+                    let free_kept = lf < l;
+                    free_notes.push(format!(
+                        "candidate {}: {} to {}, thresholds {}; loss {l:.3} % to {lf:.3} %{}",
+                        i + 1,
+                        hysteron::operator_spec(start.operator).describe(),
+                        hysteron::operator_spec(f.operator).describe(),
+                        f.hysterons
+                            .iter()
+                            .map(|h| format!("{:.2}", h.threshold_mm))
+                            .collect::<Vec<_>>()
+                            .join(" / "),
+                        if free_kept { ", kept" } else { ", not kept" }
+                    ));
+                    if free_kept {
+                        f
+                    } else {
+                        start
+                    }
+                }
+                Err(e) => {
+                    free_notes.push(format!(
+                        "candidate {}: not moved ({e}); the least squares' fit kept",
+                        i + 1
+                    ));
+                    start
+                }
             }
         } else {
             start
@@ -171,7 +187,13 @@ pub fn fit_hysteron(
             cfg,
             refining,
             |d, n, w| on_step(d, n, format!("candidate {} of {few}: {w}", i + 1)),
-        );
+        )
+        .map(|mut r| {
+            if let Some(Ok(l)) = ls_loss {
+                r.start_loss = l;
+            }
+            r
+        });
         let r = match r {
             Ok(r) => r,
             Err(e) if i == 0 => return Err(e),

@@ -300,7 +300,7 @@ pub fn basis_directions(k: &DMatrix<f64>) -> Option<(Vec<Vec<f64>>, Vec<f64>)> {
 }
 
 /// The largest `μ` with `W·v = μ·K·v` (`K` positive definite), or `None` if it is not.
-pub(super) fn largest_generalized_eigenvalue(w: &DMatrix<f64>, k: &DMatrix<f64>) -> Option<f64> {
+fn largest_generalized_eigenvalue(w: &DMatrix<f64>, k: &DMatrix<f64>) -> Option<f64> {
     let l_inv = k.clone().cholesky()?.l().try_inverse()?;
     let g = &l_inv * w * l_inv.transpose();
     let g = (&g + g.transpose()) * 0.5;
@@ -429,12 +429,7 @@ fn fit_at_most(
 ) -> Result<HysteronFit, TrainError> {
     let op = c.operator;
     let n = fm.floors();
-    let (dirs, kappa) = basis_directions(&fm.stiffness).ok_or_else(|| {
-        TrainError::Setting(format!(
-            "structure {}: the floors' elastic stiffness is not positive definite",
-            fm.name
-        ))
-    })?;
+    let (dirs, kappa) = basis_directions(&fm.stiffness).ok_or_else(|| not_positive_definite(fm))?;
     let hs = thresholds(&dirs, &kappa, runs, c);
     let h = hs.len();
     let mut gram = DMatrix::<f64>::zeros(h, h);
@@ -444,12 +439,7 @@ fn fit_at_most(
     let mut gram_f = DMatrix::<f64>::zeros(h, h);
     let mut rhs_f = DVector::<f64>::zeros(h);
     let mut dev_f_sq = 0.0;
-    let wmat = flexibility_squared(&fm.stiffness).ok_or_else(|| {
-        TrainError::Setting(format!(
-            "structure {}: the floors' elastic stiffness is not positive definite",
-            fm.name
-        ))
-    })?;
+    let wmat = flexibility_squared(&fm.stiffness).ok_or_else(|| not_positive_definite(fm))?;
     // The directions' mutual products: a_h·W·a_h' for the fit, a_h·a_h' for the plain residual.
     let vecs: Vec<DVector<f64>> = dirs.iter().map(|d| DVector::from_column_slice(d)).collect();
     let aa = DMatrix::from_fn(dirs.len(), dirs.len(), |i, j| {
@@ -537,40 +527,22 @@ fn fit_at_most(
         w[drop] = 0.0;
         w = capped_least_squares(&gram, &rhs, lambda, &groups, &caps, &excluded, w);
     }
-    let mut wm = DMatrix::<f64>::zeros(n, n);
-    for (wi, (e, _)) in w.iter().zip(&hs) {
-        let a = DVector::from_column_slice(&dirs[*e]);
-        wm += &a * a.transpose() * *wi;
-    }
-    let mu = largest_generalized_eigenvalue(&wm, &fm.stiffness).ok_or_else(|| {
-        TrainError::Setting(format!(
-            "structure {}: the floors' elastic stiffness is not positive definite",
-            fm.name
-        ))
-    })?;
-    // The caps guarantee it; a round-off excess is scaled away.
-    let scale = if mu > 1.0 - MIN_TANGENT_FRACTION {
-        (1.0 - MIN_TANGENT_FRACTION) / mu
-    } else {
-        1.0
-    };
-    // The force fit's residual with the final weights.
-    let resid = {
-        let wv = DVector::from_iterator(h, w.iter().map(|x| x * scale));
-        // |dev − Φw|² = |dev|² − 2 bᵀw + wᵀGw (b and G as accumulated).
-        let v = dev_f_sq - 2.0 * rhs_f.dot(&wv) + (wv.transpose() * &gram_f * &wv)[(0, 0)];
-        100.0 * (v.max(0.0) / ref_sq.max(f64::MIN_POSITIVE)).sqrt()
-    };
-    let hysterons = w
-        .iter()
-        .zip(&hs)
-        .filter(|(wi, _)| **wi > 0.0)
-        .map(|(wi, (e, thr))| HysteronSpec {
-            direction: *e,
-            threshold_mm: *thr,
-            weight_kn_per_mm: wi * scale,
-        })
-        .collect::<Vec<_>>();
+    let Finished {
+        hysterons,
+        scale,
+        force_fit_pct: resid,
+    } = finish(
+        fm,
+        &dirs,
+        &hs,
+        &w,
+        &ForceNormal {
+            gram: &gram_f,
+            rhs: &rhs_f,
+            dev_sq: dev_f_sq,
+            ref_sq,
+        },
+    )?;
     if hysterons.is_empty() {
         return Err(TrainError::Setting(
             "the histories show no hysteresis to fit (every weight came out 0): train on runs \
@@ -585,6 +557,82 @@ fn fit_at_most(
         hysterons,
         stability_scale: scale,
         force_fit_pct: resid,
+    })
+}
+
+/// The error of a structure whose floors' elastic stiffness is not positive definite.
+pub(super) fn not_positive_definite(fm: &FloorModel) -> TrainError {
+    TrainError::Setting(format!(
+        "structure {}: the floors' elastic stiffness is not positive definite",
+        fm.name
+    ))
+}
+
+/// The plain force residual's normal equations: `|dev − Φw|² = dev_sq − 2 rhsᵀw + wᵀ·gram·w`,
+/// and the recovered force's squared norm it is reported against.
+pub(super) struct ForceNormal<'a> {
+    pub(super) gram: &'a DMatrix<f64>,
+    pub(super) rhs: &'a DVector<f64>,
+    pub(super) dev_sq: f64,
+    pub(super) ref_sq: f64,
+}
+
+/// A fit's weights made a model's hysterons ([`finish`]).
+pub(super) struct Finished {
+    /// The hysterons that carry weight, scaled.
+    pub(super) hysterons: Vec<HysteronSpec>,
+    /// The factor the weights were scaled by (1: none).
+    pub(super) scale: f64,
+    /// Relative RMS residual of the force fit with the scaled weights, %.
+    pub(super) force_fit_pct: f64,
+}
+
+/// The end of a fit, the least squares' and the free fit's alike: the weights `w` of the
+/// hysterons `hs` on `dirs` scaled if need be so the fully yielded tangent keeps
+/// [`MIN_TANGENT_FRACTION`] of `K` (the caps guarantee it; a round-off excess is scaled away),
+/// the force residual they leave, and the hysterons that carry weight (possibly none).
+pub(super) fn finish(
+    fm: &FloorModel,
+    dirs: &[Vec<f64>],
+    hs: &[(usize, f64)],
+    w: &[f64],
+    force: &ForceNormal<'_>,
+) -> Result<Finished, TrainError> {
+    let n = fm.floors();
+    let mut wm = DMatrix::<f64>::zeros(n, n);
+    for (wi, (e, _)) in w.iter().zip(hs) {
+        let a = DVector::from_column_slice(&dirs[*e]);
+        wm += &a * a.transpose() * *wi;
+    }
+    let mu = largest_generalized_eigenvalue(&wm, &fm.stiffness)
+        .ok_or_else(|| not_positive_definite(fm))?;
+    if !mu.is_finite() {
+        return Err(TrainError::Diverged(
+            "the hysterons' weights (not finite)".into(),
+        ));
+    }
+    let scale = if mu > 1.0 - MIN_TANGENT_FRACTION {
+        (1.0 - MIN_TANGENT_FRACTION) / mu
+    } else {
+        1.0
+    };
+    let wv = DVector::from_iterator(w.len(), w.iter().map(|x| x * scale));
+    let v = force.dev_sq - 2.0 * force.rhs.dot(&wv) + (wv.transpose() * force.gram * &wv)[(0, 0)];
+    let force_fit_pct = 100.0 * (v.max(0.0) / force.ref_sq.max(f64::MIN_POSITIVE)).sqrt();
+    let hysterons = w
+        .iter()
+        .zip(hs)
+        .filter(|(wi, _)| **wi > 0.0)
+        .map(|(wi, (e, thr))| HysteronSpec {
+            direction: *e,
+            threshold_mm: *thr,
+            weight_kn_per_mm: wi * scale,
+        })
+        .collect();
+    Ok(Finished {
+        hysterons,
+        scale,
+        force_fit_pct,
     })
 }
 

@@ -532,12 +532,8 @@ fn accumulate(row: &[f64], r0: f64, jtj: &mut DMatrix<f64>, jtr: &mut DVector<f6
 /// The basis of `fm` the fit `start` stands on (its directions, caps and hysterons: the least
 /// squares' thresholds on their grid, or the free fit's off it).
 pub fn basis(fm: &FloorModel, start: &HysteronFit) -> Result<Basis, TrainError> {
-    let (directions, kappa) = hysteron::basis_directions(&fm.stiffness).ok_or_else(|| {
-        TrainError::Setting(format!(
-            "structure {}: the floors' elastic stiffness is not positive definite",
-            fm.name
-        ))
-    })?;
+    let (directions, kappa) = hysteron::basis_directions(&fm.stiffness)
+        .ok_or_else(|| hysteron::not_positive_definite(fm))?;
     // The start's hysterons only (the least squares' or the free fit's): each one the model
     // keeps costs the board's tick (a Menegotto–Pinto play some 655 instructions on the
     // Cortex-M7), and refining every candidate of the grid kept 24 of them on the fiber frame (most under 1e-3 kN/mm), 2.6× the 10 %
@@ -578,12 +574,10 @@ pub fn refine(
         cfg,
     };
     let mut th = vec![0.0; pr.dim()];
-    for h in &start.hysterons {
-        if let Some(i) = basis
-            .grid
-            .iter()
-            .position(|(e, r)| *e == h.direction && *r == h.threshold_mm)
-        {
+    // The basis is the start's hysterons in order ([`basis`]): each weight by its index, so two
+    // at one threshold keep both.
+    for (i, h) in start.hysterons.iter().enumerate() {
+        if basis.grid.get(i) == Some(&(h.direction, h.threshold_mm)) {
             th[2 + i] = h.weight_kn_per_mm;
         }
     }

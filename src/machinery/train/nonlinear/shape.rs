@@ -7,15 +7,14 @@
 //! give the same bytes.
 
 use nalgebra::{DMatrix, DVector};
-use rths_core::metamodel::{HysteronOperator, MpShape, MP_CR1_MAX, MP_R0_RANGE};
-use rths_files::hysteron_model_file::HysteronSpec;
+use rths_core::metamodel::{HysteronOperator, MpShape, MP_CR1_MAX};
 
 use super::cmaes;
 use super::floors::{restoring_force_kn, FloorModel, FloorRun};
 use super::hysteron::{
-    basis_directions, capped_least_squares, dot, flexibility_squared,
-    largest_generalized_eigenvalue, nnls, Bank, HysteronFit, FIT_EVERY, MIN_TANGENT_FRACTION,
-    RIDGE,
+    basis_directions, capped_least_squares, dot, finish, flexibility_squared, nnls,
+    not_positive_definite, Bank, Finished, ForceNormal, HysteronFit, FIT_EVERY,
+    MIN_TANGENT_FRACTION, RIDGE,
 };
 use crate::machinery::train::TrainError;
 
@@ -49,14 +48,15 @@ struct Data {
 }
 
 /// The plays are integrated along every `path_every`-th step (they are rate-independent: a
-/// coarser path only rounds its turning points) and fitted at every `fit_every`-th (a multiple).
+/// coarser path only rounds its turning points) and fitted at each of its points; on every step
+/// (`path_every` 1), at every [`FIT_EVERY`]-th, as many samples as the least squares take (the
+/// even steps; the least squares' are the odd ones).
 fn sample(
     fm: &FloorModel,
     runs: &[FloorRun],
     dt_s: f64,
     dirs: &[Vec<f64>],
     path_every: usize,
-    fit_every: usize,
 ) -> Option<Data> {
     let wmat = flexibility_squared(&fm.stiffness)?;
     let vecs: Vec<DVector<f64>> = dirs.iter().map(|d| DVector::from_column_slice(d)).collect();
@@ -66,7 +66,12 @@ fn sample(
     let aa_f = DMatrix::from_fn(dirs.len(), dirs.len(), |i, j| dot(&dirs[i], &dirs[j]));
     let (mut dev_w_sq, mut dev_f_sq, mut ref_sq) = (0.0, 0.0, 0.0);
     let mut out = Vec::with_capacity(runs.len());
-    let (path_every, fit_every) = (path_every.max(1), fit_every.max(1));
+    let path_every = path_every.max(1);
+    let fit_every = if path_every == 1 {
+        FIT_EVERY
+    } else {
+        path_every
+    };
     for r in runs {
         let mut delta = Vec::with_capacity(r.len() / path_every * dirs.len() + dirs.len());
         for k in (0..r.len()).step_by(path_every) {
@@ -75,7 +80,7 @@ fn sample(
         }
         let fit = restoring_force_kn(fm, r, dt_s, 1)
             .into_iter()
-            .filter(|(k, _)| k % fit_every == 0 && k % path_every == 0)
+            .filter(|(k, _)| k % fit_every == 0)
             .map(|(k, force)| {
                 let x = DVector::from_fn(fm.floors(), |i, _| r.floor_disp_mm[i][k]);
                 let dev = &force - &fm.stiffness * x;
@@ -169,21 +174,18 @@ fn relative_residual(data: &Data, n: &Normal, w: &[f64]) -> f64 {
     v.max(0.0) / data.dev_w_sq.max(f64::MIN_POSITIVE)
 }
 
-/// The operator of the point `theta`'s tail (`ln R₀`, `c_R1` as a logistic of `MP_CR1_MAX`,
-/// `ln c_R2`), or `None` outside the admissible shapes.
+/// The operator of a search point's last three numbers (`ln R₀`, `c_R1` as a logistic of
+/// [`MP_CR1_MAX`], `ln c_R2`), or `None` outside the admissible shapes ([`MpShape::new`]).
 fn shape_at(tail: &[f64]) -> Option<MpShape> {
     let r0 = tail.first()?.exp();
     let cr1 = MP_CR1_MAX / (1.0 + (-tail.get(1)?).exp());
     let cr2 = tail.get(2)?.exp();
-    if !(MP_R0_RANGE.0..=MP_R0_RANGE.1).contains(&r0) {
-        return None;
-    }
     MpShape::new(r0, cr1, cr2).ok()
 }
 
 /// Move `start`'s thresholds (and its Menegotto–Pinto shape) to lower the weighted force
-/// residual on `runs`, the weights refitted at every point; `start` itself if nothing lower is
-/// found.
+/// residual on `runs`, the weights refitted at every point (on the kept hysterons alone); `start`
+/// itself if the search finds nothing lower than its own point.
 pub fn free_fit(
     fm: &FloorModel,
     runs: &[FloorRun],
@@ -191,14 +193,8 @@ pub fn free_fit(
     start: &HysteronFit,
     seed: u64,
 ) -> Result<HysteronFit, TrainError> {
-    let not_pd = || {
-        TrainError::Setting(format!(
-            "structure {}: the floors' elastic stiffness is not positive definite",
-            fm.name
-        ))
-    };
-    let data =
-        sample(fm, runs, dt_s, &start.directions, SHAPE_EVERY, SHAPE_EVERY).ok_or_else(not_pd)?;
+    let not_pd = || not_positive_definite(fm);
+    let data = sample(fm, runs, dt_s, &start.directions, SHAPE_EVERY).ok_or_else(not_pd)?;
     let (_, kappa) = basis_directions(&fm.stiffness).ok_or_else(not_pd)?;
     let caps: Vec<f64> = kappa
         .iter()
@@ -248,37 +244,34 @@ pub fn free_fit(
         seed,
         |_, _| {},
     );
+    // Nothing lower than the start: the least squares' own fit stands.
+    if found.best == x0 {
+        return Ok(start.clone());
+    }
     let Some((op, hs)) = decode(&found.best) else {
         return Ok(start.clone());
     };
-    // The weights at the point found, on every step as the least squares fit them.
-    let data = sample(fm, runs, dt_s, &start.directions, 1, FIT_EVERY).ok_or_else(not_pd)?;
+    // The weights at the point found, the plays integrated along every step.
+    let data =
+        sample(fm, runs, dt_s, &start.directions, 1).ok_or_else(|| not_positive_definite(fm))?;
     let n = normal(&data, op, &hs);
     let w = weights(&n, &hs, &caps);
-    let mut wm = DMatrix::<f64>::zeros(fm.floors(), fm.floors());
-    for (wi, (e, _)) in w.iter().zip(&hs) {
-        let a = DVector::from_column_slice(&start.directions[*e]);
-        wm += &a * a.transpose() * *wi;
-    }
-    let mu = largest_generalized_eigenvalue(&wm, &fm.stiffness).ok_or_else(not_pd)?;
-    let scale = if mu > 1.0 - MIN_TANGENT_FRACTION {
-        (1.0 - MIN_TANGENT_FRACTION) / mu
-    } else {
-        1.0
-    };
-    let wv = DVector::from_iterator(h, w.iter().map(|x| x * scale));
-    let v = data.dev_f_sq - 2.0 * n.b_f.dot(&wv) + (wv.transpose() * &n.g_f * &wv)[(0, 0)];
-    let force_fit_pct = 100.0 * (v.max(0.0) / data.ref_sq.max(f64::MIN_POSITIVE)).sqrt();
-    let hysterons: Vec<HysteronSpec> = w
-        .iter()
-        .zip(&hs)
-        .filter(|(wi, _)| **wi > 0.0)
-        .map(|(wi, (e, thr))| HysteronSpec {
-            direction: *e,
-            threshold_mm: *thr,
-            weight_kn_per_mm: wi * scale,
-        })
-        .collect();
+    let Finished {
+        hysterons,
+        scale,
+        force_fit_pct,
+    } = finish(
+        fm,
+        &start.directions,
+        &hs,
+        &w,
+        &ForceNormal {
+            gram: &n.g_f,
+            rhs: &n.b_f,
+            dev_sq: data.dev_f_sq,
+            ref_sq: data.ref_sq,
+        },
+    )?;
     if hysterons.is_empty() {
         return Ok(start.clone());
     }
