@@ -141,40 +141,9 @@ pub fn fit_hysteron(
                 .map(|p| validation_loss(&Learned::Hysteron(p), k_e, fit_runs))
         });
         let start = if cfg.free_fit {
-            // A free fit that fails leaves the least squares' candidate as it was.
-            let moved = shape::free_fit(fm, fit_runs, dt_s, &start, seed).and_then(|f| {
-                let p = hysteron::params(fm, &f, dt_s)?;
-                Ok((validation_loss(&Learned::Hysteron(p), k_e, judge), f))
-            });
-            match moved {
-                Ok((lf, f)) => {
-                    let free_kept = lf < l;
-                    free_notes.push(format!(
-                        "candidate {}: {} to {}, thresholds {}; loss {l:.3} % to {lf:.3} %{}",
-                        i + 1,
-                        hysteron::operator_spec(start.operator).describe(),
-                        hysteron::operator_spec(f.operator).describe(),
-                        f.hysterons
-                            .iter()
-                            .map(|h| format!("{:.2}", h.threshold_mm))
-                            .collect::<Vec<_>>()
-                            .join(" / "),
-                        if free_kept { ", kept" } else { ", not kept" }
-                    ));
-                    if free_kept {
-                        f
-                    } else {
-                        start
-                    }
-                }
-                Err(e) => {
-                    free_notes.push(format!(
-                        "candidate {}: not moved ({e}); the least squares' fit kept",
-                        i + 1
-                    ));
-                    start
-                }
-            }
+            let (start, note) = free_fit_candidate(fm, fit_runs, judge, dt_s, seed, start, l);
+            free_notes.push(format!("candidate {}: {note}", i + 1));
+            start
         } else {
             start
         };
@@ -260,6 +229,47 @@ pub fn fit_hysteron(
             }),
         },
     ))
+}
+
+/// The candidate `start` (its loss `l` on `judge`) moved by the free fit
+/// ([`shape::free_fit`]) where that lowers its loss on `judge`, and what was done, for the
+/// model file's record. A free fit that fails leaves the candidate as it was.
+fn free_fit_candidate(
+    fm: &FloorModel,
+    fit_runs: &[FloorRun],
+    judge: &[FloorRun],
+    dt_s: f64,
+    seed: u64,
+    start: hysteron::HysteronFit,
+    l: f64,
+) -> (hysteron::HysteronFit, String) {
+    let moved = shape::free_fit(fm, fit_runs, dt_s, &start, seed).and_then(|f| {
+        let p = hysteron::params(fm, &f, dt_s)?;
+        Ok((
+            validation_loss(&Learned::Hysteron(p), fm.specimen_k_kn_per_mm, judge),
+            f,
+        ))
+    });
+    match moved {
+        Ok((lf, f)) => {
+            let note = format!(
+                "{} to {}, thresholds {}; loss {l:.3} % to {lf:.3} %, {}",
+                hysteron::operator_spec(start.operator).describe(),
+                hysteron::operator_spec(f.operator).describe(),
+                f.hysterons
+                    .iter()
+                    .map(|h| format!("{:.2}", h.threshold_mm))
+                    .collect::<Vec<_>>()
+                    .join(" / "),
+                if lf < l { "kept" } else { "not kept" }
+            );
+            (if lf < l { f } else { start }, note)
+        }
+        Err(e) => (
+            start,
+            format!("not moved ({e}); the least squares' fit kept"),
+        ),
+    }
 }
 
 /// How many of the least squares' best candidates are refined (the lowest validation loss after
