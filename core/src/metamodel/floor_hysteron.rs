@@ -336,11 +336,7 @@ impl FloorHysteron {
     /// Back to rest with the acceleration due to `ground_accel_mm_s2` at t = 0; a non-finite
     /// value counts as 0.
     pub fn reset_at(&mut self, ground_accel_mm_s2: f64) {
-        let ag = if ground_accel_mm_s2.is_finite() {
-            ground_accel_mm_s2
-        } else {
-            0.0
-        };
+        let ag = super::start_accel_mm_s2(ground_accel_mm_s2);
         self.play = [0.0; HYST_MAX_HYSTERONS];
         self.mp = [MpState::REST; HYST_MAX_MP];
         self.p.chang.reset(ag);

@@ -1,7 +1,9 @@
 //! Metamodel inference (docs/design.md §5): the linear-regression (LR) model of the paper's Eq. 6 with a bias,
 //! a basic Elman RNN, and the specimen-faithful LRX, one file each (`lr.rs`, `rnn.rs`, `lrx.rs`), and the structure
-//! metamodel of an N-DOF numerical substructure (`delta_arx.rs`), and the learned models of a yielding one
-//! (`modal_hyst.rs`, `floor_hysteron.rs` with its Menegotto–Pinto play `mp_play.rs`). Training
+//! metamodel of an N-DOF numerical substructure (`delta_arx.rs`), the reduced modal model of a large linear
+//! one (`reduced_modal.rs`), and the learned models of a yielding one (`modal_hyst.rs`,
+//! `floor_hysteron.rs` with its Menegotto–Pinto play `mp_play.rs`); the two modal models share Chang's
+//! modal integrator (`modal_chang.rs`). Training
 //! lives on the host; this is the `no_std`, allocation-free inference the firmware runs at 2048 Hz.
 //!
 //! Units of every feature: ground acceleration ü_g in mm/s², measured brace deformation x_fb in mm
@@ -20,6 +22,7 @@ mod delta_arx;
 mod floor_hysteron;
 mod lr;
 mod lrx;
+mod modal_chang;
 mod modal_hyst;
 mod mp_play;
 mod reduced_modal;
@@ -78,6 +81,15 @@ impl core::fmt::Display for ModelError {
 
 #[cfg(feature = "std")]
 impl std::error::Error for ModelError {}
+
+/// A ground acceleration to start from: a non-finite value counts as 0 (a model's `reset_at`).
+pub(crate) fn start_accel_mm_s2(ground_accel_mm_s2: f64) -> f64 {
+    if ground_accel_mm_s2.is_finite() {
+        ground_accel_mm_s2
+    } else {
+        0.0
+    }
+}
 
 pub(crate) fn all_finite(values: &[f64], what: &'static str) -> Result<(), ParamError> {
     if values.iter().all(|v| v.is_finite()) {

@@ -19,6 +19,7 @@
 //! `no_std`, allocation-free, panic-free; a non-finite input or an overflowing step is refused with
 //! [`ModelError`] and the state is left as it was.
 
+use super::modal_chang::{predict, time_step, ModeStep};
 use super::{all_finite, shape, ModelError};
 use crate::hysteresis::{Law, StoryState};
 use crate::params::ParamError;
@@ -196,29 +197,6 @@ impl ModalHystParams {
     }
 }
 
-/// A finite, positive time step.
-fn time_step(dt_s: f64) -> Result<f64, ModelError> {
-    if !dt_s.is_finite() {
-        Err(ParamError::NotFinite("time step").into())
-    } else if dt_s <= 0.0 {
-        Err(ParamError::NotPositive("time step").into())
-    } else {
-        Ok(dt_s)
-    }
-}
-
-/// Chang's coefficients of one modal equation (unit mass): the scalar case of
-/// [`crate::structure_n::ChangN`]'s `D = M + ½ΔtC + ¼Δt²K0`, `β1 = D⁻¹(M + ½ΔtC)`, `β2 = D⁻¹·½M`.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-struct ModeStep {
-    c: f64,
-    k: f64,
-    b1_dt: f64,
-    b2_dt2: f64,
-    /// `1 / (1 + ½Δt·c)`.
-    solve: f64,
-}
-
 /// The modal-hysteretic model and its state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ModalHyst {
@@ -240,17 +218,7 @@ impl ModalHyst {
         let dt = p.dt_s;
         let mut step = [ModeStep::default(); MODAL_MAX_MODES];
         for (s, m) in step.iter_mut().zip(p.mode_list()) {
-            let c = 2.0 * m.damping_ratio * m.omega_rad_s;
-            let k = m.omega_rad_s * m.omega_rad_s;
-            let m_half_c = 1.0 + 0.5 * dt * c;
-            let d = m_half_c + 0.25 * dt * dt * k;
-            *s = ModeStep {
-                c,
-                k,
-                b1_dt: m_half_c / d * dt,
-                b2_dt2: 0.5 / d * dt * dt,
-                solve: 1.0 / m_half_c,
-            };
+            *s = ModeStep::new(m.omega_rad_s, m.damping_ratio, dt);
         }
         let mut me = Self {
             p,
@@ -279,11 +247,7 @@ impl ModalHyst {
     /// Back to rest with the acceleration due to `ground_accel_mm_s2` at t = 0 (as the FE's
     /// `reset`); a non-finite value counts as 0.
     pub fn reset_at(&mut self, ground_accel_mm_s2: f64) {
-        let ag = if ground_accel_mm_s2.is_finite() {
-            ground_accel_mm_s2
-        } else {
-            0.0
-        };
+        let ag = super::start_accel_mm_s2(ground_accel_mm_s2);
         self.states = [StoryState::REST; MODAL_MAX_SPRINGS];
         self.disp = [0.0; MODAL_MAX_MODES];
         self.vel = [0.0; MODAL_MAX_MODES];
@@ -415,25 +379,6 @@ impl ModalHyst {
         self.target = target;
         Ok(target)
     }
-}
-
-/// Chang's explicit prediction `d₁ = d₀ + β1Δt·v₀ + β2Δt²·a₀` of every mode, and whether all are
-/// finite.
-#[inline]
-fn predict(
-    step: &[ModeStep; MODAL_MAX_MODES],
-    d: &[f64; MODAL_MAX_MODES],
-    v: &[f64; MODAL_MAX_MODES],
-    a: &[f64; MODAL_MAX_MODES],
-    r: usize,
-) -> ([f64; MODAL_MAX_MODES], bool) {
-    let mut next = [0.0; MODAL_MAX_MODES];
-    let mut ok = true;
-    for ((((x, s), d), v), a) in next.iter_mut().zip(step).zip(d).zip(v).zip(a).take(r) {
-        *x = d + s.b1_dt * v + s.b2_dt2 * a;
-        ok &= x.is_finite();
-    }
-    (next, ok)
 }
 
 #[cfg(test)]

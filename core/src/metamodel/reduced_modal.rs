@@ -18,6 +18,7 @@
 //! `no_std`, allocation-free, panic-free; a non-finite input or an overflowing step is refused with
 //! [`ModelError`] and the state is left as it was.
 
+use super::modal_chang::{predict, time_step, ModeStep};
 use super::{all_finite, ModelError};
 use crate::params::ParamError;
 
@@ -233,33 +234,11 @@ impl ReducedModalParams {
     }
 }
 
-/// A finite, positive time step.
-fn time_step(dt_s: f64) -> Result<f64, ModelError> {
-    if !dt_s.is_finite() {
-        Err(ParamError::NotFinite("time step").into())
-    } else if dt_s <= 0.0 {
-        Err(ParamError::NotPositive("time step").into())
-    } else {
-        Ok(dt_s)
-    }
-}
-
-/// Chang's coefficients of one modal equation (unit mass), as the modal-hysteretic model's.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-struct ReducedStep {
-    c: f64,
-    k: f64,
-    b1_dt: f64,
-    b2_dt2: f64,
-    /// `1 / (1 + ½Δt·c)`.
-    solve: f64,
-}
-
 /// The reduced model and its state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReducedModal {
     p: ReducedModalParams,
-    step: [ReducedStep; REDUCED_MAX_MODES],
+    step: [ModeStep; REDUCED_MAX_MODES],
     disp: [f64; REDUCED_MAX_MODES],
     vel: [f64; REDUCED_MAX_MODES],
     accel: [f64; REDUCED_MAX_MODES],
@@ -278,19 +257,9 @@ impl ReducedModal {
     /// A model at rest.
     pub fn new(p: ReducedModalParams) -> Self {
         let dt = p.dt_s;
-        let mut step = [ReducedStep::default(); REDUCED_MAX_MODES];
+        let mut step = [ModeStep::default(); REDUCED_MAX_MODES];
         for (s, m) in step.iter_mut().zip(p.mode_list()) {
-            let c = 2.0 * m.damping_ratio * m.omega_rad_s;
-            let k = m.omega_rad_s * m.omega_rad_s;
-            let m_half_c = 1.0 + 0.5 * dt * c;
-            let d = m_half_c + 0.25 * dt * dt * k;
-            *s = ReducedStep {
-                c,
-                k,
-                b1_dt: m_half_c / d * dt,
-                b2_dt2: 0.5 / d * dt * dt,
-                solve: 1.0 / m_half_c,
-            };
+            *s = ModeStep::new(m.omega_rad_s, m.damping_ratio, dt);
         }
         let static_force_gain = p.static_force_cutoff_hz.map_or(1.0, |f| {
             1.0 - libm::exp(-2.0 * core::f64::consts::PI * f * dt)
@@ -324,11 +293,7 @@ impl ReducedModal {
     /// Back to rest with the acceleration due to `ground_accel_mm_s2` at t = 0; a non-finite value
     /// counts as 0.
     pub fn reset_at(&mut self, ground_accel_mm_s2: f64) {
-        let ag = if ground_accel_mm_s2.is_finite() {
-            ground_accel_mm_s2
-        } else {
-            0.0
-        };
+        let ag = super::start_accel_mm_s2(ground_accel_mm_s2);
         self.disp = [0.0; REDUCED_MAX_MODES];
         self.vel = [0.0; REDUCED_MAX_MODES];
         for (a, m) in self.accel.iter_mut().zip(self.p.mode_list()) {
@@ -442,25 +407,6 @@ impl ReducedModal {
         self.last_unbalance_kn = static_unbalance;
         Ok(target)
     }
-}
-
-/// Chang's explicit prediction `d₁ = d₀ + β1Δt·v₀ + β2Δt²·a₀` of every mode, and whether all are
-/// finite.
-#[inline]
-fn predict(
-    step: &[ReducedStep; REDUCED_MAX_MODES],
-    d: &[f64; REDUCED_MAX_MODES],
-    v: &[f64; REDUCED_MAX_MODES],
-    a: &[f64; REDUCED_MAX_MODES],
-    r: usize,
-) -> ([f64; REDUCED_MAX_MODES], bool) {
-    let mut next = [0.0; REDUCED_MAX_MODES];
-    let mut ok = true;
-    for ((((x, s), d), v), a) in next.iter_mut().zip(step).zip(d).zip(v).zip(a).take(r) {
-        *x = d + s.b1_dt * v + s.b2_dt2 * a;
-        ok &= x.is_finite();
-    }
-    (next, ok)
 }
 
 #[cfg(test)]
