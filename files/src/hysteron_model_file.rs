@@ -29,7 +29,10 @@ use rths_core::metamodel::{
 use rths_core::structure_n::MAX_DOF;
 use serde::{Deserialize, Serialize};
 
-use crate::nl_model_file::{structure_checksum, NlModelFile, NlModelFileError, NlStructureId};
+use crate::nl_model_file::{
+    check_kind, parse_header, pretty_json, read_text, write_text, NlModelFile, NlModelFileError,
+    NlStructureId,
+};
 
 /// The `kind` of a floor-hysteron model file.
 pub const HYSTERON_KIND: &str = "floor-hysteron";
@@ -207,11 +210,7 @@ impl AnyNlModel {
 
     /// Read and validate.
     pub fn load(path: &Path) -> Result<Self, NlModelFileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| NlModelFileError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Self::from_json(&text)
+        Self::from_json(&read_text(path)?)
     }
 
     /// The structure it was trained for.
@@ -246,71 +245,31 @@ fn field(what: String) -> NlModelFileError {
 impl HysteronModelFile {
     /// Parse and validate.
     pub fn from_json(text: &str) -> Result<Self, NlModelFileError> {
-        let v: serde_json::Value = serde_json::from_str(text)?;
-        let format = v.get("format").and_then(|f| f.as_str()).unwrap_or("");
-        if format != crate::nl_model_file::NL_FORMAT {
-            return Err(NlModelFileError::Format(format!(
-                "format {format:?}, expected \"{}\"",
-                crate::nl_model_file::NL_FORMAT
-            )));
-        }
-        let version = v.get("version").and_then(|f| f.as_u64()).unwrap_or(0);
-        if version != crate::nl_model_file::NL_VERSION {
-            return Err(NlModelFileError::Format(format!(
-                "version {version}, this build reads {}",
-                crate::nl_model_file::NL_VERSION
-            )));
-        }
+        let v = parse_header(text)?;
         let f: Self = serde_json::from_value(v)?;
-        if f.kind != HYSTERON_KIND {
-            return Err(NlModelFileError::Format(format!(
-                "kind {:?}, expected \"{HYSTERON_KIND}\"",
-                f.kind
-            )));
-        }
+        check_kind(&f.kind, HYSTERON_KIND)?;
         f.params(f.dt_s)?;
         Ok(f)
     }
 
     /// Read and validate a file.
     pub fn load(path: &Path) -> Result<Self, NlModelFileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| NlModelFileError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Self::from_json(&text)
+        Self::from_json(&read_text(path)?)
     }
 
     /// Pretty JSON with a final newline.
     pub fn to_json(&self) -> Result<String, NlModelFileError> {
-        Ok(serde_json::to_string_pretty(self)? + "\n")
+        pretty_json(self)
     }
 
     /// Write the file.
     pub fn save(&self, path: &Path) -> Result<(), NlModelFileError> {
-        std::fs::write(path, self.to_json()?).map_err(|source| NlModelFileError::Io {
-            path: path.to_path_buf(),
-            source,
-        })
+        write_text(path, &self.to_json()?)
     }
 
     /// Refuse the model unless it was trained for this structure file (name and checksum).
     pub fn check_structure(&self, structure_json: &str) -> Result<(), NlModelFileError> {
-        let checksum = structure_checksum(structure_json)?;
-        let name = serde_json::from_str::<serde_json::Value>(structure_json)
-            .ok()
-            .and_then(|v| v.get("name").and_then(|n| n.as_str()).map(str::to_string))
-            .unwrap_or_else(|| "?".to_string());
-        if checksum == self.structure.checksum && name == self.structure.name {
-            Ok(())
-        } else {
-            Err(NlModelFileError::WrongStructure {
-                model_name: self.structure.name.clone(),
-                model_checksum: self.structure.checksum.clone(),
-                given_name: name,
-                given_checksum: checksum,
-            })
-        }
+        self.structure.check(structure_json)
     }
 
     /// The validated core parameters at control step `dt_s`; a refusal names the field.

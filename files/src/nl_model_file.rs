@@ -218,81 +218,111 @@ fn structure_name(structure_json: &str) -> String {
         .unwrap_or_else(|| "?".to_string())
 }
 
+impl NlStructureId {
+    /// Refuse the model unless it was trained for this structure file (name and checksum of its
+    /// canonical content), with the reason.
+    pub fn check(&self, structure_json: &str) -> Result<(), NlModelFileError> {
+        let checksum = structure_checksum(structure_json)?;
+        let name = structure_name(structure_json);
+        if checksum == self.checksum && name == self.name {
+            Ok(())
+        } else {
+            Err(NlModelFileError::WrongStructure {
+                model_name: self.name.clone(),
+                model_checksum: self.checksum.clone(),
+                given_name: name,
+                given_checksum: checksum,
+            })
+        }
+    }
+}
+
+/// Parse a learned model file's JSON and refuse it unless its format is [`NL_FORMAT`] and its
+/// version [`NL_VERSION`]: checked before the fields, so a future file gives a version error.
+pub(crate) fn parse_header(text: &str) -> Result<serde_json::Value, NlModelFileError> {
+    let v: serde_json::Value = serde_json::from_str(text)?;
+    let format = v.get("format").and_then(|f| f.as_str()).unwrap_or("");
+    if format != NL_FORMAT {
+        return Err(NlModelFileError::Format(format!(
+            "format {format:?}, expected \"{NL_FORMAT}\""
+        )));
+    }
+    let version = v.get("version").and_then(|f| f.as_u64()).unwrap_or(0);
+    if version != NL_VERSION {
+        return Err(NlModelFileError::Format(format!(
+            "version {version}, this build reads {NL_VERSION}"
+        )));
+    }
+    Ok(v)
+}
+
+/// Refuse a model whose `kind` is not `expected`.
+pub(crate) fn check_kind(kind: &str, expected: &str) -> Result<(), NlModelFileError> {
+    if kind == expected {
+        Ok(())
+    } else {
+        Err(NlModelFileError::Format(format!(
+            "kind {kind:?}, expected \"{expected}\""
+        )))
+    }
+}
+
+/// The text of the file at `path`.
+pub(crate) fn read_text(path: &Path) -> Result<String, NlModelFileError> {
+    std::fs::read_to_string(path).map_err(|source| NlModelFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Pretty JSON with a final newline.
+pub(crate) fn pretty_json<T: Serialize>(model: &T) -> Result<String, NlModelFileError> {
+    Ok(serde_json::to_string_pretty(model)? + "\n")
+}
+
+/// Write `text` to `path`.
+pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), NlModelFileError> {
+    std::fs::write(path, text).map_err(|source| NlModelFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
 impl NlModelFile {
     /// Parse and validate.
     pub fn from_json(text: &str) -> Result<Self, NlModelFileError> {
-        // Format and version first, so a future file gives a version error.
-        let v: serde_json::Value = serde_json::from_str(text)?;
-        let format = v.get("format").and_then(|f| f.as_str()).unwrap_or("");
-        if format != NL_FORMAT {
-            return Err(NlModelFileError::Format(format!(
-                "format {format:?}, expected \"{NL_FORMAT}\""
-            )));
-        }
-        let version = v.get("version").and_then(|f| f.as_u64()).unwrap_or(0);
-        if version != NL_VERSION {
-            return Err(NlModelFileError::Format(format!(
-                "version {version}, this build reads {NL_VERSION}"
-            )));
-        }
+        let v = parse_header(text)?;
         let f: Self = serde_json::from_value(v)?;
-        if f.kind != NL_KIND {
-            return Err(NlModelFileError::Format(format!(
-                "kind {:?}, expected \"{NL_KIND}\"",
-                f.kind
-            )));
-        }
+        check_kind(&f.kind, NL_KIND)?;
         f.params(f.dt_s)?;
         Ok(f)
     }
 
     /// Read and validate a file.
     pub fn load(path: &Path) -> Result<Self, NlModelFileError> {
-        let text = std::fs::read_to_string(path).map_err(|source| NlModelFileError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Self::from_json(&text)
+        Self::from_json(&read_text(path)?)
     }
 
     /// Pretty JSON with a final newline.
     pub fn to_json(&self) -> Result<String, NlModelFileError> {
-        Ok(serde_json::to_string_pretty(self)? + "\n")
+        pretty_json(self)
     }
 
     /// Write the file.
     pub fn save(&self, path: &Path) -> Result<(), NlModelFileError> {
-        std::fs::write(path, self.to_json()?).map_err(|source| NlModelFileError::Io {
-            path: path.to_path_buf(),
-            source,
-        })
+        write_text(path, &self.to_json()?)
     }
 
     /// Refuse the model unless it was trained for this structure file (name and checksum of its
     /// canonical content), with the reason.
     pub fn check_structure(&self, structure_json: &str) -> Result<(), NlModelFileError> {
-        let checksum = structure_checksum(structure_json)?;
-        let name = structure_name(structure_json);
-        if checksum == self.structure.checksum && name == self.structure.name {
-            Ok(())
-        } else {
-            Err(NlModelFileError::WrongStructure {
-                model_name: self.structure.name.clone(),
-                model_checksum: self.structure.checksum.clone(),
-                given_name: name,
-                given_checksum: checksum,
-            })
-        }
+        self.structure.check(structure_json)
     }
 
     /// Read the model at `model` and refuse it unless it is for the structure file at `structure`.
     pub fn load_for(model: &Path, structure: &Path) -> Result<Self, NlModelFileError> {
         let f = Self::load(model)?;
-        let text = std::fs::read_to_string(structure).map_err(|source| NlModelFileError::Io {
-            path: structure.to_path_buf(),
-            source,
-        })?;
-        f.check_structure(&text)?;
+        f.check_structure(&read_text(structure)?)?;
         Ok(f)
     }
 
