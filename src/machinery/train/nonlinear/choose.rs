@@ -127,6 +127,8 @@ pub fn fit_hysteron(
     // the lowest validation loss after refinement kept ([`REFINED_CANDIDATES`]).
     let few = if refining { REFINED_CANDIDATES } else { 1 };
     let mut kept: Option<Refined> = None;
+    // Whether the kept candidate is the free fit's (named in the method).
+    let mut kept_moved = false;
     let mut free_notes = Vec::new();
     for (i, (start, l)) in ranked.into_iter().take(few).enumerate() {
         // The best is refined whatever its loss (its error is the training's); a runner-up
@@ -140,12 +142,13 @@ pub fn fit_hysteron(
             hysteron::params(fm, &start, dt_s)
                 .map(|p| validation_loss(&Learned::Hysteron(p), k_e, fit_runs))
         });
-        let start = if cfg.free_fit {
-            let (start, note) = free_fit_candidate(fm, fit_runs, judge, dt_s, seed, start, l);
+        let (start, moved) = if cfg.free_fit {
+            let (start, note, moved) =
+                free_fit_candidate(fm, fit_runs, judge, dt_s, seed, start, l);
             free_notes.push(format!("candidate {}: {note}", i + 1));
-            start
+            (start, moved)
         } else {
-            start
+            (start, false)
         };
         let r = refine_candidate(
             fm,
@@ -170,6 +173,7 @@ pub fn fit_hysteron(
         };
         if kept.as_ref().is_none_or(|k| r.val_loss < k.val_loss) {
             kept = Some(r);
+            kept_moved = moved;
         }
     }
     let Some(Refined {
@@ -200,11 +204,15 @@ pub fn fit_hysteron(
         structure,
         dt_s,
         HysteronTraining {
-            method: if report.is_some() {
-                format!("{HYSTERON_METHOD}+{}", refine::REFINE_METHOD)
-            } else {
-                HYSTERON_METHOD.into()
-            },
+            method: [
+                Some(HYSTERON_METHOD),
+                kept_moved.then_some(shape::FREE_FIT_METHOD),
+                report.is_some().then_some(refine::REFINE_METHOD),
+            ]
+            .into_iter()
+            .flatten()
+            .collect::<Vec<_>>()
+            .join("+"),
             seed,
             runs: fit_runs
                 .iter()
@@ -233,7 +241,8 @@ pub fn fit_hysteron(
 
 /// The candidate `start` (its loss `l` on `judge`) moved by the free fit
 /// ([`shape::free_fit`]) where that lowers its loss on `judge`, and what was done, for the
-/// model file's record. A free fit that fails leaves the candidate as it was.
+/// model file's record, and whether it was moved. A free fit that fails leaves the candidate as
+/// it was.
 fn free_fit_candidate(
     fm: &FloorModel,
     fit_runs: &[FloorRun],
@@ -242,7 +251,7 @@ fn free_fit_candidate(
     seed: u64,
     start: hysteron::HysteronFit,
     l: f64,
-) -> (hysteron::HysteronFit, String) {
+) -> (hysteron::HysteronFit, String, bool) {
     let moved = shape::free_fit(fm, fit_runs, dt_s, &start, seed).and_then(|f| {
         let p = hysteron::params(fm, &f, dt_s)?;
         Ok((
@@ -263,11 +272,16 @@ fn free_fit_candidate(
                     .join(" / "),
                 if lf < l { "kept" } else { "not kept" }
             );
-            (if lf < l { f } else { start }, note)
+            if lf < l {
+                (f, note, true)
+            } else {
+                (start, note, false)
+            }
         }
         Err(e) => (
             start,
             format!("not moved ({e}); the least squares' fit kept"),
+            false,
         ),
     }
 }
@@ -654,6 +668,11 @@ mod tests {
         let b = fit_hysteron(&fm, &runs[..2], &runs[2..], id, 1, DT_S, free, |_, _, _| {})
             .expect("trained");
         assert!(a.training.free_fit.is_empty());
+        assert_eq!(a.training.method, HYSTERON_METHOD);
+        assert_eq!(
+            b.training.method,
+            format!("{HYSTERON_METHOD}+{}", shape::FREE_FIT_METHOD)
+        );
         assert_eq!(b.training.free_fit.len(), 1, "{:?}", b.training.free_fit);
         assert!(
             b.training.free_fit[0].ends_with(", kept"),

@@ -18,6 +18,8 @@ use super::hysteron::{
 };
 use crate::machinery::train::TrainError;
 
+/// The free fit's name in the model file's method (where the kept candidate was moved by it).
+pub const FREE_FIT_METHOD: &str = "cma-es-free-fit";
 /// CMA-ES generations of the free fit.
 pub const SHAPE_GENERATIONS: usize = 60;
 /// The search integrates the plays along every this many steps (2048 Hz: 512 Hz, some 100
