@@ -63,6 +63,40 @@ def parse_dof(text, fail):
         fail(2, f"`{text}` is not NODE:DOF")
 
 
+def read_at2(path, fail):
+    """(dt, accelerations in g) of a PEER AT2 file: header on line 4 (`NPTS=`, `DT=`), values from
+    line 5, the first NPTS kept (fewer is an error). A file that is not one is `fail(2, message)`
+    naming the file and, where there is one, the line."""
+    # Any stray byte becomes U+FFFD, then fails as a value naming its line (no UnicodeDecodeError).
+    try:
+        with open(path, encoding="ascii", errors="replace") as f:
+            lines = f.read().splitlines()
+    except OSError as e:
+        fail(2, f"{path}: cannot be read ({e.strerror})")
+    if len(lines) < 4:
+        fail(2, f"{path}: not an AT2 file (fewer than 4 lines)")
+    header = lines[3].upper().replace(",", " ")
+    tokens = header.replace("=", " ").split()
+    try:
+        npts = int(float(tokens[tokens.index("NPTS") + 1]))
+        dt = float(tokens[tokens.index("DT") + 1])
+    except (ValueError, IndexError):
+        fail(2, f"{path}: line 4: no NPTS= and DT= in the AT2 header")
+    if not dt > 0.0:
+        fail(2, f"{path}: line 4: DT {dt} is not positive")
+    values = []
+    for number, line in enumerate(lines[4:], start=5):
+        for v in line.split():
+            try:
+                values.append(float(v.replace("D", "E")))  # Fortran's 1.0D-02 too
+            except ValueError:
+                fail(2, f"{path}: line {number}: `{v}` is not a number")
+    # A short file is a cut one: refused, as rths's own reader does, never run as a shorter record.
+    if npts < 1 or len(values) < npts:
+        fail(2, f"{path}: NPTS {npts} in the header, {len(values)} acceleration values after it")
+    return dt, values[:npts]
+
+
 def failer(script):
     """The `fail(code, message)` of a script: `script: message` on stderr, then exit `code`."""
     def fail(code, message):

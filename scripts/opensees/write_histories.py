@@ -39,7 +39,8 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-from transient import build_model, failer, ground_loads, parse_dof  # noqa: E402 (after the path)
+from transient import (build_model, failer, ground_loads, parse_dof,  # noqa: E402 (after the path)
+                       read_at2)
 
 G_MM_S2 = 9806.65
 SERIES_TAG = 987011
@@ -47,25 +48,6 @@ PATTERN_TAG = 987011
 
 
 fail = failer("write_histories.py")
-
-
-def read_at2(path):
-    """(dt, accelerations in g) of a PEER AT2 file."""
-    with open(path, encoding="ascii", errors="replace") as f:
-        lines = f.read().splitlines()
-    if len(lines) < 4:
-        fail(2, f"{path}: not an AT2 file (fewer than 4 lines)")
-    header = lines[3].upper().replace(",", " ")
-    tokens = header.replace("=", " ").split()
-    try:
-        npts = int(float(tokens[tokens.index("NPTS") + 1]))
-        dt = float(tokens[tokens.index("DT") + 1])
-    except (ValueError, IndexError):
-        fail(2, f"{path}: line 4: no NPTS= and DT= in the AT2 header")
-    values = []
-    for line in lines[4:]:
-        values.extend(float(v.replace("D", "E")) for v in line.split())
-    return dt, values[:npts]
 
 
 def resample(dt_in, values, dt_out, duration_s):
@@ -99,7 +81,7 @@ def run(args, ops, model, record, scale, outs, folder=None):
     build_model(model, fail)
 
     length_to_mm, force_to_kn = (1000.0, 1e-3) if args.units == "si" else (1.0, 1.0)
-    dt_rec, ag_g = read_at2(record)
+    dt_rec, ag_g = read_at2(record, fail)
     duration = args.duration_s if args.duration_s else (len(ag_g) - 1) * dt_rec
     duration = min(duration, (len(ag_g) - 1) * dt_rec)
     ag = resample(dt_rec, [scale * a * G_MM_S2 / length_to_mm for a in ag_g], args.dt, duration)
