@@ -3,7 +3,8 @@
 //! yielding run; bad history files are refused naming the file and the line; and with openseespy,
 //! histories written by OpenSees of a Steel02 frame (a law the springs were not written for) train
 //! a model that is scored against OpenSees's own run of a held-out record, and OpenSees's own
-//! recorder files read as the same run as the CSV.
+//! recorder files read as the same run as the CSV; a malformed record stops those scripts with a
+//! message naming the file and the line.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -734,4 +735,103 @@ fn a_pushover_gives_the_interface_s_yield_and_asce_41_s_bilinear() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// A malformed PEER record given to the OpenSees scripts (the histories' writer and both site
+/// frames share one reader) stops the script with a message naming the file and, where there is
+/// one, the line: never a Python traceback, never a record run shorter than its header says.
+#[test]
+#[cfg_attr(
+    rths_no_opensees,
+    ignore = "needs openseespy, not found when the tests were built (docs/ci.md)"
+)]
+fn a_malformed_record_stops_the_opensees_scripts_naming_the_file_and_the_line() {
+    if opensees("malformed records").is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bad = [
+        (
+            "cut.AT2",
+            "A\nB\nC\nNPTS= 5, DT= 0.01\n0.1 0.2 0.3\n",
+            "NPTS 5 in the header, 3",
+        ),
+        (
+            "value.AT2",
+            "A\nB\nC\nNPTS= 3, DT= 0.01\n0.1\n0.2x 0.3\n",
+            "line 6: `0.2x`",
+        ),
+        (
+            "dt.AT2",
+            "A\nB\nC\nNPTS= 3, DT= 0\n0.1 0.2 0.3\n",
+            "line 4: DT 0",
+        ),
+        (
+            "header.AT2",
+            "A\nB\nC\nDT= 0.01\n0.1 0.2 0.3\n",
+            "line 4: no NPTS=",
+        ),
+    ];
+    for (name, text, says) in bad {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        let runs: [(&str, Vec<String>); 3] = [
+            (
+                "write_histories.py",
+                vec![
+                    root("data/structures/opensees/shear3_steel02.py")
+                        .display()
+                        .to_string(),
+                    "--specimen".into(),
+                    "1:1".into(),
+                    "--specimen-element".into(),
+                    "1000".into(),
+                    "--output".into(),
+                    "1:1".into(),
+                    "--record".into(),
+                    path.display().to_string(),
+                    "--scale".into(),
+                    "1".into(),
+                    "--dt".into(),
+                    format!("{DT_S}"),
+                    "--out-dir".into(),
+                    dir.path().join("out").display().to_string(),
+                ],
+            ),
+            (
+                "site_paper_frame.py",
+                vec![
+                    "--record".into(),
+                    path.display().to_string(),
+                    "--elastic".into(),
+                    "100".into(),
+                ],
+            ),
+            (
+                "site_3story.py",
+                vec![
+                    "--record".into(),
+                    path.display().to_string(),
+                    "--elastic".into(),
+                    "100".into(),
+                ],
+            ),
+        ];
+        for (script, args) in runs {
+            let o = opensees("malformed records")
+                .unwrap()
+                .arg(root(&format!("scripts/opensees/{script}")))
+                .args(&args)
+                .output()
+                .unwrap();
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(2), "{script} {name}: {err}");
+            assert!(
+                err.contains(&path.display().to_string()),
+                "{script} {name}: {err}"
+            );
+            assert!(err.contains(says), "{script} {name}: {err}");
+            assert!(!err.contains("Traceback"), "{script} {name}: {err}");
+        }
+    }
 }
