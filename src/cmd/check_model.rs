@@ -66,6 +66,25 @@ pub struct Rejected {
     pub reason: String,
 }
 
+/// The lines every learned (nonlinear) model's summary starts with.
+fn learned_header(
+    s: &mut String,
+    format: &str,
+    version: u64,
+    kind: &str,
+    structure: &rths_files::nl_model_file::NlStructureId,
+    dt_s: f64,
+) {
+    let _ = writeln!(s, "format / version  {format} / {version}");
+    let _ = writeln!(s, "kind              {kind}");
+    let _ = writeln!(
+        s,
+        "structure         {} ({})",
+        structure.name, structure.checksum
+    );
+    let _ = writeln!(s, "dt_s              {dt_s:e}");
+}
+
 /// Validate `path` as a model file of any kind (its `format` and `kind` tags pick the reader; the
 /// same checks as the commands that run it: [`models::check_for_controller`] for LR, RNN and LRX,
 /// [`crate::machinery::structure::model::check_rate`] for the nonlinear model); a summary if it is accepted.
@@ -109,14 +128,7 @@ pub fn check(path: &std::path::Path, kind: Option<ModelKindArg>) -> Result<Strin
                 ),
             )
             .map_err(|e| reject(e.to_string()))?;
-            let _ = writeln!(s, "format / version  {} / {}", m.format, m.version);
-            let _ = writeln!(s, "kind              {}", m.kind);
-            let _ = writeln!(
-                s,
-                "structure         {} ({})",
-                m.structure.name, m.structure.checksum
-            );
-            let _ = writeln!(s, "dt_s              {:e}", m.dt_s);
+            learned_header(&mut s, &m.format, m.version, &m.kind, &m.structure, m.dt_s);
             let _ = writeln!(
                 s,
                 "floors / directions / hysterons   {} / {} / {}",
@@ -131,14 +143,7 @@ pub fn check(path: &std::path::Path, kind: Option<ModelKindArg>) -> Result<Strin
                 .map_err(|e| reject(e.to_string()))?;
             crate::machinery::structure::model::check_rate(&m)
                 .map_err(|e| reject(e.to_string()))?;
-            let _ = writeln!(s, "format / version  {} / {}", m.format, m.version);
-            let _ = writeln!(s, "kind              {}", m.kind);
-            let _ = writeln!(
-                s,
-                "structure         {} ({})",
-                m.structure.name, m.structure.checksum
-            );
-            let _ = writeln!(s, "dt_s              {:e}", m.dt_s);
+            learned_header(&mut s, &m.format, m.version, &m.kind, &m.structure, m.dt_s);
             let _ = writeln!(
                 s,
                 "modes / springs   {} / {}",

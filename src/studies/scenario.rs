@@ -290,7 +290,7 @@ impl RunHistory {
 }
 
 /// The figures of one run (docs/design.md §7). `None` figures: the run was stopped, or had no actuator.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Default, Serialize)]
 pub struct ScenarioReport {
     /// Scenario id.
     pub id: String,
@@ -625,17 +625,7 @@ fn figures_named(id: String, uses_rig: bool, h: &Series<'_>, stop: Stop) -> Scen
         stable: stop.is_none(),
         stop_reason: stop.as_ref().map(|s| s.0.clone()),
         stop_time_s: stop.as_ref().map(|s| s.1),
-        nrmse_pct: None,
-        nrmse_measured_pct: None,
-        j1_ms: None,
-        j2_pct: None,
-        j3_pct: None,
-        j4_pct: None,
-        j5_pct: None,
-        peak_disp_mm: None,
-        j1_target_ms: None,
-        j2_target_pct: None,
-        j3_target_pct: None,
+        ..ScenarioReport::default()
     };
     if stop.is_some() {
         return r;

@@ -727,17 +727,7 @@ mod tests {
             stable: stop_s.is_none(),
             stop_reason: stop_s.map(|_| "CommandVelocity".into()),
             stop_time_s: stop_s,
-            nrmse_pct: None,
-            nrmse_measured_pct: None,
-            j1_ms: None,
-            j2_pct: None,
-            j3_pct: None,
-            j4_pct: None,
-            j5_pct: None,
-            peak_disp_mm: None,
-            j1_target_ms: None,
-            j2_target_pct: None,
-            j3_target_pct: None,
+            ..ScenarioReport::default()
         };
         ScenarioRun { report, history }
     }
