@@ -9,9 +9,8 @@
 mod common;
 use common::*;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::sync::Mutex;
-use std::time::{Duration, Instant};
 
 use rths::machinery::motion::GroundMotion;
 use rths::studies::analysis::{pure_response, Method};
@@ -132,25 +131,24 @@ fn build_on_env(
 /// The QEMU command line of `firmware/.cargo/config.toml`'s runner (one source of truth): the
 /// target's `runner` for the M4, the `run-m7` alias's for the M7.
 fn runner(on: Emulated) -> Vec<String> {
-    let cfg = std::fs::read_to_string(firmware_dir().join(".cargo/config.toml")).unwrap();
-    let quoted = match on {
-        Emulated::M4 => {
-            let line = cfg
-                .lines()
-                .find(|l| l.trim_start().starts_with("runner"))
-                .unwrap();
-            line.split('"').nth(1).unwrap()
-        }
+    match on {
+        Emulated::M4 => firmware_runner(),
         Emulated::M7 => {
+            let cfg = std::fs::read_to_string(firmware_dir().join(".cargo/config.toml")).unwrap();
             let line = cfg
                 .lines()
                 .find(|l| l.trim_start().starts_with("run-m7"))
                 .unwrap();
             let at = line.find("runner='").unwrap() + "runner='".len();
-            line[at..].split('\'').next().unwrap()
+            line[at..]
+                .split('\'')
+                .next()
+                .unwrap()
+                .split_whitespace()
+                .map(str::to_string)
+                .collect()
         }
-    };
-    quoted.split_whitespace().map(str::to_string).collect()
+    }
 }
 
 /// Run an ELF in QEMU (5 min timeout); its RESULT line as JSON and the exit status.
@@ -166,43 +164,11 @@ fn run_on(on: Emulated, elf: &Path) -> (serde_json::Value, bool) {
 
 /// [`run_on`], with the CALIB line as JSON too.
 fn run_full(on: Emulated, elf: &Path) -> (serde_json::Value, serde_json::Value, bool) {
-    let argv = runner(on);
-    let dir = tempfile::tempdir().unwrap();
-    let mut child = Command::new(&argv[0])
-        .args(&argv[1..])
-        .arg(elf)
-        .current_dir(dir.path())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if start.elapsed() > Duration::from_secs(300) {
-            let _ = child.kill();
-            panic!("QEMU did not finish within 300 s");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let mut out = String::new();
-    std::io::Read::read_to_string(&mut child.stdout.take().unwrap(), &mut out).unwrap();
+    let (status, out) = run_qemu(&runner(on), elf);
     println!("{out}");
-    let line = out
-        .lines()
-        .rev()
-        .find_map(|l| l.strip_prefix("RESULT "))
-        .unwrap_or_else(|| panic!("no RESULT line in:\n{out}"));
-    let calib = out
-        .lines()
-        .rev()
-        .find_map(|l| l.strip_prefix("CALIB "))
-        .unwrap_or_else(|| panic!("no CALIB line in:\n{out}"));
     (
-        serde_json::from_str(line).unwrap(),
-        serde_json::from_str(calib).unwrap(),
+        serde_json::from_str(tagged_line(&out, "RESULT ")).unwrap(),
+        serde_json::from_str(tagged_line(&out, "CALIB ")).unwrap(),
         status.success(),
     )
 }

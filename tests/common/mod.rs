@@ -42,15 +42,35 @@ pub fn qemu_missing(what: &str) -> bool {
 /// Run a firmware ELF in QEMU with the firmware's own runner line (`firmware/.cargo/config.toml`),
 /// from an empty directory, at most 300 s; print and return its exit status and its `RESULT` object.
 pub fn run_elf_in_qemu(elf: &Path) -> (std::process::ExitStatus, serde_json::Value) {
-    use std::time::{Duration, Instant};
+    let (exit, out) = run_qemu(&firmware_runner(), elf);
+    let result = tagged_line(&out, "RESULT ");
+    let r: serde_json::Value = serde_json::from_str(result).unwrap();
+    println!("{r}");
+    (exit, r)
+}
+
+/// The QEMU command line of the firmware's target `runner` (`firmware/.cargo/config.toml`, the
+/// emulated Cortex-M4), one word an entry.
+pub fn firmware_runner() -> Vec<String> {
     let cfg = std::fs::read_to_string(firmware_dir().join(".cargo/config.toml")).unwrap();
     let line = cfg
         .lines()
         .find(|l| l.trim_start().starts_with("runner"))
         .unwrap();
-    let argv: Vec<&str> = line.split('"').nth(1).unwrap().split_whitespace().collect();
+    line.split('"')
+        .nth(1)
+        .unwrap()
+        .split_whitespace()
+        .map(str::to_string)
+        .collect()
+}
+
+/// Run `elf` by the QEMU command line `argv` from an empty directory, at most 300 s (a hung
+/// emulation is killed and the test fails); its exit status and its standard output.
+pub fn run_qemu(argv: &[String], elf: &Path) -> (std::process::ExitStatus, String) {
+    use std::time::{Duration, Instant};
     let dir = tempfile::tempdir().unwrap();
-    let mut child = Command::new(argv[0])
+    let mut child = Command::new(&argv[0])
         .args(&argv[1..])
         .arg(elf)
         .current_dir(dir.path())
@@ -71,12 +91,13 @@ pub fn run_elf_in_qemu(elf: &Path) -> (std::process::ExitStatus, serde_json::Val
     };
     let mut out = String::new();
     std::io::Read::read_to_string(&mut child.stdout.take().unwrap(), &mut out).unwrap();
-    let result = out
-        .lines()
+    (exit, out)
+}
+
+/// The last line of `out` that starts with `tag`, without it (the test fails without one).
+pub fn tagged_line<'a>(out: &'a str, tag: &str) -> &'a str {
+    out.lines()
         .rev()
-        .find_map(|l| l.strip_prefix("RESULT "))
-        .unwrap_or_else(|| panic!("no RESULT line in:\n{out}"));
-    let r: serde_json::Value = serde_json::from_str(result).unwrap();
-    println!("{r}");
-    (exit, r)
+        .find_map(|l| l.strip_prefix(tag))
+        .unwrap_or_else(|| panic!("no {tag}line in:\n{out}"))
 }
