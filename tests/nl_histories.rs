@@ -739,7 +739,8 @@ fn a_pushover_gives_the_interface_s_yield_and_asce_41_s_bilinear() {
 
 /// A malformed PEER record given to the OpenSees scripts (the histories' writer and both site
 /// frames share one reader) stops the script with a message naming the file and, where there is
-/// one, the line: never a Python traceback, never a record run shorter than its header says.
+/// one, the line: never a Python traceback, never a record run other than its header says. The
+/// layouts rths's own reader takes (`NPTS:`, the older `N DT NPTS, DT`) are read.
 #[test]
 #[cfg_attr(
     rths_no_opensees,
@@ -764,12 +765,37 @@ fn a_malformed_record_stops_the_opensees_scripts_naming_the_file_and_the_line() 
         (
             "dt.AT2",
             "A\nB\nC\nNPTS= 3, DT= 0\n0.1 0.2 0.3\n",
-            "line 4: DT 0",
+            "line 4: DT `0`",
         ),
         (
             "header.AT2",
             "A\nB\nC\nDT= 0.01\n0.1 0.2 0.3\n",
             "line 4: no NPTS=",
+        ),
+        (
+            "huge.AT2",
+            "A\nB\nC\nNPTS= 1e999, DT= 0.01\n0.1\n",
+            "line 4: NPTS `1E999`",
+        ),
+        (
+            "part.AT2",
+            "A\nB\nC\nNPTS= 2.7, DT= 0.01\n0.1 0.2\n",
+            "line 4: NPTS `2.7`",
+        ),
+        (
+            "infdt.AT2",
+            "A\nB\nC\nNPTS= 2, DT= inf\n0.1 0.2\n",
+            "line 4: DT `INF`",
+        ),
+        (
+            "nan.AT2",
+            "A\nB\nC\nNPTS= 2, DT= 0.01\n0.1 nan\n",
+            "line 5: `nan`",
+        ),
+        (
+            "long.AT2",
+            "A\nB\nC\nNPTS= 2, DT= 0.01\n0.1 0.2 0.3\n",
+            "NPTS 2 in the header, 3",
         ),
     ];
     for (name, text, says) in bad {
@@ -833,5 +859,25 @@ fn a_malformed_record_stops_the_opensees_scripts_naming_the_file_and_the_line() 
             assert!(err.contains(says), "{script} {name}: {err}");
             assert!(!err.contains("Traceback"), "{script} {name}: {err}");
         }
+    }
+    // The layouts rths reads are read here too: the site frame runs them.
+    for (name, text) in [
+        ("colon.AT2", "A\nB\nC\nNPTS: 3 DT: 0.01\n0.1, 0.2, 0.3\n"),
+        ("old.AT2", "A\nB\nC\n3 .0100 NPTS, DT\n0.1 0.2 0.3\n"),
+    ] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        let o = opensees("malformed records")
+            .unwrap()
+            .arg(root("scripts/opensees/site_paper_frame.py"))
+            .args(["--elastic", "100", "--duration", "0.05", "--record"])
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
     }
 }

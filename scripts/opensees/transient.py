@@ -21,6 +21,7 @@ with `ops.mass`), so its response to distributed mass is not the model's (docs/o
 
 import argparse
 import json
+import math
 import os
 import runpy
 import sys
@@ -63,10 +64,47 @@ def parse_dof(text, fail):
         fail(2, f"`{text}` is not NODE:DOF")
 
 
+def _at2_number(token):
+    """The finite float an AT2 token holds (Fortran's 1.0D-02 too), or None."""
+    try:
+        value = float(token.replace("D", "E"))
+    except ValueError:
+        return None
+    return value if math.isfinite(value) else None
+
+
+def _at2_header_value(upper, key):
+    """The token after `key` on an upper-cased header line, past one `=` or `:`, up to the next
+    blank or comma; None if the key is absent or nothing follows it."""
+    at = upper.find(key)
+    if at < 0:
+        return None
+    rest = upper[at + len(key):].lstrip()
+    if rest[:1] in ("=", ":"):
+        rest = rest[1:].lstrip()
+    token = rest.replace(",", " ").split()
+    return token[0] if token else None
+
+
+def _at2_header_fields(upper):
+    """The NPTS and DT tokens of an upper-cased line 4: `NPTS= 4000, DT= .01 SEC` (`=` or `:`,
+    comma optional) or the older PEER layout `4000 .0100 NPTS, DT`; None where one is missing."""
+    lead = upper.replace(",", " ").split()
+    if (len(lead) >= 3 and _at2_number(lead[0]) is not None and _at2_number(lead[1]) is not None
+            and lead[2].startswith("NPTS") and "DT" in upper):
+        return lead[0], lead[1]
+    npts = _at2_header_value(upper, "NPTS")
+    # DT after NPTS first, so that a record name holding "DT" is not taken for it.
+    after = upper.find("NPTS")
+    dt = _at2_header_value(upper[after + 4:], "DT") if after >= 0 else None
+    return npts, dt if dt is not None else _at2_header_value(upper, "DT")
+
+
 def read_at2(path, fail):
-    """(dt, accelerations in g) of a PEER AT2 file: header on line 4 (`NPTS=`, `DT=`), values from
-    line 5, the first NPTS kept (fewer is an error). A file that is not one is `fail(2, message)`
-    naming the file and, where there is one, the line."""
+    """(dt, accelerations in g) of a PEER AT2 file, in the layouts rths's own reader takes: lines
+    1-3 free text, line 4 `NPTS` and `DT` (`NPTS= 4000, DT= .01 SEC`, `=` or `:`, or the older
+    `4000 .0100 NPTS, DT`), then exactly NPTS finite values separated by blanks or commas. A file
+    that is not one is `fail(2, message)` naming the file and, where there is one, the line."""
     # Any stray byte becomes U+FFFD, then fails as a value naming its line (no UnicodeDecodeError).
     try:
         with open(path, encoding="ascii", errors="replace") as f:
@@ -75,26 +113,27 @@ def read_at2(path, fail):
         fail(2, f"{path}: cannot be read ({e.strerror})")
     if len(lines) < 4:
         fail(2, f"{path}: not an AT2 file (fewer than 4 lines)")
-    header = lines[3].upper().replace(",", " ")
-    tokens = header.replace("=", " ").split()
-    try:
-        npts = int(float(tokens[tokens.index("NPTS") + 1]))
-        dt = float(tokens[tokens.index("DT") + 1])
-    except (ValueError, IndexError):
+    npts_text, dt_text = _at2_header_fields(lines[3].upper())
+    if npts_text is None or dt_text is None:
         fail(2, f"{path}: line 4: no NPTS= and DT= in the AT2 header")
-    if not dt > 0.0:
-        fail(2, f"{path}: line 4: DT {dt} is not positive")
+    if not npts_text.isdigit() or int(npts_text) < 1:
+        fail(2, f"{path}: line 4: NPTS `{npts_text}` is not a whole number of points")
+    npts = int(npts_text)
+    dt = _at2_number(dt_text)
+    if dt is None or dt <= 0.0:
+        fail(2, f"{path}: line 4: DT `{dt_text}` is not a finite positive step")
     values = []
     for number, line in enumerate(lines[4:], start=5):
-        for v in line.split():
-            try:
-                values.append(float(v.replace("D", "E")))  # Fortran's 1.0D-02 too
-            except ValueError:
-                fail(2, f"{path}: line {number}: `{v}` is not a number")
-    # A short file is a cut one: refused, as rths's own reader does, never run as a shorter record.
-    if npts < 1 or len(values) < npts:
+        for token in line.replace(",", " ").split():
+            value = _at2_number(token)
+            if value is None:
+                fail(2, f"{path}: line {number}: `{token}` is not a finite number")
+            values.append(value)
+    # A cut file, or one with values past its NPTS, is refused as rths's own reader refuses it:
+    # never run as another record than its header says.
+    if len(values) != npts:
         fail(2, f"{path}: NPTS {npts} in the header, {len(values)} acceleration values after it")
-    return dt, values[:npts]
+    return dt, values
 
 
 def failer(script):
