@@ -289,33 +289,30 @@ impl Analytical {
     /// Story drifts at the last completed step (after the tick of k: at d_k), mm, of the
     /// analytical parts that have stories (the structure files'); `None` for the others.
     pub fn story_drift_mm(&self) -> Option<crate::structure_n::Dofs> {
+        // A learned model's drift of each of its floors.
+        fn floors(n: usize, drift: impl Fn(usize) -> f64) -> crate::structure_n::Dofs {
+            let mut d = [0.0; crate::structure_n::MAX_DOF];
+            for (i, di) in d.iter_mut().enumerate().take(n) {
+                *di = drift(i);
+            }
+            d
+        }
         match self {
             Analytical::StructureFe(m) => {
                 let c = m.chang();
-                let mut d = [0.0; crate::structure_n::MAX_DOF];
-                let mut below = 0.0;
-                for (di, xi) in d.iter_mut().zip(c.disp()).take(c.model().dofs()) {
-                    *di = xi - below;
-                    below = *xi;
-                }
-                Some(d)
+                Some(crate::structure_n::story_drifts_mm(
+                    c.disp(),
+                    c.model().dofs(),
+                ))
             }
             Analytical::StructureNl(m) => Some(m.frame().story_drift_mm()),
             Analytical::StructureModal(m) => {
                 let model = m.model();
-                let mut d = [0.0; crate::structure_n::MAX_DOF];
-                for (i, di) in d.iter_mut().enumerate().take(model.params().floors()) {
-                    *di = model.story_drift_mm(i);
-                }
-                Some(d)
+                Some(floors(model.params().floors(), |i| model.story_drift_mm(i)))
             }
             Analytical::StructureHysteron(m) => {
                 let model = m.model();
-                let mut d = [0.0; crate::structure_n::MAX_DOF];
-                for (i, di) in d.iter_mut().enumerate().take(model.params().floors()) {
-                    *di = model.story_drift_mm(i);
-                }
-                Some(d)
+                Some(floors(model.params().floors(), |i| model.story_drift_mm(i)))
             }
             _ => None,
         }
@@ -1021,8 +1018,9 @@ pub use correction::ForceCorrection;
 #[cfg(feature = "std")]
 pub use host::{HostNumerical, StructureHost};
 pub use structure::{
-    FloorHysteronSpec, ModalSpec, ReducedSpec, StoryLawSpec, StructureFe, StructureHysteron,
-    StructureModal, StructureNl, StructureReduced, StructureSpec, HYSTERON_VALUES,
+    AtSpecimenDof, FloorHysteronSpec, FloorIntegrator, ModalSpec, PartStep, ReducedSpec,
+    StoryLawSpec, StructureFe, StructureHysteron, StructureModal, StructureNl, StructurePart,
+    StructureReduced, StructureSpec, HYSTERON_VALUES,
 };
 
 #[cfg(test)]

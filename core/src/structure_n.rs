@@ -29,6 +29,19 @@ pub type Square = [[f64; MAX_DOF]; MAX_DOF];
 /// A fixed-capacity vector; entries beyond the DOFs in use are zero.
 pub type Dofs = [f64; MAX_DOF];
 
+/// Story drifts `x_i − x_{i−1}` (the ground is 0) of floor displacements `x` over the leading `n`
+/// DOFs (the floors from the ground up), mm; the entries past `n` are zero.
+#[inline]
+pub fn story_drifts_mm(x: &Dofs, n: usize) -> Dofs {
+    let mut d = [0.0; MAX_DOF];
+    let mut below = 0.0;
+    for (di, xi) in d.iter_mut().zip(x).take(n) {
+        *di = xi - below;
+        below = *xi;
+    }
+    d
+}
+
 type Padded = SMatrix<f64, MAX_DOF, MAX_DOF>;
 
 /// A validated N-DOF linear structure (the numerical substructure of a partitioned test, or a

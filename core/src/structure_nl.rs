@@ -16,7 +16,7 @@
 
 use crate::hysteresis::{Law, Story};
 use crate::params::ParamError;
-use crate::structure_n::{ChangN, Dofs, StructureN, MAX_DOF};
+use crate::structure_n::{story_drifts_mm as drifts, ChangN, Dofs, StructureN, MAX_DOF};
 
 /// A nonlinear shear frame and its state, integrated by Chang's explicit method.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -109,18 +109,6 @@ impl NonlinearFrame {
         self.story_force = [0.0; MAX_DOF];
         self.chang.reset(ground_accel_mm_s2);
     }
-}
-
-/// `x_i − x_{i−1}` (the ground is 0) over the leading `n` DOFs.
-#[inline]
-fn drifts(x: &Dofs, n: usize) -> Dofs {
-    let mut d = [0.0; MAX_DOF];
-    let mut below = 0.0;
-    for (di, xi) in d.iter_mut().zip(x).take(n) {
-        *di = xi - below;
-        below = *xi;
-    }
-    d
 }
 
 #[cfg(test)]

@@ -16,7 +16,7 @@ use crate::metamodel::{
     StaticCorrection, HYST_MAX_DIRECTIONS, HYST_MAX_HYSTERONS, MODAL_MAX_SPRINGS,
 };
 use crate::params::ParamError;
-use crate::structure_n::{ChangN, StructureN, MAX_DOF};
+use crate::structure_n::{ChangN, Dofs, StructureN, MAX_DOF};
 use crate::structure_nl::NonlinearFrame;
 
 /// An N-DOF structure as a structure file describes its numerical part, raw (row-major `dofs ×
@@ -145,43 +145,139 @@ impl StructureSpec<'_> {
     }
 }
 
-/// Refuse a non-finite ground acceleration or force (the state is not touched).
-fn finite_inputs(ag_mm_s2: f64, force_kn: f64) -> Result<(), super::StepError> {
-    if !ag_mm_s2.is_finite() {
-        Err(super::StepError::NonFiniteGroundAccel)
-    } else if !force_kn.is_finite() {
-        Err(super::StepError::NonFiniteOutput)
-    } else {
-        Ok(())
-    }
+/// A structure file's analytical part as one step of its own kind (an integrator at the specimen's
+/// DOF, or a learned or reduced model): what [`StructurePart`] ticks.
+pub trait PartStep {
+    /// At rest under `ü_g(0)` (the initial condition): the target of the next tick, mm.
+    fn rest_under(&mut self, ag_mm_s2: f64) -> f64;
+    /// Complete the step at the last target with `ü_g(k)` and the specimen's measured force: the
+    /// next target, mm. A step the part refuses leaves its state unchanged.
+    fn complete_step(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError>;
+    /// Back to rest under no ground motion, every spring or story virgin.
+    fn back_to_rest(&mut self);
 }
 
-/// A linear N-DOF numerical substructure integrated by [`ChangN`].
+/// A structure file's analytical part as the controller steps it, whatever its kind: tick 0 rests
+/// it under `ü_g(0)`, each later tick completes the step with `ü_g(k)` and the measured force at
+/// the specimen's DOF. A non-finite input is refused before it touches the state.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StructureFe {
-    chang: ChangN,
-    dof: usize,
+pub struct StructurePart<M> {
+    model: M,
     started: bool,
 }
 
-impl StructureFe {
-    /// `model` at step `dt_s`, the specimen at `specimen_dof` (0-based), at rest.
-    pub fn new(model: StructureN, specimen_dof: usize, dt_s: f64) -> Result<Self, ParamError> {
-        if specimen_dof >= model.dofs() {
+impl<M: PartStep> StructurePart<M> {
+    /// `model`, at rest.
+    fn at_rest(mut model: M) -> Self {
+        model.back_to_rest();
+        Self {
+            model,
+            started: false,
+        }
+    }
+
+    /// The part's model (its state and read-outs).
+    pub fn model(&self) -> &M {
+        &self.model
+    }
+
+    /// Tick k: complete step k with `ü_g(k)` and the specimen's measured force, return the target
+    /// displacement at the specimen's DOF for k+1, mm.
+    #[inline]
+    pub fn next_target(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
+        if !ag_mm_s2.is_finite() {
+            return Err(super::StepError::NonFiniteGroundAccel);
+        }
+        if !force_kn.is_finite() {
+            return Err(super::StepError::NonFiniteOutput);
+        }
+        if self.started {
+            self.model.complete_step(ag_mm_s2, force_kn)
+        } else {
+            self.started = true;
+            Ok(self.model.rest_under(ag_mm_s2))
+        }
+    }
+
+    /// Back to rest.
+    pub fn reset(&mut self) {
+        self.model.back_to_rest();
+        self.started = false;
+    }
+}
+
+/// An N-DOF integrator whose physical part acts at one DOF: Chang's linear [`ChangN`] or the
+/// yielding [`NonlinearFrame`].
+pub trait FloorIntegrator {
+    /// Number of DOFs.
+    fn dofs(&self) -> usize;
+    /// The displacement of the next step, mm.
+    fn next_displacement(&self) -> &Dofs;
+    /// Complete the step with `ü_g` and the physical part's force at each DOF.
+    fn advance(&mut self, ag_mm_s2: f64, r_ext_kn: &Dofs);
+    /// Back to rest with the acceleration due to `ü_g` at t = 0.
+    fn reset(&mut self, ag_mm_s2: f64);
+}
+
+impl FloorIntegrator for ChangN {
+    fn dofs(&self) -> usize {
+        self.model().dofs()
+    }
+    #[inline]
+    fn next_displacement(&self) -> &Dofs {
+        ChangN::next_displacement(self)
+    }
+    #[inline]
+    fn advance(&mut self, ag_mm_s2: f64, r_ext_kn: &Dofs) {
+        ChangN::advance(self, ag_mm_s2, r_ext_kn);
+    }
+    fn reset(&mut self, ag_mm_s2: f64) {
+        ChangN::reset(self, ag_mm_s2);
+    }
+}
+
+impl FloorIntegrator for NonlinearFrame {
+    fn dofs(&self) -> usize {
+        NonlinearFrame::dofs(self)
+    }
+    #[inline]
+    fn next_displacement(&self) -> &Dofs {
+        NonlinearFrame::next_displacement(self)
+    }
+    #[inline]
+    fn advance(&mut self, ag_mm_s2: f64, r_ext_kn: &Dofs) {
+        NonlinearFrame::advance(self, ag_mm_s2, r_ext_kn);
+    }
+    fn reset(&mut self, ag_mm_s2: f64) {
+        NonlinearFrame::reset(self, ag_mm_s2);
+    }
+}
+
+/// An integrator with the specimen at one of its DOFs: the measured force acts there, the target
+/// is the displacement there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AtSpecimenDof<I> {
+    integrator: I,
+    dof: usize,
+}
+
+impl<I: FloorIntegrator> AtSpecimenDof<I> {
+    /// `integrator` with the specimen at `specimen_dof` (0-based).
+    fn new(integrator: I, specimen_dof: usize) -> Result<Self, ParamError> {
+        if specimen_dof >= integrator.dofs() {
             return Err(ParamError::OutOfRange(
                 "specimen DOF (beyond the structure)",
             ));
         }
         Ok(Self {
-            chang: ChangN::new(model, dt_s)?,
+            integrator,
             dof: specimen_dof,
-            started: false,
         })
     }
 
     /// The integrator (every floor's state).
-    pub fn chang(&self) -> &ChangN {
-        &self.chang
+    pub fn integrator(&self) -> &I {
+        &self.integrator
     }
 
     /// The specimen's DOF, 0-based.
@@ -189,60 +285,69 @@ impl StructureFe {
         self.dof
     }
 
-    /// Tick k: complete step k with `ü_g(k)` and the specimen's measured force, return the target
-    /// displacement at the specimen's DOF for k+1, mm.
+    /// The target: the next displacement at the specimen's DOF, mm.
     #[inline]
-    pub fn next_target(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
-        finite_inputs(ag_mm_s2, force_kn)?;
-        if self.started {
-            let mut r = [0.0; MAX_DOF];
-            if let Some(x) = r.get_mut(self.dof) {
-                *x = force_kn;
-            }
-            self.chang.advance(ag_mm_s2, &r);
-        } else {
-            self.chang.reset(ag_mm_s2);
-            self.started = true;
-        }
-        Ok(self
-            .chang
+    fn target_mm(&self) -> f64 {
+        self.integrator
             .next_displacement()
             .get(self.dof)
             .copied()
-            .unwrap_or(f64::NAN))
+            .unwrap_or(f64::NAN)
+    }
+}
+
+impl<I: FloorIntegrator> PartStep for AtSpecimenDof<I> {
+    fn rest_under(&mut self, ag_mm_s2: f64) -> f64 {
+        self.integrator.reset(ag_mm_s2);
+        self.target_mm()
     }
 
-    /// Back to rest.
-    pub fn reset(&mut self) {
-        self.chang.reset(0.0);
-        self.started = false;
+    #[inline]
+    fn complete_step(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
+        let mut r = [0.0; MAX_DOF];
+        if let Some(x) = r.get_mut(self.dof) {
+            *x = force_kn;
+        }
+        self.integrator.advance(ag_mm_s2, &r);
+        Ok(self.target_mm())
+    }
+
+    fn back_to_rest(&mut self) {
+        self.integrator.reset(0.0);
+    }
+}
+
+/// A linear N-DOF numerical substructure integrated by [`ChangN`].
+pub type StructureFe = StructurePart<AtSpecimenDof<ChangN>>;
+
+impl StructureFe {
+    /// `model` at step `dt_s`, the specimen at `specimen_dof` (0-based), at rest.
+    pub fn new(model: StructureN, specimen_dof: usize, dt_s: f64) -> Result<Self, ParamError> {
+        Ok(Self::at_rest(AtSpecimenDof::new(
+            ChangN::new(model, dt_s)?,
+            specimen_dof,
+        )?))
+    }
+
+    /// The integrator (every floor's state).
+    pub fn chang(&self) -> &ChangN {
+        self.model.integrator()
+    }
+
+    /// The specimen's DOF, 0-based.
+    pub fn specimen_dof(&self) -> usize {
+        self.model.specimen_dof()
     }
 }
 
 /// A yielding N-story numerical substructure ([`NonlinearFrame`]: Chang, story forces evaluated
 /// once per step).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StructureNl {
-    frame: NonlinearFrame,
-    dof: usize,
-    started: bool,
-}
+pub type StructureNl = StructurePart<AtSpecimenDof<NonlinearFrame>>;
 
 impl StructureNl {
-    /// `frame`, the specimen at `specimen_dof` (0-based), at rest.
+    /// `frame`, the specimen at `specimen_dof` (0-based), at rest, every story virgin.
     pub fn new(frame: NonlinearFrame, specimen_dof: usize) -> Result<Self, ParamError> {
-        if specimen_dof >= frame.dofs() {
-            return Err(ParamError::OutOfRange(
-                "specimen DOF (beyond the structure)",
-            ));
-        }
-        let mut s = Self {
-            frame,
-            dof: specimen_dof,
-            started: false,
-        };
-        s.reset();
-        Ok(s)
+        Ok(Self::at_rest(AtSpecimenDof::new(frame, specimen_dof)?))
     }
 
     /// `model` with `laws` (the first `model.dofs()` are used) at step `dt_s`, the specimen at
@@ -260,42 +365,40 @@ impl StructureNl {
 
     /// The frame (every floor's and story's state).
     pub fn frame(&self) -> &NonlinearFrame {
-        &self.frame
+        self.model.integrator()
     }
 
     /// The specimen's DOF, 0-based.
     pub fn specimen_dof(&self) -> usize {
-        self.dof
-    }
-
-    /// As [`StructureFe::next_target`].
-    #[inline]
-    pub fn next_target(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
-        finite_inputs(ag_mm_s2, force_kn)?;
-        if self.started {
-            let mut r = [0.0; MAX_DOF];
-            if let Some(x) = r.get_mut(self.dof) {
-                *x = force_kn;
-            }
-            self.frame.advance(ag_mm_s2, &r);
-        } else {
-            self.frame.reset(ag_mm_s2);
-            self.started = true;
-        }
-        Ok(self
-            .frame
-            .next_displacement()
-            .get(self.dof)
-            .copied()
-            .unwrap_or(f64::NAN))
-    }
-
-    /// Back to rest, every story virgin.
-    pub fn reset(&mut self) {
-        self.frame.reset(0.0);
-        self.started = false;
+        self.model.specimen_dof()
     }
 }
+
+/// A learned or reduced model's step in the controller's terms: its own refusal (a step that would
+/// overflow, the state unchanged) is a non-finite output.
+macro_rules! metamodel_part_step {
+    ($($model:ty),+) => {$(
+        impl PartStep for $model {
+            fn rest_under(&mut self, ag_mm_s2: f64) -> f64 {
+                self.reset_at(ag_mm_s2);
+                self.target_mm()
+            }
+            #[inline]
+            fn complete_step(
+                &mut self,
+                ag_mm_s2: f64,
+                force_kn: f64,
+            ) -> Result<f64, super::StepError> {
+                self.step(ag_mm_s2, force_kn)
+                    .map_err(|_| super::StepError::NonFiniteOutput)
+            }
+            fn back_to_rest(&mut self) {
+                self.reset();
+            }
+        }
+    )+};
+}
+metamodel_part_step!(ModalHyst, FloorHysteron, ReducedModal);
 
 /// The modal-hysteretic metamodel of a yielding structure (an `rths-nl-model` file), raw: the
 /// arrays the file stores (validated by [`Self::params`]). Firmware keeps one in a `const` over its
@@ -341,47 +444,13 @@ impl ModalSpec<'_> {
     }
 }
 
-/// The modal-hysteretic metamodel ([`ModalHyst`]) as the controller steps it: tick 0 rests it
-/// under `ü_g(0)`, each later tick completes the step with `ü_g(k)` and the measured force.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StructureModal {
-    model: ModalHyst,
-    started: bool,
-}
+/// The modal-hysteretic metamodel ([`ModalHyst`]) as the controller steps it.
+pub type StructureModal = StructurePart<ModalHyst>;
 
 impl StructureModal {
     /// The model of `params`, at rest.
     pub fn new(params: ModalHystParams) -> Self {
-        Self {
-            model: ModalHyst::new(params),
-            started: false,
-        }
-    }
-
-    /// The model (its modes' and springs' state).
-    pub fn model(&self) -> &ModalHyst {
-        &self.model
-    }
-
-    /// As [`StructureFe::next_target`]; a step that would overflow is refused (state unchanged).
-    #[inline]
-    pub fn next_target(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
-        finite_inputs(ag_mm_s2, force_kn)?;
-        if self.started {
-            self.model
-                .step(ag_mm_s2, force_kn)
-                .map_err(|_| super::StepError::NonFiniteOutput)
-        } else {
-            self.model.reset_at(ag_mm_s2);
-            self.started = true;
-            Ok(self.model.target_mm())
-        }
-    }
-
-    /// Back to rest, every spring virgin.
-    pub fn reset(&mut self) {
-        self.model.reset();
-        self.started = false;
+        Self::at_rest(ModalHyst::new(params))
     }
 }
 
@@ -453,47 +522,13 @@ impl FloorHysteronSpec<'_> {
     }
 }
 
-/// The floor-hysteron metamodel ([`FloorHysteron`]) as the controller steps it: tick 0 rests it
-/// under `ü_g(0)`, each later tick completes the step with `ü_g(k)` and the measured force.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StructureHysteron {
-    model: FloorHysteron,
-    started: bool,
-}
+/// The floor-hysteron metamodel ([`FloorHysteron`]) as the controller steps it.
+pub type StructureHysteron = StructurePart<FloorHysteron>;
 
 impl StructureHysteron {
     /// The model of `params`, at rest.
     pub fn new(params: FloorHysteronParams) -> Self {
-        Self {
-            model: FloorHysteron::new(params),
-            started: false,
-        }
-    }
-
-    /// The model (its floors' and hysterons' state).
-    pub fn model(&self) -> &FloorHysteron {
-        &self.model
-    }
-
-    /// As [`StructureFe::next_target`]; a step that would overflow is refused (state unchanged).
-    #[inline]
-    pub fn next_target(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
-        finite_inputs(ag_mm_s2, force_kn)?;
-        if self.started {
-            self.model
-                .step(ag_mm_s2, force_kn)
-                .map_err(|_| super::StepError::NonFiniteOutput)
-        } else {
-            self.model.reset_at(ag_mm_s2);
-            self.started = true;
-            Ok(self.model.target_mm())
-        }
-    }
-
-    /// Back to rest, every hysteron virgin.
-    pub fn reset(&mut self) {
-        self.model.reset();
-        self.started = false;
+        Self::at_rest(FloorHysteron::new(params))
     }
 }
 
@@ -528,47 +563,13 @@ impl ReducedSpec<'_> {
     }
 }
 
-/// The reduced-order modal model ([`ReducedModal`]) as the controller steps it: tick 0 rests it
-/// under `ü_g(0)`, each later tick completes the step with `ü_g(k)` and the measured force.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StructureReduced {
-    model: ReducedModal,
-    started: bool,
-}
+/// The reduced-order modal model ([`ReducedModal`]) as the controller steps it.
+pub type StructureReduced = StructurePart<ReducedModal>;
 
 impl StructureReduced {
     /// The model of `params`, at rest.
     pub fn new(params: ReducedModalParams) -> Self {
-        Self {
-            model: ReducedModal::new(params),
-            started: false,
-        }
-    }
-
-    /// The model (its modes' state and read-outs).
-    pub fn model(&self) -> &ReducedModal {
-        &self.model
-    }
-
-    /// As [`StructureFe::next_target`]; a step that would overflow is refused (state unchanged).
-    #[inline]
-    pub fn next_target(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
-        finite_inputs(ag_mm_s2, force_kn)?;
-        if self.started {
-            self.model
-                .step(ag_mm_s2, force_kn)
-                .map_err(|_| super::StepError::NonFiniteOutput)
-        } else {
-            self.model.reset_at(ag_mm_s2);
-            self.started = true;
-            Ok(self.model.target_mm())
-        }
-    }
-
-    /// Back to rest.
-    pub fn reset(&mut self) {
-        self.model.reset();
-        self.started = false;
+        Self::at_rest(ReducedModal::new(params))
     }
 }
 
