@@ -289,8 +289,8 @@ impl Analytical {
     /// Story drifts at the last completed step (after the tick of k: at d_k), mm, of the
     /// analytical parts that have stories (the structure files'); `None` for the others.
     pub fn story_drift_mm(&self) -> Option<crate::structure_n::Dofs> {
-        // A learned model's drift of each of its floors.
-        fn floors(n: usize, drift: impl Fn(usize) -> f64) -> crate::structure_n::Dofs {
+        // A learned model's drift of each of its stories.
+        fn per_story(n: usize, drift: impl Fn(usize) -> f64) -> crate::structure_n::Dofs {
             let mut d = [0.0; crate::structure_n::MAX_DOF];
             for (i, di) in d.iter_mut().enumerate().take(n) {
                 *di = drift(i);
@@ -308,11 +308,15 @@ impl Analytical {
             Analytical::StructureNl(m) => Some(m.frame().story_drift_mm()),
             Analytical::StructureModal(m) => {
                 let model = m.model();
-                Some(floors(model.params().floors(), |i| model.story_drift_mm(i)))
+                Some(per_story(model.params().floors(), |i| {
+                    model.story_drift_mm(i)
+                }))
             }
             Analytical::StructureHysteron(m) => {
                 let model = m.model();
-                Some(floors(model.params().floors(), |i| model.story_drift_mm(i)))
+                Some(per_story(model.params().floors(), |i| {
+                    model.story_drift_mm(i)
+                }))
             }
             _ => None,
         }
@@ -1018,7 +1022,7 @@ pub use correction::ForceCorrection;
 #[cfg(feature = "std")]
 pub use host::{HostNumerical, StructureHost};
 pub use structure::{
-    AtSpecimenDof, FloorHysteronSpec, FloorIntegrator, ModalSpec, PartStep, ReducedSpec,
+    AtSpecimenDof, DofIntegrator, FloorHysteronSpec, ModalSpec, PartStep, ReducedSpec,
     StoryLawSpec, StructureFe, StructureHysteron, StructureModal, StructureNl, StructurePart,
     StructureReduced, StructureSpec, HYSTERON_VALUES,
 };

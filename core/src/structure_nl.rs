@@ -16,7 +16,7 @@
 
 use crate::hysteresis::{Law, Story};
 use crate::params::ParamError;
-use crate::structure_n::{story_drifts_mm as drifts, ChangN, Dofs, StructureN, MAX_DOF};
+use crate::structure_n::{story_drifts_mm, ChangN, Dofs, StructureN, MAX_DOF};
 
 /// A nonlinear shear frame and its state, integrated by Chang's explicit method.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -74,7 +74,7 @@ impl NonlinearFrame {
 
     /// Story drifts at the last completed step, mm.
     pub fn story_drift_mm(&self) -> Dofs {
-        drifts(self.chang.disp(), self.dofs())
+        story_drifts_mm(self.chang.disp(), self.dofs())
     }
 
     /// Complete the step at [`Self::next_displacement`]: the stories move there (their state is
@@ -83,7 +83,7 @@ impl NonlinearFrame {
     #[inline]
     pub fn advance(&mut self, ground_accel_mm_s2: f64, r_ext_kn: &Dofs) {
         let n = self.dofs();
-        let d = drifts(self.chang.next_displacement(), n);
+        let d = story_drifts_mm(self.chang.next_displacement(), n);
         for ((f, s), u) in self.story_force.iter_mut().zip(&mut self.stories).zip(d) {
             if let Some(s) = s {
                 *f = s.update(u);

@@ -98,11 +98,7 @@ impl StructureSpec<'_> {
             self.initial_stiffness,
             self.ground_mass,
         )?;
-        if self.specimen_dof >= m.dofs() {
-            return Err(ParamError::OutOfRange(
-                "specimen DOF (beyond the structure)",
-            ));
-        }
+        specimen_dof_within(self.specimen_dof, m.dofs())?;
         Ok(m)
     }
 
@@ -145,10 +141,23 @@ impl StructureSpec<'_> {
     }
 }
 
-/// A structure file's analytical part as one step of its own kind (an integrator at the specimen's
-/// DOF, or a learned or reduced model): what [`StructurePart`] ticks.
+/// Refuse a specimen DOF (0-based) past a structure's `dofs`.
+fn specimen_dof_within(specimen_dof: usize, dofs: usize) -> Result<(), ParamError> {
+    if specimen_dof >= dofs {
+        Err(ParamError::OutOfRange(
+            "specimen DOF (beyond the structure)",
+        ))
+    } else {
+        Ok(())
+    }
+}
+
+/// What differs between the kinds of a structure file's analytical part: how each rests, steps
+/// and resets (an integrator at the specimen's DOF, or a learned or reduced model). The tick
+/// around it is [`StructurePart`]'s, the same for every kind.
 pub trait PartStep {
-    /// At rest under `ü_g(0)` (the initial condition): the target of the next tick, mm.
+    /// Put the part at rest under `ü_g(0)` (the initial condition) and return the first target,
+    /// mm.
     fn rest_under(&mut self, ag_mm_s2: f64) -> f64;
     /// Complete the step at the last target with `ü_g(k)` and the specimen's measured force: the
     /// next target, mm. A step the part refuses leaves its state unchanged.
@@ -176,13 +185,16 @@ impl<M: PartStep> StructurePart<M> {
         }
     }
 
-    /// The part's model (its state and read-outs).
+    /// The part's own model, its state and read-outs (for the FE parts, the integrator at the
+    /// specimen's DOF).
     pub fn model(&self) -> &M {
         &self.model
     }
 
     /// Tick k: complete step k with `ü_g(k)` and the specimen's measured force, return the target
-    /// displacement at the specimen's DOF for k+1, mm.
+    /// displacement at the specimen's DOF for k+1, mm. A non-finite `ü_g` is refused first
+    /// ([`super::StepError::NonFiniteGroundAccel`]), then a non-finite force
+    /// ([`super::StepError::NonFiniteOutput`]), the state untouched either way.
     #[inline]
     pub fn next_target(&mut self, ag_mm_s2: f64, force_kn: f64) -> Result<f64, super::StepError> {
         if !ag_mm_s2.is_finite() {
@@ -199,16 +211,16 @@ impl<M: PartStep> StructurePart<M> {
         }
     }
 
-    /// Back to rest.
+    /// Back to rest, every spring or story virgin.
     pub fn reset(&mut self) {
         self.model.back_to_rest();
         self.started = false;
     }
 }
 
-/// An N-DOF integrator whose physical part acts at one DOF: Chang's linear [`ChangN`] or the
-/// yielding [`NonlinearFrame`].
-pub trait FloorIntegrator {
+/// An N-DOF integrator driven by the physical part's force at each DOF: Chang's linear [`ChangN`]
+/// or the yielding [`NonlinearFrame`] ([`AtSpecimenDof`] puts the specimen at one of them).
+pub trait DofIntegrator {
     /// Number of DOFs.
     fn dofs(&self) -> usize;
     /// The displacement of the next step, mm.
@@ -219,7 +231,7 @@ pub trait FloorIntegrator {
     fn reset(&mut self, ag_mm_s2: f64);
 }
 
-impl FloorIntegrator for ChangN {
+impl DofIntegrator for ChangN {
     fn dofs(&self) -> usize {
         self.model().dofs()
     }
@@ -236,7 +248,7 @@ impl FloorIntegrator for ChangN {
     }
 }
 
-impl FloorIntegrator for NonlinearFrame {
+impl DofIntegrator for NonlinearFrame {
     fn dofs(&self) -> usize {
         NonlinearFrame::dofs(self)
     }
@@ -261,14 +273,10 @@ pub struct AtSpecimenDof<I> {
     dof: usize,
 }
 
-impl<I: FloorIntegrator> AtSpecimenDof<I> {
+impl<I: DofIntegrator> AtSpecimenDof<I> {
     /// `integrator` with the specimen at `specimen_dof` (0-based).
     fn new(integrator: I, specimen_dof: usize) -> Result<Self, ParamError> {
-        if specimen_dof >= integrator.dofs() {
-            return Err(ParamError::OutOfRange(
-                "specimen DOF (beyond the structure)",
-            ));
-        }
+        specimen_dof_within(specimen_dof, integrator.dofs())?;
         Ok(Self {
             integrator,
             dof: specimen_dof,
@@ -296,7 +304,7 @@ impl<I: FloorIntegrator> AtSpecimenDof<I> {
     }
 }
 
-impl<I: FloorIntegrator> PartStep for AtSpecimenDof<I> {
+impl<I: DofIntegrator> PartStep for AtSpecimenDof<I> {
     fn rest_under(&mut self, ag_mm_s2: f64) -> f64 {
         self.integrator.reset(ag_mm_s2);
         self.target_mm()
@@ -323,6 +331,8 @@ pub type StructureFe = StructurePart<AtSpecimenDof<ChangN>>;
 impl StructureFe {
     /// `model` at step `dt_s`, the specimen at `specimen_dof` (0-based), at rest.
     pub fn new(model: StructureN, specimen_dof: usize, dt_s: f64) -> Result<Self, ParamError> {
+        // The DOF first: a bad DOF is the error whatever the step.
+        specimen_dof_within(specimen_dof, model.dofs())?;
         Ok(Self::at_rest(AtSpecimenDof::new(
             ChangN::new(model, dt_s)?,
             specimen_dof,

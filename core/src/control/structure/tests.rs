@@ -310,6 +310,19 @@ fn a_yielding_spec_is_not_a_linear_one_and_bad_specs_are_refused() {
         ..linear_spec()
     };
     assert!(beyond.linear(DT_S).is_err());
+    // A DOF past the structure is the error whatever else is wrong (a step of 0 here), for both
+    // FE parts.
+    let dof_error = Err(ParamError::OutOfRange(
+        "specimen DOF (beyond the structure)",
+    ));
+    let model = linear_spec().numerical().unwrap();
+    assert_eq!(StructureFe::new(model, 3, 0.0).map(|_| ()), dof_error);
+    let laws = yielding_spec().story_laws().unwrap();
+    let frame = yielding_spec().numerical().unwrap();
+    assert_eq!(
+        StructureNl::build(frame, &laws, 3, DT_S).map(|_| ()),
+        dof_error
+    );
     let short = StructureSpec {
         mass: &MASS[..8],
         ..linear_spec()
