@@ -89,6 +89,9 @@ pub struct TimeHistory {
     pub interface_mm: Vec<f64>,
     /// Each output's displacement, mm, in the file's order.
     pub outputs: Vec<(OutputDof, Vec<f64>)>,
+    /// Each row's 1-based line in the file it was read from (of a recorder directory, in the
+    /// interface's file); empty for a history made in memory. For errors found after reading.
+    pub row_line: Vec<usize>,
 }
 
 impl TimeHistory {
@@ -108,6 +111,19 @@ impl TimeHistory {
             .iter()
             .find(|(d, _)| *d == dof)
             .map(|(_, v)| v.as_slice())
+    }
+
+    /// Where row `k` (0-based) was read: `FILE: line L` (the CSV, or the interface's recorder
+    /// file), or `FILE: data row k+1` for a history made in memory.
+    pub fn row_at(&self, k: usize) -> String {
+        match self.row_line.get(k) {
+            Some(line) if self.source.is_dir() => format!(
+                "{}: line {line}",
+                self.source.join(RECORDER_FILES[2]).display()
+            ),
+            Some(line) => format!("{}: line {line}", self.source.display()),
+            None => format!("{}: data row {}", self.source.display(), k + 1),
+        }
     }
 }
 
@@ -139,6 +155,15 @@ pub enum HistoryError {
         what: String,
         /// The limit.
         limit: usize,
+    },
+    /// Nothing in the file but blank lines.
+    #[error(
+        "{file}: empty (a history file holds a header, time_s,ground_accel_mm_s2,\
+         specimen_force_kn,interface_mm, then out_<NODE>_<DOF>_mm per output, and a row a step)"
+    )]
+    Empty {
+        /// The file.
+        file: PathBuf,
     },
     /// No header, or a header without one of [`CSV_COLUMNS`] in its place.
     #[error(
@@ -389,7 +414,8 @@ fn uniform_step(
         "time history",
         dt,
         run_dt_s,
-        "the FE run at the controller's step",
+        // The shipped writer of OpenSees runs; another FE program's run at that step serves too.
+        &format!("scripts/opensees/write_histories.py MODEL.py ... --dt {run_dt_s}"),
     )
     .map_err(|source| HistoryError::OtherRate {
         file: file.to_path_buf(),
@@ -401,10 +427,12 @@ fn uniform_step(
 /// Parse a history CSV (`text` of `file`), sampled at the controller's step `run_dt_s`.
 pub fn parse_csv(text: &str, file: &Path, run_dt_s: f64) -> Result<TimeHistory, HistoryError> {
     let mut it = lines(text);
-    let header: Vec<&str> = it
-        .next()
-        .map(|(_, h)| h.split(',').map(str::trim).collect())
-        .unwrap_or_default();
+    let Some((_, first)) = it.next() else {
+        return Err(HistoryError::Empty {
+            file: file.to_path_buf(),
+        });
+    };
+    let header: Vec<&str> = first.split(',').map(str::trim).collect();
     for (i, want) in CSV_COLUMNS.iter().enumerate() {
         let found = header.get(i).copied().unwrap_or("");
         if found != *want {
@@ -478,6 +506,7 @@ pub fn parse_csv(text: &str, file: &Path, run_dt_s: f64) -> Result<TimeHistory, 
         specimen_force_kn,
         interface_mm,
         outputs,
+        row_line: line_of,
     })
 }
 
@@ -571,21 +600,10 @@ pub fn read_recorder_dir(
     let (times, ag, line_of, times_res) =
         (ground.time_s, ground.value, ground.line, ground.time_res_s);
     let dt_s = uniform_step(&first, &times, &times_res, &line_of, run_dt_s)?;
-    let same = |name: &str| -> Result<Vec<f64>, HistoryError> {
+    // Row by row first, so a missing or repeated row shows on its own line, then the count.
+    let same = |name: &str| -> Result<(Vec<f64>, Vec<usize>), HistoryError> {
         let (file, rows) = read(name)?;
         let (t, v, l, t_res) = (rows.time_s, rows.value, rows.line, rows.time_res_s);
-        if t.len() != times.len() {
-            return Err(HistoryError::Mismatch {
-                line: l.last().copied().unwrap_or(0),
-                why: format!(
-                    "{} rows where {} has {}",
-                    t.len(),
-                    RECORDER_FILES[0],
-                    times.len()
-                ),
-                file,
-            });
-        }
         for (k, (a, b)) in t.iter().zip(&times).enumerate() {
             let allowed = STEP_TOLERANCE * dt_s
                 + t_res.get(k).copied().unwrap_or(0.0)
@@ -598,14 +616,38 @@ pub fn read_recorder_dir(
                 });
             }
         }
-        Ok(v)
+        if t.len() < times.len() {
+            return Err(HistoryError::Mismatch {
+                line: l.last().map_or(1, |last| last + 1),
+                why: format!(
+                    "the file ends after {} rows where {} has {}",
+                    t.len(),
+                    RECORDER_FILES[0],
+                    times.len()
+                ),
+                file,
+            });
+        }
+        if t.len() > times.len() {
+            return Err(HistoryError::Mismatch {
+                line: l[times.len()],
+                why: format!(
+                    "a row past the {} rows of {}",
+                    times.len(),
+                    RECORDER_FILES[0]
+                ),
+                file,
+            });
+        }
+        Ok((v, l))
     };
     let scale = |v: Vec<f64>, f: f64| v.into_iter().map(|x| x * f).collect::<Vec<_>>();
-    let specimen_force_kn = scale(same(RECORDER_FILES[1])?, units.force_to_kn);
-    let interface_mm = scale(same(RECORDER_FILES[2])?, units.length_to_mm);
+    let specimen_force_kn = scale(same(RECORDER_FILES[1])?.0, units.force_to_kn);
+    let (interface, row_line) = same(RECORDER_FILES[2])?;
+    let interface_mm = scale(interface, units.length_to_mm);
     let outputs = outputs
         .into_iter()
-        .map(|d| Ok((d, scale(same(&d.recorder_file())?, units.length_to_mm))))
+        .map(|d| Ok((d, scale(same(&d.recorder_file())?.0, units.length_to_mm))))
         .collect::<Result<Vec<_>, HistoryError>>()?;
     Ok(TimeHistory {
         source: dir.to_path_buf(),
@@ -614,6 +656,7 @@ pub fn read_recorder_dir(
         specimen_force_kn,
         interface_mm,
         outputs,
+        row_line,
     })
 }
 
@@ -675,6 +718,8 @@ mod tests {
                     (0..rows).map(|k| w(k, 0.04)).collect(),
                 ),
             ],
+            // As read back: the header on line 1, a row a line.
+            row_line: (2..rows + 2).collect(),
         }
     }
 
@@ -689,6 +734,12 @@ mod tests {
         let h = sample(300);
         let back = parse_csv(&to_csv(&h), Path::new("h.csv"), DT).unwrap();
         assert_eq!(back, h);
+        assert_eq!(back.row_at(0), "h.csv: line 2");
+        let made = TimeHistory {
+            row_line: Vec::new(),
+            ..back.clone()
+        };
+        assert_eq!(made.row_at(9), "h.csv: data row 10");
         assert_eq!(
             back.output(OutputDof { node: 3, dof: 1 }).unwrap().len(),
             300
@@ -715,11 +766,17 @@ mod tests {
         };
         let e = err(&to_csv(&h));
         assert!(e.contains("h.csv") && e.contains("runs at 2048 Hz"), "{e}");
+        assert!(e.contains("--dt 0.00048828125`"), "{e}");
         // A short row.
         let mut short = rows.clone();
         short[5] = "0.00244140625,1,2,3";
         let e = err(&(short.join("\n") + "\n"));
         assert!(e.contains("h.csv: line 6: 4 columns, expected 6"), "{e}");
+        // An empty file, or one of blank lines.
+        for empty in ["", "\n\n  \n"] {
+            let e = err(empty);
+            assert!(e.starts_with("h.csv: empty"), "{e}");
+        }
         // NaN and a non-number.
         let mut nan = rows.clone();
         let mut f: Vec<&str> = rows[9].split(',').collect();
@@ -746,7 +803,7 @@ mod tests {
         let e =
             err("time_s,ground_accel_mm_s2,specimen_force_kn,interface_mm,out_1_1_mm,out_1_1_mm\n");
         assert!(e.contains("given twice"), "{e}");
-        assert!(err("").contains("column 1 must be `time_s`"));
+        assert!(err("0,1,2,3\n").contains("column 1 must be `time_s`"));
         let e = err(&rows[..2].join("\n"));
         assert!(e.contains("1 data rows"), "{e}");
     }
@@ -790,7 +847,35 @@ mod tests {
         let e = read_recorder_dir(p, RecorderUnits::SI, DT)
             .unwrap_err()
             .to_string();
-        assert!(e.contains("out_7_1.out: line 40: 40 rows"), "{e}");
+        assert!(
+            e.contains("out_7_1.out: line 41: the file ends after 40 rows"),
+            "{e}"
+        );
+        // More rows, and an empty file.
+        let mut more = rows(1.0);
+        more.push((51.0 * DT, 0.0));
+        write("out_7_1.out", &more);
+        let e = read_recorder_dir(p, RecorderUnits::SI, DT)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("out_7_1.out: line 51: a row past the 50 rows"),
+            "{e}"
+        );
+        write("out_7_1.out", &[]);
+        let e = read_recorder_dir(p, RecorderUnits::SI, DT)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("out_7_1.out: line 1: the file ends after 0 rows"),
+            "{e}"
+        );
+        // Rows read are placed by the interface's file.
+        write("out_7_1.out", &rows(1.0));
+        let h = read_recorder_dir(p, RecorderUnits::SI, DT).unwrap();
+        assert_eq!(h.row_line.len(), 50);
+        let at = h.row_at(4);
+        assert!(at.ends_with("interface_disp.out: line 5"), "{at}");
     }
 
     #[test]
@@ -862,7 +947,10 @@ mod tests {
         let e = read_recorder_dir(p, RecorderUnits::MM_KN, DT)
             .unwrap_err()
             .to_string();
-        assert!(e.contains("interface_disp.out"), "{e}");
+        assert!(
+            e.contains(&format!("interface_disp.out: line {}: time", 50 * 2048)),
+            "{e}"
+        );
         write("interface_disp.out", None);
         write("ground_accel.out", Some(50 * 2048));
         let e = read_recorder_dir(p, RecorderUnits::MM_KN, DT)

@@ -33,6 +33,28 @@ fn source(h: &TimeHistory) -> String {
     h.source.display().to_string()
 }
 
+/// The interface is the specimen's floor: `h`'s interface column must be that floor's
+/// (`floor_mm`, its column `column`), or a mislabelled output would train the model on the wrong
+/// DOF. The refusal names the first row that differs.
+pub fn interface_is_floor(
+    h: &TimeHistory,
+    floor_mm: &[f64],
+    column: &str,
+) -> Result<(), TrainError> {
+    let peak = floor_mm.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    match floor_mm
+        .iter()
+        .zip(&h.interface_mm)
+        .position(|(a, b)| (*a - *b).abs() > 1e-6 * peak.max(1e-9))
+    {
+        Some(k) => Err(TrainError::Setting(format!(
+            "{}: interface_mm is not {column} (the specimen's floor)",
+            h.row_at(k)
+        ))),
+        None => Ok(()),
+    }
+}
+
 /// A training run from the history `h` of the story structure `s`.
 pub fn run_from_history(s: &Structure, h: &TimeHistory) -> Result<FeRun, TrainError> {
     let n = s.dofs();
@@ -56,23 +78,8 @@ pub fn run_from_history(s: &Structure, h: &TimeHistory) -> Result<FeRun, TrainEr
         })?;
         floors.push(v.to_vec());
     }
-    // The interface is the specimen's floor: the two columns must agree (a mislabelled output
-    // would otherwise train the model on the wrong DOF).
     let sd = s.specimen_dof();
-    let peak = floors[sd].iter().fold(0.0_f64, |m, v| m.max(v.abs()));
-    if let Some((k, _)) = floors[sd]
-        .iter()
-        .zip(&h.interface_mm)
-        .enumerate()
-        .find(|(_, (a, b))| (*a - *b).abs() > 1e-6 * peak.max(1e-9))
-    {
-        return Err(TrainError::Setting(format!(
-            "{}: data row {}: interface_mm is not {} (the specimen's floor)",
-            source(h),
-            k + 1,
-            floor_outputs(n)[sd].column()
-        )));
-    }
+    interface_is_floor(h, &floors[sd], &floor_outputs(n)[sd].column())?;
     let dt = h.dt_s;
     let m = s.mass();
     let c = s.damping();
@@ -229,6 +236,7 @@ fn history_of_floors(
             .zip(floor_disp_mm)
             .map(|(d, v)| (d, v.clone()))
             .collect(),
+        row_line: Vec::new(),
     }
 }
 

@@ -761,6 +761,7 @@ mod tests {
                 specimen_force_kn: vec![0.0; n],
                 interface_mm: x.clone(),
                 outputs: vec![(rths_files::history::OutputDof { node: 1, dof: 1 }, x)],
+                row_line: Vec::new(),
             };
             std::fs::write(&h.source, rths_files::history::to_csv(&h)).unwrap();
             h.source
