@@ -265,6 +265,121 @@ fn histories_are_taken_by_file_name_and_one_given_twice_is_refused() {
     );
 }
 
+/// A model learned from the histories of an elastic story file (no `hysteresis` section: the
+/// lab's yielding lives in its own FE program) runs in `rths simulate --scenario nl-pure|nl-online`,
+/// either form, through the controller's tick: the pure loop's floors are the scoring's pure loop
+/// of the same model, bit for bit, and the hybrid loop stays near it.
+#[test]
+fn a_model_of_an_elastic_story_file_runs_in_simulate_as_it_is_scored() {
+    use rths::machinery::train::nonlinear::choose::{train_form, Form, TrainedForm};
+    use rths::machinery::train::nonlinear::score::Learned;
+    use rths_files::hysteron_model_file::AnyNlModel;
+    let yielding = Structure::load(&root("data/structures/shear3-yielding.json")).unwrap();
+    let elastic = elastic_text("data/structures/shear3-yielding.json");
+    let dir = tempfile::tempdir().unwrap();
+    let structure = dir.path().join("elastic.json");
+    std::fs::write(&structure, &elastic).unwrap();
+    let paths = write_histories(
+        &yielding,
+        &[("northridge", 0.15), ("northridge", 0.45)],
+        dir.path(),
+    );
+    let modal = dir.path().join("modal.json");
+    train(&elastic, &quick(1, paths.clone()), |_, _, _| {})
+        .unwrap()
+        .file
+        .save(&modal)
+        .unwrap();
+    let hysteron = dir.path().join("hysteron.json");
+    let mut cfg = NlTrainConfig::new(1).unwrap();
+    cfg.histories = paths;
+    cfg.refine.max_iterations = 0;
+    let (trained, _) = train_form(&elastic, &cfg, Form::Hysteron, |_, _, _| {}).unwrap();
+    let TrainedForm::Hysteron(file) = trained else {
+        panic!("--form floor-hysteron trains that form");
+    };
+    file.save(&hysteron).unwrap();
+    let ag = GroundMotion::try_el_centro()
+        .unwrap()
+        .scaled(1.5)
+        .resample_mm_s2(DT_S);
+    let interface = |csv: &Path| -> Vec<f64> {
+        let text = std::fs::read_to_string(csv).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(
+            lines.next(),
+            Some("time_s,interface_mm,out_1_1_mm,out_2_1_mm,out_3_1_mm")
+        );
+        lines
+            .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+            .collect()
+    };
+    for model in [&modal, &hysteron] {
+        let run = |scenario: &str| {
+            let out = dir.path().join(scenario);
+            let o = Command::new(env!("CARGO_BIN_EXE_rths"))
+                .args(["simulate", "--structure"])
+                .arg(&structure)
+                .args(["--scenario", scenario, "--model"])
+                .arg(model)
+                .args(["--motion", "el-centro", "--scale", "1.5", "--out"])
+                .arg(&out)
+                .output()
+                .unwrap();
+            let stdout = String::from_utf8_lossy(&o.stdout);
+            assert!(
+                o.status.success() && stdout.contains("story structure elastic-twin"),
+                "{stdout}{}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+            assert!(stdout.contains("stable              yes"), "{stdout}");
+            interface(&out.join("history.csv"))
+        };
+        let any = AnyNlModel::load(model).unwrap();
+        let learned = Learned::of(&any, DT_S).unwrap();
+        let k_e = yielding.specimen().1;
+        let expected = learned.pure_loop(k_e, &ag).unwrap();
+        let pure = run("nl-pure");
+        let n = pure.len().min(expected[0].len());
+        assert!(n > ag.len() / 2, "{n} of {}", ag.len());
+        assert_eq!(pure[..n], expected[0][..n], "{}", learned.form());
+        let online = run("nl-online");
+        let e = rths_core::metrics::nrmse_pct(&online[..n], &pure[..n]).unwrap();
+        assert!(e < 2.0, "{}: hybrid against pure {e}%", learned.form());
+    }
+    // A floor-hysteron file whose elastic floors are not the structure's (an edit, a corruption)
+    // is refused naming the field, though its checksum is the structure's.
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&hysteron).unwrap()).unwrap();
+    v["mass"][0][0] = serde_json::json!(1e300);
+    let edited = dir.path().join("edited.json");
+    std::fs::write(&edited, v.to_string()).unwrap();
+    for args in [
+        vec!["simulate", "--scenario", "nl-pure", "--motion", "el-centro"],
+        vec!["train", "nonlinear", "--evaluate", "--histories"],
+    ] {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_rths"));
+        c.args(&args);
+        if args[0] == "train" {
+            c.arg(dir.path().join("northridge-0.45.csv")).arg("--out");
+        } else {
+            c.arg("--model");
+        }
+        let o = c
+            .arg(&edited)
+            .arg("--structure")
+            .arg(&structure)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?}");
+        assert!(
+            err.contains("edited.json") && err.contains("the model's mass is not the structure"),
+            "{args:?}: {err}"
+        );
+    }
+}
+
 #[test]
 fn a_bad_history_is_refused_naming_the_file_and_the_line() {
     let dir = tempfile::tempdir().unwrap();

@@ -179,9 +179,10 @@ fn bad_input_is_refused_with_the_reason() {
         &["simulate", "--structure", s3, "--scenario", "lr-online"],
         "lr-online and lrx-online the paper's frame",
     );
+    // A story file without laws runs the lab's learned model, which must be given.
     refused(
         &["simulate", "--structure", paper, "--scenario", "nl-online"],
-        "need yielding stories",
+        "nl-online needs the structure's learned model: --model M.json",
     );
     refused(
         &["simulate", "--structure", y, "--scenario", "rnn-pure-10"],

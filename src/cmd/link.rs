@@ -730,6 +730,13 @@ fn upload_part(
         }
         return Ok(None);
     }
+    if let (Some(m), Some(s)) = (model, structure) {
+        if rths_files::upload::is_self_contained(m) {
+            let text = std::fs::read_to_string(s)
+                .with_context(|| format!("reading structure file {}", s.display()))?;
+            crate::machinery::train::nonlinear::floors::check_model_file_elastic(m, &text)?;
+        }
+    }
     let laid = rths_files::upload::lay_out_files(model, structure, rths_core::params::DT_S)?;
     let c = link
         .upload_laid_out(&laid)
@@ -780,7 +787,7 @@ fn budget_figures_laid(laid: &rths_files::upload::LaidOut, with_rig: bool) -> St
 }
 
 fn upload_model(link: &mut Link, p: &std::path::Path) -> anyhow::Result<()> {
-    let m = ModelFile::load(p)?;
+    let m = ModelFile::load(p).with_context(|| format!("model {}", p.display()))?;
     let c = link
         .upload(&m)
         .map_err(|e| with_budget_reason(e, || tick_budget_reason(&m)))?;

@@ -16,8 +16,8 @@ pub mod robustness;
 pub mod simulate;
 pub mod simulate_args;
 pub mod simulate_imported;
-pub mod simulate_imported_nl;
 pub mod simulate_imported_online;
+pub mod simulate_nl_floors;
 pub mod site;
 pub mod train;
 

@@ -235,6 +235,16 @@ fn run_structure(
         return Err(refuse("--drift"));
     }
     let sc = args.scenario;
+    // A story file without laws: its yielding is the lab's, learned from the lab's runs; the
+    // model runs through its floors as an imported structure's does (no reference here).
+    if matches!(sc, SimScenario::NlPure | SimScenario::NlOnline) && structure.story_laws().is_none()
+    {
+        let path = args
+            .structure
+            .as_deref()
+            .unwrap_or(std::path::Path::new(""));
+        return crate::cmd::simulate_nl_floors::run(args, path, structure_json, ag, motion_label);
+    }
     nl::check_applies(sc, &structure)?;
     let uses_model = matches!(
         sc,
@@ -306,6 +316,9 @@ fn run_structure(
         }
         _ => None,
     };
+    if let (SimScenario::NlPure | SimScenario::NlOnline, Some(p)) = (sc, args.model.as_deref()) {
+        crate::machinery::train::nonlinear::floors::check_model_file_elastic(p, structure_json)?;
+    }
     let learned = match sc {
         SimScenario::NlPure | SimScenario::NlOnline => {
             Some(crate::machinery::structure::model::for_structure(

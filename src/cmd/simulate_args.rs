@@ -32,9 +32,11 @@ pub struct Args {
     /// specimen of the sweep within the actuator's velocity interlock).
     #[arg(long, default_value_t = 1.0, value_name = "F")]
     pub scale: f64,
-    /// Model file (LR, RNN or LRX) for metamodel scenarios. Default: the shipped
+    /// Model file for metamodel scenarios: LR, RNN or LRX (default: the shipped
     /// `data/models/lr.json`, `data/models/rnn-H.json` (H = 5, 10, 20) or `data/models/lrx.json`,
-    /// compiled into the binary.
+    /// compiled into the binary); with --structure, the nonlinear model of nl-pure and nl-online
+    /// (`rths train nonlinear`) or the reduced model of meta-pure and meta-online (`rths train
+    /// meta`).
     #[arg(long, value_name = "MODEL.json")]
     pub model: Option<PathBuf>,
     /// Plant preset.
@@ -82,7 +84,9 @@ fn scenario_help() -> String {
         .collect();
     format!(
         "Scenario: {} (rnn-pure-H / rnn-online-H for another hidden size H); with --structure: {}; \
-         with an imported structure: fe-pure, fe-online-ats, meta-pure, meta-online",
+         with an imported structure: fe-pure, fe-online-ats, meta-pure, meta-online, nl-pure, \
+         nl-online (nl-pure and nl-online of a structure whose yielding rths does not model, an \
+         imported one or a story file without laws: the lab's learned model, no reference)",
         study.join(", "),
         structure.join(", ")
     )

@@ -1,7 +1,6 @@
 //! `rths simulate --structure S.json` for an imported structure (`rths import opensees`):
 //! `fe-pure`, the host FE of the whole model coupled with the numerical stand-in specimen.
 
-use std::io::IsTerminal as _;
 use std::path::Path;
 use std::time::Instant;
 
@@ -53,7 +52,7 @@ pub fn run(
 ) -> anyhow::Result<()> {
     let sc = args.scenario;
     if matches!(sc, SimScenario::NlPure | SimScenario::NlOnline) {
-        return crate::cmd::simulate_imported_nl::run(args, path, text, ag_mm_s2, motion_label);
+        return crate::cmd::simulate_nl_floors::run(args, path, text, ag_mm_s2, motion_label);
     }
     if matches!(
         sc,
@@ -112,17 +111,11 @@ pub fn run(
         ),
         _ => None,
     };
-    let bar = if std::io::stderr().is_terminal() && !args.json {
-        let b = indicatif::ProgressBar::new(ag_mm_s2.len() as u64);
-        if let Ok(style) =
-            indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} steps [{elapsed}]")
-        {
-            b.set_style(style);
-        }
-        b
-    } else {
-        indicatif::ProgressBar::hidden()
-    };
+    let bar = crate::machinery::progress::styled(
+        ag_mm_s2.len() as u64,
+        "{bar:30} {pos}/{len} steps [{elapsed}]",
+        args.json,
+    );
     let start = Instant::now();
     let history = fe::run_pure(&s, ag_mm_s2, DT_S, |k| bar.set_position(k as u64))
         .with_context(|| format!("the host FE of {}", path.display()))?;

@@ -1,20 +1,20 @@
-//! `rths simulate --structure S.json --scenario nl-pure|nl-online --model M.json` for an imported
-//! structure (a lab's nonlinear OpenSees model, exported elastic): its learned floor-hysteron model
-//! in core's controller, alone with the numerical stand-in specimen (`nl-pure`), or in the hybrid
-//! loop on the virtual rig with the rig's identified lead and force correction (`nl-online`).
-//! Writes `DIR/history.csv` (`time_s`, `interface_mm`, one `out_<NODE>_<DOF>_mm` per floor of the
-//! model). The rths host FE of an imported structure is linear, so these runs have no reference
-//! here: they are scored against the lab's own runs by `rths train nonlinear --evaluate
-//! --histories H... [--hybrid]` (docs/opensees-nonlinear.md).
+//! `rths simulate --structure S.json --scenario nl-pure|nl-online --model M.json` for a structure
+//! whose yielding rths does not model: an imported one (a lab's nonlinear OpenSees model, exported
+//! elastic) or an elastic story file (no `hysteresis` section), its model trained on the lab's
+//! runs. The learned model (either form) runs in core's controller, alone with the numerical
+//! stand-in specimen (`nl-pure`), or in the hybrid loop on the virtual rig with the rig's
+//! identified lead and force correction (`nl-online`). Writes `DIR/history.csv` (`time_s`,
+//! `interface_mm`, one `out_<NODE>_<DOF>_mm` per floor of the model). rths has no yielding FE of
+//! these structures, so these runs have no reference here: they are scored against the lab's own
+//! runs by `rths train nonlinear --evaluate --histories H... [--hybrid]`
+//! (docs/opensees-nonlinear.md).
 
 use std::ops::ControlFlow;
 use std::path::Path;
 
 use anyhow::Context;
 use rths_core::compensator::Compensator;
-use rths_core::control::{
-    Analytical, ControlConfig, Controller, FeedbackSource, StructureHysteron,
-};
+use rths_core::control::{Analytical, ControlConfig, Controller, FeedbackSource};
 use rths_core::params::{Prototype, SpecimenScale, DT_S};
 use rths_core::supervisor::Limits;
 use rths_files::hysteron_model_file::AnyNlModel;
@@ -29,7 +29,8 @@ use crate::machinery::train::nonlinear::score::Learned;
 use crate::studies::nonlinear::held_out::{run_hybrid, HybridRig};
 use crate::studies::nonlinear::scenario::SimScenario;
 
-/// Run `nl-pure` or `nl-online` of the imported structure `text` (at `path`) under `ag`.
+/// Run `nl-pure` or `nl-online` of the structure `text` (at `path`: imported, or an elastic story
+/// file) under `ag`.
 pub fn run(
     args: &Args,
     path: &Path,
@@ -53,31 +54,29 @@ pub fn run(
         any.dt_s(),
         DT_S,
         "rths train nonlinear --structure S.json --histories ... --out FILE",
-    )?;
-    let AnyNlModel::Hysteron(file) = &any else {
-        anyhow::bail!(
-            "model {}: an imported structure runs a floor-hysteron model",
-            mp.display()
-        );
-    };
-    let p = file.params(DT_S)?;
+    )
+    .with_context(|| format!("model {}", mp.display()))?;
+    crate::machinery::train::nonlinear::floors::check_model_elastic(&any, text)
+        .with_context(|| format!("model {} refused", mp.display()))?;
+    let model = Learned::of(&any, DT_S).with_context(|| format!("model {}", mp.display()))?;
     let fm = FloorModel::from_json(text)?;
-    let k_e = p.specimen_k_kn_per_mm();
-    let sf = p.specimen_floor();
-    let floors = p.floors();
+    let k_e = fm.specimen_k_kn_per_mm;
+    let sf = fm.specimen_floor;
+    let floors = fm.floors();
     let mut hist = FeHistory {
         dt_s: DT_S,
-        output_columns: file.floors.clone(),
+        output_columns: fm.columns.clone(),
         interface_mm: Vec::with_capacity(ag_mm_s2.len()),
         outputs_mm: Vec::with_capacity(ag_mm_s2.len()),
     };
     let read = |a: &Analytical, h: &mut FeHistory| {
-        if let Analytical::StructureHysteron(m) = a {
-            let m = m.model();
-            h.interface_mm.push(m.floor_disp_mm(sf));
-            h.outputs_mm
-                .push((0..floors).map(|i| m.floor_disp_mm(i)).collect());
-        }
+        let floor: &dyn Fn(usize) -> f64 = match a {
+            Analytical::StructureHysteron(m) => &|i| m.model().floor_disp_mm(i),
+            Analytical::StructureModal(m) => &|i| m.model().floor_disp_mm(i),
+            _ => return,
+        };
+        h.interface_mm.push(floor(sf));
+        h.outputs_mm.push((0..floors).map(floor).collect());
     };
     let stopped = match sc {
         SimScenario::NlPure => {
@@ -89,11 +88,7 @@ pub fn run(
                 },
                 Limits::unbounded(),
             )?;
-            let mut ctl = Controller::new(
-                config,
-                Analytical::StructureHysteron(StructureHysteron::new(p)),
-                Compensator::None,
-            );
+            let mut ctl = Controller::new(config, model.analytical(), Compensator::None);
             drive::run::<VirtualRig>(&mut ctl, None, ag_mm_s2, None, DT_S, |st, ctl, _| {
                 read(ctl.analytical(), &mut hist);
                 if st.out.target_mm.is_finite() {
@@ -110,9 +105,9 @@ pub fn run(
                 PresetArg::UnrCompact => Preset::UnrCompact,
             };
             let rig = HybridRig::identified(&fm.name, preset, args.seed)?;
-            let (online, stop, _) = run_hybrid(&Learned::Hysteron(p), k_e, ag_mm_s2, &rig)?;
+            let (online, stop, _) = run_hybrid(&model, k_e, ag_mm_s2, &rig)?;
             hist = FeHistory {
-                output_columns: file.floors.clone(),
+                output_columns: fm.columns.clone(),
                 ..online
             };
             stop
@@ -126,12 +121,17 @@ pub fn run(
             .with_context(|| format!("writing {}", csv.display()))?;
     }
     let peak = |v: &[f64]| v.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+    let size = match &model {
+        Learned::Hysteron(p) => format!("{} hysterons", p.hysterons().len()),
+        Learned::Modal(p) => format!("{} springs", p.springs()),
+    };
     crate::outln!(
-        "scenario            {sc} ({motion_label}, imported structure {}, floor-hysteron model {}: \
-         {floors} floors, {} hysterons)",
+        "scenario            {sc} ({motion_label}, {} structure {}, {} model {}: {floors} floors, \
+         {size})",
+        if fm.stories { "story" } else { "imported" },
         fm.name,
+        model.form(),
         mp.display(),
-        p.hysterons().len()
     );
     match &stopped {
         Some(why) => crate::outln!("stable              no: stopped ({why})"),

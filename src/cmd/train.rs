@@ -86,7 +86,8 @@ pub struct Args {
     /// Feedback delay, controller steps.
     #[arg(long, default_value_t = rths_core::params::PAPER_DELAY_STEPS)]
     pub delay_steps: usize,
-    /// RNN initial-weight seed.
+    /// Seed: the RNN's initial weights; nonlinear, the springs' random start (modal-hysteretic)
+    /// and the free fit's search (`--free-fit`). The same seed and inputs give the same bytes.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// RNN maximum epochs of fine-tuning/training (the help's defaults: [`epochs_help`]).
@@ -208,8 +209,11 @@ pub struct Args {
     /// structure's DOFs with mass.
     #[arg(long, value_name = "R")]
     pub modes: Option<usize>,
-    /// Nonlinear: do not train; evaluate the model file at --out against the FE reference on the
-    /// scoring records (El Centro, Kobe, Morgan Hill) at peak ductility 0.8, 2 and 4.5 (pure loop).
+    /// Nonlinear: do not train; evaluate the model file at --out. With --histories, against
+    /// those held-out runs of the lab's FE program (e.g. OpenSees's own run of a record the
+    /// training never read): interface NRMSE and residual drift per run, the pure loop (and the
+    /// hybrid loop with --hybrid). Without, against the structure's own yielding FE on the
+    /// scoring records (El Centro, Kobe, Morgan Hill) at peak ductility 0.8, 2 and 4.5.
     #[arg(long)]
     pub evaluate: bool,
     /// Output model file (JSON).
@@ -636,17 +640,11 @@ fn train_nonlinear(args: &Args) -> anyhow::Result<()> {
         NlLawArg::Bilinear => vec![SpringLaw::Bilinear],
         NlLawArg::BoucWen => vec![SpringLaw::BoucWen],
     };
-    let bar = if args.quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        indicatif::ProgressBar::new(0)
-    };
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:40}] {pos}/{len} (modal-hysteretic: generations of stage 1 \
-             per spring, then stage 2; floor-hysteron: refinement steps) {msg}",
-        )
-        .context("progress bar template")?,
+    let bar = crate::machinery::progress::styled(
+        0,
+        "{elapsed_precise} [{bar:40}] {pos}/{len} (modal-hysteretic: generations of stage 1 per \
+         spring, then stage 2; floor-hysteron: refinement steps) {msg}",
+        args.quiet,
     );
     let form = match args.form {
         NlFormArg::Auto => Form::Auto,
@@ -776,10 +774,15 @@ fn report_hysteron(
             .fold(None, |m: Option<f64>, l| Some(m.map_or(l, |m| m.min(l))))
             .map(|l| ((), l))
             .map_or(f64::NAN, |(_, l)| l);
+        let judged_on = if t.validation_loss_pct.is_some() {
+            "validation"
+        } else {
+            "training (no validation histories: fewer than 3 given)"
+        };
         crate::outln!(
             "  basis chosen among {} (operator, threshold range) after least squares on the \
-             validation histories (the best play {play:.3}%, the best {best:.3}%), then the {} \
-             best refined and the lowest validation loss kept",
+             {judged_on} histories (the best play {play:.3}%, the best {best:.3}%), then the {} \
+             best refined and the lowest loss there kept",
             t.operators_tried.len(),
             crate::machinery::train::nonlinear::choose::REFINED_CANDIDATES
         );
@@ -841,16 +844,8 @@ fn train_reduced(args: &Args, path: &std::path::Path, text: &str) -> anyhow::Res
     );
     let dt_s = rths_core::params::dt_s(rate);
     let records = reduced::training_records(dt_s)?;
-    let bar = if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
-        indicatif::ProgressBar::new(1)
-    } else {
-        indicatif::ProgressBar::hidden()
-    };
-    if let Ok(style) =
-        indicatif::ProgressStyle::with_template("{msg:40} {bar:30} {pos}/{len} [{elapsed}]")
-    {
-        bar.set_style(style);
-    }
+    let bar =
+        crate::machinery::progress::styled(1, "{msg:40} {bar:30} {pos}/{len} [{elapsed}]", false);
     let start = std::time::Instant::now();
     let choice = args
         .modes
@@ -919,9 +914,12 @@ const NL_SCORING_DUCTILITIES: [f64; 3] = [0.8, 2.0, 4.5];
 fn evaluate_nonlinear(args: &Args, path: &std::path::Path, text: &str) -> anyhow::Result<()> {
     use rayon::prelude::*;
     use rths_files::hysteron_model_file::AnyNlModel;
-    let any = AnyNlModel::load(&args.out)?;
-    any.check_structure(text)
-        .with_context(|| format!("model {} for {}", args.out.display(), path.display()))?;
+    let any =
+        AnyNlModel::load(&args.out).with_context(|| format!("model {}", args.out.display()))?;
+    let for_structure = || format!("model {} for {}", args.out.display(), path.display());
+    any.check_structure(text).with_context(for_structure)?;
+    crate::machinery::train::nonlinear::floors::check_model_elastic(&any, text)
+        .with_context(for_structure)?;
     let imported = crate::machinery::imported::file::is_imported(text);
     let modal_story = matches!(any, AnyNlModel::Modal(_)) && !imported && !args.hybrid;
     if !modal_story {
@@ -1055,7 +1053,7 @@ fn evaluate_floors(
         (1.0 / DT_S).round(),
         fm.columns[fm.specimen_floor]
     );
-    crate::outln!("| run | peak interface (mm) | pure NRMSE (%) | pure floors (%) | pure residual error (%) | hybrid NRMSE, measured (%) | hybrid NRMSE, model (%) | hybrid residual error (%) | hybrid / pure | L |");
+    crate::outln!("| run | peak interface (mm) | pure NRMSE (%) | pure floors (%) | pure residual error (%) | hybrid NRMSE, measured (%) | hybrid NRMSE, model (%) | hybrid residual error (%) | hybrid / pure | length scale |");
     crate::outln!("|---|---|---|---|---|---|---|---|---|---|");
     let f = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.3}"));
     // Where judged, the story and both residuals too: an error of 100 % is a model at rest at 0

@@ -275,17 +275,7 @@ pub fn rnn_config(cfg: &StudyConfig, hidden: usize) -> rnn::RnnConfig {
 /// One progress bar for the whole study (hidden with `quiet` or when stderr is not a terminal):
 /// the runs are parallel, so per-run bars would overwrite each other.
 fn study_progress(cfg: &StudyConfig, units: u64) -> indicatif::ProgressBar {
-    use std::io::IsTerminal as _;
-    if cfg.quiet || !std::io::stderr().is_terminal() {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::new(units);
-    if let Ok(style) =
-        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed}]")
-    {
-        bar.set_style(style);
-    }
-    bar
+    crate::machinery::progress::styled(units, "{bar:30} {pos}/{len} {msg} [{elapsed}]", cfg.quiet)
 }
 
 /// Train the study's RNNs (in parallel, returned in `cfg.rnn_hidden` order).

@@ -762,7 +762,9 @@ pub fn check_applies(sc: SimScenario, structure: &Structure) -> anyhow::Result<(
     }
     anyhow::bail!(
         "scenario {sc} does not apply to structure {}: with --structure, nl-pure and nl-online \
-         need yielding stories (a hysteresis section), lr-online and lrx-online the paper's \
+         are scored here against the structure's own yielding FE, which needs yielding stories \
+         (a hysteresis section; the learned model of a structure without them runs in `rths \
+         simulate` and is scored by `rths train nonlinear --evaluate --histories`), lr-online and lrx-online the paper's \
          frame (their shipped models are of that frame), fe-pure, fe-online-ats and \
          fe-online-lead run any \
          structure, meta-pure and meta-online an imported one (`rths import opensees`), and the \

@@ -336,17 +336,11 @@ fn run_job(
 
 /// One progress bar (hidden with `quiet` or when stderr is not a terminal).
 fn progress(quiet: bool, units: u64) -> indicatif::ProgressBar {
-    use std::io::IsTerminal as _;
-    if quiet || !std::io::stderr().is_terminal() {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::new(units);
-    if let Ok(style) = indicatif::ProgressStyle::with_template(
+    crate::machinery::progress::styled(
+        units,
         "{bar:30} {pos}/{len} draws × specimens [{elapsed}]",
-    ) {
-        bar.set_style(style);
-    }
-    bar
+        quiet,
+    )
 }
 
 /// A lead filter that passes its input through (weight 1 on the newest tap).

@@ -17,6 +17,7 @@ use std::path::Path;
 
 use nalgebra::{DMatrix, DVector};
 use rths_files::history::{RecorderUnits, TimeHistory};
+use rths_files::hysteron_model_file::{AnyNlModel, HysteronModelFile};
 use rths_files::structure_file::{Structure, StructureFile};
 
 use crate::machinery::imported::file::{is_imported, ImportedFile};
@@ -75,10 +76,93 @@ impl Reduction {
     }
 }
 
+/// How far a model file's elastic floors may be from the structure's, relative to their norm:
+/// the same code derives both, so they agree to rounding; an edit or a corruption does not.
+pub const ELASTIC_MATCH_TOLERANCE: f64 = 1e-6;
+
+/// Refuse the model `any` unless its elastic floors are the structure file `structure_json`'s
+/// ([`FloorModel::check_elastic`]; a modal-hysteretic model's modes are its structure's by its
+/// checksum and the core's checks).
+pub fn check_model_elastic(any: &AnyNlModel, structure_json: &str) -> Result<(), TrainError> {
+    match any {
+        AnyNlModel::Hysteron(h) => FloorModel::from_json(structure_json)?.check_elastic(h),
+        AnyNlModel::Modal(_) => Ok(()),
+    }
+}
+
+/// [`check_model_elastic`] of the nonlinear model file at `model` for the structure file whose
+/// text is `structure_json`, the refusal naming the model file.
+pub fn check_model_file_elastic(model: &Path, structure_json: &str) -> anyhow::Result<()> {
+    use anyhow::Context;
+    let any = AnyNlModel::load(model).with_context(|| format!("model {}", model.display()))?;
+    check_model_elastic(&any, structure_json)
+        .with_context(|| format!("model {} refused", model.display()))
+}
+
 impl FloorModel {
     /// Number of floors.
     pub fn floors(&self) -> usize {
         self.columns.len()
+    }
+
+    /// Refuse the floor-hysteron model `file` unless its elastic floors are this structure's:
+    /// the floors, the specimen, the mass and the ground mass as they are, the stiffness and the
+    /// damping times the scales its refinement recorded. The checksum ties a model to its
+    /// structure file; this ties the numbers in the model to it too, so a corrupted or
+    /// hand-edited file is refused naming the field rather than run as another structure.
+    pub fn check_elastic(&self, file: &HysteronModelFile) -> Result<(), TrainError> {
+        let refuse = |what: String| {
+            TrainError::Setting(format!(
+                "the model's {what} is not the structure {}'s (a model file's elastic floors are \
+                 the structure's, as trained: retrain it with `rths train nonlinear`)",
+                self.name
+            ))
+        };
+        if file.floors != self.columns {
+            return Err(refuse(format!("floors ({})", file.floors.join(", "))));
+        }
+        if file.specimen_floor != self.specimen_floor {
+            return Err(refuse("specimen floor".into()));
+        }
+        let (s_k, s_c) = file
+            .training
+            .refinement
+            .as_ref()
+            .map_or((1.0, 1.0), |r| (r.stiffness_scale, r.damping_scale));
+        let close = |a: &[f64], b: &[f64]| {
+            let d: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
+            let n: f64 = b.iter().map(|y| y * y).sum();
+            a.len() == b.len()
+                && d.sqrt() <= ELASTIC_MATCH_TOLERANCE * n.sqrt().max(f64::MIN_POSITIVE)
+        };
+        let flat = |m: &[Vec<f64>]| m.iter().flatten().copied().collect::<Vec<f64>>();
+        let mine = |m: &DMatrix<f64>, s: f64| -> Vec<f64> {
+            (0..m.nrows())
+                .flat_map(|i| (0..m.ncols()).map(move |j| s * m[(i, j)]))
+                .collect()
+        };
+        let n = self.floors();
+        let square = |m: &[Vec<f64>]| m.len() == n && m.iter().all(|r| r.len() == n);
+        for (what, theirs, ours) in [
+            ("mass", &file.mass, mine(&self.mass, 1.0)),
+            ("stiffness", &file.stiffness, mine(&self.stiffness, s_k)),
+            ("damping", &file.damping, mine(&self.damping, s_c)),
+        ] {
+            if !square(theirs) || !close(&flat(theirs), &ours) {
+                return Err(refuse(what.into()));
+            }
+        }
+        let gm: Vec<f64> = self.ground_mass.iter().copied().collect();
+        if !close(&file.ground_mass, &gm) {
+            return Err(refuse("ground mass".into()));
+        }
+        if !close(
+            &[file.specimen_stiffness_kn_per_mm],
+            &[self.specimen_k_kn_per_mm],
+        ) {
+            return Err(refuse("specimen stiffness".into()));
+        }
+        Ok(())
     }
 
     /// The elastic floors of the structure file whose text is `json` (a story file or an
@@ -345,20 +429,11 @@ pub fn run_from_history(fm: &FloorModel, h: &TimeHistory) -> Result<FloorRun, Tr
             })?;
         floors.push(v);
     }
-    let sf = &floors[fm.specimen_floor];
-    let peak = sf.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
-    if let Some((k, _)) = sf
-        .iter()
-        .zip(&h.interface_mm)
-        .enumerate()
-        .find(|(_, (a, b))| (*a - *b).abs() > 1e-6 * peak.max(1e-9))
-    {
-        return Err(TrainError::Setting(format!(
-            "{src}: data row {}: interface_mm is not {} (the specimen's floor)",
-            k + 1,
-            fm.columns[fm.specimen_floor]
-        )));
-    }
+    super::histories::interface_is_floor(
+        h,
+        &floors[fm.specimen_floor],
+        &fm.columns[fm.specimen_floor],
+    )?;
     Ok(FloorRun {
         label: h
             .source

@@ -2,7 +2,6 @@
 //! step, backward pass here), Adam steps on the training windows, validation on the held-out ones,
 //! early stopping, and the progress bar; plus the model file of a run.
 
-use std::io::IsTerminal;
 use std::time::Instant;
 
 use rths_core::metrics::nrmse_pct;
@@ -224,16 +223,11 @@ fn teacher_forced(resp: &TrainingResponse, delay: usize) -> (Vec<[f64; N_IN]>, V
 }
 
 fn progress(epochs: usize, quiet: bool) -> indicatif::ProgressBar {
-    if quiet || !std::io::stderr().is_terminal() {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::new(epochs as u64);
-    if let Ok(style) =
-        indicatif::ProgressStyle::with_template("{bar:30} epoch {pos}/{len} {msg} [{elapsed}]")
-    {
-        bar.set_style(style);
-    }
-    bar
+    crate::machinery::progress::styled(
+        epochs as u64,
+        "{bar:30} epoch {pos}/{len} {msg} [{elapsed}]",
+        quiet,
+    )
 }
 
 /// Train an RNN on the pure response (phase 1, teacher forcing) and score it.
