@@ -90,11 +90,14 @@ pub fn check_model_elastic(any: &AnyNlModel, structure_json: &str) -> Result<(),
     }
 }
 
-/// [`check_model_elastic`] of the nonlinear model file at `model` for the structure file whose
-/// text is `structure_json`, the refusal naming the model file.
+/// The nonlinear model file at `model` refused unless it was trained for the structure file
+/// whose text is `structure_json` (name and checksum first, so another structure's model says so)
+/// and its elastic floors are that structure's ([`check_model_elastic`]), naming the model file.
 pub fn check_model_file_elastic(model: &Path, structure_json: &str) -> anyhow::Result<()> {
     use anyhow::Context;
     let any = AnyNlModel::load(model).with_context(|| format!("model {}", model.display()))?;
+    any.check_structure(structure_json)
+        .with_context(|| format!("model {} refused", model.display()))?;
     check_model_elastic(&any, structure_json)
         .with_context(|| format!("model {} refused", model.display()))
 }
