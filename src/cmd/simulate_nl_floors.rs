@@ -56,10 +56,13 @@ pub fn run(
         "rths train nonlinear --structure S.json --histories ... --out FILE",
     )
     .with_context(|| format!("model {}", mp.display()))?;
-    crate::machinery::train::nonlinear::floors::check_model_elastic(&any, text)
-        .with_context(|| format!("model {} refused", mp.display()))?;
-    let model = Learned::of(&any, DT_S).with_context(|| format!("model {}", mp.display()))?;
+    // The structure's floors, once: the model's elastic floors must be them.
     let fm = FloorModel::from_json(text)?;
+    if let AnyNlModel::Hysteron(h) = &any {
+        fm.check_elastic(h)
+            .with_context(|| format!("model {} refused", mp.display()))?;
+    }
+    let model = Learned::of(&any, DT_S).with_context(|| format!("model {}", mp.display()))?;
     let k_e = fm.specimen_k_kn_per_mm;
     let sf = fm.specimen_floor;
     let floors = fm.floors();
